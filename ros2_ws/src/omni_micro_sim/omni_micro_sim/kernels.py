@@ -1,0 +1,225 @@
+"""Eqs. 1-13 of the paper as numba kernels: slip, friction, cantilever torque, rigid-body motion.
+
+State vector (inertial frame, SI): ``[x, y, phi, vx, vy, omega]``. Wheel k (k = 0, 1, 2 here for
+the paper's wheels 1, 2, 3) sits at body angle ``wheel1_angle + k*120 deg`` at distance L and rolls
+along the body-frame heading ``wheel_angles[k]`` = theta + xi_k.
+
+These functions are the one definition of the physics. Their ``.py_func`` attributes are the same
+code in plain Python, which the benchmark uses as the pure-Python right-hand side.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from omni_micro_sim.parameters import KERNEL_INDEX
+
+STATE_SIZE = 6
+_M = KERNEL_INDEX['mass_kg']
+_G = KERNEL_INDEX['gravity_m_s2']
+_MU_L = KERNEL_INDEX['mu_longitudinal']
+_MU_T = KERNEL_INDEX['mu_transverse']
+_P = KERNEL_INDEX['friction_steepness_s_m']
+_L = KERNEL_INDEX['wheel_distance_m']
+_R = KERNEL_INDEX['wheel_radius_m']
+_D1 = KERNEL_INDEX['signed_cantilever_offset_m']
+_I = KERNEL_INDEX['moment_of_inertia_kg_m2']
+_BETA1 = KERNEL_INDEX['wheel1_angle_rad']
+_DRIVE1 = KERNEL_INDEX['wheel1_drive']
+_TWO_OVER_PI = 2.0 / math.pi
+_WHEEL_SPACING = 2.0 * math.pi / 3.0
+
+
+@numba.njit(cache=True)
+def friction_coefficient(mu: float, steepness: float, slip_speed: float) -> float:
+    """Eq. 10: mu(Vs) = mu * 2/pi * atan(p*Vs)."""
+    return mu * _TWO_OVER_PI * math.atan(steepness * slip_speed)
+
+
+@numba.njit(cache=True)
+def contact_terms(state, wheel_speeds, wheel_angles, params, slip_long, slip_trans,
+                  force_x, force_y):
+    """Slip velocities (eqs. 3-9) and friction forces (eq. 11) of the three contacts.
+
+    Fills ``slip_long``/``slip_trans`` (m/s, along W_k and T_k) and the inertial friction force
+    components ``force_x``/``force_y`` (N). Returns the torque about the centre of mass (N m),
+    including the cantilever torque of wheel 1 (eq. 12), i.e. the right-hand side of eq. 13.
+    """
+    phi = state[2]
+    vx = state[3]
+    vy = state[4]
+    omega = state[5]
+    length = params[_L]
+    radius = params[_R]
+    steepness = params[_P]
+    normal_load = params[_M] * params[_G] / 3.0
+    torque = 0.0
+    for k in range(3):
+        position_angle = params[_BETA1] + k * _WHEEL_SPACING + phi
+        lever_x = length * math.cos(position_angle)
+        lever_y = length * math.sin(position_angle)
+        heading = wheel_angles[k] + phi
+        w_x = math.cos(heading)
+        w_y = math.sin(heading)
+        t_x = -w_y
+        t_y = w_x
+        # Eq. 3: contact velocity = body translation + omega x L_k + wheel spin (-r*omega_k*W_k).
+        contact_x = vx - omega * lever_y - radius * wheel_speeds[k] * w_x
+        contact_y = vy + omega * lever_x - radius * wheel_speeds[k] * w_y
+        v_long = contact_x * w_x + contact_y * w_y
+        v_trans = contact_x * t_x + contact_y * t_y
+        f_long = -normal_load * friction_coefficient(params[_MU_L], steepness, v_long)
+        f_trans = -normal_load * friction_coefficient(params[_MU_T], steepness, v_trans)
+        if k == 0 and params[_DRIVE1] == 0.0:
+            # A passive wheel rolls freely: no longitudinal slip, no longitudinal force.
+            v_long = 0.0
+            f_long = 0.0
+        slip_long[k] = v_long
+        slip_trans[k] = v_trans
+        fx = f_long * w_x + f_trans * t_x
+        fy = f_long * w_y + f_trans * t_y
+        force_x[k] = fx
+        force_y[k] = fy
+        torque += lever_x * fy - lever_y * fx
+        if k == 0:
+            # Eq. 12: T_a = d1 x F1, d1 along wheel 1's axle (it steers with the wheel).
+            d1 = params[_D1]
+            torque += d1 * t_x * fy - d1 * t_y * fx
+    return torque
+
+
+@numba.njit(cache=True)
+def state_derivative(state, wheel_speeds, wheel_angles, params, out, scratch):
+    """Eq. 13: fills ``out`` with d(state)/dt. ``scratch`` is a (4, 3) work array."""
+    force_x = scratch[2]
+    force_y = scratch[3]
+    torque = contact_terms(state, wheel_speeds, wheel_angles, params, scratch[0], scratch[1],
+                           force_x, force_y)
+    mass = params[_M]
+    out[0] = state[3]
+    out[1] = state[4]
+    out[2] = state[5]
+    out[3] = (force_x[0] + force_x[1] + force_x[2]) / mass
+    out[4] = (force_y[0] + force_y[1] + force_y[2]) / mass
+    out[5] = torque / params[_I]
+
+
+@numba.njit(cache=True)
+def speeds_at(time_s, knot_times, knot_speeds, knot_count, out):
+    """Piecewise-linear wheel speeds at ``time_s``; constant before the first/after the last knot."""
+    if time_s <= knot_times[0]:
+        for k in range(3):
+            out[k] = knot_speeds[0, k]
+        return
+    last = knot_count - 1
+    if time_s >= knot_times[last]:
+        for k in range(3):
+            out[k] = knot_speeds[last, k]
+        return
+    i = 0
+    while knot_times[i + 1] <= time_s:
+        i += 1
+    fraction = (time_s - knot_times[i]) / (knot_times[i + 1] - knot_times[i])
+    for k in range(3):
+        out[k] = knot_speeds[i, k] + fraction * (knot_speeds[i + 1, k] - knot_speeds[i, k])
+
+
+@numba.njit(cache=True)
+def _next_knot_after(time_s, knot_times, knot_count):
+    for i in range(knot_count):
+        if knot_times[i] > time_s:
+            return knot_times[i]
+    return math.inf
+
+
+@numba.njit(cache=True)
+def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angles, params,
+            max_step):
+    """Integrate ``state`` in place from ``t_from`` to ``t_to`` (move time) with classical RK4.
+
+    Steps never straddle a knot, where the wheel acceleration jumps, so each step integrates a
+    smooth right-hand side; steps are at most ``max_step`` long. Returns False if the state
+    became non-finite.
+    """
+    k1 = np.empty(STATE_SIZE)
+    k2 = np.empty(STATE_SIZE)
+    k3 = np.empty(STATE_SIZE)
+    k4 = np.empty(STATE_SIZE)
+    trial = np.empty(STATE_SIZE)
+    speeds = np.empty(3)
+    scratch = np.empty((4, 3))
+    time_s = t_from
+    while t_to - time_s > 1e-15 * max(1.0, abs(t_to)):
+        segment_end = min(_next_knot_after(time_s, knot_times, knot_count), t_to)
+        span = segment_end - time_s
+        steps = max(1, int(math.ceil(span / max_step - 1e-9)))
+        h = span / steps
+        start = time_s
+        for j in range(steps):
+            t = start + j * h
+            speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
+            state_derivative(state, speeds, wheel_angles, params, k1, scratch)
+            for q in range(STATE_SIZE):
+                trial[q] = state[q] + 0.5 * h * k1[q]
+            speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
+            state_derivative(trial, speeds, wheel_angles, params, k2, scratch)
+            for q in range(STATE_SIZE):
+                trial[q] = state[q] + 0.5 * h * k2[q]
+            state_derivative(trial, speeds, wheel_angles, params, k3, scratch)
+            for q in range(STATE_SIZE):
+                trial[q] = state[q] + h * k3[q]
+            speeds_at(t + h, knot_times, knot_speeds, knot_count, speeds)
+            state_derivative(trial, speeds, wheel_angles, params, k4, scratch)
+            for q in range(STATE_SIZE):
+                state[q] += h / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
+        for q in range(STATE_SIZE):
+            if not math.isfinite(state[q]):
+                return False
+        time_s = segment_end
+    return True
+
+
+@numba.njit(cache=True)
+def is_at_rest(state, params, rest_speed):
+    """Translation and the rotation's rim speed at the wheels both under ``rest_speed`` (m/s)."""
+    speed = math.hypot(state[3], state[4])
+    return speed < rest_speed and abs(state[5]) * params[_L] < rest_speed
+
+
+@numba.njit(cache=True)
+def settle(state, t_from, knot_times, knot_speeds, knot_count, wheel_angles, params, max_step,
+           rest_speed, max_settle_s, check_interval_s):
+    """Integrate from ``t_from`` (after the last knot) until the robot is at rest.
+
+    Returns the move time at which it was first seen at rest, or -1 if it did not come to rest
+    within ``max_settle_s``, or NaN if the state became non-finite.
+    """
+    time_s = t_from
+    while not is_at_rest(state, params, rest_speed):
+        if time_s - t_from >= max_settle_s:
+            return -1.0
+        if not advance(state, time_s, time_s + check_interval_s, knot_times, knot_speeds,
+                       knot_count, wheel_angles, params, max_step):
+            return math.nan
+        time_s += check_interval_s
+    return time_s
+
+
+@numba.njit(cache=True, parallel=True)
+def run_batch(states, knot_times, knot_speeds, knot_counts, wheel_angles, params, max_step,
+              rest_speed, max_settle_s, check_interval_s, rest_times):
+    """Open-loop moves in parallel: each row of ``states`` is advanced through its own profile
+    and settled in place; ``rest_times[i]`` gets the settle result of :func:`settle`."""
+    for i in numba.prange(states.shape[0]):
+        count = knot_counts[i]
+        end = knot_times[i, count - 1]
+        if advance(states[i], 0.0, end, knot_times[i], knot_speeds[i], count, wheel_angles[i],
+                   params[i], max_step):
+            rest_times[i] = settle(states[i], end, knot_times[i], knot_speeds[i], count,
+                                   wheel_angles[i], params[i], max_step, rest_speed,
+                                   max_settle_s, check_interval_s)
+        else:
+            rest_times[i] = math.nan

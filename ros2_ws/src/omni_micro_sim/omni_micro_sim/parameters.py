@@ -1,0 +1,185 @@
+"""The robot and its motors: one validated, immutable parameter object each, in SI units.
+
+Defaults are the paper's section 3.5 robot. Three values the paper does not state are pinned by
+its two published results (README, "Unstated parameters"): wheel 1 sits at 45 deg from the robot's
+X axis, its cantilever is on the left of its rolling direction, and the chassis radius used for
+the moment of inertia is 4.5 mm (the 9 mm chassis).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
+
+import numpy as np
+
+from omni_micro_sim.errors import ParameterError
+
+
+class CantileverSide(enum.Enum):
+    """Side of wheel 1 that carries its single-side cantilever, seen along its rolling direction."""
+
+    LEFT = 1.0
+    RIGHT = -1.0
+
+
+def require_finite(name: str, value: float) -> float:
+    """Return ``value`` as a float, or raise ParameterError naming ``name``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f'{name} must be a number, got {value!r}') from None
+    if not math.isfinite(number):
+        raise ParameterError(f'{name} must be finite, got {value!r}')
+    return number
+
+
+def require_positive(name: str, value: float) -> float:
+    number = require_finite(name, value)
+    if number <= 0.0:
+        raise ParameterError(f'{name} must be > 0, got {value!r}')
+    return number
+
+
+def require_non_negative(name: str, value: float) -> float:
+    number = require_finite(name, value)
+    if number < 0.0:
+        raise ParameterError(f'{name} must be >= 0, got {value!r}')
+    return number
+
+
+# Positions of the fields in the float64 array the numba kernels take (one place defines them).
+KERNEL_FIELDS = (
+    'mass_kg',
+    'gravity_m_s2',
+    'mu_longitudinal',
+    'mu_transverse',
+    'friction_steepness_s_m',
+    'wheel_distance_m',
+    'wheel_radius_m',
+    'signed_cantilever_offset_m',
+    'moment_of_inertia_kg_m2',
+    'wheel1_angle_rad',
+    'wheel1_drive',
+)
+KERNEL_INDEX = {name: index for index, name in enumerate(KERNEL_FIELDS)}
+
+
+@dataclass(frozen=True)
+class RobotParameters:
+    """Physical parameters of the tri-wheeled microrobot (eqs. 1-13).
+
+    Attributes
+    ----------
+    mass_kg : m, 2.8 g.
+    gravity_m_s2 : g; the weight m*g is shared equally by the three wheels (eq. 11).
+    mu_longitudinal, mu_transverse : mu_L, mu_T, 0.21 (eq. 10).
+    friction_steepness_s_m : p in mu(Vs) = mu*(2/pi)*atan(p*Vs), Vs in m/s; 1000 (eq. 10).
+    wheel_distance_m : L, from the chassis centre to each wheel centre, 4.15 mm.
+    wheel_radius_m : r, 1.65 mm.
+    cantilever_offset_m : d1, wheel 1 centre to its cantilever along the axle, 1 mm (eq. 12).
+    cantilever_side : which side of wheel 1 the cantilever is on.
+    chassis_radius_m : R in I = m*R^2/2 (eq. 13).
+    wheel1_angle_rad : where wheel 1 sits, from the robot's X axis; wheels 2 and 3 follow at
+        +120 deg and +240 deg.
+    wheel_offsets_rad : assembly offsets xi_k of the three wheels' rolling directions from the
+        common steering angle theta (section 3.5.2).
+    wheel1_active : False makes wheel 1 passive: it rolls freely, so its contact carries no
+        longitudinal force (and hence no cantilever torque); transverse friction remains.
+    """
+
+    mass_kg: float = 2.8e-3
+    gravity_m_s2: float = 9.80665
+    mu_longitudinal: float = 0.21
+    mu_transverse: float = 0.21
+    friction_steepness_s_m: float = 1000.0
+    wheel_distance_m: float = 4.15e-3
+    wheel_radius_m: float = 1.65e-3
+    cantilever_offset_m: float = 1.0e-3
+    cantilever_side: CantileverSide = CantileverSide.LEFT
+    chassis_radius_m: float = 4.5e-3
+    wheel1_angle_rad: float = math.radians(45.0)
+    wheel_offsets_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    wheel1_active: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ('mass_kg', 'gravity_m_s2', 'friction_steepness_s_m', 'wheel_distance_m',
+                     'wheel_radius_m', 'chassis_radius_m'):
+            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        for name in ('mu_longitudinal', 'mu_transverse', 'cantilever_offset_m'):
+            object.__setattr__(self, name, require_non_negative(name, getattr(self, name)))
+        object.__setattr__(
+            self, 'wheel1_angle_rad', require_finite('wheel1_angle_rad', self.wheel1_angle_rad))
+        if not isinstance(self.cantilever_side, CantileverSide):
+            try:
+                side = CantileverSide[str(self.cantilever_side).upper()]
+            except KeyError:
+                raise ParameterError(
+                    f"cantilever_side must be 'left' or 'right', got {self.cantilever_side!r}"
+                ) from None
+            object.__setattr__(self, 'cantilever_side', side)
+        offsets = tuple(self.wheel_offsets_rad)
+        if len(offsets) != 3:
+            raise ParameterError(
+                f'wheel_offsets_rad must have 3 values (one per wheel), got {offsets!r}')
+        checked = tuple(require_finite(f'wheel_offsets_rad[{k}]', value)
+                        for k, value in enumerate(offsets))
+        for k, value in enumerate(checked):
+            if abs(value) >= math.pi / 2:
+                raise ParameterError(
+                    f'wheel_offsets_rad[{k}] must be within +-90 deg, got {value!r} rad')
+        object.__setattr__(self, 'wheel_offsets_rad', checked)
+        if not isinstance(self.wheel1_active, (bool, np.bool_)):
+            raise ParameterError(f'wheel1_active must be a bool, got {self.wheel1_active!r}')
+        object.__setattr__(self, 'wheel1_active', bool(self.wheel1_active))
+
+    @property
+    def moment_of_inertia_kg_m2(self) -> float:
+        """I = m*R^2/2: the chassis is a disc and the wheels weigh much less (section 3.4)."""
+        return 0.5 * self.mass_kg * self.chassis_radius_m ** 2
+
+    @property
+    def signed_cantilever_offset_m(self) -> float:
+        return self.cantilever_side.value * self.cantilever_offset_m
+
+    @property
+    def wheel1_drive(self) -> float:
+        return 1.0 if self.wheel1_active else 0.0
+
+    def as_kernel_array(self) -> np.ndarray:
+        """The parameters in the order of :data:`KERNEL_FIELDS`, for the numba kernels."""
+        return np.array([float(getattr(self, name)) for name in KERNEL_FIELDS], dtype=np.float64)
+
+    def replace(self, **changes: Any) -> RobotParameters:
+        """A copy with ``changes`` applied (and validated)."""
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ParameterError(f'unknown robot parameter(s): {", ".join(sorted(unknown))}')
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(changes)
+        return RobotParameters(**values)
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> RobotParameters:
+        """Build from a flat mapping such as a ROS parameter dictionary."""
+        return cls().replace(**dict(values))
+
+
+@dataclass(frozen=True)
+class MotorLimits:
+    """Wheel motor speed profile of section 3.5: ramp to a cruise speed, hold, ramp down."""
+
+    cruise_speed_rad_s: float = 8.7
+    acceleration_rad_s2: float = 50.0
+    deceleration_rad_s2: float = 50.0
+    max_speed_rad_s: float = field(default=8.7)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            object.__setattr__(self, f.name, require_positive(f.name, getattr(self, f.name)))
+        if self.cruise_speed_rad_s > self.max_speed_rad_s:
+            raise ParameterError(
+                f'cruise_speed_rad_s ({self.cruise_speed_rad_s}) must not exceed '
+                f'max_speed_rad_s ({self.max_speed_rad_s})')

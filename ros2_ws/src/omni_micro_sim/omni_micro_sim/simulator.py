@@ -1,0 +1,393 @@
+"""The stepping API around the kernels, and open-loop runs (single and batched).
+
+:class:`SlipSimulator` holds a state and the wheel command being executed; ``step(dt)`` advances
+simulated time exactly through the command's knots. Everything that integrates the robot, the ROS
+node included, goes through it or through :func:`simulate_open_loop_batch`.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from omni_micro_sim import kernels
+from omni_micro_sim.errors import CommandError, SimulationError
+from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
+from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
+
+# RK4 step: with p = 1000 the slowest friction time constant is ~0.4 ms; 0.2 ms steps agree with
+# a solve_ivp reference at rtol 1e-10 to far better than 0.1 um (tests/sim/test_accuracy.py).
+DEFAULT_MAX_STEP_S = 2.0e-4
+# "At rest": translation and rim speed of the rotation below 1 nm/s.
+DEFAULT_REST_SPEED_M_S = 1.0e-9
+DEFAULT_MAX_SETTLE_S = 1.0
+_SETTLE_CHECK_INTERVAL_S = 1.0e-3
+
+
+class MotionStatus(enum.Enum):
+    """What the simulated robot is doing."""
+
+    IDLE = 'idle'          # no command running and at rest
+    MOVING = 'moving'      # executing a wheel speed profile
+    SETTLING = 'settling'  # profile finished, the body still slides
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Pose and velocity in the inertial (platform) frame, SI units."""
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    phi_rad: float = 0.0
+    vx_m_s: float = 0.0
+    vy_m_s: float = 0.0
+    omega_rad_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ('x_m', 'y_m', 'phi_rad', 'vx_m_s', 'vy_m_s', 'omega_rad_s'):
+            try:
+                object.__setattr__(self, name, require_finite(name, getattr(self, name)))
+            except ValueError as error:
+                raise SimulationError(f'robot state: {error}') from None
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.x_m, self.y_m, self.phi_rad, self.vx_m_s, self.vy_m_s,
+                         self.omega_rad_s])
+
+    @classmethod
+    def from_array(cls, values: np.ndarray) -> RobotState:
+        return cls(*(float(v) for v in values))
+
+    @property
+    def speed_m_s(self) -> float:
+        return math.hypot(self.vx_m_s, self.vy_m_s)
+
+
+@dataclass(frozen=True)
+class ContactSlip:
+    """Slip velocities of the three wheel contacts (m/s): along and across each wheel."""
+
+    longitudinal_m_s: np.ndarray
+    transverse_m_s: np.ndarray
+
+
+def _wheel_angles(params: RobotParameters, steering_rad: float) -> np.ndarray:
+    return steering_rad + np.asarray(params.wheel_offsets_rad, dtype=np.float64)
+
+
+def _check_step(name: str, value: float) -> float:
+    number = float(value)
+    if not math.isfinite(number) or number <= 0.0:
+        raise CommandError(f'{name} must be a finite number of seconds > 0, got {value!r}')
+    return number
+
+
+class SlipSimulator:
+    """Integrates the robot through wheel commands in simulated time.
+
+    Parameters
+    ----------
+    params : the robot.
+    state : initial state (at rest at the origin by default).
+    max_step_s : longest RK4 step.
+    rest_speed_m_s : speed under which the robot counts as at rest.
+    """
+
+    def __init__(self, params: RobotParameters, state: RobotState | None = None, *,
+                 max_step_s: float = DEFAULT_MAX_STEP_S,
+                 rest_speed_m_s: float = DEFAULT_REST_SPEED_M_S) -> None:
+        self.params = params
+        self._kernel_params = params.as_kernel_array()
+        self._state = (state or RobotState()).as_array()
+        self._max_step = _check_step('max_step_s', max_step_s)
+        self._rest_speed = _check_step('rest_speed_m_s', rest_speed_m_s)
+        self._time_s = 0.0
+        self._steering_rad = 0.0
+        self._wheel_angles = _wheel_angles(params, 0.0)
+        self._profile = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
+        self._move_start_s = 0.0
+        # Wheel rotation accumulated by finished commands; the running one adds its own part.
+        self._rotation_before_move = np.zeros(WHEEL_COUNT)
+
+    # -- state -------------------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        return self._time_s
+
+    @property
+    def state(self) -> RobotState:
+        return RobotState.from_array(self._state)
+
+    @property
+    def steering_rad(self) -> float:
+        return self._steering_rad
+
+    @property
+    def move_time_s(self) -> float:
+        return self._time_s - self._move_start_s
+
+    @property
+    def status(self) -> MotionStatus:
+        if self.move_time_s < self._profile.end_time_s or not self._profile.ends_at_rest:
+            return MotionStatus.MOVING
+        if kernels.is_at_rest(self._state, self._kernel_params, self._rest_speed):
+            return MotionStatus.IDLE
+        return MotionStatus.SETTLING
+
+    def wheel_speeds(self) -> np.ndarray:
+        """Commanded spin speeds (rad/s); a passive wheel 1 reports its free-rolling speed."""
+        speeds = self._profile.speeds_at(self.move_time_s)
+        if not self.params.wheel1_active:
+            slip = self.slip()
+            # Free rolling: the spin that makes the longitudinal contact velocity zero.
+            speeds[0] = self._rolling_speed_of_wheel1(slip)
+        return speeds
+
+    def _rolling_speed_of_wheel1(self, slip: ContactSlip) -> float:
+        state = self._state
+        heading = self._wheel_angles[0] + state[2]
+        angle = self._kernel_params[kernels.KERNEL_INDEX['wheel1_angle_rad']] + state[2]
+        lever = self.params.wheel_distance_m
+        contact_x = state[3] - state[5] * lever * math.sin(angle)
+        contact_y = state[4] + state[5] * lever * math.cos(angle)
+        return (contact_x * math.cos(heading) + contact_y * math.sin(heading)) \
+            / self.params.wheel_radius_m
+
+    def wheel_rotations_rad(self) -> np.ndarray:
+        """Total commanded rotation of each wheel since the simulator started."""
+        return self._rotation_before_move + self._profile.rotation_until(self.move_time_s)
+
+    def slip(self) -> ContactSlip:
+        """Longitudinal and transverse slip of each contact now."""
+        slip_long = np.empty(3)
+        slip_trans = np.empty(3)
+        scratch = np.empty((2, 3))
+        kernels.contact_terms(self._state, self._profile.speeds_at(self.move_time_s),
+                              self._wheel_angles, self._kernel_params, slip_long, slip_trans,
+                              scratch[0], scratch[1])
+        return ContactSlip(slip_long, slip_trans)
+
+    # -- commands ----------------------------------------------------------------------------
+    def command(self, steering_rad: float, profile: WheelSpeedProfile,
+                limits: MotorLimits | None = None) -> None:
+        """Steer to ``steering_rad`` (exact, instantaneous) and run ``profile`` from now on.
+
+        A command replaces whatever was running.
+
+        Raises
+        ------
+        CommandError
+            If the steering angle is not finite or the profile breaks the motor limits.
+        """
+        try:
+            steering = require_finite('steering angle', steering_rad)
+        except ValueError as error:
+            raise CommandError(str(error)) from None
+        if limits is not None:
+            profile.check_limits(limits)
+        self._rotation_before_move = self.wheel_rotations_rad()
+        self._steering_rad = steering
+        self._wheel_angles = _wheel_angles(self.params, steering)
+        self._profile = profile
+        self._move_start_s = self._time_s
+
+    def command_move(self, steering_rad: float, duration_s: float,
+                     limits: MotorLimits | None = None) -> WheelSpeedProfile:
+        """Command the section 3.5 profile for a move of ``duration_s`` along ``steering_rad``."""
+        profile = move_profile(duration_s, limits)
+        self.command(steering_rad, profile, limits)
+        return profile
+
+    def stop(self, limits: MotorLimits | None = None) -> None:
+        """Ramp every wheel down to rest at the motors' deceleration, keeping the steering."""
+        limits = limits or MotorLimits()
+        speeds = self._profile.speeds_at(self.move_time_s)
+        ramp = float(np.max(np.abs(speeds))) / limits.deceleration_rad_s2
+        if ramp == 0.0:
+            profile = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
+        else:
+            profile = WheelSpeedProfile(np.array([0.0, ramp]), np.vstack([speeds, np.zeros(3)]))
+        self.command(self._steering_rad, profile)
+
+    # -- time --------------------------------------------------------------------------------
+    def step(self, dt_s: float) -> RobotState:
+        """Advance simulated time by ``dt_s`` and return the new state.
+
+        Raises
+        ------
+        CommandError
+            If ``dt_s`` is not a finite number > 0.
+        SimulationError
+            If the integration produced a non-finite state (the state is left as it was).
+        """
+        dt = _check_step('dt_s', dt_s)
+        start = self.move_time_s
+        saved = self._state.copy()
+        profile = self._profile
+        ok = kernels.advance(self._state, start, start + dt, profile.knot_times_s,
+                             profile.knot_speeds_rad_s, profile.knot_times_s.size,
+                             self._wheel_angles, self._kernel_params, self._max_step)
+        if not ok:
+            self._state = saved
+            raise SimulationError(
+                f'integration became non-finite between t={self._time_s:.6f} s and '
+                f't={self._time_s + dt:.6f} s; state kept at {saved.tolist()}')
+        self._time_s += dt
+        return self.state
+
+
+@dataclass(frozen=True)
+class OpenLoopResult:
+    """One open-loop move from rest: where it ended and where it should have ended."""
+
+    final_state: RobotState
+    ideal_stop_m: tuple[float, float]
+    profile_end_s: float
+    rest_time_s: float
+    trace: dict[str, np.ndarray] | None = None
+
+    @property
+    def drift_m(self) -> float:
+        return math.hypot(self.final_state.x_m - self.ideal_stop_m[0],
+                          self.final_state.y_m - self.ideal_stop_m[1])
+
+
+def ideal_stop(params: RobotParameters, start: RobotState, steering_rad: float,
+               rotation_rad: float) -> tuple[float, float]:
+    """Where a slip-free robot ends: the wheel rotation times r along theta (eq. 1 with V_s = 0)."""
+    distance = rotation_rad * params.wheel_radius_m
+    heading = start.phi_rad + steering_rad
+    return (start.x_m + distance * math.cos(heading), start.y_m + distance * math.sin(heading))
+
+
+def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s: float, *,
+                       limits: MotorLimits | None = None, start: RobotState | None = None,
+                       sample_interval_s: float | None = None,
+                       max_step_s: float = DEFAULT_MAX_STEP_S,
+                       max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> OpenLoopResult:
+    """The section 3.5 open-loop move: run the profile for ``duration_s``, then wait for rest.
+
+    With ``sample_interval_s`` the result carries a trace (time, state, slip, wheel speeds).
+
+    Raises
+    ------
+    CommandError, ParameterError
+        For a malformed move or parameters.
+    SimulationError
+        If the state became non-finite or the robot did not come to rest in ``max_settle_s``.
+    """
+    start = start or RobotState()
+    profile = move_profile(duration_s, limits)
+    steering = require_finite('steering angle', steering_rad)
+    goal = ideal_stop(params, start, steering, float(profile.rotation_rad()[0]))
+    if sample_interval_s is None:
+        batch = simulate_open_loop_batch(
+            [params], np.array([steering]), np.array([duration_s]), limits=limits, start=start,
+            max_step_s=max_step_s, max_settle_s=max_settle_s)
+        return OpenLoopResult(RobotState.from_array(batch.final_states[0]), goal,
+                              profile.end_time_s, float(batch.rest_times_s[0]))
+    interval = _check_step('sample_interval_s', sample_interval_s)
+    simulator = SlipSimulator(params, start, max_step_s=max_step_s)
+    simulator.command(steering, profile)
+    samples: dict[str, list[np.ndarray | float]] = {
+        'time_s': [], 'state': [], 'slip_longitudinal_m_s': [], 'slip_transverse_m_s': [],
+        'wheel_speed_rad_s': []}
+
+    def record() -> None:
+        slip = simulator.slip()
+        samples['time_s'].append(simulator.time_s)
+        samples['state'].append(simulator.state.as_array())
+        samples['slip_longitudinal_m_s'].append(slip.longitudinal_m_s)
+        samples['slip_transverse_m_s'].append(slip.transverse_m_s)
+        samples['wheel_speed_rad_s'].append(simulator.wheel_speeds())
+
+    record()
+    steps = int(math.ceil(profile.end_time_s / interval - 1e-9))
+    for index in range(steps):
+        target = min((index + 1) * interval, profile.end_time_s)
+        simulator.step(target - simulator.time_s)
+        record()
+    while simulator.status is not MotionStatus.IDLE:
+        if simulator.time_s - profile.end_time_s > max_settle_s:
+            raise SimulationError(f'robot still sliding {max_settle_s} s after the move ended')
+        simulator.step(interval)
+        record()
+    trace = {key: np.array(values) for key, values in samples.items()}
+    return OpenLoopResult(simulator.state, goal, profile.end_time_s, simulator.time_s, trace)
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    final_states: np.ndarray   # (N, 6)
+    ideal_stops_m: np.ndarray  # (N, 2)
+    rest_times_s: np.ndarray   # (N,)
+
+    @property
+    def drifts_m(self) -> np.ndarray:
+        return np.hypot(self.final_states[:, 0] - self.ideal_stops_m[:, 0],
+                        self.final_states[:, 1] - self.ideal_stops_m[:, 1])
+
+
+def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
+                             steering_rad: np.ndarray, duration_s: np.ndarray, *,
+                             limits: MotorLimits | None = None, start: RobotState | None = None,
+                             max_step_s: float = DEFAULT_MAX_STEP_S,
+                             max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> BatchResult:
+    """Many open-loop moves at once, in parallel over the cores.
+
+    ``params`` is one robot for all moves or a list with one per move; ``steering_rad`` and
+    ``duration_s`` give each move (broadcast against each other).
+
+    Raises
+    ------
+    SimulationError
+        If any move went non-finite or did not come to rest within ``max_settle_s``; the message
+        names the move.
+    """
+    steering, durations = np.broadcast_arrays(np.asarray(steering_rad, dtype=np.float64),
+                                              np.asarray(duration_s, dtype=np.float64))
+    steering = steering.reshape(-1)
+    durations = durations.reshape(-1)
+    count = steering.size
+    robots = params if isinstance(params, list) else [params] * count
+    if len(robots) == 1 and count > 1:
+        robots = robots * count
+    if len(robots) != count:
+        raise CommandError(f'got {len(robots)} parameter sets for {count} moves')
+    start = start or RobotState()
+    profiles = [move_profile(d, limits) for d in durations]
+    knots = max(p.knot_times_s.size for p in profiles)
+    knot_times = np.zeros((count, knots))
+    knot_speeds = np.zeros((count, knots, WHEEL_COUNT))
+    knot_counts = np.zeros(count, dtype=np.int64)
+    wheel_angles = np.zeros((count, WHEEL_COUNT))
+    kernel_params = np.zeros((count, len(kernels.KERNEL_INDEX)))
+    ideal = np.zeros((count, 2))
+    for i, (profile, robot) in enumerate(zip(profiles, robots)):
+        n = profile.knot_times_s.size
+        knot_times[i, :n] = profile.knot_times_s
+        knot_speeds[i, :n] = profile.knot_speeds_rad_s
+        knot_counts[i] = n
+        steer = require_finite(f'steering angle of move {i}', steering[i])
+        wheel_angles[i] = _wheel_angles(robot, steer)
+        kernel_params[i] = robot.as_kernel_array()
+        ideal[i] = ideal_stop(robot, start, steer, float(profile.rotation_rad()[0]))
+    states = np.tile(start.as_array(), (count, 1))
+    rest_times = np.zeros(count)
+    kernels.run_batch(states, knot_times, knot_speeds, knot_counts, wheel_angles, kernel_params,
+                      _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
+                      _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S,
+                      rest_times)
+    bad = np.flatnonzero(~np.isfinite(rest_times) | ~np.all(np.isfinite(states), axis=1))
+    if bad.size:
+        raise SimulationError(
+            f'move {int(bad[0])} (steering {steering[bad[0]]!r} rad, duration '
+            f'{durations[bad[0]]!r} s) became non-finite')
+    unsettled = np.flatnonzero(rest_times < 0.0)
+    if unsettled.size:
+        raise SimulationError(
+            f'move {int(unsettled[0])} did not come to rest within {max_settle_s} s of its end')
+    return BatchResult(states, ideal, rest_times)

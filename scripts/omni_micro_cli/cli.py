@@ -1,0 +1,42 @@
+"""Entry point of ./scripts/omni-micro: one sub-command per user task."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
+
+from omni_micro_cli import bench, figures, simulate
+from omni_micro_cli.errors import RunFailed, UsageError
+
+COMMANDS = (simulate, figures, bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='omni-micro',
+        description='Simulation of the tri-wheeled omnidirectional microrobot of Jin, Chen and '
+                    'Li (ICIRA 2008): slip dynamics, overhead cameras, vision-feedback control. '
+                    'Lengths are in mm and angles in degrees on the command line; every ROS '
+                    'message is in SI units.')
+    subparsers = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.handler(args))
+    except (UsageError, ParameterError, CommandError) as error:
+        print(f'omni-micro {args.command}: error: {error}', file=sys.stderr)
+        return 2
+    except (SimulationError, RunFailed) as error:
+        print(f'omni-micro {args.command}: failed: {error}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f'omni-micro {args.command}: interrupted', file=sys.stderr)
+        return 130

@@ -1,0 +1,9 @@
+"""Errors of the command line. A UsageError exits with status 2 and names the bad value."""
+
+
+class UsageError(ValueError):
+    """A command-line value is malformed or out of range."""
+
+
+class RunFailed(RuntimeError):
+    """A run did not reach its goal, or a node failed; the message names what failed."""

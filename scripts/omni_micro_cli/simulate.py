@@ -1,0 +1,72 @@
+"""`omni-micro simulate`: one open-loop move through the slip core (section 3.5)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+
+from omni_micro_sim import RobotParameters, simulate_open_loop
+
+from omni_micro_cli.arguments import finite_float, float_list, positive_float
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'simulate', help='one open-loop move from rest at the origin (no ROS)',
+        description='Run one open-loop move of the paper\'s section 3.5 from rest at the origin '
+                    'with phi = 0: ramp to 8.7 rad/s at 50 rad/s^2, hold, ramp down, so that '
+                    'the wheels turn by 8.7 rad/s times DURATION; then wait until the robot is '
+                    'at rest. The drift is the distance from where a slip-free robot would stop.')
+    parser.add_argument('--theta-deg', type=finite_float, required=True, metavar='DEG',
+                        help='steering (direction) angle theta in the robot frame, degrees')
+    parser.add_argument('--duration', type=positive_float, required=True, metavar='S',
+                        help='move time t in seconds (wheel rotation = 8.7 rad/s * t)')
+    parser.add_argument('--xi-deg', type=float_list(3, 'wheel offsets in degrees'),
+                        default=(0.0, 0.0, 0.0), metavar='X1,X2,X3',
+                        help='assembly offsets of wheels 1,2,3 in degrees (default 0,0,0; '
+                             'the paper\'s Fig. 8 robot is 0,3,2)')
+    parser.add_argument('--passive-wheel1', action='store_true',
+                        help='wheel 1 rolls freely instead of being driven (section 3.5.1)')
+    parser.add_argument('--json', action='store_true',
+                        help='print one JSON object (mm, deg) as the last line of stdout')
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    params = RobotParameters(
+        wheel_offsets_rad=tuple(math.radians(v) for v in args.xi_deg),
+        wheel1_active=not args.passive_wheel1)
+    started = time.perf_counter()
+    result = simulate_open_loop(params, math.radians(args.theta_deg), args.duration)
+    elapsed = time.perf_counter() - started
+    final = result.final_state
+    summary = {
+        'x_mm': final.x_m * 1e3,
+        'y_mm': final.y_m * 1e3,
+        'phi_deg': math.degrees(final.phi_rad),
+        'drift_mm': result.drift_m * 1e3,
+        'ideal_x_mm': result.ideal_stop_m[0] * 1e3,
+        'ideal_y_mm': result.ideal_stop_m[1] * 1e3,
+        'theta_deg': args.theta_deg,
+        'duration_s': args.duration,
+        'xi_deg': list(args.xi_deg),
+        'passive_wheel1': args.passive_wheel1,
+        'profile_end_s': result.profile_end_s,
+        'rest_time_s': result.rest_time_s,
+        'compute_time_s': elapsed,
+    }
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    print(f'open-loop move: theta {args.theta_deg:g} deg, t = {args.duration:g} s, '
+          f'xi = {",".join(f"{v:g}" for v in args.xi_deg)} deg, wheel 1 '
+          f'{"passive" if args.passive_wheel1 else "active"}')
+    print(f'  ideal stop   ({summary["ideal_x_mm"]:.4f}, {summary["ideal_y_mm"]:.4f}) mm')
+    print(f'  final pose   ({summary["x_mm"]:.4f}, {summary["y_mm"]:.4f}) mm, '
+          f'phi {summary["phi_deg"]:.4f} deg')
+    print(f'  drift        {summary["drift_mm"]:.4f} mm')
+    print(f'  wheels stop at {result.profile_end_s:.3f} s, robot at rest at '
+          f'{result.rest_time_s:.3f} s (computed in {elapsed * 1e3:.1f} ms)')
+    return 0
