@@ -7,10 +7,10 @@ import sys
 
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-from omni_micro_cli import bench, figures, simulate
+from omni_micro_cli import bench, demo, figures, simulate
 from omni_micro_cli.errors import RunFailed, UsageError
 
-COMMANDS = (simulate, figures, bench)
+COMMANDS = (demo, simulate, figures, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,70 @@
+"""The open-loop command line, run as a user runs it."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def omni_micro(*args, check=False):
+    return subprocess.run([sys.executable, '-m', 'omni_micro_cli', *args], cwd=ROOT,
+                          capture_output=True, text=True, check=check,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT / 'scripts')))
+
+
+def test_simulate_json_reports_fig8():
+    done = omni_micro('simulate', '--theta-deg', '0', '--duration', '2', '--xi-deg', '0,3,2',
+                      '--json', check=True)
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result['drift_mm'] == pytest.approx(0.4727, abs=5e-5)
+    assert result['x_mm'] == pytest.approx(28.6886, abs=1e-3)
+    assert result['phi_deg'] < 0.0
+    assert result['passive_wheel1'] is False
+
+
+def test_passive_wheel1_changes_the_result():
+    active = omni_micro('simulate', '--theta-deg', '0', '--duration', '1', '--json', check=True)
+    passive = omni_micro('simulate', '--theta-deg', '0', '--duration', '1', '--passive-wheel1',
+                         '--json', check=True)
+    a = json.loads(active.stdout.splitlines()[-1])
+    p = json.loads(passive.stdout.splitlines()[-1])
+    assert p['drift_mm'] > 3 * a['drift_mm']
+
+
+@pytest.mark.parametrize('args, named', [
+    (['--theta-deg', '0', '--duration', 'nan'], '--duration'),
+    (['--theta-deg', '0', '--duration', '-1'], '--duration'),
+    (['--theta-deg', 'inf', '--duration', '1'], '--theta-deg'),
+    (['--theta-deg', '0', '--duration', '1', '--xi-deg', '1,2'], '--xi-deg'),
+    (['--theta-deg', '0', '--duration', '1', '--xi-deg', '0,95,0'], 'wheel_offsets_rad'),
+])
+def test_bad_values_exit_2_and_name_the_value(args, named):
+    done = omni_micro('simulate', *args)
+    assert done.returncode == 2
+    assert named in done.stderr
+    assert done.stdout == ''
+
+
+def test_figures_writes_every_figure_and_the_table(tmp_path):
+    out = tmp_path / 'figs'
+    omni_micro('figures', '--out', str(out), '--angle-step-deg', '30', '--offset-step-deg', '5',
+               check=True)
+    names = {p.name for p in out.iterdir()}
+    assert {'fig6_wheel1_state.png', 'fig7_assembly_error.png', 'fig8a_longitudinal_slip.png',
+            'fig8b_transverse_slip.png', 'fig8c_route.png', 'fig11_open_loop_route.png',
+            'comparison.md', 'figures.json'} <= names
+    numbers = json.loads((out / 'figures.json').read_text())
+    assert round(numbers['fig8_drift_mm'], 4) == 0.4727
+    assert not [p for p in tmp_path.iterdir() if '.partial-' in p.name]
+
+
+def test_figures_bad_step_writes_nothing(tmp_path):
+    out = tmp_path / 'figs'
+    done = omni_micro('figures', '--out', str(out), '--angle-step-deg', '0')
+    assert done.returncode == 2 and '--angle-step-deg' in done.stderr
+    assert not out.exists()
