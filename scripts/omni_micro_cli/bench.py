@@ -31,8 +31,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'targets: >= 50x faster than the reference, 1000 moves in < 10 s.')
     parser.add_argument('--batch', type=int, default=1000, metavar='N',
                         help='moves in the batch (default 1000)')
-    parser.add_argument('--repeats', type=int, default=5, metavar='N',
-                        help='timed repeats of the single run; the median is reported (default 5)')
+    parser.add_argument('--repeats', type=int, default=30, metavar='N',
+                        help='timed repeats of the single run; the median is reported (default 30)')
     parser.add_argument('--reference-timeout', type=positive_float, default=600.0, metavar='S',
                         help='give up on the reference after S seconds (default 600)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
@@ -71,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     result = simulate_open_loop(params, steering, duration)
     first_call = time.perf_counter() - started
+    simulate_open_loop_batch(params, np.zeros(2), duration)   # load the parallel kernel too
     _log(f'first call (numba compile or cache load): {first_call:.2f} s')
     timings = []
     for _ in range(args.repeats):

@@ -135,6 +135,44 @@ def _next_knot_after(time_s, knot_times, knot_count):
     return math.inf
 
 
+# Below this acceleration (m/s^2, and angular acceleration times L) the body has reached the
+# steady motion of constant wheel speeds: the rest of the segment is an exact circular arc. The
+# error of the jump is about this acceleration times the friction time constant squared: < 1e-15 m.
+STEADY_ACCELERATION = 1e-9
+
+
+@numba.njit(cache=True)
+def _sinc(x):
+    if abs(x) < 1e-4:
+        return 1.0 - x * x / 6.0
+    return math.sin(x) / x
+
+
+@numba.njit(cache=True)
+def steady_arc(state, duration):
+    """Advance ``state`` in place along the motion with constant body-frame velocity and rate.
+
+    With constant wheel speeds the equations are invariant under rotation, so their steady
+    solution keeps its body-frame velocity: the robot runs a circular arc (or a line).
+    """
+    omega = state[5]
+    half_turn = 0.5 * omega * duration
+    scale = duration * _sinc(half_turn)
+    vx = state[3]
+    vy = state[4]
+    # The integral over the arc of R(omega*s), applied to the velocity at its start.
+    cos_mid = math.cos(half_turn)
+    sin_mid = math.sin(half_turn)
+    state[0] += scale * (cos_mid * vx - sin_mid * vy)
+    state[1] += scale * (sin_mid * vx + cos_mid * vy)
+    turn = omega * duration
+    cos_turn = math.cos(turn)
+    sin_turn = math.sin(turn)
+    state[3] = cos_turn * vx - sin_turn * vy
+    state[4] = sin_turn * vx + cos_turn * vy
+    state[2] += turn
+
+
 @numba.njit(cache=True)
 def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angles, params,
             max_step):
@@ -158,10 +196,23 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
         steps = max(1, int(math.ceil(span / max_step - 1e-9)))
         h = span / steps
         start = time_s
+        speeds_at(start, knot_times, knot_speeds, knot_count, speeds)
+        steady_speeds = True
+        speeds_end = np.empty(3)
+        speeds_at(segment_end, knot_times, knot_speeds, knot_count, speeds_end)
+        for k in range(3):
+            if speeds_end[k] != speeds[k]:
+                steady_speeds = False
         for j in range(steps):
             t = start + j * h
             speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
             state_derivative(state, speeds, wheel_angles, params, k1, scratch)
+            # Steady when the velocity only turns with the body: a = omega x v.
+            if steady_speeds and math.hypot(k1[3] + state[5] * state[4],
+                                            k1[4] - state[5] * state[3]) < STEADY_ACCELERATION \
+                    and abs(k1[5]) * params[_L] < STEADY_ACCELERATION:
+                steady_arc(state, segment_end - t)
+                break
             for q in range(STATE_SIZE):
                 trial[q] = state[q] + 0.5 * h * k1[q]
             speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
@@ -208,18 +259,23 @@ def settle(state, t_from, knot_times, knot_speeds, knot_count, wheel_angles, par
     return time_s
 
 
+@numba.njit(cache=True)
+def run_move(state, knot_times, knot_speeds, knot_count, wheel_angles, params, max_step,
+             rest_speed, max_settle_s, check_interval_s):
+    """One open-loop move: advance ``state`` through its profile, then settle (see settle)."""
+    end = knot_times[knot_count - 1]
+    if not advance(state, 0.0, end, knot_times, knot_speeds, knot_count, wheel_angles, params,
+                   max_step):
+        return math.nan
+    return settle(state, end, knot_times, knot_speeds, knot_count, wheel_angles, params,
+                  max_step, rest_speed, max_settle_s, check_interval_s)
+
+
 @numba.njit(cache=True, parallel=True)
 def run_batch(states, knot_times, knot_speeds, knot_counts, wheel_angles, params, max_step,
               rest_speed, max_settle_s, check_interval_s, rest_times):
-    """Open-loop moves in parallel: each row of ``states`` is advanced through its own profile
-    and settled in place; ``rest_times[i]`` gets the settle result of :func:`settle`."""
+    """:func:`run_move` for every row of ``states``, in parallel; results in ``rest_times``."""
     for i in numba.prange(states.shape[0]):
-        count = knot_counts[i]
-        end = knot_times[i, count - 1]
-        if advance(states[i], 0.0, end, knot_times[i], knot_speeds[i], count, wheel_angles[i],
-                   params[i], max_step):
-            rest_times[i] = settle(states[i], end, knot_times[i], knot_speeds[i], count,
-                                   wheel_angles[i], params[i], max_step, rest_speed,
-                                   max_settle_s, check_interval_s)
-        else:
-            rest_times[i] = math.nan
+        rest_times[i] = run_move(states[i], knot_times[i], knot_speeds[i], knot_counts[i],
+                                 wheel_angles[i], params[i], max_step, rest_speed,
+                                 max_settle_s, check_interval_s)

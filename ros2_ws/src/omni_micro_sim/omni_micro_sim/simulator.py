@@ -18,9 +18,9 @@ from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
 
-# RK4 step: with p = 1000 the slowest friction time constant is ~0.4 ms; 0.2 ms steps agree with
+# RK4 step: with p = 1000 the fastest friction time constant is ~0.4 ms; 0.4 ms steps agree with
 # a solve_ivp reference at rtol 1e-10 to far better than 0.1 um (tests/sim/test_accuracy.py).
-DEFAULT_MAX_STEP_S = 2.0e-4
+DEFAULT_MAX_STEP_S = 4.0e-4
 # "At rest": translation and rim speed of the rotation below 1 nm/s.
 DEFAULT_REST_SPEED_M_S = 1.0e-9
 DEFAULT_MAX_SETTLE_S = 1.0
@@ -263,6 +263,14 @@ def ideal_stop(params: RobotParameters, start: RobotState, steering_rad: float,
     return (start.x_m + distance * math.cos(heading), start.y_m + distance * math.sin(heading))
 
 
+def _raise_unless_settled(rest_time: float, state: np.ndarray, max_settle_s: float,
+                          what: str) -> None:
+    if not math.isfinite(rest_time) or not np.all(np.isfinite(state)):
+        raise SimulationError(f'{what} became non-finite')
+    if rest_time < 0.0:
+        raise SimulationError(f'{what} did not come to rest within {max_settle_s} s of its end')
+
+
 def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s: float, *,
                        limits: MotorLimits | None = None, start: RobotState | None = None,
                        sample_interval_s: float | None = None,
@@ -284,11 +292,14 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
     steering = require_finite('steering angle', steering_rad)
     goal = ideal_stop(params, start, steering, float(profile.rotation_rad()[0]))
     if sample_interval_s is None:
-        batch = simulate_open_loop_batch(
-            [params], np.array([steering]), np.array([duration_s]), limits=limits, start=start,
-            max_step_s=max_step_s, max_settle_s=max_settle_s)
-        return OpenLoopResult(RobotState.from_array(batch.final_states[0]), goal,
-                              profile.end_time_s, float(batch.rest_times_s[0]))
+        state = start.as_array()
+        rest_time = kernels.run_move(
+            state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
+            _wheel_angles(params, steering), params.as_kernel_array(),
+            _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
+            _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S)
+        _raise_unless_settled(rest_time, state, max_settle_s, 'the move')
+        return OpenLoopResult(RobotState.from_array(state), goal, profile.end_time_s, rest_time)
     interval = _check_step('sample_interval_s', sample_interval_s)
     simulator = SlipSimulator(params, start, max_step_s=max_step_s)
     simulator.command(steering, profile)
@@ -381,13 +392,8 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
                       _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
                       _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S,
                       rest_times)
-    bad = np.flatnonzero(~np.isfinite(rest_times) | ~np.all(np.isfinite(states), axis=1))
-    if bad.size:
-        raise SimulationError(
-            f'move {int(bad[0])} (steering {steering[bad[0]]!r} rad, duration '
-            f'{durations[bad[0]]!r} s) became non-finite')
-    unsettled = np.flatnonzero(rest_times < 0.0)
-    if unsettled.size:
-        raise SimulationError(
-            f'move {int(unsettled[0])} did not come to rest within {max_settle_s} s of its end')
+    for i in range(count):
+        _raise_unless_settled(rest_times[i], states[i], max_settle_s,
+                              f'move {i} (steering {steering[i]!r} rad, duration '
+                              f'{durations[i]!r} s)')
     return BatchResult(states, ideal, rest_times)
