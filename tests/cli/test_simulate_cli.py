@@ -68,3 +68,19 @@ def test_figures_bad_step_writes_nothing(tmp_path):
     done = omni_micro('figures', '--out', str(out), '--angle-step-deg', '0')
     assert done.returncode == 2 and '--angle-step-deg' in done.stderr
     assert not out.exists()
+
+
+def test_bench_reports_figures_and_agrees_with_its_reference():
+    done = omni_micro('bench', '--batch', '10', '--repeats', '2', '--json', check=True)
+    figures = json.loads(done.stdout.strip().splitlines()[-1])
+    assert figures['final_position_difference_um'] < 0.1
+    assert figures['reference_rhs_calls'] > 100
+    assert figures['speedup_vs_reference'] > 1.0
+    assert figures['batch_moves'] == 10
+
+
+def test_demo_prints_the_comparison_and_writes_figures(tmp_path):
+    done = omni_micro('demo', '--out', str(tmp_path / 'demo'), check=True)
+    assert '| Fig. 8: drift after 28.71 mm in 2 s (xi = 0, 3, 2 deg) | 0.4727 mm | 0.4727 mm |' \
+        in done.stdout
+    assert (tmp_path / 'demo' / 'fig8c_route.png').stat().st_size > 10_000
