@@ -55,8 +55,9 @@ def test_kernel_matches_literal_equations(seed, wheel1_active):
     speeds = rng.uniform(-8.7, 8.7, 3)
     steering = rng.uniform(-math.pi, math.pi)
     out = np.empty(6)
-    kernels.state_derivative(state, speeds, _wheel_angles(params, steering),
-                             params.as_kernel_array(), out, np.empty((4, 3)))
+    kernel_params = params.as_kernel_array()
+    geometry = kernels.wheel_geometry(_wheel_angles(params, steering), kernel_params)
+    kernels.state_derivative(state, speeds, geometry, kernel_params, out, np.empty((4, 3)))
     np.testing.assert_allclose(out, literal_equations(params, state, speeds, steering),
                                rtol=1e-10, atol=1e-12)
 
@@ -70,8 +71,9 @@ def test_friction_always_opposes_slip():
                                 rng.uniform(-3, 3, 1)])
         slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
         angles = _wheel_angles(params, rng.uniform(-3, 3))
-        kernels.contact_terms(state, rng.uniform(-9, 9, 3), angles, kernel_params, slip_l,
-                              slip_t, fx, fy)
+        kernels.contact_terms(state, rng.uniform(-9, 9, 3),
+                              kernels.wheel_geometry(angles, kernel_params), kernel_params,
+                              slip_l, slip_t, fx, fy)
         for k in range(3):
             heading = angles[k] + state[2]
             w = np.array([math.cos(heading), math.sin(heading)])
@@ -118,8 +120,9 @@ def test_passive_wheel1_transmits_no_longitudinal_force():
     state = np.array([0.0, 0.0, 0.3, 0.01, -0.004, 0.5])
     slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
     angles = _wheel_angles(params, 0.4)
-    kernels.contact_terms(state, np.full(3, 8.7), angles, params.as_kernel_array(), slip_l,
-                          slip_t, fx, fy)
+    kernel_params = params.as_kernel_array()
+    kernels.contact_terms(state, np.full(3, 8.7), kernels.wheel_geometry(angles, kernel_params),
+                          kernel_params, slip_l, slip_t, fx, fy)
     heading = angles[0] + state[2]
     assert fx[0] * math.cos(heading) + fy[0] * math.sin(heading) == pytest.approx(0.0, abs=1e-18)
     assert abs(fx[0]) + abs(fy[0]) > 0.0   # transverse friction remains

@@ -40,15 +40,33 @@ def friction_coefficient(mu: float, steepness: float, slip_speed: float) -> floa
 
 
 @numba.njit(cache=True)
-def contact_terms(state, wheel_speeds, wheel_angles, params, slip_long, slip_trans,
-                  force_x, force_y):
+def wheel_geometry(wheel_angles, params):
+    """Body-frame cos/sin of each wheel's position angle and rolling direction, a (4, 3) array.
+
+    They stay fixed during a command, so the right-hand side only rotates them by phi.
+    """
+    geometry = np.empty((4, 3))
+    for k in range(3):
+        position_angle = params[_BETA1] + k * _WHEEL_SPACING
+        geometry[0, k] = math.cos(position_angle)
+        geometry[1, k] = math.sin(position_angle)
+        geometry[2, k] = math.cos(wheel_angles[k])
+        geometry[3, k] = math.sin(wheel_angles[k])
+    return geometry
+
+
+@numba.njit(cache=True)
+def contact_terms(state, wheel_speeds, geometry, params, slip_long, slip_trans, force_x,
+                  force_y):
     """Slip velocities (eqs. 3-9) and friction forces (eq. 11) of the three contacts.
 
-    Fills ``slip_long``/``slip_trans`` (m/s, along W_k and T_k) and the inertial friction force
-    components ``force_x``/``force_y`` (N). Returns the torque about the centre of mass (N m),
-    including the cantilever torque of wheel 1 (eq. 12), i.e. the right-hand side of eq. 13.
+    ``geometry`` comes from :func:`wheel_geometry`. Fills ``slip_long``/``slip_trans`` (m/s,
+    along W_k and T_k) and the inertial friction force components ``force_x``/``force_y`` (N).
+    Returns the torque about the centre of mass (N m), including the cantilever torque of wheel 1
+    (eq. 12), i.e. the right-hand side of eq. 13.
     """
-    phi = state[2]
+    cos_phi = math.cos(state[2])
+    sin_phi = math.sin(state[2])
     vx = state[3]
     vy = state[4]
     omega = state[5]
@@ -58,12 +76,11 @@ def contact_terms(state, wheel_speeds, wheel_angles, params, slip_long, slip_tra
     normal_load = params[_M] * params[_G] / 3.0
     torque = 0.0
     for k in range(3):
-        position_angle = params[_BETA1] + k * _WHEEL_SPACING + phi
-        lever_x = length * math.cos(position_angle)
-        lever_y = length * math.sin(position_angle)
-        heading = wheel_angles[k] + phi
-        w_x = math.cos(heading)
-        w_y = math.sin(heading)
+        # Eqs. 6-7: body-frame vectors rotated into the inertial frame.
+        lever_x = length * (geometry[0, k] * cos_phi - geometry[1, k] * sin_phi)
+        lever_y = length * (geometry[1, k] * cos_phi + geometry[0, k] * sin_phi)
+        w_x = geometry[2, k] * cos_phi - geometry[3, k] * sin_phi
+        w_y = geometry[3, k] * cos_phi + geometry[2, k] * sin_phi
         t_x = -w_y
         t_y = w_x
         # Eq. 3: contact velocity = body translation + omega x L_k + wheel spin (-r*omega_k*W_k).
@@ -92,11 +109,11 @@ def contact_terms(state, wheel_speeds, wheel_angles, params, slip_long, slip_tra
 
 
 @numba.njit(cache=True)
-def state_derivative(state, wheel_speeds, wheel_angles, params, out, scratch):
+def state_derivative(state, wheel_speeds, geometry, params, out, scratch):
     """Eq. 13: fills ``out`` with d(state)/dt. ``scratch`` is a (4, 3) work array."""
     force_x = scratch[2]
     force_y = scratch[3]
-    torque = contact_terms(state, wheel_speeds, wheel_angles, params, scratch[0], scratch[1],
+    torque = contact_terms(state, wheel_speeds, geometry, params, scratch[0], scratch[1],
                            force_x, force_y)
     mass = params[_M]
     out[0] = state[3]
@@ -189,6 +206,7 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
     trial = np.empty(STATE_SIZE)
     speeds = np.empty(3)
     scratch = np.empty((4, 3))
+    geometry = wheel_geometry(wheel_angles, params)
     time_s = t_from
     while t_to - time_s > 1e-15 * max(1.0, abs(t_to)):
         segment_end = min(_next_knot_after(time_s, knot_times, knot_count), t_to)
@@ -206,7 +224,7 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
         for j in range(steps):
             t = start + j * h
             speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(state, speeds, wheel_angles, params, k1, scratch)
+            state_derivative(state, speeds, geometry, params, k1, scratch)
             # Steady when the velocity only turns with the body: a = omega x v.
             if steady_speeds and math.hypot(k1[3] + state[5] * state[4],
                                             k1[4] - state[5] * state[3]) < STEADY_ACCELERATION \
@@ -216,14 +234,14 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
             for q in range(STATE_SIZE):
                 trial[q] = state[q] + 0.5 * h * k1[q]
             speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(trial, speeds, wheel_angles, params, k2, scratch)
+            state_derivative(trial, speeds, geometry, params, k2, scratch)
             for q in range(STATE_SIZE):
                 trial[q] = state[q] + 0.5 * h * k2[q]
-            state_derivative(trial, speeds, wheel_angles, params, k3, scratch)
+            state_derivative(trial, speeds, geometry, params, k3, scratch)
             for q in range(STATE_SIZE):
                 trial[q] = state[q] + h * k3[q]
             speeds_at(t + h, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(trial, speeds, wheel_angles, params, k4, scratch)
+            state_derivative(trial, speeds, geometry, params, k4, scratch)
             for q in range(STATE_SIZE):
                 state[q] += h / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
         for q in range(STATE_SIZE):

@@ -23,7 +23,7 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
                         rtol: float = 1e-10, atol: float = 1e-14) -> tuple[RobotState, int]:
     """Integrate from rest (or ``start``) to ``end_time_s``; return the state and rhs calls."""
     kernel_params = params.as_kernel_array()
-    wheel_angles = _wheel_angles(params, steering_rad)
+    geometry = kernels.wheel_geometry(_wheel_angles(params, steering_rad), kernel_params)
     knot_times = profile.knot_times_s
     knot_speeds = profile.knot_speeds_rad_s
     knot_count = knot_times.size
@@ -36,7 +36,7 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
         calls += 1
         out = np.empty(6)
         kernels.speeds_at(time_s, knot_times, knot_speeds, knot_count, speeds)
-        kernels.state_derivative(state, speeds, wheel_angles, kernel_params, out, scratch)
+        kernels.state_derivative(state, speeds, geometry, kernel_params, out, scratch)
         return out
 
     breaks = [t for t in knot_times if 0.0 < t < end_time_s]

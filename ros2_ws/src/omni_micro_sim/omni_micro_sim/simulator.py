@@ -166,8 +166,9 @@ class SlipSimulator:
         slip_trans = np.empty(3)
         scratch = np.empty((2, 3))
         kernels.contact_terms(self._state, self._profile.speeds_at(self.move_time_s),
-                              self._wheel_angles, self._kernel_params, slip_long, slip_trans,
-                              scratch[0], scratch[1])
+                              kernels.wheel_geometry(self._wheel_angles, self._kernel_params),
+                              self._kernel_params, slip_long, slip_trans, scratch[0],
+                              scratch[1])
         return ContactSlip(slip_long, slip_trans)
 
     # -- commands ----------------------------------------------------------------------------
