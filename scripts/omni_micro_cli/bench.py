@@ -20,6 +20,7 @@ from omni_micro_sim import RobotParameters, move_profile, simulate_open_loop, pa
 from omni_micro_sim.simulator import simulate_open_loop_batch
 
 from omni_micro_cli.arguments import positive_float
+from omni_micro_cli.errors import UsageError
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -65,7 +66,6 @@ def _log(message: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.errors import UsageError
     if args.batch < 1 or args.repeats < 1:
         raise UsageError(f'--batch and --repeats must be >= 1, got {args.batch}, {args.repeats}')
     params, steering, duration = _fig11()

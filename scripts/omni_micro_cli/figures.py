@@ -14,6 +14,7 @@ from omni_micro_sim import RobotParameters, simulate_open_loop, simulate_open_lo
 from omni_micro_sim import paper
 
 from omni_micro_cli import plots
+from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
 
 TRACE_INTERVAL_S = 1e-3
@@ -39,7 +40,6 @@ def _progress(message: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.errors import UsageError
     for name in ('angle_step_deg', 'offset_step_deg'):
         value = getattr(args, name)
         if not math.isfinite(value) or not 0.0 < value <= 30.0:

@@ -141,3 +141,35 @@ def test_at_rest_stays_at_rest():
     for _ in range(10):
         simulator.step(0.01)
     assert simulator.state == RobotState(0.01, 0.02, 0.3)
+
+
+def test_stop_ramps_down_and_the_robot_comes_to_rest():
+    simulator = SlipSimulator(RobotParameters())
+    simulator.command_move(0.3, 2.0)
+    simulator.step(1.0)
+    rotation_before_stop = simulator.wheel_rotations_rad()
+    assert rotation_before_stop == pytest.approx([8.7 * (1.0 - 0.087)] * 3, rel=1e-9)
+    simulator.stop()
+    assert simulator.status.value == 'moving'
+    simulator.step(0.2)   # 8.7 rad/s ramps down in 0.174 s
+    # The ramp-down adds the triangle 8.7 * 0.174 / 2 to the rotation.
+    assert simulator.wheel_rotations_rad() == pytest.approx(
+        rotation_before_stop + 8.7 * 0.174 / 2, rel=1e-9)
+    for _ in range(100):
+        if simulator.status.value == 'idle':
+            break
+        simulator.step(0.001)
+    assert simulator.status.value == 'idle'
+    assert simulator.state.speed_m_s < 1e-9
+
+
+def test_passive_wheel1_reports_its_free_rolling_speed():
+    simulator = SlipSimulator(RobotParameters(wheel1_active=False))
+    simulator.command_move(0.0, 1.0)
+    simulator.step(0.5)
+    speeds = simulator.wheel_speeds()
+    assert speeds[1] == speeds[2] == pytest.approx(8.7)
+    # The body follows the two driven wheels and wheel 1 rolls along at their speed
+    # (within the small slip of the driven wheels: ~1e-4 m/s / r ~ 0.06 rad/s).
+    assert speeds[0] == pytest.approx(8.7, abs=0.1)
+    assert simulator.slip().longitudinal_m_s[0] == 0.0

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any, Mapping
 
 import numpy as np
@@ -174,7 +174,7 @@ class MotorLimits:
     cruise_speed_rad_s: float = 8.7
     acceleration_rad_s2: float = 50.0
     deceleration_rad_s2: float = 50.0
-    max_speed_rad_s: float = field(default=8.7)
+    max_speed_rad_s: float = 8.7
 
     def __post_init__(self) -> None:
         for f in fields(self):

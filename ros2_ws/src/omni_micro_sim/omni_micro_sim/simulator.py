@@ -141,20 +141,17 @@ class SlipSimulator:
         """Commanded spin speeds (rad/s); a passive wheel 1 reports its free-rolling speed."""
         speeds = self._profile.speeds_at(self.move_time_s)
         if not self.params.wheel1_active:
-            slip = self.slip()
-            # Free rolling: the spin that makes the longitudinal contact velocity zero.
-            speeds[0] = self._rolling_speed_of_wheel1(slip)
+            # Free rolling: the spin that cancels the longitudinal contact velocity, i.e. the
+            # body's contact velocity along W_1 (the slip of a driven wheel at zero spin) over r.
+            driven = self._kernel_params.copy()
+            driven[kernels.KERNEL_INDEX['wheel1_drive']] = 1.0
+            speeds[0] = 0.0
+            slip_long, scratch = np.empty(3), np.empty((3, 3))
+            kernels.contact_terms(self._state, speeds,
+                                  kernels.wheel_geometry(self._wheel_angles, driven), driven,
+                                  slip_long, scratch[0], scratch[1], scratch[2])
+            speeds[0] = slip_long[0] / self.params.wheel_radius_m
         return speeds
-
-    def _rolling_speed_of_wheel1(self, slip: ContactSlip) -> float:
-        state = self._state
-        heading = self._wheel_angles[0] + state[2]
-        angle = self._kernel_params[kernels.KERNEL_INDEX['wheel1_angle_rad']] + state[2]
-        lever = self.params.wheel_distance_m
-        contact_x = state[3] - state[5] * lever * math.sin(angle)
-        contact_y = state[4] + state[5] * lever * math.cos(angle)
-        return (contact_x * math.cos(heading) + contact_y * math.sin(heading)) \
-            / self.params.wheel_radius_m
 
     def wheel_rotations_rad(self) -> np.ndarray:
         """Total commanded rotation of each wheel since the simulator started."""
