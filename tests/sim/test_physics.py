@@ -7,7 +7,7 @@ import pytest
 from omni_micro_sim import RobotParameters, RobotState, SlipSimulator, simulate_open_loop
 from omni_micro_sim import kernels
 from omni_micro_sim.paper import FIG8
-from omni_micro_sim.simulator import _wheel_angles
+from omni_micro_sim.simulator import wheel_headings_rad
 
 
 def literal_equations(params, state, wheel_speeds, steering):
@@ -56,7 +56,7 @@ def test_kernel_matches_literal_equations(seed, wheel1_active):
     steering = rng.uniform(-math.pi, math.pi)
     out = np.empty(6)
     kernel_params = params.as_kernel_array()
-    geometry = kernels.wheel_geometry(_wheel_angles(params, steering), kernel_params)
+    geometry = kernels.wheel_geometry(wheel_headings_rad(params, steering), kernel_params)
     kernels.state_derivative(state, speeds, geometry, kernel_params, out, np.empty((4, 3)))
     np.testing.assert_allclose(out, literal_equations(params, state, speeds, steering),
                                rtol=1e-10, atol=1e-12)
@@ -70,7 +70,7 @@ def test_friction_always_opposes_slip():
         state = np.concatenate([[0, 0], rng.uniform(-3, 3, 1), rng.uniform(-0.02, 0.02, 2),
                                 rng.uniform(-3, 3, 1)])
         slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
-        angles = _wheel_angles(params, rng.uniform(-3, 3))
+        angles = wheel_headings_rad(params, rng.uniform(-3, 3))
         kernels.contact_terms(state, rng.uniform(-9, 9, 3),
                               kernels.wheel_geometry(angles, kernel_params), kernel_params,
                               slip_l, slip_t, fx, fy)
@@ -119,7 +119,7 @@ def test_passive_wheel1_transmits_no_longitudinal_force():
     params = RobotParameters(wheel1_active=False, wheel_offsets_rad=(0.0, 0.05, 0.03))
     state = np.array([0.0, 0.0, 0.3, 0.01, -0.004, 0.5])
     slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
-    angles = _wheel_angles(params, 0.4)
+    angles = wheel_headings_rad(params, 0.4)
     kernel_params = params.as_kernel_array()
     kernels.contact_terms(state, np.full(3, 8.7), kernels.wheel_geometry(angles, kernel_params),
                           kernel_params, slip_l, slip_t, fx, fy)

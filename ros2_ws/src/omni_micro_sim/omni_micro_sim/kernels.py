@@ -206,6 +206,7 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
     trial = np.empty(STATE_SIZE)
     speeds = np.empty(3)
     scratch = np.empty((4, 3))
+    speeds_end = np.empty(3)
     geometry = wheel_geometry(wheel_angles, params)
     time_s = t_from
     while t_to - time_s > 1e-15 * max(1.0, abs(t_to)):
@@ -216,7 +217,6 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
         start = time_s
         speeds_at(start, knot_times, knot_speeds, knot_count, speeds)
         steady_speeds = True
-        speeds_end = np.empty(3)
         speeds_at(segment_end, knot_times, knot_speeds, knot_count, speeds_end)
         for k in range(3):
             if speeds_end[k] != speeds[k]:

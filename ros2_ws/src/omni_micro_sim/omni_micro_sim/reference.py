@@ -14,7 +14,7 @@ from omni_micro_sim import kernels
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
-from omni_micro_sim.simulator import RobotState, _wheel_angles
+from omni_micro_sim.simulator import RobotState, wheel_headings_rad
 
 
 def solve_ivp_reference(params: RobotParameters, steering_rad: float,
@@ -23,7 +23,7 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
                         rtol: float = 1e-10, atol: float = 1e-14) -> tuple[RobotState, int]:
     """Integrate from rest (or ``start``) to ``end_time_s``; return the state and rhs calls."""
     kernel_params = params.as_kernel_array()
-    geometry = kernels.wheel_geometry(_wheel_angles(params, steering_rad), kernel_params)
+    geometry = kernels.wheel_geometry(wheel_headings_rad(params, steering_rad), kernel_params)
     knot_times = profile.knot_times_s
     knot_speeds = profile.knot_speeds_rad_s
     knot_count = knot_times.size

@@ -74,7 +74,8 @@ class ContactSlip:
     transverse_m_s: np.ndarray
 
 
-def _wheel_angles(params: RobotParameters, steering_rad: float) -> np.ndarray:
+def wheel_headings_rad(params: RobotParameters, steering_rad: float) -> np.ndarray:
+    """Body-frame rolling direction of each wheel: the common steering angle plus its offset."""
     return steering_rad + np.asarray(params.wheel_offsets_rad, dtype=np.float64)
 
 
@@ -106,7 +107,8 @@ class SlipSimulator:
         self._rest_speed = _check_step('rest_speed_m_s', rest_speed_m_s)
         self._time_s = 0.0
         self._steering_rad = 0.0
-        self._wheel_angles = _wheel_angles(params, 0.0)
+        self._wheel_angles = wheel_headings_rad(params, 0.0)
+        self._geometry = kernels.wheel_geometry(self._wheel_angles, self._kernel_params)
         self._profile = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
         self._move_start_s = 0.0
         # Wheel rotation accumulated by finished commands; the running one adds its own part.
@@ -147,9 +149,8 @@ class SlipSimulator:
             driven[kernels.KERNEL_INDEX['wheel1_drive']] = 1.0
             speeds[0] = 0.0
             slip_long, scratch = np.empty(3), np.empty((3, 3))
-            kernels.contact_terms(self._state, speeds,
-                                  kernels.wheel_geometry(self._wheel_angles, driven), driven,
-                                  slip_long, scratch[0], scratch[1], scratch[2])
+            kernels.contact_terms(self._state, speeds, self._geometry, driven, slip_long,
+                                  scratch[0], scratch[1], scratch[2])
             speeds[0] = slip_long[0] / self.params.wheel_radius_m
         return speeds
 
@@ -163,9 +164,8 @@ class SlipSimulator:
         slip_trans = np.empty(3)
         scratch = np.empty((2, 3))
         kernels.contact_terms(self._state, self._profile.speeds_at(self.move_time_s),
-                              kernels.wheel_geometry(self._wheel_angles, self._kernel_params),
-                              self._kernel_params, slip_long, slip_trans, scratch[0],
-                              scratch[1])
+                              self._geometry, self._kernel_params, slip_long, slip_trans,
+                              scratch[0], scratch[1])
         return ContactSlip(slip_long, slip_trans)
 
     # -- commands ----------------------------------------------------------------------------
@@ -188,7 +188,8 @@ class SlipSimulator:
             profile.check_limits(limits)
         self._rotation_before_move = self.wheel_rotations_rad()
         self._steering_rad = steering
-        self._wheel_angles = _wheel_angles(self.params, steering)
+        self._wheel_angles = wheel_headings_rad(self.params, steering)
+        self._geometry = kernels.wheel_geometry(self._wheel_angles, self._kernel_params)
         self._profile = profile
         self._move_start_s = self._time_s
 
@@ -293,7 +294,7 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
         state = start.as_array()
         rest_time = kernels.run_move(
             state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
-            _wheel_angles(params, steering), params.as_kernel_array(),
+            wheel_headings_rad(params, steering), params.as_kernel_array(),
             _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
             _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S)
         _raise_unless_settled(rest_time, state, max_settle_s, 'the move')
@@ -381,7 +382,7 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
         knot_speeds[i, :n] = profile.knot_speeds_rad_s
         knot_counts[i] = n
         steer = require_finite(f'steering angle of move {i}', steering[i])
-        wheel_angles[i] = _wheel_angles(robot, steer)
+        wheel_angles[i] = wheel_headings_rad(robot, steer)
         kernel_params[i] = robot.as_kernel_array()
         ideal[i] = ideal_stop(robot, start, steer, float(profile.rotation_rad()[0]))
     states = np.tile(start.as_array(), (count, 1))
