@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-from omni_micro_cli import bench, demo, figures, simulate
+from omni_micro_cli import bench, demo, figures, run, simulate
 from omni_micro_cli.errors import RunFailed, UsageError
 
-COMMANDS = (demo, simulate, figures, bench)
+COMMANDS = (demo, run, simulate, figures, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,7 +27,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
+    # SIGTERM (e.g. from `timeout` or CI) must unwind like Ctrl-C, so that a running graph is
+    # shut down instead of orphaned.
+    signal.signal(signal.SIGTERM, _interrupt)
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

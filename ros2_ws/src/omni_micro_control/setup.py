@@ -19,6 +19,9 @@ setup(
     maintainer_email='dev@omni-micro.invalid',
     description='Vision-feedback controller of section 4: timer1/timer2, angle modifier, distance comparator.',
     license='Apache-2.0',
-    # The node entry point arrives with the node graph (issue 3).
-    entry_points={'console_scripts': []},
+    entry_points={
+        'console_scripts': [
+            'controller_node = omni_micro_control.controller_node:main',
+        ],
+    },
 )

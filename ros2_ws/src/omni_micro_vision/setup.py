@@ -19,6 +19,9 @@ setup(
     maintainer_email='dev@omni-micro.invalid',
     description='Macro and micro overhead camera model: stationary pose captures with pixel noise.',
     license='Apache-2.0',
-    # The node entry point arrives with the node graph (issue 3).
-    entry_points={'console_scripts': []},
+    entry_points={
+        'console_scripts': [
+            'vision_node = omni_micro_vision.vision_node:main',
+        ],
+    },
 )

@@ -1,0 +1,242 @@
+"""ROS 2 adapter of the vision-feedback controller (section 4.1).
+
+Subscribes:
+  /goal_pose           geometry_msgs/PoseStamped in the ``platform`` frame (x, y; heading unused)
+  /camera/macro/pose, /camera/micro/pose   captures (the camera contract, README)
+  /joint_states        wheel states, to know when a commanded move is over
+Publishes:
+  /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
+  /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
+                       (reached / gave_up / lost / completed / cancelled), latched
+Timers follow /clock (use_sim_time); the decisions themselves are taken on capture stamps, see
+:mod:`omni_micro_control.feedback`. On shutdown the robot is told to stop.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from omni_micro_control.feedback import (
+    ControllerConfigError,
+    FeedbackConfig,
+    Finished,
+    Move,
+    MoveWatcher,
+    Observation,
+    Outcome,
+    VisionFeedbackController,
+)
+from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
+from omni_micro_sim.errors import CommandError, ParameterError
+from omni_micro_sim.node_runtime import run_node
+from omni_micro_sim.parameters import MotorLimits
+from omni_micro_sim.profile import move_profile
+from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
+
+DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
+                 Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
+                 Outcome.LOST: DiagnosticStatus.ERROR}
+
+
+def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -> str | None:
+    """Why a goal cannot be accepted, or None."""
+    if not (math.isfinite(x_m) and math.isfinite(y_m)):
+        return f'goal ({x_m!r}, {y_m!r}) m is not finite'
+    if abs(x_m - center[0]) > size[0] / 2 or abs(y_m - center[1]) > size[1] / 2:
+        return (f'goal ({x_m * 1e3:.3f}, {y_m * 1e3:.3f}) mm is outside the platform '
+                f'(centre {center[0] * 1e3:g}, {center[1] * 1e3:g} mm, '
+                f'{size[0] * 1e3:g} x {size[1] * 1e3:g} mm)')
+    return None
+
+
+class ControllerNode(Node):
+    def __init__(self) -> None:
+        super().__init__('controller_node')
+        defaults = FeedbackConfig()
+        config = FeedbackConfig(**{
+            name: self.declare_parameter(name, getattr(defaults, name)).value
+            for name in FeedbackConfig.__dataclass_fields__})
+        self.limits = MotorLimits(**{
+            name: self.declare_parameter(f'motor.{name}', getattr(MotorLimits(), name)).value
+            for name in MotorLimits.__dataclass_fields__})
+        if self.limits.cruise_speed_rad_s != config.cruise_speed_rad_s:
+            raise ParameterError(
+                f'cruise_speed_rad_s ({config.cruise_speed_rad_s}) must equal '
+                f'motor.cruise_speed_rad_s ({self.limits.cruise_speed_rad_s})')
+        self.frame_id = self.declare_parameter('frame_id', 'platform').value
+        self.platform_center = list(self.declare_parameter('platform.center_m', [0.05, 0.0]).value)
+        self.platform_size = list(self.declare_parameter('platform.size_m', [0.15, 0.15]).value)
+        goal = list(self.declare_parameter('goal_m', [0.0]).value)
+        self.controller = VisionFeedbackController(config)
+        self.watcher = MoveWatcher()
+        self.robot_time_s = 0.0
+        self.trajectory_pub = self.create_publisher(JointTrajectory, '/wheel_trajectory', DATA_QOS)
+        self.status_pub = self.create_publisher(DiagnosticStatus, '/controller/status', STATUS_QOS)
+        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS)
+        for name, topic in CAPTURE_TOPICS.items():
+            self.create_subscription(PoseStamped, topic,
+                                     lambda msg, camera=name: self._on_capture(msg, camera),
+                                     CAPTURE_QOS)
+        self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
+        self.create_timer(0.05, self._on_timer)
+        self._publish_status(DiagnosticStatus.OK, 'idle')
+        if len(goal) == 2:
+            # A scripted goal counts from time 0: the robot has been still since the start.
+            self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)
+        elif goal != [0.0]:
+            raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
+
+    def now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    # -- goals -------------------------------------------------------------------------------
+    def _on_goal(self, msg: PoseStamped) -> None:
+        if msg.header.frame_id not in (self.frame_id, ''):
+            self.get_logger().warning(
+                f'rejected goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}')
+            return
+        self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.now_s())
+
+    def _accept_goal(self, x_m: float, y_m: float, stopped_at_s: float) -> None:
+        problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
+        if problem:
+            self.get_logger().warning(f'rejected goal: {problem}; staying idle')
+            return
+        replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
+        if replaced is not None:
+            self.report(replaced)
+        self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm')
+        self._publish_status(DiagnosticStatus.OK, 'settling')
+
+    # -- events ------------------------------------------------------------------------------
+    def _on_joint_state(self, msg: JointState) -> None:
+        try:
+            index = [msg.name.index(name) for name in WHEEL_JOINTS]
+        except ValueError:
+            return
+        rotations = tuple(msg.position[i] for i in index)
+        speeds = tuple(msg.velocity[i] for i in index)
+        stamp = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        self.robot_time_s = max(self.robot_time_s, stamp)
+        if self.watcher.on_wheel_state(rotations, speeds):
+            self._act(self.controller.on_wheels_stopped(stamp))
+
+    def _on_capture(self, msg: PoseStamped, camera: str) -> None:
+        if msg.header.frame_id != self.frame_id:
+            self.get_logger().warning(
+                f'ignored {camera} capture in frame {msg.header.frame_id!r}: expected '
+                f'{self.frame_id!r}', throttle_duration_sec=5.0)
+            return
+        observation = Observation(
+            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+            msg.pose.position.x, msg.pose.position.y,
+            quaternion_to_yaw(msg.pose.orientation.z, msg.pose.orientation.w), camera)
+        self._act(self.controller.on_capture(observation))
+
+    def _act(self, decision: Move | Finished | None) -> None:
+        if isinstance(decision, Move):
+            self._command(decision)
+        elif isinstance(decision, Finished):
+            self.report(decision)
+
+    def _on_timer(self) -> None:
+        tries_before = self.controller.tries
+        # Timeouts count the robot's own time as far as its reports have arrived, so a busy
+        # machine delays them instead of firing them before the captures could arrive.
+        tries, finished = self.controller.on_time(self.robot_time_s)
+        if tries > tries_before and finished is None:
+            self.get_logger().warning(
+                f'no capture {tries} x {self.controller.config.capture_timeout_s:g} s after '
+                f'timer2; waiting again (try {tries + 1} of '
+                f'{self.controller.config.max_capture_tries})')
+        if finished is not None:
+            self.report(finished)
+
+    # -- outputs -----------------------------------------------------------------------------
+    def _command(self, move: Move) -> None:
+        try:
+            profile = move_profile(move.duration_s, self.limits)
+        except CommandError as error:
+            self.get_logger().error(f'cannot build the move: {error}')
+            self.report(self.controller.cancel(str(error)))
+            return
+        msg = JointTrajectory()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(move.start_s)
+        msg.header.frame_id = 'base_link'
+        msg.joint_names = list(JOINT_NAMES)
+        for point in points_from_profile(move.steering_rad, profile):
+            sec, nanosec = split_stamp(point.time_from_start_s)
+            msg.points.append(JointTrajectoryPoint(
+                positions=list(point.positions), velocities=list(point.velocities),
+                time_from_start=Duration(sec=sec, nanosec=nanosec)))
+        self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
+        self.trajectory_pub.publish(msg)
+        self.get_logger().info(
+            f'period {move.period}: {move.observation.camera} sees '
+            f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
+            f'{move.remaining_m * 1e3:.4f} mm to go; theta1 '
+            f'{math.degrees(move.steering_rad):.3f} deg for {move.duration_s:.4f} s')
+        self._publish_status(DiagnosticStatus.OK, 'moving', periods=str(move.period),
+                             remaining_m=repr(move.remaining_m))
+
+    def report(self, finished: Finished | None) -> None:
+        if finished is None:
+            return
+        self.watcher.forget()
+        values = {'outcome': finished.outcome.value, 'periods': str(finished.periods),
+                  'reason': finished.reason, 'sim_time_s': repr(self.now_s())}
+        if finished.observation is not None:
+            seen = finished.observation
+            values.update(measured_x_m=repr(seen.x_m), measured_y_m=repr(seen.y_m),
+                          measured_phi_rad=repr(seen.phi_rad), camera=seen.camera,
+                          capture_stamp_s=repr(seen.stamp_s))
+        if self.controller.goal_m is not None:
+            values.update(goal_x_m=repr(self.controller.goal_m[0]),
+                          goal_y_m=repr(self.controller.goal_m[1]))
+        if finished.outcome in (Outcome.LOST, Outcome.CANCELLED):
+            self.stop_robot()
+        log = (self.get_logger().info if STATUS_LEVELS[finished.outcome] == DiagnosticStatus.OK
+               else self.get_logger().warning)
+        log(f'{finished.outcome.value}: {finished.reason} ({finished.periods} periods)')
+        self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, **values)
+
+    def _publish_status(self, level: int, message: str, **values: str) -> None:
+        status = DiagnosticStatus(level=level, name='omni_micro_controller', message=message,
+                                  hardware_id='omni_micro')
+        status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
+        self.status_pub.publish(status)
+
+    def stop_robot(self) -> None:
+        """An empty trajectory: the dynamics (or the real robot) ramps the wheels down now."""
+        msg = JointTrajectory()
+        msg.joint_names = list(JOINT_NAMES)
+        self.trajectory_pub.publish(msg)
+
+
+def _stop_on_shutdown(node: ControllerNode) -> None:
+    node.report(node.controller.cancel('shutdown'))
+    node.stop_robot()
+    time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(ControllerNode, config_errors=(ControllerConfigError, ParameterError, CommandError),
+             on_shutdown=_stop_on_shutdown, args=args)
+
+
+if __name__ == '__main__':
+    main()

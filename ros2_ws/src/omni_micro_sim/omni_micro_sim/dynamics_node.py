@@ -1,0 +1,250 @@
+"""ROS 2 adapter of the slip dynamics: the simulated robot and the source of /clock.
+
+Publishes, once per grid period of simulated time (``publish_period_s``):
+  /clock          rosgraph_msgs/Clock
+  /odom           nav_msgs/Odometry, odom -> base_link, twist in base_link (REP-103/105)
+  /joint_states   sensor_msgs/JointState: steering angle, wheel rotations and spin speeds
+  /wheel_slip     sensor_msgs/JointState: ``wheel_<k>_longitudinal`` and ``wheel_<k>_transverse``
+                  slip velocities of each contact (m/s) in ``velocity``; see README
+Subscribes:
+  /wheel_trajectory  trajectory_msgs/JointTrajectory (contract in omni_micro_sim.wheel_trajectory)
+
+Time is owned here and runs on a wall timer at ``real_time_factor`` (the node itself never uses
+sim time). While ``paused`` is true the clock stands still, which lets an orchestrator bring the
+whole graph up before time 0 moves.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import fields
+
+from builtin_interfaces.msg import Time
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from omni_micro_sim import paper
+from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_to_quaternion
+from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
+from omni_micro_sim.node_runtime import run_node
+from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
+from omni_micro_sim.wheel_trajectory import (
+    JOINT_NAMES,
+    TrajectoryPoint,
+    command_from_points,
+)
+
+# Deep enough that a subscriber a few hundred samples behind at a high real-time factor still
+# gets every sample (the vision node's stationarity rule needs them all).
+DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+SLIP_NAMES = [f'wheel_{k}_{part}' for k in (1, 2, 3) for part in ('longitudinal', 'transverse')]
+# Fixed at start-up: they define the robot, and changing them mid-run would change physics.
+_READ_ONLY = ParameterDescriptor(read_only=True)
+
+
+def time_msg(seconds: float) -> Time:
+    sec, nanosec = split_stamp(seconds)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_seconds(stamp: Time) -> float:
+    return join_stamp(stamp.sec, stamp.nanosec)
+
+
+def _robot_defaults() -> dict[str, object]:
+    # The same robot as config/dynamics_node.yaml, so a run without the file behaves alike.
+    robot = paper.FIG11_OPEN_LOOP.robot()
+    values: dict[str, object] = {}
+    for field in fields(robot):
+        value = getattr(robot, field.name)
+        if field.name == 'cantilever_side':
+            value = value.name.lower()
+        elif field.name == 'wheel_offsets_rad':
+            value = [float(v) for v in value]
+        values[field.name] = value
+    return values
+
+
+class DynamicsNode(Node):
+    def __init__(self) -> None:
+        super().__init__('dynamics_node')
+        robot_values = {name: self.declare_parameter(f'robot.{name}', default,
+                                                     _READ_ONLY).value
+                        for name, default in _robot_defaults().items()}
+        limit_values = {f.name: self.declare_parameter(f'motor.{f.name}',
+                                                       getattr(MotorLimits(), f.name),
+                                                       _READ_ONLY).value
+                        for f in fields(MotorLimits)}
+        period = self.declare_parameter('publish_period_s', DEFAULT_PERIOD_S, _READ_ONLY).value
+        initial = self.declare_parameter('initial_pose', [0.0, 0.0, 0.0], _READ_ONLY).value
+        self.odom_frame = self.declare_parameter('odom_frame', 'odom', _READ_ONLY).value
+        self.base_frame = self.declare_parameter('base_frame', 'base_link', _READ_ONLY).value
+        self.real_time_factor = self._checked_rtf(
+            self.declare_parameter('real_time_factor', 1.0).value)
+        self.paused = bool(self.declare_parameter('paused', False).value)
+        # Raises ParameterError naming the value: main() reports it and exits non-zero.
+        if len(initial) != 3:
+            raise ParameterError(f'initial_pose must be [x_m, y_m, phi_rad], got {list(initial)}')
+        robot_values['wheel_offsets_rad'] = tuple(robot_values['wheel_offsets_rad'])
+        self.grid = GridSimulator(
+            RobotParameters.from_mapping(robot_values), period_s=period,
+            limits=MotorLimits(**limit_values),
+            state=RobotState(x_m=initial[0], y_m=initial[1], phi_rad=initial[2]))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self._make_messages()
+        self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self.odom_pub = self.create_publisher(Odometry, '/odom', DATA_QOS)
+        self.joint_pub = self.create_publisher(JointState, '/joint_states', DATA_QOS)
+        self.slip_pub = self.create_publisher(JointState, '/wheel_slip', DATA_QOS)
+        self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
+                                 DATA_QOS)
+        self._wall_origin = time.monotonic()
+        self._tick_origin = 0
+        self._timer = self.create_timer(self._timer_period(), self._on_timer)
+        self._publish_clock()
+        self.get_logger().info(
+            f'robot ready: grid {period * 1e3:g} ms, real-time factor '
+            f'{self.real_time_factor:g}{", paused" if self.paused else ""}')
+
+    # -- parameters --------------------------------------------------------------------------
+    @staticmethod
+    def _checked_rtf(value: object) -> float:
+        try:
+            rtf = float(value)
+        except (TypeError, ValueError):
+            raise ParameterError(f'real_time_factor must be a number, got {value!r}') from None
+        if not math.isfinite(rtf) or rtf <= 0.0:
+            raise ParameterError(f'real_time_factor must be a finite number > 0, got {value!r}')
+        return rtf
+
+    def _on_set_parameters(self, params: list) -> SetParametersResult:
+        changes = {}
+        for param in params:
+            if param.name == 'real_time_factor':
+                try:
+                    changes['rtf'] = self._checked_rtf(param.value)
+                except ParameterError as error:
+                    return SetParametersResult(successful=False, reason=str(error))
+            elif param.name == 'paused':
+                if not isinstance(param.value, bool):
+                    return SetParametersResult(
+                        successful=False, reason=f'paused must be a bool, got {param.value!r}')
+                changes['paused'] = param.value
+        if 'rtf' in changes:
+            self.real_time_factor = changes['rtf']
+        if 'paused' in changes:
+            self.paused = changes['paused']
+        # Pacing restarts from here, so a pause or a new factor never makes time jump.
+        self._wall_origin = time.monotonic()
+        self._tick_origin = self.grid.tick
+        if 'rtf' in changes:
+            self._timer.cancel()
+            self._timer = self.create_timer(self._timer_period(), self._on_timer)
+        return SetParametersResult(successful=True)
+
+    def _timer_period(self) -> float:
+        # Beyond ~2 kHz of callbacks Python spends its time in the executor: catch up instead.
+        return max(self.grid.period_s / self.real_time_factor, 5e-4)
+
+    # -- time --------------------------------------------------------------------------------
+    def _on_timer(self) -> None:
+        if self.paused:
+            self._publish_clock()
+            return
+        elapsed = (time.monotonic() - self._wall_origin) * self.real_time_factor
+        due = self._tick_origin + int(elapsed / self.grid.period_s)
+        # Never more than 50 periods per callback: if the machine cannot keep up, simulated time
+        # slows down rather than the node starving its subscriptions.
+        steps = min(due - self.grid.tick, 50)
+        for _ in range(steps):
+            try:
+                sample = self.grid.advance()
+            except SimulationError as error:
+                self.get_logger().error(f'{error}; stopping the robot')
+                self.grid.schedule_stop()
+                return
+            self._publish(sample)
+        if due - self.grid.tick > 200:
+            self._wall_origin = time.monotonic()
+            self._tick_origin = self.grid.tick
+
+    def _publish_clock(self) -> None:
+        self._clock_msg.clock = time_msg(self.grid.time_s)
+        self.clock_pub.publish(self._clock_msg)
+
+    def _make_messages(self) -> None:
+        # Built once and refilled: constructing messages costs more than publishing them.
+        self._clock_msg = Clock()
+        self._odom_msg = Odometry()
+        self._odom_msg.header.frame_id = self.odom_frame
+        self._odom_msg.child_frame_id = self.base_frame
+        self._joint_msg = JointState(name=list(JOINT_NAMES))
+        self._joint_msg.header.frame_id = self.base_frame
+        self._slip_msg = JointState(name=SLIP_NAMES)
+        self._slip_msg.header.frame_id = self.base_frame
+
+    def _publish(self, sample: Sample) -> None:
+        stamp = time_msg(sample.time_s)
+        self._clock_msg.clock = stamp
+        self.clock_pub.publish(self._clock_msg)
+        state = sample.state
+        odom = self._odom_msg
+        odom.header.stamp = stamp
+        odom.pose.pose.position.x = state.x_m
+        odom.pose.pose.position.y = state.y_m
+        (odom.pose.pose.orientation.z,
+         odom.pose.pose.orientation.w) = yaw_to_quaternion(state.phi_rad)
+        (odom.twist.twist.linear.x,
+         odom.twist.twist.linear.y) = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
+        odom.twist.twist.angular.z = state.omega_rad_s
+        self.odom_pub.publish(odom)
+
+        joints = self._joint_msg
+        joints.header.stamp = stamp
+        joints.position = [sample.steering_rad, *map(float, sample.wheel_rotations_rad)]
+        joints.velocity = [0.0, *map(float, sample.wheel_speeds_rad_s)]
+        self.joint_pub.publish(joints)
+
+        slip = self._slip_msg
+        slip.header.stamp = stamp
+        slip.velocity = [float(value) for pair in zip(sample.slip.longitudinal_m_s,
+                                                       sample.slip.transverse_m_s)
+                         for value in pair]
+        self.slip_pub.publish(slip)
+
+    # -- commands ----------------------------------------------------------------------------
+    def _on_trajectory(self, msg: JointTrajectory) -> None:
+        points = [TrajectoryPoint(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9,
+                                  list(p.positions), list(p.velocities)) for p in msg.points]
+        try:
+            command = command_from_points(msg.joint_names, points, stamp_seconds(msg.header.stamp),
+                                          self.grid.time_s, self.grid.limits)
+            scheduled = self.grid.schedule(command)
+        except CommandError as error:
+            self.get_logger().error(f'rejected wheel trajectory: {error}; stopping the robot')
+            self.grid.schedule_stop()
+            return
+        if command.is_stop:
+            self.get_logger().info(f'stop at t={scheduled.start_s:.3f} s')
+            return
+        if scheduled.late_by_s > 0.0:
+            self.get_logger().warning(
+                f'wheel trajectory arrived {scheduled.late_by_s:.3f} s (simulated) after its '
+                f'start stamp; it runs in full from t={scheduled.start_s:.3f} s')
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(DynamicsNode, config_errors=(ParameterError, CommandError), args=args)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,235 @@
+"""The overhead cameras as measurement models, and the rule for when they capture.
+
+A camera sees a rectangle of the platform through a sensor of ``resolution_px`` pixels, so one
+pixel covers ``field / resolution`` metres. The robot carries two marks ``marker_baseline_m``
+apart along its X axis; the tracker locates each mark with a Gaussian error of ``noise_px``
+pixels and reports it on a grid of ``quantisation_px`` pixels (sub-pixel centroiding still ends
+on a finite grid). The pose is the marks' midpoint and the heading of the line between them, so
+the heading noise follows from the pixel size as it would on a real image.
+
+Noise is drawn from a generator seeded by (run seed, stop index, frame index after the stop):
+a capture's error depends on which capture it is, never on how many were taken before or on
+timing, so the same seed gives the same run at any real-time factor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class CameraConfigError(ValueError):
+    """A camera or capture parameter is out of range; the message names it."""
+
+
+def _finite(name: str, value: float, *, positive: bool = False,
+            non_negative: bool = False) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise CameraConfigError(f'{name} must be a number, got {value!r}') from None
+    if not math.isfinite(number):
+        raise CameraConfigError(f'{name} must be finite, got {value!r}')
+    if positive and number <= 0.0:
+        raise CameraConfigError(f'{name} must be > 0, got {value!r}')
+    if non_negative and number < 0.0:
+        raise CameraConfigError(f'{name} must be >= 0, got {value!r}')
+    return number
+
+
+def _pair(name: str, values: object, **checks: bool) -> tuple[float, float]:
+    items = list(values) if isinstance(values, (list, tuple)) else None
+    if items is None or len(items) != 2:
+        raise CameraConfigError(f'{name} must be two numbers [x, y], got {values!r}')
+    return (_finite(f'{name}[0]', items[0], **checks), _finite(f'{name}[1]', items[1], **checks))
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """One overhead camera: where it looks, its pixels and its tracker's accuracy."""
+
+    name: str
+    center_m: tuple[float, float]
+    field_m: tuple[float, float]
+    resolution_px: tuple[float, float] = (1280, 1024)
+    noise_px: float = 0.1
+    quantisation_px: float = 0.1
+    marker_baseline_m: float = 4.0e-3
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'center_m', _pair(f'{self.name}.center_m', self.center_m))
+        object.__setattr__(self, 'field_m',
+                           _pair(f'{self.name}.field_m', self.field_m, positive=True))
+        resolution = _pair(f'{self.name}.resolution_px', self.resolution_px, positive=True)
+        if any(value != int(value) for value in resolution):
+            raise CameraConfigError(
+                f'{self.name}.resolution_px must be whole pixels, got {self.resolution_px!r}')
+        object.__setattr__(self, 'resolution_px', resolution)
+        object.__setattr__(self, 'noise_px',
+                           _finite(f'{self.name}.noise_px', self.noise_px, non_negative=True))
+        object.__setattr__(self, 'quantisation_px', _finite(
+            f'{self.name}.quantisation_px', self.quantisation_px, non_negative=True))
+        object.__setattr__(self, 'marker_baseline_m', _finite(
+            f'{self.name}.marker_baseline_m', self.marker_baseline_m, positive=True))
+
+    @property
+    def pixel_size_m(self) -> tuple[float, float]:
+        return (self.field_m[0] / self.resolution_px[0], self.field_m[1] / self.resolution_px[1])
+
+    def contains(self, x_m: float, y_m: float) -> bool:
+        return (abs(x_m - self.center_m[0]) <= 0.5 * self.field_m[0]
+                and abs(y_m - self.center_m[1]) <= 0.5 * self.field_m[1])
+
+    def measure(self, x_m: float, y_m: float, phi_rad: float,
+                rng: np.random.Generator) -> tuple[float, float, float]:
+        """A noisy, quantised (x, y, phi) of the true pose, as the tracker would report it."""
+        pixel = np.array(self.pixel_size_m)
+        half = 0.5 * self.marker_baseline_m * np.array([math.cos(phi_rad), math.sin(phi_rad)])
+        centre = np.array([x_m, y_m])
+        origin = np.array(self.center_m) - 0.5 * np.array(self.field_m)
+        marks = []
+        for mark in (centre - half, centre + half):
+            pixels = (mark - origin) / pixel + rng.normal(0.0, self.noise_px, 2)
+            if self.quantisation_px > 0.0:
+                pixels = np.round(pixels / self.quantisation_px) * self.quantisation_px
+            marks.append(origin + pixels * pixel)
+        middle = 0.5 * (marks[0] + marks[1])
+        direction = marks[1] - marks[0]
+        return float(middle[0]), float(middle[1]), math.atan2(direction[1], direction[0])
+
+
+def capture_rng(seed: int, stop_index: int, frame_index: int) -> np.random.Generator:
+    """The noise generator of one capture: a function of the run seed and which capture it is."""
+    return np.random.default_rng(np.random.SeedSequence([seed, stop_index, frame_index]))
+
+
+@dataclass(frozen=True)
+class CameraRig:
+    """The macro camera over the platform and the micro camera over the micro work platform.
+
+    The micro camera is used whenever the robot is inside its field; outside the macro field
+    there is no capture.
+    """
+
+    macro: CameraModel
+    micro: CameraModel
+
+    def camera_for(self, x_m: float, y_m: float) -> CameraModel | None:
+        if self.micro.contains(x_m, y_m):
+            return self.micro
+        if self.macro.contains(x_m, y_m):
+            return self.macro
+        return None
+
+
+# The platform frame of the defaults: the macro field is centred 50 mm along X so that the paper's
+# moves, (0,0)->(100,0) mm and (0,0)->(10.15,10.15) mm, both lie inside it; the micro work
+# platform is centred on the goal of Fig. 11.
+DEFAULT_RIG = CameraRig(
+    macro=CameraModel('macro', (0.05, 0.0), (0.15, 0.15)),
+    micro=CameraModel('micro', (0.1, 0.0), (0.002, 0.002)),
+)
+
+
+@dataclass(frozen=True)
+class Capture:
+    """One stationary capture: the measured pose and which capture it was."""
+
+    stamp_s: float
+    x_m: float
+    y_m: float
+    phi_rad: float
+    camera: str
+    stop_index: int
+    frame_index: int
+
+
+@dataclass(frozen=True)
+class OutOfField:
+    """The robot stopped where no camera sees it."""
+
+    stamp_s: float
+    stop_index: int
+
+
+@dataclass(frozen=True)
+class CaptureRule:
+    """When the cameras capture: the robot has been still for ``dwell_s``, then at frame rate.
+
+    "Still" means every odometry sample has translation speed under ``speed_threshold_m_s`` and
+    rotation speed under ``angular_threshold_rad_s``. Frame k of a stop is exposed at
+    ``onset + dwell_s + k / frame_rate_hz``, where onset is the stamp of the first still sample.
+    """
+
+    speed_threshold_m_s: float = 1.0e-6
+    angular_threshold_rad_s: float = 1.0e-4
+    dwell_s: float = 0.02
+    frame_rate_hz: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in ('speed_threshold_m_s', 'angular_threshold_rad_s', 'frame_rate_hz'):
+            object.__setattr__(self, name, _finite(name, getattr(self, name), positive=True))
+        object.__setattr__(self, 'dwell_s', _finite('dwell_s', self.dwell_s, non_negative=True))
+
+
+class StationaryCamera:
+    """Turns the robot's true motion (odometry samples, in stamp order) into captures.
+
+    Parameters
+    ----------
+    rig : the two cameras.
+    rule : when to capture.
+    seed : run seed of the noise.
+    """
+
+    def __init__(self, rig: CameraRig = DEFAULT_RIG, rule: CaptureRule | None = None,
+                 seed: int = 0) -> None:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise CameraConfigError(f'seed must be a whole number >= 0, got {seed!r}')
+        self.rig = rig
+        self.rule = rule or CaptureRule()
+        self.seed = int(seed)
+        self.stop_index = -1
+        self._onset_s: float | None = None
+        self._next_frame = 0
+        self._last_stamp_s = -math.inf
+
+    @property
+    def stationary(self) -> bool:
+        return self._onset_s is not None
+
+    def frame_time_s(self, frame_index: int) -> float:
+        assert self._onset_s is not None
+        return self._onset_s + self.rule.dwell_s + frame_index / self.rule.frame_rate_hz
+
+    def on_odometry(self, stamp_s: float, x_m: float, y_m: float, phi_rad: float,
+                    speed_m_s: float, angular_speed_rad_s: float) -> list[Capture | OutOfField]:
+        """Feed one sample; return the captures (or out-of-field events) it completes."""
+        if stamp_s <= self._last_stamp_s:
+            return []   # a repeated or reordered sample carries nothing new
+        self._last_stamp_s = stamp_s
+        still = (abs(speed_m_s) < self.rule.speed_threshold_m_s
+                 and abs(angular_speed_rad_s) < self.rule.angular_threshold_rad_s)
+        if not still:
+            self._onset_s = None
+            return []
+        if self._onset_s is None:
+            self._onset_s = stamp_s
+            self.stop_index += 1
+            self._next_frame = 0
+        events: list[Capture | OutOfField] = []
+        # The robot is still, so the latest sample is its pose at every frame due by now.
+        while self.frame_time_s(self._next_frame) <= stamp_s + 1e-9:
+            frame = self._next_frame
+            self._next_frame += 1
+            camera = self.rig.camera_for(x_m, y_m)
+            if camera is None:
+                events.append(OutOfField(self.frame_time_s(frame), self.stop_index))
+                continue
+            measured = camera.measure(x_m, y_m, phi_rad,
+                                      capture_rng(self.seed, self.stop_index, frame))
+            events.append(Capture(self.frame_time_s(frame), *measured, camera.name,
+                                  self.stop_index, frame))
+        return events

@@ -1,0 +1,125 @@
+"""ROS 2 adapter of the overhead cameras.
+
+Subscribes /odom (the robot's true motion, from the dynamics node) and publishes, while the robot
+is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
+  /camera/macro/pose   captures of the macro camera (15 cm x 15 cm field)
+  /camera/micro/pose   captures of the micro camera (2 mm x 2 mm field)
+  /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
+                       warning when none does
+The stamp of a capture is its exposure time in simulated time. The camera model and the capture
+rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and out.
+"""
+
+from __future__ import annotations
+
+import math
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, yaw_to_quaternion
+from omni_micro_sim.node_runtime import run_node
+from omni_micro_vision.camera import (
+    DEFAULT_RIG,
+    CameraConfigError,
+    CameraModel,
+    CameraRig,
+    Capture,
+    CaptureRule,
+    StationaryCamera,
+)
+
+DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+# Latched, so a subscriber that comes later still learns which camera is in use.
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+
+
+class VisionNode(Node):
+    def __init__(self) -> None:
+        super().__init__('vision_node')
+        rule_defaults = CaptureRule()
+        self.frame_id = self.declare_parameter('frame_id', 'platform').value
+        seed = self.declare_parameter('seed', 0).value
+        rule = CaptureRule(**{name: self.declare_parameter(name, getattr(rule_defaults, name)).value
+                              for name in ('speed_threshold_m_s', 'angular_threshold_rad_s',
+                                           'dwell_s', 'frame_rate_hz')})
+        baseline = self.declare_parameter('marker_baseline_m',
+                                          DEFAULT_RIG.macro.marker_baseline_m).value
+        cameras = {}
+        for name in ('macro', 'micro'):
+            default: CameraModel = getattr(DEFAULT_RIG, name)
+            cameras[name] = CameraModel(
+                name,
+                self.declare_parameter(f'{name}.center_m', list(default.center_m)).value,
+                self.declare_parameter(f'{name}.field_m', list(default.field_m)).value,
+                self.declare_parameter(f'{name}.resolution_px',
+                                       [int(v) for v in default.resolution_px]).value,
+                self.declare_parameter(f'{name}.noise_px', default.noise_px).value,
+                self.declare_parameter(f'{name}.quantisation_px', default.quantisation_px).value,
+                baseline)
+        self.camera = StationaryCamera(CameraRig(**cameras), rule, seed)
+        self.capture_pubs = {name: self.create_publisher(PoseStamped, topic, CAPTURE_QOS)
+                             for name, topic in CAPTURE_TOPICS.items()}
+        self.status_pub = self.create_publisher(DiagnosticStatus, '/camera/status', STATUS_QOS)
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+        self._status: tuple[int, str] | None = None
+        self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
+        self.get_logger().info(
+            f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
+            f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
+
+    def _publish_status(self, level: int, message: str, **values: str) -> None:
+        if self._status == (level, message):
+            return
+        self._status = (level, message)
+        status = DiagnosticStatus(level=level, name='omni_micro_vision', message=message,
+                                  hardware_id='overhead_cameras')
+        status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
+        self.status_pub.publish(status)
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        pose, twist = msg.pose.pose, msg.twist.twist
+        values = (pose.position.x, pose.position.y, pose.orientation.z, pose.orientation.w,
+                  twist.linear.x, twist.linear.y, twist.angular.z)
+        if not all(math.isfinite(v) for v in values):
+            self.get_logger().error(f'ignored odometry with a non-finite value: {values}')
+            return
+        events = self.camera.on_odometry(
+            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+            pose.position.x, pose.position.y,
+            quaternion_to_yaw(pose.orientation.z, pose.orientation.w),
+            math.hypot(twist.linear.x, twist.linear.y), twist.angular.z)
+        for event in events:
+            if isinstance(event, Capture):
+                self._publish_capture(event)
+            else:
+                self._publish_status(DiagnosticStatus.WARN, 'robot outside the macro field',
+                                     x_m=repr(pose.position.x), y_m=repr(pose.position.y))
+                self.get_logger().warning(
+                    f'robot at ({pose.position.x * 1e3:.3f}, {pose.position.y * 1e3:.3f}) mm '
+                    f'is outside the macro field: no capture', throttle_duration_sec=5.0)
+
+    def _publish_capture(self, capture: Capture) -> None:
+        msg = PoseStamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
+        msg.header.frame_id = self.frame_id
+        msg.pose.position.x = capture.x_m
+        msg.pose.position.y = capture.y_m
+        msg.pose.orientation.z, msg.pose.orientation.w = yaw_to_quaternion(capture.phi_rad)
+        self.capture_pubs[capture.camera].publish(msg)
+        self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
+                             camera=capture.camera)
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(VisionNode, config_errors=(CameraConfigError,), args=args)
+
+
+if __name__ == '__main__':
+    main()

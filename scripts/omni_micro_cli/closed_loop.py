@@ -1,0 +1,129 @@
+"""The node graph's closed loop in one process, from the same core, camera model and controller.
+
+Each grid period does what the three nodes do with one sample: the dynamics advances and
+publishes, the camera sees the odometry, the controller sees the wheel state and the captures.
+Every number crosses the same conventions it would in a message (nanosecond stamps, quaternion
+headings, robot-frame twist), so with the same seed this ends on the graph's final pose; the
+graph test checks that. Use it for sweeps, where starting processes would dominate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from omni_micro_control.feedback import (
+    FeedbackConfig,
+    Finished,
+    Move,
+    MoveWatcher,
+    Observation,
+    Outcome,
+    VisionFeedbackController,
+)
+from omni_micro_sim.conventions import (
+    body_twist,
+    quaternion_to_yaw,
+    through_stamp,
+    yaw_to_quaternion,
+)
+from omni_micro_sim.errors import SimulationError
+from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.profile import move_profile
+from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator
+from omni_micro_sim.wheel_trajectory import (
+    JOINT_NAMES,
+    TrajectoryPoint,
+    command_from_points,
+    points_from_profile,
+)
+from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, Capture, CaptureRule, StationaryCamera
+
+
+@dataclass
+class ClosedLoopResult:
+    outcome: Outcome
+    reason: str
+    periods: int
+    final_state: RobotState
+    sim_time_s: float
+    goal_m: tuple[float, float]
+    captures_used: list[Observation] = field(default_factory=list)
+    route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # t, x, y
+
+    @property
+    def deviation_m(self) -> float:
+        return math.hypot(self.final_state.x_m - self.goal_m[0],
+                          self.final_state.y_m - self.goal_m[1])
+
+
+def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
+                    limits: MotorLimits | None = None,
+                    config: FeedbackConfig | None = None, rig: CameraRig = DEFAULT_RIG,
+                    rule: CaptureRule | None = None, seed: int = 0,
+                    start: RobotState | None = None, period_s: float = DEFAULT_PERIOD_S,
+                    max_sim_time_s: float = 600.0) -> ClosedLoopResult:
+    """Drive the robot to ``goal_m`` as the graph would; stop at the controller's outcome.
+
+    Raises
+    ------
+    SimulationError
+        If no outcome came within ``max_sim_time_s`` of simulated time.
+    """
+    limits = limits or MotorLimits()
+    grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
+    camera = StationaryCamera(rig, rule, seed)
+    controller = VisionFeedbackController(config)
+    watcher = MoveWatcher()
+    controller.set_goal(goal_m, 0.0)
+    used: list[Observation] = []
+    route = []
+    finished: Finished | None = None
+    while finished is None:
+        if grid.time_s > max_sim_time_s:
+            raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
+        sample = grid.advance()
+        state = sample.state
+        stamp = through_stamp(sample.time_s)
+        route.append((sample.time_s, state.x_m, state.y_m))
+        decisions = []
+        if watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
+                                  tuple(sample.wheel_speeds_rad_s)):
+            decisions.append(controller.on_wheels_stopped(stamp))
+        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
+        events = camera.on_odometry(stamp, state.x_m, state.y_m,
+                                    quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad)),
+                                    math.hypot(forward, lateral), state.omega_rad_s)
+        for event in events:
+            if isinstance(event, Capture):
+                observation = Observation(
+                    through_stamp(event.stamp_s), event.x_m, event.y_m,
+                    quaternion_to_yaw(*yaw_to_quaternion(event.phi_rad)), event.camera)
+                decisions.append(controller.on_capture(observation))
+            else:
+                decisions.append(controller.on_out_of_field(through_stamp(event.stamp_s)))
+        for decision in decisions:
+            if isinstance(decision, Move):
+                used.append(decision.observation)
+                profile = move_profile(decision.duration_s, limits)
+                watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
+                # The command crosses a JointTrajectory: knot times become nanosecond stamps.
+                points = [TrajectoryPoint(through_stamp(point.time_from_start_s),
+                                          point.positions, point.velocities)
+                          for point in points_from_profile(decision.steering_rad, profile)]
+                grid.schedule(command_from_points(JOINT_NAMES, points,
+                                                  through_stamp(decision.start_s), stamp,
+                                                  limits))
+            elif isinstance(decision, Finished):
+                finished = decision
+                if decision.observation is not None:
+                    used.append(decision.observation)
+                break
+        if finished is None:
+            finished = controller.on_time(stamp)[1]
+    return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
+                            grid.simulator.state, grid.time_s, tuple(goal_m), used,
+                            np.array(route))

@@ -1,0 +1,386 @@
+"""Orchestration of the node graph (what a launch file would do, launch being unavailable here).
+
+Starts each node as its own OS process through its installed entry point, with its package's
+params file, on loopback only and in a private DDS domain; keeps and prefixes their logs; brings
+the graph up with the clock paused so that nothing moves before every node listens; waits for the
+controller's outcome; shuts down in order (SIGINT, grace, SIGTERM, SIGKILL) and cleans Fast DDS
+shared-memory leftovers.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import math
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, TextIO
+
+from omni_micro_cli.errors import RunFailed, UsageError
+
+SHUTDOWN_ORDER = ('controller_node', 'vision_node', 'dynamics_node')
+# Fast DDS: domain ids above 232 do not fit its port scheme.
+DOMAIN_RANGE = range(1, 232)
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node process: its package, executable and parameter overrides."""
+
+    package: str
+    executable: str
+    overrides: dict[str, object] = field(default_factory=dict)
+    # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
+    command: tuple[str, ...] | None = None
+    respawn: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.executable
+
+
+def default_nodes() -> list[NodeSpec]:
+    return [NodeSpec('omni_micro_sim', 'dynamics_node'),
+            NodeSpec('omni_micro_vision', 'vision_node'),
+            NodeSpec('omni_micro_control', 'controller_node')]
+
+
+def install_prefixes() -> list[Path]:
+    return [Path(p) for p in os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep) if p]
+
+
+def resolve_executable(package: str, executable: str) -> Path:
+    """Where ``ros2 run package executable`` would find it: <prefix>/lib/<package>/<exe>, or the
+    venv's bin/ where pip puts console scripts."""
+    for prefix in install_prefixes():
+        for candidate in (prefix / 'lib' / package / executable, prefix / 'bin' / executable):
+            if candidate.is_file() and os.access(candidate, os.X_OK):
+                return candidate
+    raise RunFailed(f'{package}/{executable} is not installed under '
+                    f'{[str(p) for p in install_prefixes()]} (run ./scripts/test once to install)')
+
+
+def package_params_file(package: str, executable: str) -> Path:
+    for prefix in install_prefixes():
+        path = prefix / 'share' / package / 'config' / f'{executable}.yaml'
+        if path.is_file():
+            return path
+    raise RunFailed(f'params file config/{executable}.yaml of {package} is not installed')
+
+
+def format_parameter(value: object) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return '[' + ','.join(format_parameter(v) for v in value) + ']'
+    return str(value)
+
+
+def check_params_file(path: Path) -> None:
+    """Refuse a params file that would make a node die at start-up: say what is wrong with it."""
+    import yaml
+
+    if not path.is_file():
+        raise UsageError(f'params file {str(path)!r} does not exist')
+    try:
+        content = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as error:
+        raise UsageError(f'params file {str(path)!r} does not parse as YAML: {error}') from None
+    if not isinstance(content, dict) or not all(
+            isinstance(section, dict) and 'ros__parameters' in section
+            for section in content.values()):
+        raise UsageError(
+            f'params file {str(path)!r} must map node names to {{ros__parameters: {{...}}}}, '
+            f'got {content!r:.200}')
+
+
+class DomainLease:
+    """A ROS_DOMAIN_ID no other omni-micro run on this machine holds (an flock per id)."""
+
+    def __init__(self, requested: int | None = None) -> None:
+        self.requested = requested
+        self.domain_id: int | None = None
+        self._file: TextIO | None = None
+
+    def __enter__(self) -> int:
+        folder = Path(tempfile.gettempdir()) / f'omni-micro-domains-{os.getuid()}'
+        folder.mkdir(exist_ok=True)
+        candidates = ([self.requested] if self.requested is not None
+                      else random.sample(list(DOMAIN_RANGE), len(DOMAIN_RANGE)))
+        for candidate in candidates:
+            handle = open(folder / f'{candidate}.lock', 'w')
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.close()
+                continue
+            self._file, self.domain_id = handle, candidate
+            return candidate
+        raise RunFailed(f'no free ROS_DOMAIN_ID among {candidates[:5]}...')
+
+    def __exit__(self, *exc: object) -> None:
+        if self._file is not None:
+            self._file.close()
+
+
+class NodeProcess:
+    """A node's OS process, with its output kept in a log file and echoed with a prefix."""
+
+    def __init__(self, spec: NodeSpec, argv: list[str], env: dict[str, str], log_path: Path,
+                 echo: Callable[[str], None] | None) -> None:
+        self.spec = spec
+        self.argv = argv
+        self.env = env
+        self.log_path = log_path
+        self.echo = echo
+        self.process: subprocess.Popen[str] | None = None
+        self.tail: deque[str] = deque(maxlen=20)
+        self.starts = 0
+        self._pump: threading.Thread | None = None
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def start(self) -> None:
+        self.starts += 1
+        log = open(self.log_path, 'a')
+        log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
+        log.flush()
+        self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                        start_new_session=True)
+        self._pump = threading.Thread(target=self._copy_output, args=(self.process, log),
+                                      daemon=True)
+        self._pump.start()
+
+    def _copy_output(self, process: subprocess.Popen[str], log: TextIO) -> None:
+        assert process.stdout is not None
+        with log:
+            for line in process.stdout:
+                log.write(line)
+                log.flush()
+                self.tail.append(line.rstrip())
+                if self.echo is not None:
+                    self.echo(f'[{self.name}] {line.rstrip()}')
+
+    def exit_code(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def stop(self, grace_s: float = 5.0) -> int | None:
+        """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; returns the exit code."""
+        process = self.process
+        if process is None:
+            return None
+        for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0),
+                            (signal.SIGKILL, 5.0)):
+            if process.poll() is not None:
+                break
+            try:
+                process.send_signal(sig)
+            except ProcessLookupError:
+                break
+            try:
+                process.wait(wait_s)
+            except subprocess.TimeoutExpired:
+                continue
+        if self._pump is not None:
+            self._pump.join(timeout=2.0)
+        return process.poll()
+
+
+def clean_shared_memory() -> None:
+    """Remove Fast DDS shared-memory segments whose owners are gone (a SIGKILL leaves them)."""
+    tool = shutil.which('fastdds', path=str(Path(sys.prefix) / 'bin'))
+    if tool:
+        subprocess.run([tool, 'shm', 'clean'], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=30, check=False)
+
+
+@dataclass
+class GraphOptions:
+    goal_m: tuple[float, float]
+    seed: int = 0
+    real_time_factor: float = 1.0
+    open_loop_s: float | None = None
+    params_file: Path | None = None
+    timeout_s: float = 600.0
+    log_dir: Path = Path('out/runs')
+    echo: Callable[[str], None] | None = None
+    nodes: list[NodeSpec] | None = None
+    domain_id: int | None = None
+    follow_route: bool = False
+
+
+@dataclass
+class GraphResult:
+    outcome: str
+    reason: str
+    periods: int
+    final_x_m: float
+    final_y_m: float
+    final_phi_rad: float
+    goal_m: tuple[float, float]
+    sim_time_s: float
+    wall_time_s: float
+    log_dir: Path
+    domain_id: int
+    status: dict[str, str]
+    route: list[tuple[float, float, float]] = field(default_factory=list)       # t, x, y
+    captures: list[tuple[float, float, float, str]] = field(default_factory=list)  # t, x, y, cam
+
+    @property
+    def deviation_m(self) -> float:
+        return math.hypot(self.final_x_m - self.goal_m[0], self.final_y_m - self.goal_m[1])
+
+    def as_json(self) -> dict[str, object]:
+        return {
+            'outcome': self.outcome, 'reason': self.reason, 'periods': self.periods,
+            'final_x_mm': self.final_x_m * 1e3, 'final_y_mm': self.final_y_m * 1e3,
+            'final_phi_deg': math.degrees(self.final_phi_rad),
+            'deviation_mm': self.deviation_m * 1e3,
+            'goal_x_mm': self.goal_m[0] * 1e3, 'goal_y_mm': self.goal_m[1] * 1e3,
+            'sim_time_s': self.sim_time_s, 'wall_time_s': self.wall_time_s,
+            'real_time_factor': (self.sim_time_s / self.wall_time_s
+                                 if self.wall_time_s > 0 else None),
+            'log_dir': str(self.log_dir), 'domain_id': self.domain_id,
+        }
+
+
+def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if spec.executable == 'dynamics_node':
+        # Time 0 waits until the orchestration has seen every node listening.
+        overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
+    elif spec.executable == 'vision_node':
+        overrides.update(seed=int(options.seed))
+    elif spec.executable == 'controller_node':
+        overrides.update(goal_m=[float(options.goal_m[0]), float(options.goal_m[1])])
+        if options.open_loop_s is not None:
+            overrides.update(open_loop_duration_s=float(options.open_loop_s))
+    overrides.update(spec.overrides)
+    return overrides
+
+
+def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
+    if spec.command is not None:
+        return list(spec.command)
+    argv = [str(resolve_executable(spec.package, spec.executable)), '--ros-args',
+            '--params-file', str(package_params_file(spec.package, spec.executable))]
+    if options.params_file is not None:
+        argv += ['--params-file', str(options.params_file)]
+    for name, value in _node_overrides(spec, options).items():
+        argv += ['-p', f'{name}:={format_parameter(value)}']
+    return argv
+
+
+def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+    env = dict(os.environ)
+    env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    return env
+
+
+class Graph:
+    """The running processes of one graph, stopped in order however the run ends."""
+
+    def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path) -> None:
+        self.options = options
+        self.domain_id = domain_id
+        self.log_dir = log_dir
+        env = node_environment(domain_id, log_dir)
+        self.processes = [NodeProcess(spec, _argv(spec, options), env,
+                                      log_dir / f'{spec.name}.log', options.echo)
+                          for spec in (options.nodes or default_nodes())]
+
+    def start(self) -> None:
+        for process in self.processes:
+            process.start()
+
+    def check_alive(self) -> None:
+        """Raise RunFailed naming a node that died (after restarting it, if it respawns)."""
+        for process in self.processes:
+            code = process.exit_code()
+            if code is None:
+                continue
+            if process.spec.respawn:
+                if self.options.echo:
+                    self.options.echo(f'[orchestration] {process.name} exited with {code}; '
+                                      f'respawning')
+                process.start()
+                continue
+            tail = '\n  '.join(process.tail) or '(no output)'
+            raise RunFailed(f'{process.name} exited with code {code} before the outcome; '
+                            f'its log ({process.log_path}) ends:\n  {tail}')
+
+    def stop(self) -> dict[str, int | None]:
+        order = sorted(self.processes, key=lambda p: (
+            SHUTDOWN_ORDER.index(p.name) if p.name in SHUTDOWN_ORDER else -1))
+        codes = {process.name: process.stop() for process in order}
+        clean_shared_memory()
+        return codes
+
+
+def _new_log_dir(root: Path) -> Path:
+    stamp = time.strftime('%Y%m%d-%H%M%S')
+    folder = root / f'{stamp}-{os.getpid()}'
+    suffix = 0
+    while folder.exists():
+        suffix += 1
+        folder = root / f'{stamp}-{os.getpid()}-{suffix}'
+    folder.mkdir(parents=True)
+    return folder
+
+
+def run_graph(options: GraphOptions) -> GraphResult:
+    """Run the graph to the controller's outcome and return it with the true final pose.
+
+    Raises
+    ------
+    RunFailed
+        If a node died, the graph did not come up, or no outcome came within the timeout; the
+        message names the node and where its log is.
+    """
+    from omni_micro_cli.monitor import GraphMonitor   # rclpy only where a graph runs
+
+    if options.params_file is not None:
+        check_params_file(options.params_file)
+    log_dir = _new_log_dir(options.log_dir)
+    with DomainLease(options.domain_id) as domain_id:
+        graph = Graph(options, domain_id, log_dir)
+        monitor = GraphMonitor(domain_id, follow_route=options.follow_route)
+        try:
+            graph.start()
+            monitor.wait_until_ready(graph, timeout_s=60.0)
+            wall_start = time.monotonic()
+            monitor.unpause()
+            status = monitor.wait_for_outcome(graph, options.timeout_s)
+            wall_time = time.monotonic() - wall_start
+            capture_stamp = float(status.get('capture_stamp_s', '0'))
+            odom = monitor.wait_for_odometry_after(graph, capture_stamp, timeout_s=30.0)
+        finally:
+            monitor.close()
+            graph.stop()
+    return GraphResult(
+        outcome=status['outcome'], reason=status.get('reason', ''),
+        periods=int(status.get('periods', '0')), final_x_m=odom[1], final_y_m=odom[2],
+        final_phi_rad=odom[3], goal_m=tuple(options.goal_m),
+        sim_time_s=float(status.get('sim_time_s', 'nan')), wall_time_s=wall_time,
+        log_dir=log_dir, domain_id=domain_id, status=status, route=monitor.route,
+        captures=monitor.captures)
+
+
+def describe(names: Iterable[str]) -> str:
+    return ', '.join(sorted(names))

@@ -1,0 +1,141 @@
+"""The orchestration's own node: sees the graph come up, unpauses the clock, waits for the outcome
+and reads the true final pose from /odom. It commands nothing that moves the robot."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from omni_micro_cli.errors import RunFailed
+from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
+
+if TYPE_CHECKING:
+    from omni_micro_cli.graph import Graph
+
+TERMINAL_OUTCOMES = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
+DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Topic -> how many subscribers it needs before time may start (the monitor's own included).
+CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+READY_SUBSCRIBERS = {'/wheel_trajectory': 1, '/joint_states': 1, '/camera/macro/pose': 1,
+                     '/camera/micro/pose': 1, '/odom': 1}
+# Discovery shows an endpoint a little before every peer has matched it.
+MATCH_GRACE_S = 0.5
+
+
+class GraphMonitor:
+    """With ``follow_route`` it keeps the whole route and every capture (for figures); that
+    costs a subscriber at the full sample rate, so plain runs only read /odom at the end."""
+
+    def __init__(self, domain_id: int, follow_route: bool = False) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node('omni_micro_orchestration', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.latest_odometry: tuple[float, float, float, float] | None = None
+        self.statuses: list[dict[str, str]] = []
+        self.node.create_subscription(DiagnosticStatus, '/controller/status', self._on_status,
+                                      STATUS_QOS)
+        self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
+        self.route: list[tuple[float, float, float]] = []
+        self.captures: list[tuple[float, float, float, str]] = []
+        self._following = follow_route
+        if follow_route:
+            self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+            for camera in ('macro', 'micro'):
+                self.node.create_subscription(
+                    PoseStamped, f'/camera/{camera}/pose',
+                    lambda msg, name=camera: self.captures.append(
+                        (join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                         msg.pose.position.x, msg.pose.position.y, name)), CAPTURE_QOS)
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        pose = msg.pose.pose
+        self.latest_odometry = (join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                                pose.position.x, pose.position.y,
+                                quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
+        if self._following:
+            self.route.append(self.latest_odometry[:3])
+
+    def _on_status(self, msg: DiagnosticStatus) -> None:
+        values = {item.key: item.value for item in msg.values}
+        values['message'] = msg.message
+        self.statuses.append(values)
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
+
+    def wait_until_ready(self, graph: Graph, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            graph.check_alive()
+            missing = [topic for topic, count in READY_SUBSCRIBERS.items()
+                       if self.node.count_subscribers(topic) < count]
+            if not missing and self.parameters.service_is_ready():
+                break
+            if time.monotonic() > deadline:
+                raise RunFailed(f'the graph did not come up within {timeout_s:g} s: nobody '
+                                f'subscribes {missing or "(dynamics parameters service)"}; '
+                                f'logs in {graph.log_dir}')
+            self.spin_for(0.05)
+        self.spin_for(MATCH_GRACE_S)
+        graph.check_alive()
+
+    def unpause(self) -> None:
+        request = SetParameters.Request(parameters=[Parameter(
+            name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
+                                                bool_value=False))])
+        future = self.parameters.call_async(request)
+        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
+        result = future.result()
+        if result is None or not result.results[0].successful:
+            raise RunFailed(f'could not start the clock of dynamics_node: {result}')
+
+    def wait_for_outcome(self, graph: Graph, timeout_s: float) -> dict[str, str]:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            # A dead node is the cause, whatever the controller concluded since.
+            graph.check_alive()
+            for status in self.statuses:
+                if status['message'] in TERMINAL_OUTCOMES:
+                    return dict(status, outcome=status['message'])
+            if time.monotonic() > deadline:
+                sim = self.latest_odometry[0] if self.latest_odometry else 0.0
+                raise RunFailed(f'no outcome from controller_node within {timeout_s:g} s of '
+                                f'wall time (simulated time reached {sim:.2f} s); logs in '
+                                f'{graph.log_dir}')
+            self.spin_for(0.05)
+
+    def wait_for_odometry_after(self, graph: Graph, stamp_s: float,
+                                timeout_s: float) -> tuple[float, float, float, float]:
+        if not self._following:
+            # Subscribed only now: following /odom all run long would slow a fast graph down,
+            # and the robot is still once the controller has an outcome.
+            self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+        deadline = time.monotonic() + timeout_s
+        while self.latest_odometry is None or self.latest_odometry[0] < stamp_s:
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'no odometry at or after t={stamp_s:.3f} s from dynamics_node')
+            self.spin_for(0.05)
+        return self.latest_odometry
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

@@ -1,0 +1,79 @@
+"""`omni-micro run`: one goal through the ROS 2 node graph (three processes)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from omni_micro_cli.arguments import float_list, non_negative_int, positive_float
+from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+
+
+def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('--params', type=Path, metavar='FILE',
+                        help='a ROS params YAML applied to every node after its package '
+                             'defaults (sections dynamics_node:, vision_node:, controller_node:)')
+    parser.add_argument('--rtf', type=positive_float, default=1.0, metavar='R',
+                        help='real-time factor: simulated seconds per wall second (default 1)')
+    parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
+                        help='camera noise seed (default 0); the same seed gives the same run '
+                             'at any --rtf')
+    parser.add_argument('--timeout', type=positive_float, default=600.0, metavar='S',
+                        help='give up after this many wall seconds (default 600)')
+    parser.add_argument('--log-dir', type=Path, default=Path('out/runs'), metavar='DIR',
+                        help='node logs go to a new folder under DIR (default out/runs)')
+    parser.add_argument('--quiet', action='store_true',
+                        help="do not echo the nodes' logs (they are still kept)")
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'run', help='drive the robot to a goal through the ROS 2 node graph',
+        description='Start dynamics_node, vision_node and controller_node as three processes '
+                    '(loopback only, private ROS_DOMAIN_ID), drive the robot from the origin '
+                    'to the goal with vision feedback (or one open-loop move), print where it '
+                    'really stopped, and shut the graph down. Exit 0 when the goal was reached '
+                    '(or the open-loop move completed), 1 otherwise.')
+    parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'), required=True,
+                        metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0')
+    parser.add_argument('--open-loop', type=positive_float, metavar='S',
+                        help='no feedback: one move of S seconds toward the goal (the paper '
+                             'uses 7 s for 100 mm)')
+    parser.add_argument('--json', action='store_true',
+                        help='print a final JSON line with the outcome and true final pose')
+    add_graph_arguments(parser)
+    parser.set_defaults(handler=run)
+
+
+def echo_to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
+                      open_loop_s: float | None) -> GraphOptions:
+    return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
+                        open_loop_s=open_loop_s, params_file=args.params,
+                        timeout_s=args.timeout, log_dir=args.log_dir,
+                        echo=None if args.quiet else echo_to_stderr)
+
+
+def summary_line(result: GraphResult) -> str:
+    return (f'{result.outcome}: stopped at ({result.final_x_m * 1e3:.4f}, '
+            f'{result.final_y_m * 1e3:.4f}) mm, {result.deviation_m * 1e3:.4f} mm from the goal, '
+            f'{result.periods} periods, {result.sim_time_s:.2f} s simulated in '
+            f'{result.wall_time_s:.2f} s wall; logs in {result.log_dir}')
+
+
+def run(args: argparse.Namespace) -> int:
+    goal = (args.goal_mm[0] * 1e-3, args.goal_mm[1] * 1e-3)
+    result = run_graph(options_from_args(args, goal, args.open_loop))
+    print(summary_line(result), file=sys.stderr)
+    if args.json:
+        print(json.dumps(result.as_json()))
+    succeeded = 'completed' if args.open_loop else 'reached'
+    if result.outcome != succeeded:
+        raise RunFailed(f'controller_node reported {result.outcome}: {result.reason}')
+    return 0
