@@ -1,36 +1,101 @@
-"""`omni-micro demo`: the paper's open-loop scenarios through the slip core, beside its numbers.
+"""`omni-micro demo`: the paper's results reproduced, the closed loop through the ROS 2 graph.
 
-Until the ROS node graph exists this runs the core directly (no ROS processes).
+The open-loop figures (Figs. 6, 7, 8, 11) come from the slip core; Fig. 11's comparison of open
+loop (7 s) and vision feedback runs through the three node processes, as a user would run it.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from omni_micro_sim import paper
 
-from omni_micro_cli import figures
+from omni_micro_cli import figures, plots
+from omni_micro_cli.arguments import non_negative_int, positive_float
+from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.run import echo_to_stderr
+
+OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'demo', help="the paper's open-loop results reproduced, with figures",
-        description="Run the paper's open-loop scenarios (Figs. 6, 7, 8, 11) through the slip "
-                    "core, print our numbers beside the paper's and write the figures.")
+        'demo', help="the paper's results reproduced: Fig. 11 through the node graph",
+        description="Run the paper's Fig. 11 scenario, (0,0) -> (100,0) mm, through the ROS 2 "
+                    "node graph: one open-loop move of 7 s, then vision feedback; print both "
+                    "deviations beside the paper's (13 mm and 0.0124 mm) and write the "
+                    "comparison figure, plus the open-loop figures of Figs. 6-8 from the core.")
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
-                        help='where the figures go (default out/demo)')
+                        help='where the figures and summary go (default out/demo)')
+    parser.add_argument('--rtf', type=positive_float, default=2.0, metavar='R',
+                        help='real-time factor of the graph runs (default 2)')
+    parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
+                        help='camera noise seed (default 0)')
+    parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
     parser.set_defaults(handler=run)
+
+
+def _progress(message: str) -> None:
+    print(f'demo: {message}', file=sys.stderr, flush=True)
+
+
+def graph_run(args: argparse.Namespace, open_loop_s: float | None,
+              log_root: Path) -> GraphResult:
+    return run_graph(GraphOptions(
+        goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
+        open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
+        echo=echo_to_stderr if args.verbose else None))
+
+
+def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
+    return '\n'.join([
+        '| Fig. 11, (0,0) -> (100,0) mm | paper | this graph |',
+        '|---|---|---|',
+        f'| open loop, 7 s: deviation | {paper.FIG11_PUBLISHED_OPEN_LOOP_DEVIATION_MM} mm | '
+        f'{open_loop.deviation_m * 1e3:.3f} mm |',
+        f'| vision feedback: deviation | {paper.FIG11_PUBLISHED_CLOSED_LOOP_DEVIATION_MM} mm | '
+        f'{closed_loop.deviation_m * 1e3:.4f} mm ({closed_loop.deviation_m * 1e6:.2f} um) |',
+        f'| vision feedback: periods | - | {closed_loop.periods} |',
+        f'| vision feedback: simulated time | - | {closed_loop.sim_time_s:.2f} s |',
+        ''])
 
 
 def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     with staged_directory(args.out) as scratch:
+        _progress('open-loop figures from the slip core (Figs. 6, 7, 8, 11)')
         figures.write_figures(scratch, angle_step_deg=2.0, offset_step_deg=0.25)
-        table = (scratch / 'comparison.md').read_text()
+        _progress(f'Fig. 11 open loop through the node graph ({OPEN_LOOP_S:g} s move, '
+                  f'rtf {args.rtf:g})')
+        open_loop = graph_run(args, OPEN_LOOP_S, scratch / 'logs')
+        _progress(f'  deviation {open_loop.deviation_m * 1e3:.3f} mm')
+        _progress('Fig. 11 with vision feedback through the node graph')
+        closed_loop = graph_run(args, None, scratch / 'logs')
+        _progress(f'  {closed_loop.outcome}: deviation {closed_loop.deviation_m * 1e6:.2f} um '
+                  f'after {closed_loop.periods} periods')
+        if closed_loop.outcome != 'reached':
+            raise RunFailed(f'the closed loop ended {closed_loop.outcome}: {closed_loop.reason}')
+        used = np.array([c[1:3] for c in closed_loop.captures]).reshape(-1, 2)
+        plots.closed_loop_comparison(
+            scratch / 'fig11_graph_comparison.png',
+            np.array([r[1:] for r in open_loop.route]).reshape(-1, 2),
+            np.array([r[1:] for r in closed_loop.route]).reshape(-1, 2), used,
+            paper.FIG11_GOAL_M, zoom_half_width_m=20e-6,
+            title='Fig. 11 through the node graph')
+        table = comparison_table(open_loop, closed_loop)
+        (scratch / 'fig11_graph.md').write_text(table)
+        (scratch / 'fig11_graph.json').write_text(json.dumps(
+            {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json()}, indent=2))
+        core_table = (scratch / 'comparison.md').read_text()
+    print(core_table)
     print(table)
-    print(f'figures in {args.out}/ ({time.perf_counter() - started:.1f} s); closed-loop '
-          f'(paper: {paper.FIG11_PUBLISHED_CLOSED_LOOP_DEVIATION_MM} mm) needs the node graph.')
+    print(f'figures in {args.out}/ ({time.perf_counter() - started:.1f} s)')
     return 0

@@ -70,3 +70,38 @@ def routes(path: Path, routes_m: dict[str, np.ndarray], *, ideal_m: np.ndarray |
         axes.set_aspect('equal', adjustable='datalim')
     axes.legend()
     _save(figure, path)
+
+
+def closed_loop_comparison(path: Path, open_loop_m: np.ndarray, closed_loop_m: np.ndarray,
+                           captures_m: np.ndarray, goal_m: Sequence[float], *,
+                           zoom_half_width_m: float, title: str) -> None:
+    """Fig. 11 beside its close-up: open- and closed-loop routes, capture points, the goal.
+
+    The close-up (``zoom_half_width_m`` around the goal, in um) shows the last moves, which are
+    invisible at the platform's scale.
+    """
+    figure, (whole, close) = plt.subplots(1, 2, figsize=(11.0, 4.4))
+    for axes, scale, unit in ((whole, 1e3, 'mm'), (close, 1e6, 'um')):
+        origin = np.zeros(2) if axes is whole else np.asarray(goal_m)
+        for label, route, style in (('open loop', open_loop_m, '-'),
+                                    ('vision feedback', closed_loop_m, '-')):
+            if len(route):
+                axes.plot((route[:, 0] - origin[0]) * scale, (route[:, 1] - origin[1]) * scale,
+                          style, lw=1.2, label=label)
+        if len(captures_m):
+            axes.plot((captures_m[:, 0] - origin[0]) * scale,
+                      (captures_m[:, 1] - origin[1]) * scale, '.', ms=4, color='tab:red',
+                      label='captures used')
+        axes.plot((goal_m[0] - origin[0]) * scale, (goal_m[1] - origin[1]) * scale, 'k*',
+                  ms=11, label='goal')
+        axes.grid(True, alpha=0.3)
+        axes.set_xlabel(f'x ({unit}){" from the goal" if axes is close else ""}')
+        axes.set_ylabel(f'y ({unit}){" from the goal" if axes is close else ""}')
+    limit = zoom_half_width_m * 1e6
+    close.set_xlim(-limit, limit)
+    close.set_ylim(-limit, limit)
+    close.set_aspect('equal')
+    close.set_title('close-up of the goal')
+    whole.set_title(title)
+    whole.legend(loc='best')
+    _save(figure, path)

@@ -94,6 +94,10 @@ class ControllerNode(Node):
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
         self.create_timer(0.05, self._on_timer)
         self._publish_status(DiagnosticStatus.OK, 'idle')
+        self.get_logger().info(
+            f'controller ready: timer2 {config.settle_wait_s:g} s, timer1 '
+            f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
+            f'{config.comparator_distance_m * 1e3:g} mm, tolerance {config.tolerance_m * 1e6:g} um')
         if len(goal) == 2:
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)

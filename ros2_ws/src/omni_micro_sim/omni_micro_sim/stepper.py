@@ -60,7 +60,7 @@ class Sample:
 
 @dataclass(frozen=True)
 class Scheduled:
-    """Where a command landed on the grid."""
+    """Where a command landed on the grid, and how long its stamp had passed when it came."""
 
     start_s: float
     late_by_s: float
@@ -115,8 +115,8 @@ class GridSimulator:
         # A hair of tolerance so that a stamp computed as k * period lands on tick k.
         start_tick = max(math.ceil(start / self.period_s - 1e-9), self._tick)
         self._pending = (start_tick, command)
-        start_s = start_tick * self.period_s
-        return Scheduled(start_s, max(0.0, start_s - start))
+        # Late means the stamp had passed on arrival; rounding up to the grid is not lateness.
+        return Scheduled(start_tick * self.period_s, max(0.0, self.time_s - start))
 
     def schedule_stop(self) -> None:
         """Ramp the wheels down from the current grid time (cannot fail)."""

@@ -1,0 +1,118 @@
+"""Section 4.1 logic: angle modifier, distance comparator, end rule, timeouts, event order."""
+
+import math
+
+import pytest
+
+from omni_micro_control.feedback import (
+    ControllerConfigError,
+    FeedbackConfig,
+    Finished,
+    Move,
+    MoveWatcher,
+    Observation,
+    Outcome,
+    Phase,
+    VisionFeedbackController,
+    wrap_angle,
+)
+
+GOAL = (0.1, 0.0)
+
+
+def settled_controller(config: FeedbackConfig | None = None) -> VisionFeedbackController:
+    controller = VisionFeedbackController(config)
+    controller.set_goal(GOAL, stopped_at_s=0.0)
+    return controller
+
+
+def test_first_capture_after_timer2_decides_and_earlier_ones_do_not():
+    controller = settled_controller()
+    assert controller.on_capture(Observation(0.09, 0.0, 0.0, 0.0)) is None
+    move = controller.on_capture(Observation(0.1, 0.0, 0.0, 0.0))
+    assert isinstance(move, Move)
+    assert move.start_s == pytest.approx(0.1 + controller.config.command_lead_s)
+
+
+def test_angle_modifier_is_alpha_minus_phi_wrapped():
+    controller = settled_controller()
+    # Robot at (0.1, -0.01) facing +170 deg: goal straight up (alpha = 90 deg).
+    move = controller.on_capture(Observation(0.2, 0.1, -0.01, math.radians(170.0)))
+    assert math.degrees(move.steering_rad) == pytest.approx(-80.0)
+    assert wrap_angle(math.radians(190.0)) == pytest.approx(math.radians(-170.0))
+    assert wrap_angle(-math.pi) == pytest.approx(math.pi)
+
+
+@pytest.mark.parametrize('distance_m, expected_s', [
+    (0.05, 0.2),                          # far: timer1 = 0.2 s
+    (1.5e-3, 0.05),                       # within 2 mm: timer1 = 0.05 s
+    (0.3e-3, 0.3e-3 / (1.65e-3 * 8.7)),   # shorter than one period: shortened to land on it
+])
+def test_distance_comparator_and_shortened_last_move(distance_m, expected_s):
+    controller = settled_controller()
+    move = controller.on_capture(Observation(0.2, GOAL[0] - distance_m, 0.0, 0.0))
+    assert move.duration_s == pytest.approx(expected_s)
+    assert move.remaining_m == pytest.approx(distance_m)
+
+
+def test_reached_within_tolerance_and_gave_up_after_max_periods():
+    controller = settled_controller(FeedbackConfig(tolerance_m=3e-6))
+    done = controller.on_capture(Observation(0.2, GOAL[0] - 2e-6, 0.0, 0.0, 'micro'))
+    assert isinstance(done, Finished) and done.outcome is Outcome.REACHED
+    assert controller.phase is Phase.DONE
+
+    controller = settled_controller(FeedbackConfig(max_periods=1))
+    assert isinstance(controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0)), Move)
+    controller.on_wheels_stopped(1.0)
+    done = controller.on_capture(Observation(1.2, 0.05, 0.0, 0.0))
+    assert done.outcome is Outcome.GAVE_UP and done.periods == 1
+
+
+def test_capture_that_overtakes_the_stop_report_is_kept_not_skipped():
+    controller = settled_controller()
+    controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    # The capture exposed after timer2 arrives before the wheel state that ends the move.
+    early = Observation(1.15, 0.0028, 0.0, 0.0)
+    assert controller.on_capture(early) is None
+    move = controller.on_wheels_stopped(1.0)
+    assert isinstance(move, Move) and move.observation == early
+
+
+def test_timeout_tries_again_then_reports_lost():
+    controller = settled_controller(FeedbackConfig(capture_timeout_s=0.5, max_capture_tries=3))
+    assert controller.on_time(0.55) == (0, None)
+    assert controller.on_time(0.65) == (1, None)
+    tries, finished = controller.on_time(1.65)
+    assert tries == 3 and finished.outcome is Outcome.LOST
+
+
+def test_open_loop_makes_one_move_then_completes():
+    controller = settled_controller(FeedbackConfig(open_loop_duration_s=7.0))
+    move = controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    assert move.duration_s == 7.0
+    controller.on_wheels_stopped(7.5)
+    assert controller.on_capture(Observation(7.7, 0.09, 0.01, 0.0)).outcome is Outcome.COMPLETED
+
+
+def test_non_finite_capture_is_ignored():
+    controller = settled_controller()
+    assert controller.on_capture(Observation(0.2, math.nan, 0.0, 0.0)) is None
+    assert controller.phase is Phase.SETTLING
+
+
+@pytest.mark.parametrize('field, value', [
+    ('far_period_s', -0.2), ('tolerance_m', math.nan), ('max_periods', 0),
+    ('settle_wait_s', math.inf), ('max_capture_tries', 2.5)])
+def test_bad_config_names_the_value(field, value):
+    with pytest.raises(ControllerConfigError, match=field):
+        FeedbackConfig(**{field: value})
+
+
+def test_move_watcher_needs_the_rotation_and_a_standstill():
+    watcher = MoveWatcher()
+    watcher.on_wheel_state((0.0, 5.0, 5.0), (0.0, 0.0, 0.0))
+    watcher.expect(1.74)
+    assert not watcher.on_wheel_state((0.0, 5.0, 5.0), (0.0, 0.0, 0.0))   # not started yet
+    assert not watcher.on_wheel_state((1.0, 6.0, 6.0), (8.7, 8.7, 8.7))   # turning
+    assert watcher.on_wheel_state((1.74, 6.74, 6.74), (0.0, 0.0, 0.0))
+    assert not watcher.on_wheel_state((1.74, 6.74, 6.74), (0.0, 0.0, 0.0))  # reported once

@@ -1,0 +1,102 @@
+"""Helpers for tests that start real node processes: a private domain and a probe node."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import time
+from pathlib import Path
+from typing import Callable, Iterator
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from omni_micro_cli.graph import DomainLease, node_environment
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+class Probe:
+    """An rclpy node of the test in the graph's domain, with its own context."""
+
+    def __init__(self, domain_id: int) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = Node('test_probe', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            if time.monotonic() > deadline:
+                raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def call(self, client, request, timeout_s: float = 10.0):
+        assert client.wait_for_service(timeout_sec=timeout_s), 'service not available'
+        future = client.call_async(request)
+        self.executor.spin_until_future_complete(future, timeout_sec=timeout_s)
+        return future.result()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def domain_id() -> Iterator[int]:
+    with DomainLease() as domain:
+        yield domain
+
+
+@pytest.fixture
+def probe(domain_id: int) -> Iterator[Probe]:
+    probe = Probe(domain_id)
+    yield probe
+    probe.close()
+
+
+@pytest.fixture
+def start_node(domain_id: int, tmp_path: Path):
+    """Start an installed node with its package params file; stopped with SIGINT afterwards."""
+    processes: list[subprocess.Popen] = []
+
+    def start(package: str, executable: str, *params: str) -> subprocess.Popen:
+        from omni_micro_cli.graph import package_params_file, resolve_executable
+
+        argv = [str(resolve_executable(package, executable)), '--ros-args', '--params-file',
+                str(package_params_file(package, executable))]
+        for param in params:
+            argv += ['-p', param]
+        log = open(tmp_path / f'{executable}.log', 'w')
+        process = subprocess.Popen(argv, env=node_environment(domain_id, tmp_path), stdout=log,
+                                   stderr=subprocess.STDOUT)
+        processes.append(process)
+        return process
+
+    yield start
+    for process in processes:
+        process.send_signal(2)
+    for process in processes:
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+
+
+def run_omni_micro(*args: str, env: dict[str, str] | None = None,
+               timeout: float = 300) -> subprocess.CompletedProcess:
+    """The user's command, exactly as the README shows it."""
+    return subprocess.run([str(ROOT / 'scripts' / 'omni-micro'), *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout,
+                          env=env or dict(os.environ))
+
+
+@pytest.fixture(scope='session')
+def omni_micro():
+    return run_omni_micro

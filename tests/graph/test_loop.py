@@ -1,0 +1,101 @@
+"""The whole loop over DDS: three processes reach the Fig. 11 goal, exactly as the in-process
+runner does, at any real-time factor, and with a stand-in camera that follows the contract."""
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from omni_micro_cli.closed_loop import run_closed_loop
+from omni_micro_cli.graph import GraphOptions, NodeSpec, default_nodes, run_graph
+from omni_micro_sim import paper
+
+GOAL_MM = (100.0, 0.0)
+SEED = 3
+
+
+@pytest.fixture(scope='module')
+def in_process():
+    return run_closed_loop(paper.FIG11_GOAL_M, robot=paper.FIG11_OPEN_LOOP.robot(), seed=SEED)
+
+
+@pytest.fixture(scope='module')
+def cli_run(tmp_path_factory, omni_micro):
+    """`omni-micro run` at rtf 2, as a user types it."""
+    logs = tmp_path_factory.mktemp('logs')
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', '2', '--seed', str(SEED),
+                        '--json', '--quiet', '--log-dir', str(logs))
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.strip().splitlines()[-1]), logs
+
+
+def test_closed_loop_over_the_graph_beats_the_paper(cli_run):
+    summary, logs = cli_run
+    assert summary['outcome'] == 'reached'
+    assert summary['deviation_mm'] < paper.FIG11_PUBLISHED_CLOSED_LOOP_DEVIATION_MM
+    assert summary['deviation_mm'] < 0.005   # a few micrometres
+    assert 20 < summary['periods'] < 60 and summary['sim_time_s'] > 10
+    for key in ('final_x_mm', 'final_y_mm', 'final_phi_deg', 'wall_time_s'):
+        assert math.isfinite(summary[key])
+    run_dir = Path(summary['log_dir'])
+    for node in ('dynamics_node', 'vision_node', 'controller_node'):
+        assert 'ready' in (run_dir / f'{node}.log').read_text()
+
+
+def test_graph_adds_no_error_of_its_own(cli_run, in_process):
+    summary, _ = cli_run
+    assert summary['periods'] == in_process.periods
+    assert summary['final_x_mm'] * 1e-3 == pytest.approx(in_process.final_state.x_m, abs=1e-7)
+    assert summary['final_y_mm'] * 1e-3 == pytest.approx(in_process.final_state.y_m, abs=1e-7)
+
+
+def test_same_seed_same_pose_at_another_real_time_factor(cli_run, tmp_path):
+    summary, _ = cli_run
+    fast = run_graph(GraphOptions(goal_m=paper.FIG11_GOAL_M, seed=SEED, real_time_factor=5.0,
+                                  log_dir=tmp_path))
+    assert fast.outcome == 'reached'
+    assert fast.sim_time_s / fast.wall_time_s > 2.0
+    assert fast.final_x_m == pytest.approx(summary['final_x_mm'] * 1e-3, abs=1e-9)
+    assert fast.final_y_m == pytest.approx(summary['final_y_mm'] * 1e-3, abs=1e-9)
+    assert fast.periods == summary['periods']
+
+
+def test_a_stand_in_camera_that_follows_the_contract_closes_the_loop(tmp_path):
+    standin = NodeSpec('tests', 'standin_camera',
+                       command=(sys.executable, str(Path(__file__).with_name('standin_camera.py'))))
+    nodes = [spec if spec.executable != 'vision_node' else standin for spec in default_nodes()]
+    result = run_graph(GraphOptions(goal_m=(0.03, 0.01), real_time_factor=4.0, nodes=nodes,
+                                    log_dir=tmp_path))
+    assert result.outcome == 'reached', result.reason
+    assert result.deviation_m < 5e-6
+
+
+def test_open_loop_option_makes_a_single_move(tmp_path):
+    result = run_graph(GraphOptions(goal_m=(0.02, 0.0), open_loop_s=1.0, real_time_factor=4.0,
+                                    log_dir=tmp_path))
+    assert result.outcome == 'completed' and result.periods == 1
+    # One second at cruise rolls r * 8.7 rad/s * 1 s = 14.355 mm (slightly less with slip).
+    assert result.final_x_m == pytest.approx(0.014355, abs=0.5e-3)
+
+
+@pytest.mark.parametrize('args, message', [
+    (['--goal-mm', '100'], 'expected 2 comma-separated'),
+    (['--goal-mm', 'nan,0'], 'finite'),
+    (['--goal-mm', '1,0', '--rtf', '-2'], '> 0'),
+    (['--goal-mm', '1,0', '--params', 'no/such/file.yaml'], 'does not exist'),
+])
+def test_bad_run_arguments_exit_2_naming_the_value(args, message, tmp_path, omni_micro):
+    result = omni_micro('run', *args, '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert not (tmp_path / 'logs').exists()
+
+
+def test_params_file_that_does_not_parse_is_refused(tmp_path, omni_micro):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('controller_node: {ros__parameters: [unclosed\n')
+    result = omni_micro('run', '--goal-mm', '1,0', '--params', str(bad),
+                        '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 2 and 'does not parse' in result.stderr

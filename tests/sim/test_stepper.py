@@ -1,0 +1,114 @@
+"""The grid simulator and the wheel command contract: exact sim-time execution, rejections."""
+
+import math
+
+import numpy as np
+import pytest
+
+from omni_micro_sim import paper
+from omni_micro_sim.errors import CommandError
+from omni_micro_sim.parameters import MotorLimits
+from omni_micro_sim.profile import move_profile
+from omni_micro_sim.simulator import MotionStatus, simulate_open_loop
+from omni_micro_sim.stepper import GridSimulator, WheelCommand
+from omni_micro_sim.wheel_trajectory import (
+    JOINT_NAMES,
+    TrajectoryPoint,
+    command_from_points,
+    points_from_profile,
+)
+
+ROBOT = paper.FIG8.robot()
+
+
+def run_until_idle(grid: GridSimulator, limit_s: float = 5.0):
+    while grid.time_s < limit_s:
+        sample = grid.advance()
+        if grid.pending is None and sample.status is MotionStatus.IDLE:
+            return sample
+    raise AssertionError('robot did not come to rest')
+
+
+def test_command_starts_at_its_stamp_on_the_grid_and_runs_in_full():
+    grid = GridSimulator(ROBOT, period_s=0.02)
+    scheduled = grid.schedule(WheelCommand(0.05, 0.0, move_profile(2.0)))
+    assert scheduled.start_s == pytest.approx(0.06) and scheduled.late_by_s == 0.0
+    final = run_until_idle(grid)
+    # Same physics as the open-loop core: the start time does not change where it stops.
+    reference = simulate_open_loop(ROBOT, 0.0, 2.0).final_state
+    assert final.state.x_m == pytest.approx(reference.x_m, abs=1e-10)
+    assert final.state.y_m == pytest.approx(reference.y_m, abs=1e-10)
+    assert final.wheel_rotations_rad == pytest.approx(np.full(3, 8.7 * 2.0))
+
+
+def test_late_command_starts_now_and_says_how_late():
+    grid = GridSimulator(ROBOT, period_s=0.02)
+    for _ in range(10):
+        grid.advance()
+    scheduled = grid.schedule(WheelCommand(0.1, 0.0, move_profile(0.2)))
+    assert scheduled.start_s == pytest.approx(0.2)
+    assert scheduled.late_by_s == pytest.approx(0.1)
+
+
+def test_stop_ramps_down_at_the_motor_deceleration():
+    grid = GridSimulator(ROBOT, period_s=0.02)
+    grid.schedule(WheelCommand(0.0, 0.0, move_profile(5.0)))
+    for _ in range(25):
+        grid.advance()
+    grid.schedule_stop()
+    speeds = [grid.advance().wheel_speeds_rad_s[1] for _ in range(12)]
+    assert speeds[0] == pytest.approx(8.7 - 50 * 0.02)
+    assert speeds[-1] == 0.0
+
+
+def trajectory(profile_duration=0.5, steering=0.3):
+    return points_from_profile(steering, move_profile(profile_duration))
+
+
+def test_trajectory_round_trip_keeps_the_profile():
+    points = trajectory()
+    command = command_from_points(list(reversed(JOINT_NAMES)),
+                                  [TrajectoryPoint(p.time_from_start_s, p.positions[::-1],
+                                                   p.velocities[::-1]) for p in points],
+                                  1.0, 0.5, MotorLimits())
+    assert command.start_s == 1.0 and command.steering_rad == 0.3
+    assert command.profile.rotation_rad() == pytest.approx(np.full(3, 8.7 * 0.5))
+
+
+def test_empty_trajectory_is_a_stop_now():
+    command = command_from_points(JOINT_NAMES, [], 0.0, 2.5, MotorLimits())
+    assert command.is_stop and command.start_s == 2.5
+
+
+def broken(change):
+    points = [TrajectoryPoint(p.time_from_start_s, list(p.positions), list(p.velocities))
+              for p in trajectory()]
+    names = list(JOINT_NAMES)
+    change(names, points)
+    return names, points
+
+
+@pytest.mark.parametrize('change, message', [
+    (lambda n, p: n.__setitem__(1, 'wheel_9_joint'), 'joint names'),
+    (lambda n, p: p[1].velocities.__setitem__(2, math.nan), 'non-finite'),
+    (lambda n, p: p.__setitem__(0, TrajectoryPoint(-0.1, p[0].positions, p[0].velocities)),
+     'first point'),
+    (lambda n, p: p.__setitem__(2, TrajectoryPoint(p[1].time_from_start_s, p[2].positions,
+                                                   p[2].velocities)), 'increase strictly'),
+    (lambda n, p: p[1].velocities.__setitem__(1, 20.0), 'exceeds the motor limit'),
+    (lambda n, p: p[-1].velocities.__setitem__(3, 1.0), 'last point must stop'),
+    (lambda n, p: p[1].positions.__setitem__(0, 0.5), 'steering must stay'),
+    (lambda n, p: p[1].positions.pop(), 'positions and velocities'),
+])
+def test_malformed_trajectories_are_rejected_with_the_reason(change, message):
+    names, points = broken(change)
+    with pytest.raises(CommandError, match=message):
+        command_from_points(names, points, 0.0, 0.0, MotorLimits())
+
+
+def test_rejected_command_leaves_nothing_queued():
+    grid = GridSimulator(ROBOT)
+    too_fast = move_profile(1.0, MotorLimits(cruise_speed_rad_s=12.0, max_speed_rad_s=12.0))
+    with pytest.raises(CommandError):
+        grid.schedule(WheelCommand(0.0, 0.0, too_fast))
+    assert grid.pending is None
