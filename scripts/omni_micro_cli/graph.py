@@ -27,7 +27,8 @@ from typing import Callable, Iterable, TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
 
-SHUTDOWN_ORDER = ('controller_node', 'vision_node', 'dynamics_node')
+# The recorder goes last, so that it keeps the stop and the final samples.
+SHUTDOWN_ORDER = ('controller_node', 'vision_node', 'dynamics_node', 'bag_recorder')
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
 
@@ -52,6 +53,19 @@ def default_nodes() -> list[NodeSpec]:
     return [NodeSpec('omni_micro_sim', 'dynamics_node'),
             NodeSpec('omni_micro_vision', 'vision_node'),
             NodeSpec('omni_micro_control', 'controller_node')]
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy message class of 'pkg/msg/Name' (rosidl_runtime_py is not installable here)."""
+    import importlib
+
+    package, _, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
+
+
+def recorder_spec(bag: Path, storage: str) -> NodeSpec:
+    return NodeSpec('omni_micro_cli', 'bag_recorder', command=(
+        sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--storage', storage))
 
 
 def install_prefixes() -> list[Path]:
@@ -221,6 +235,9 @@ class GraphOptions:
     nodes: list[NodeSpec] | None = None
     domain_id: int | None = None
     follow_route: bool = False
+    record: Path | None = None
+    storage: str = 'mcap'
+    force: bool = False
 
 
 @dataclass
@@ -266,7 +283,6 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
     elif spec.executable == 'controller_node':
-        overrides.update(goal_m=[float(options.goal_m[0]), float(options.goal_m[1])])
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
     overrides.update(spec.overrides)
@@ -301,9 +317,12 @@ class Graph:
         self.domain_id = domain_id
         self.log_dir = log_dir
         env = node_environment(domain_id, log_dir)
+        specs = list(options.nodes or default_nodes())
+        if options.record is not None:
+            specs.append(recorder_spec(options.record, options.storage))
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
                                       log_dir / f'{spec.name}.log', options.echo)
-                          for spec in (options.nodes or default_nodes())]
+                          for spec in specs]
 
     def start(self) -> None:
         for process in self.processes:
@@ -357,13 +376,19 @@ def run_graph(options: GraphOptions) -> GraphResult:
 
     if options.params_file is not None:
         check_params_file(options.params_file)
+    if options.record is not None:
+        from omni_micro_cli.bags import check_output_path
+
+        check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
     with DomainLease(options.domain_id) as domain_id:
         graph = Graph(options, domain_id, log_dir)
         monitor = GraphMonitor(domain_id, follow_route=options.follow_route)
         try:
             graph.start()
-            monitor.wait_until_ready(graph, timeout_s=60.0)
+            recording = options.record is not None
+            monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording)
+            monitor.send_goal(graph, options.goal_m, subscribers=2 if recording else 1)
             wall_start = time.monotonic()
             monitor.unpause()
             status = monitor.wait_for_outcome(graph, options.timeout_s)

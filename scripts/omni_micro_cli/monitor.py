@@ -17,7 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
 
 if TYPE_CHECKING:
@@ -50,6 +50,9 @@ class GraphMonitor:
         self.node.create_subscription(DiagnosticStatus, '/controller/status', self._on_status,
                                       STATUS_QOS)
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
+        self.recorder_ready = False
+        self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
+                                      self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
@@ -70,6 +73,9 @@ class GraphMonitor:
         if self._following:
             self.route.append(self.latest_odometry[:3])
 
+    def _on_recorder_status(self, msg: DiagnosticStatus) -> None:
+        self.recorder_ready = self.recorder_ready or msg.message == 'recording'
+
     def _on_status(self, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
         values['message'] = msg.message
@@ -80,12 +86,14 @@ class GraphMonitor:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
-    def wait_until_ready(self, graph: Graph, timeout_s: float) -> None:
+    def wait_until_ready(self, graph: Graph, timeout_s: float, recording: bool = False) -> None:
         deadline = time.monotonic() + timeout_s
         while True:
             graph.check_alive()
             missing = [topic for topic, count in READY_SUBSCRIBERS.items()
                        if self.node.count_subscribers(topic) < count]
+            if recording and not self.recorder_ready:
+                missing.append('(the recorder: not matched to every publisher yet)')
             if not missing and self.parameters.service_is_ready():
                 break
             if time.monotonic() > deadline:
@@ -95,6 +103,36 @@ class GraphMonitor:
             self.spin_for(0.05)
         self.spin_for(MATCH_GRACE_S)
         graph.check_alive()
+
+    def send_goal(self, graph: Graph, goal_m: tuple[float, float], subscribers: int = 1,
+                  timeout_s: float = 30.0) -> None:
+        """Hand the goal to the controller while the clock stands at 0, and wait until it has
+        accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
+        goal is on /goal_pose for a recorder to keep."""
+        publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
+        deadline = time.monotonic() + timeout_s
+        while publisher.get_subscription_count() < subscribers:
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'/goal_pose has {publisher.get_subscription_count()} of '
+                                f'{subscribers} subscribers (controller, recorder)')
+            self.spin_for(0.05)
+        goal = PoseStamped()
+        goal.header.frame_id = 'platform'
+        goal.pose.position.x, goal.pose.position.y = float(goal_m[0]), float(goal_m[1])
+        goal.pose.orientation.w = 1.0
+        seen = len(self.statuses)
+        publisher.publish(goal)
+        while True:
+            graph.check_alive()
+            for status in self.statuses[seen:]:
+                if status['message'] == 'goal rejected':
+                    raise UsageError(f'controller_node rejected the goal: {status["reason"]}')
+                if status['message'] == 'settling':
+                    return
+            if time.monotonic() > deadline:
+                raise RunFailed('controller_node did not acknowledge the goal')
+            self.spin_for(0.05)
 
     def unpause(self) -> None:
         request = SetParameters.Request(parameters=[Parameter(

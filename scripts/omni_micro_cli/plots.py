@@ -105,3 +105,16 @@ def closed_loop_comparison(path: Path, open_loop_m: np.ndarray, closed_loop_m: n
     whole.set_title(title)
     whole.legend(loc='best')
     _save(figure, path)
+
+
+def remaining_distance(path: Path, periods_remaining: np.ndarray) -> None:
+    """Distance to the goal seen at the start of each period (log scale): the comparator at work."""
+    figure, axes = plt.subplots(figsize=(6.4, 4.2))
+    axes.semilogy(periods_remaining[:, 0], periods_remaining[:, 1] * 1e3, 'o-', ms=3)
+    axes.axhline(2.0, color='k', ls=':', lw=1, label='comparator, 2 mm')
+    axes.set_xlabel('period')
+    axes.set_ylabel('distance to the goal seen by the camera (mm)')
+    axes.set_title('distance left at each period')
+    axes.grid(True, which='both', alpha=0.3)
+    axes.legend()
+    _save(figure, path)

@@ -10,6 +10,7 @@ from pathlib import Path
 from omni_micro_cli.arguments import float_list, non_negative_int, positive_float
 from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.record import add_storage_arguments
 
 
 def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +28,10 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                         help='node logs go to a new folder under DIR (default out/runs)')
     parser.add_argument('--quiet', action='store_true',
                         help="do not echo the nodes' logs (they are still kept)")
+    parser.add_argument('--record', type=Path, metavar='BAG',
+                        help='record every topic into this rosbag2 bag (a recorder node in its '
+                             'own process; simulated-time stamps)')
+    add_storage_arguments(parser)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -57,7 +62,8 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
                         open_loop_s=open_loop_s, params_file=args.params,
                         timeout_s=args.timeout, log_dir=args.log_dir,
-                        echo=None if args.quiet else echo_to_stderr)
+                        echo=None if args.quiet else echo_to_stderr, record=args.record,
+                        storage=args.storage, force=args.force)
 
 
 def summary_line(result: GraphResult) -> str:

@@ -110,8 +110,9 @@ class ControllerNode(Node):
     # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in (self.frame_id, ''):
-            self.get_logger().warning(
-                f'rejected goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}')
+            problem = f'goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}'
+            self.get_logger().warning(f'rejected {problem}; staying as it was')
+            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', reason=problem)
             return
         self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.now_s())
 
@@ -119,6 +120,7 @@ class ControllerNode(Node):
         problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
         if problem:
             self.get_logger().warning(f'rejected goal: {problem}; staying idle')
+            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', reason=problem)
             return
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
         if replaced is not None:

@@ -101,7 +101,7 @@ class DynamicsNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._make_messages()
-        self.clock_pub = self.create_publisher(Clock, '/clock', 10)
+        self.clock_pub = self.create_publisher(Clock, '/clock', DATA_QOS)
         self.odom_pub = self.create_publisher(Odometry, '/odom', DATA_QOS)
         self.joint_pub = self.create_publisher(JointState, '/joint_states', DATA_QOS)
         self.slip_pub = self.create_publisher(JointState, '/wheel_slip', DATA_QOS)

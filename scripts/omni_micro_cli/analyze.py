@@ -1,0 +1,124 @@
+"""`omni-micro analyze BAG --out DIR`: figures and a summary of a recorded run, from the bag alone."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from omni_micro_cli import plots
+from omni_micro_cli.bags import read_bag
+from omni_micro_cli.errors import UsageError
+from omni_micro_cli.outputs import staged_directory
+
+TERMINAL = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'analyze', help='figures and a summary of a recorded bag',
+        description='From a bag alone: the route against the ideal straight route (Figs. 8(c), '
+                    '11) with the capture points, each wheel\'s longitudinal and transverse slip '
+                    'against time (Fig. 8(a)(b)), the distance left after each period, and a '
+                    'summary (final deviation, periods, duration, outcome) as JSON and markdown.')
+    parser.add_argument('bag', type=Path, metavar='BAG', help='a bag recorded with --record')
+    parser.add_argument('--out', type=Path, required=True, metavar='DIR',
+                        help='folder for the figures and summary (replaced as a whole)')
+    parser.set_defaults(handler=run)
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """The run's numbers and the arrays the figures need."""
+    data = read_bag(bag)
+    odometry = data.messages.get('/odom', [])
+    if not odometry:
+        raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to analyse')
+    route = np.array([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
+                      for m in odometry])
+    statuses = [{'message': m.message, **{kv.key: kv.value for kv in m.values}}
+                for m in data.messages.get('/controller/status', [])]
+    goals = data.messages.get('/goal_pose', [])
+    goal = None
+    if goals:
+        goal = (goals[-1].pose.position.x, goals[-1].pose.position.y)
+    else:
+        with_goal = [s for s in statuses if 'goal_x_m' in s]
+        if with_goal:
+            goal = (float(with_goal[-1]['goal_x_m']), float(with_goal[-1]['goal_y_m']))
+    captures = np.array([(_stamp(m), m.pose.position.x, m.pose.position.y)
+                         for topic in ('/camera/macro/pose', '/camera/micro/pose')
+                         for m in data.messages.get(topic, [])]).reshape(-1, 3)
+    moves = [m for m in data.messages.get('/wheel_trajectory', []) if m.points]
+    slip_msgs = data.messages.get('/wheel_slip', [])
+    slip = np.array([(_stamp(m), *m.velocity) for m in slip_msgs]).reshape(-1, 7)
+    remaining = [(int(s['periods']), float(s['remaining_m'])) for s in statuses
+                 if s['message'] == 'moving' and 'remaining_m' in s]
+    ends = [s for s in statuses if s['message'] in TERMINAL]
+    final = route[-1]
+    summary = {
+        'bag': str(bag),
+        'outcome': ends[-1]['message'] if ends else 'none recorded',
+        'reason': ends[-1].get('reason', '') if ends else '',
+        'goal_x_mm': goal[0] * 1e3 if goal else None,
+        'goal_y_mm': goal[1] * 1e3 if goal else None,
+        'final_x_mm': final[1] * 1e3, 'final_y_mm': final[2] * 1e3,
+        'deviation_mm': (math.hypot(final[1] - goal[0], final[2] - goal[1]) * 1e3
+                         if goal else None),
+        'periods': len(moves),
+        'captures': len(captures),
+        'duration_s': float(route[-1, 0] - route[0, 0]),
+        'message_counts': {topic: len(raw) for topic, raw in data.raw.items()},
+    }
+    arrays = {'route': route, 'captures': captures, 'slip': slip,
+              'move_starts': np.array([_stamp(m) for m in moves]),
+              'remaining': np.array(remaining).reshape(-1, 2),
+              'goal': np.array(goal if goal else route[-1, 1:])}
+    return summary, arrays
+
+
+def summary_markdown(summary: dict) -> str:
+    rows = [('outcome', f"{summary['outcome']} {summary['reason']}".strip()),
+            ('goal', f"({summary['goal_x_mm']:.4f}, {summary['goal_y_mm']:.4f}) mm"
+             if summary['goal_x_mm'] is not None else 'not recorded'),
+            ('final position', f"({summary['final_x_mm']:.4f}, {summary['final_y_mm']:.4f}) mm"),
+            ('final deviation', f"{summary['deviation_mm'] * 1e3:.2f} um"
+             if summary['deviation_mm'] is not None else 'unknown (no goal in the bag)'),
+            ('periods', str(summary['periods'])),
+            ('captures', str(summary['captures'])),
+            ('duration (simulated)', f"{summary['duration_s']:.2f} s")]
+    lines = [f"# Run recorded in `{summary['bag']}`", '', '| | |', '|---|---|']
+    lines += [f'| {name} | {value} |' for name, value in rows]
+    lines += ['', '| topic | messages |', '|---|---|']
+    lines += [f'| `{topic}` | {count} |' for topic, count in summary['message_counts'].items()]
+    return '\n'.join(lines) + '\n'
+
+
+def run(args: argparse.Namespace) -> int:
+    summary, arrays = summarize(args.bag)
+    route, goal = arrays['route'], arrays['goal']
+    with staged_directory(args.out) as scratch:
+        ideal = np.array([route[0, 1:], goal])
+        plots.routes(scratch / 'route.png', {'recorded route': route[:, 1:]}, ideal_m=ideal,
+                     goal_m=goal, captures_m=arrays['captures'][:, 1:],
+                     title='route against the ideal straight route (from the bag)')
+        if len(arrays['slip']):
+            slip = arrays['slip']
+            plots.wheel_slip(scratch / 'slip_longitudinal.png', slip[:, 0], slip[:, 1::2],
+                             component='longitudinal', title='longitudinal slip of each wheel')
+            plots.wheel_slip(scratch / 'slip_transverse.png', slip[:, 0], slip[:, 2::2],
+                             component='transverse', title='transverse slip of each wheel')
+        if len(arrays['remaining']):
+            plots.remaining_distance(scratch / 'periods.png', arrays['remaining'])
+        (scratch / 'summary.json').write_text(json.dumps(summary, indent=2))
+        (scratch / 'summary.md').write_text(summary_markdown(summary))
+    print(summary_markdown(summary))
+    print(f'figures and summary in {args.out}/', file=sys.stderr)
+    return 0

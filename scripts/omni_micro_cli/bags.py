@@ -1,0 +1,208 @@
+"""rosbag2 bags of the graph through the `rosbags` library (no rosbag2 on this machine).
+
+What is recorded, with which offered QoS, how a bag is opened for writing without clobbering
+anything, how a bag whose recorder was killed is recovered, and how a bag is read back.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+from omni_micro_cli.errors import RunFailed, UsageError
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+BAG_VERSION = 9
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    msgtype: str
+    depth: int
+    latched: bool = False
+
+    def qos(self) -> Qos:
+        """The QoS the graph's publisher offers, as metadata.yaml records it (zero durations:
+        rclpy's defaults, no deadline or lifespan)."""
+        zero = QosTime(0, 0)
+        durability = QosDurability.TRANSIENT_LOCAL if self.latched else QosDurability.VOLATILE
+        return Qos(QosHistory.KEEP_LAST, self.depth, QosReliability.RELIABLE, durability,
+                   zero, zero, QosLiveliness.AUTOMATIC, zero, False)
+
+
+# Every topic of the graph (README, "The node graph").
+GRAPH_TOPICS: dict[str, TopicSpec] = {
+    '/clock': TopicSpec('rosgraph_msgs/msg/Clock', 1000),
+    '/odom': TopicSpec('nav_msgs/msg/Odometry', 1000),
+    '/joint_states': TopicSpec('sensor_msgs/msg/JointState', 1000),
+    '/wheel_slip': TopicSpec('sensor_msgs/msg/JointState', 1000),
+    '/wheel_trajectory': TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
+    '/camera/macro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
+    '/camera/micro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
+    '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
+    '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
+    '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
+}
+
+
+def check_output_path(path: Path, force: bool) -> None:
+    """Refuse to overwrite, unless ``force`` and the path is a bag (never an arbitrary folder)."""
+    if not path.exists():
+        if not path.parent.exists():
+            raise UsageError(f'the folder of the bag, {str(path.parent)!r}, does not exist')
+        return
+    if not force:
+        raise UsageError(f'{str(path)!r} exists already; give --force to replace it')
+    looks_like_bag = path.is_dir() and all(
+        child.name == 'metadata.yaml' or child.suffix in ('.mcap', '.db3')
+        for child in path.iterdir())
+    if not looks_like_bag:
+        raise UsageError(f'{str(path)!r} exists and is not a bag; not replacing it even with '
+                         f'--force')
+    shutil.rmtree(path)
+
+
+def open_writer(path: Path, storage: str, topics: dict[str, TopicSpec]) -> tuple[Writer, dict]:
+    if storage not in STORAGES:
+        raise UsageError(f'unknown storage {storage!r}: expected one of {sorted(STORAGES)}')
+    writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    writer.open()
+    connections = {topic: writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE,
+                                                offered_qos_profiles=[spec.qos()])
+                   for topic, spec in topics.items()}
+    return writer, connections
+
+
+def flush(writer: Writer) -> None:
+    """Make everything written so far survive a SIGKILL of this process.
+
+    rosbags keeps the current mcap chunk in memory (up to 1 MiB) and commits sqlite3 only on
+    close; both are pushed to the file here. This reaches into the writer's storage object of
+    the pinned rosbags 0.11.9 (requirements.lock); tests/bags/test_bags.py kills a recorder to
+    keep it honest.
+    """
+    storage = writer.storage
+    if storage is None:
+        return
+    if hasattr(storage, 'close_chunk'):
+        if storage.chunk.msgs:
+            storage.close_chunk()
+        storage.bio.flush()
+    elif hasattr(storage, 'conn'):
+        storage.conn.commit()
+
+
+def _recovered_topics(source: Path) -> Iterator[tuple[str, str, int, bytes]]:
+    """(topic, msgtype, timestamp, data) of every complete message in a bag without metadata."""
+    mcaps = sorted(source.glob('*.mcap'))
+    databases = sorted(source.glob('*.db3'))
+    if mcaps:
+        from mcap.records import Channel, Message, Schema
+        from mcap.stream_reader import StreamReader
+
+        schemas: dict[int, str] = {}
+        channels: dict[int, tuple[str, str]] = {}
+        with open(mcaps[0], 'rb') as stream:
+            reader = StreamReader(stream, skip_magic=False)
+            try:
+                for record in reader.records:
+                    if isinstance(record, Schema):
+                        schemas[record.id] = record.name
+                    elif isinstance(record, Channel):
+                        channels[record.id] = (record.topic, schemas[record.schema_id])
+                    elif isinstance(record, Message):
+                        topic, msgtype = channels[record.channel_id]
+                        yield topic, msgtype, record.log_time, record.data
+            except Exception:   # noqa: BLE001 - the torn tail of a killed writer ends the stream
+                return
+    elif databases:
+        connection = sqlite3.connect(f'file:{databases[0]}?mode=ro', uri=True)
+        try:
+            topics = {row[0]: (row[1], row[2]) for row in
+                      connection.execute('SELECT id, name, type FROM topics')}
+            for topic_id, timestamp, data in connection.execute(
+                    'SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
+                topic, msgtype = topics[topic_id]
+                yield topic, msgtype, timestamp, bytes(data)
+        finally:
+            connection.close()
+    else:
+        raise UsageError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
+
+
+def recover(source: Path, target: Path, storage: str = 'mcap') -> dict[str, int]:
+    """Write every complete message of a bag whose recorder died into a new, readable bag.
+
+    Returns the message count per topic.
+    """
+    if not source.is_dir():
+        raise UsageError(f'{str(source)!r} is not a bag folder')
+    counts: dict[str, int] = {}
+    writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    writer.open()
+    connections = {}
+    try:
+        for topic, msgtype, timestamp, data in _recovered_topics(source):
+            if topic not in connections:
+                spec = GRAPH_TOPICS.get(topic, TopicSpec(msgtype, 1000))
+                connections[topic] = writer.add_connection(
+                    topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
+            writer.write(connections[topic], timestamp, data)
+            counts[topic] = counts.get(topic, 0) + 1
+    except BaseException:
+        writer.close()
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+    writer.close()
+    if not counts:
+        shutil.rmtree(target, ignore_errors=True)
+        raise RunFailed(f'no complete message could be recovered from {str(source)!r}')
+    return counts
+
+
+@dataclass
+class BagMessages:
+    """A bag read back: per topic, the receive timestamps (ns) and the decoded messages."""
+
+    timestamps: dict[str, list[int]]
+    messages: dict[str, list[object]]
+    raw: dict[str, list[bytes]]
+    msgtypes: dict[str, str]
+
+
+def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -> BagMessages:
+    from rosbags.highlevel import AnyReader
+
+    if not (path / 'metadata.yaml').is_file():
+        raise UsageError(f'{str(path)!r} is not a readable bag (no metadata.yaml); if its '
+                         f'recorder was killed, run: omni-micro bag-recover {path}')
+    result = BagMessages({}, {}, {}, {})
+    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+        connections = [c for c in reader.connections if topics is None or c.topic in topics]
+        for connection in connections:
+            result.msgtypes[connection.topic] = connection.msgtype
+            result.timestamps.setdefault(connection.topic, [])
+            result.messages.setdefault(connection.topic, [])
+            result.raw.setdefault(connection.topic, [])
+        for connection, timestamp, rawdata in reader.messages(connections=connections):
+            result.timestamps[connection.topic].append(timestamp)
+            result.raw[connection.topic].append(bytes(rawdata))
+            if decode:
+                result.messages[connection.topic].append(
+                    reader.deserialize(rawdata, connection.msgtype))
+    return result
