@@ -18,9 +18,11 @@ from omni_micro_sim import paper
 
 from omni_micro_cli import figures, plots
 from omni_micro_cli.arguments import non_negative_int, positive_float
+from omni_micro_cli.bags import check_output_path
 from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.record import add_storage_arguments
 from omni_micro_cli.run import echo_to_stderr
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
@@ -40,6 +42,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
+    parser.add_argument('--record', type=Path, metavar='DIR',
+                        help='record both runs as bags DIR/fig11_open_loop and '
+                             'DIR/fig11_closed_loop')
+    add_storage_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -47,12 +53,23 @@ def _progress(message: str) -> None:
     print(f'demo: {message}', file=sys.stderr, flush=True)
 
 
-def graph_run(args: argparse.Namespace, open_loop_s: float | None,
-              log_root: Path) -> GraphResult:
+def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
+    if args.record is None:
+        return {'open_loop': None, 'closed_loop': None}
+    args.record.mkdir(parents=True, exist_ok=True)
+    paths = {name: args.record / f'fig11_{name}' for name in ('open_loop', 'closed_loop')}
+    for path in paths.values():
+        check_output_path(path, args.force)   # refuse before anything runs
+    return paths
+
+
+def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
+              bag: Path | None) -> GraphResult:
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
-        echo=echo_to_stderr if args.verbose else None))
+        echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
+        force=args.force))
 
 
 def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
@@ -70,15 +87,16 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
 
 def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
+    bags = bag_paths(args)
     with staged_directory(args.out) as scratch:
         _progress('open-loop figures from the slip core (Figs. 6, 7, 8, 11)')
         figures.write_figures(scratch, angle_step_deg=2.0, offset_step_deg=0.25)
         _progress(f'Fig. 11 open loop through the node graph ({OPEN_LOOP_S:g} s move, '
                   f'rtf {args.rtf:g})')
-        open_loop = graph_run(args, OPEN_LOOP_S, scratch / 'logs')
+        open_loop = graph_run(args, OPEN_LOOP_S, scratch / 'logs', bags['open_loop'])
         _progress(f'  deviation {open_loop.deviation_m * 1e3:.3f} mm')
         _progress('Fig. 11 with vision feedback through the node graph')
-        closed_loop = graph_run(args, None, scratch / 'logs')
+        closed_loop = graph_run(args, None, scratch / 'logs', bags['closed_loop'])
         _progress(f'  {closed_loop.outcome}: deviation {closed_loop.deviation_m * 1e6:.2f} um '
                   f'after {closed_loop.periods} periods')
         if closed_loop.outcome != 'reached':
@@ -97,5 +115,7 @@ def run(args: argparse.Namespace) -> int:
         core_table = (scratch / 'comparison.md').read_text()
     print(core_table)
     print(table)
+    if args.record is not None:
+        print(f'bags in {args.record}/ (omni-micro analyze {bags["closed_loop"]} --out DIR)')
     print(f'figures in {args.out}/ ({time.perf_counter() - started:.1f} s)')
     return 0

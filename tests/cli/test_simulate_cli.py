@@ -79,8 +79,16 @@ def test_bench_reports_figures_and_agrees_with_its_reference():
     assert figures['batch_moves'] == 10
 
 
-def test_demo_prints_the_comparison_and_writes_figures(tmp_path):
-    done = omni_micro('demo', '--out', str(tmp_path / 'demo'), check=True)
+def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
+    done = omni_micro('demo', '--out', str(tmp_path / 'demo'), '--rtf', '4',
+                      '--record', str(tmp_path / 'bags'), check=True)
     assert '| Fig. 8: drift after 28.71 mm in 2 s (xi = 0, 3, 2 deg) | 0.4727 mm | 0.4727 mm |' \
         in done.stdout
+    assert '| vision feedback: deviation | 0.0124 mm | 0.00' in done.stdout
     assert (tmp_path / 'demo' / 'fig8c_route.png').stat().st_size > 10_000
+    assert (tmp_path / 'demo' / 'fig11_graph_comparison.png').stat().st_size > 10_000
+    runs = json.loads((tmp_path / 'demo' / 'fig11_graph.json').read_text())
+    assert runs['closed_loop']['deviation_mm'] < 0.0124
+    assert 5.0 < runs['open_loop']['deviation_mm'] < 20.0
+    for name in ('fig11_open_loop', 'fig11_closed_loop'):
+        assert (tmp_path / 'bags' / name / 'metadata.yaml').is_file()

@@ -1,0 +1,159 @@
+"""Bags: what a recorded run holds (read by rosbags and, independently, by mcap-ros2-support),
+analysis from the bag alone, a replay round trip, and recovery after a real SIGKILL."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from nav_msgs.msg import Odometry
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from omni_micro_cli.bags import GRAPH_TOPICS, read_bag
+from omni_micro_cli.graph import node_environment
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope='module')
+def recorded(tmp_path_factory, omni_micro):
+    folder = tmp_path_factory.mktemp('bags')
+    bag = folder / 'fig11'
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', '5', '--seed', '1', '--json',
+                        '--quiet', '--record', str(bag), '--log-dir', str(folder / 'logs'))
+    assert result.returncode == 0, result.stderr[-3000:]
+    return bag, json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def test_metadata_is_rosbag2_version_9_with_types_counts_and_qos(recorded):
+    bag, summary = recorded
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
+    topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    assert set(topics) == set(GRAPH_TOPICS)
+    for name, spec in GRAPH_TOPICS.items():
+        metadata = topics[name]['topic_metadata']
+        assert metadata['type'] == spec.msgtype
+        qos = metadata['offered_qos_profiles'][0]
+        assert qos['reliability'] == 'reliable' and qos['depth'] == spec.depth
+        assert qos['durability'] == ('transient_local' if spec.latched else 'volatile')
+        assert topics[name]['message_count'] > 0
+    # Simulated time: the run starts at 0 and lasts tens of seconds, not since 1970.
+    assert info['starting_time']['nanoseconds_since_epoch'] < 10**9
+    assert summary['sim_time_s'] * 1e9 < info['duration']['nanoseconds'] < 10**11
+
+
+def test_an_independent_mcap_reader_decodes_the_same_messages(recorded):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    bag, summary = recorded
+    ours = read_bag(bag)
+    counts: dict[str, int] = {}
+    odometry = []
+    moves = 0
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        for _, channel, _, decoded in reader.iter_decoded_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.topic == '/odom':
+                odometry.append(decoded)
+            if channel.topic == '/wheel_trajectory' and decoded.points:
+                moves += 1
+    assert counts == {topic: len(raw) for topic, raw in ours.raw.items()}
+    assert moves == summary['periods']
+    # The robot is at rest to ~1e-13 m/s after the goal; the bag goes on a few seconds longer.
+    final = odometry[-1].pose.pose.position
+    assert final.x * 1e3 == pytest.approx(summary['final_x_mm'], abs=1e-6)
+    assert final.y * 1e3 == pytest.approx(summary['final_y_mm'], abs=1e-6)
+    assert odometry[-1].header.frame_id == 'odom'
+
+
+def test_analyze_draws_and_summarises_from_the_bag_alone(recorded, tmp_path, omni_micro):
+    bag, summary = recorded
+    out = tmp_path / 'analysis'
+    result = omni_micro('analyze', str(bag), '--out', str(out))
+    assert result.returncode == 0, result.stderr
+    for name in ('route.png', 'slip_longitudinal.png', 'slip_transverse.png', 'periods.png'):
+        assert (out / name).stat().st_size > 10_000
+    assert 'reached' in (out / 'summary.md').read_text()
+    analysed = json.loads((out / 'summary.json').read_text())
+    assert analysed['outcome'] == 'reached' and analysed['periods'] == summary['periods']
+    assert analysed['deviation_mm'] == pytest.approx(summary['deviation_mm'], abs=1e-6)
+    assert analysed['message_counts']['/goal_pose'] == 1
+
+
+def test_existing_bag_is_refused_without_force(recorded, omni_micro, tmp_path):
+    bag, _ = recorded
+    result = omni_micro('run', '--goal-mm', '100,0', '--record', str(bag),
+                        '--log-dir', str(tmp_path))
+    assert result.returncode == 2 and 'exists already' in result.stderr
+    assert (bag / 'metadata.yaml').is_file()
+    plain = tmp_path / 'notes'
+    plain.mkdir()
+    (plain / 'important.txt').write_text('keep me')
+    result = omni_micro('record', str(plain), '--force')
+    assert result.returncode == 2 and 'not a bag' in result.stderr
+    assert (plain / 'important.txt').read_text() == 'keep me'
+
+
+def start_recorder(bag: Path, domain_id: int, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--domain-id',
+         str(domain_id), *extra], cwd=ROOT, env=node_environment(domain_id, bag.parent),
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def test_replay_round_trip_keeps_every_message(recorded, domain_id, tmp_path, omni_micro):
+    bag, _ = recorded
+    again = tmp_path / 'again'
+    recorder = start_recorder(again, domain_id, '--storage', 'sqlite3')
+    try:
+        result = omni_micro('replay', str(bag), '--clock', '--rate', '20',
+                            '--wait-subscribers', '30', '--domain-id', str(domain_id))
+        assert result.returncode == 0, result.stderr
+        time.sleep(1.0)
+    finally:
+        recorder.send_signal(signal.SIGINT)
+        output = recorder.communicate(timeout=30)[0]
+    assert recorder.returncode == 0, output
+    original, replayed = read_bag(bag, decode=False), read_bag(again, decode=False)
+    assert next(again.glob('*.db3'))
+    for topic, messages in original.raw.items():
+        assert replayed.raw[topic] == messages, topic
+
+
+def test_a_killed_recorder_loses_at_most_the_last_second(domain_id, probe, tmp_path,
+                                                         omni_micro):
+    bag = tmp_path / 'killed'
+    recorder = start_recorder(bag, domain_id, '--topics', '/odom')
+    publisher = probe.node.create_publisher(
+        Odometry, '/odom', QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    probe.spin_until(lambda: publisher.get_subscription_count() > 0, 30.0, 'the recorder')
+    time.sleep(0.5)
+    sent = []   # (wall time, index)
+    started = time.monotonic()
+    index = 0
+    while time.monotonic() - started < 3.0:
+        msg = Odometry()
+        msg.pose.pose.position.x = float(index)
+        publisher.publish(msg)
+        sent.append((time.monotonic(), index))
+        index += 1
+        time.sleep(0.01)
+    killed_at = time.monotonic()
+    os.kill(recorder.pid, signal.SIGKILL)
+    recorder.wait(10)
+    assert not (bag / 'metadata.yaml').exists()          # a torn bag, as measured
+    result = omni_micro('bag-recover', str(bag))
+    assert result.returncode == 0, result.stderr
+    recovered = read_bag(bag.with_name('killed-recovered'))
+    kept = [m.pose.pose.position.x for m in recovered.messages['/odom']]
+    must_have = [i for t, i in sent if t < killed_at - 1.0]
+    assert kept[:len(must_have)] == [float(i) for i in must_have]
+    assert kept == [float(i) for i in range(len(kept))]   # in order, nothing invented
