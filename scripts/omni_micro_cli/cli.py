@@ -8,10 +8,21 @@ import sys
 
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-from omni_micro_cli import analyze, bench, demo, figures, record, recover, replay, run, simulate
+from omni_micro_cli import (
+    analyze,
+    bench,
+    demo,
+    figures,
+    record,
+    recover,
+    replay,
+    run,
+    simulate,
+    soak,
+)
 from omni_micro_cli.errors import RunFailed, UsageError
 
-COMMANDS = (demo, run, record, replay, analyze, recover, simulate, figures, bench)
+COMMANDS = (demo, run, record, replay, analyze, recover, soak, simulate, figures, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:

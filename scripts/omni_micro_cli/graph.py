@@ -10,6 +10,7 @@ shared-memory leftovers.
 from __future__ import annotations
 
 import fcntl
+import json
 import math
 import os
 import random
@@ -21,11 +22,12 @@ import tempfile
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_sim.conventions import PUBLISHED_MARKER
 
 # The recorder goes last, so that it keeps the stop and the final samples.
 SHUTDOWN_ORDER = ('controller_node', 'vision_node', 'dynamics_node', 'bag_recorder')
@@ -192,6 +194,11 @@ class NodeProcess:
     def exit_code(self) -> int | None:
         return None if self.process is None else self.process.poll()
 
+    def join_output(self) -> None:
+        """Wait (briefly) until the dead process's last lines are in the log and the tail."""
+        if self._pump is not None:
+            self._pump.join(timeout=2.0)
+
     def stop(self, grace_s: float = 5.0) -> int | None:
         """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; returns the exit code."""
         process = self.process
@@ -238,6 +245,13 @@ class GraphOptions:
     record: Path | None = None
     storage: str = 'mcap'
     force: bool = False
+    # More goals after the first, each sent once the previous one is reached (the soak).
+    more_goals_m: list[tuple[float, float]] = field(default_factory=list)
+    respawn: bool = False                 # restart a crashed vision or controller node
+    vision_overrides: dict[str, object] = field(default_factory=dict)
+    dynamics_overrides: dict[str, object] = field(default_factory=dict)
+    # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
+    on_running: Callable[['Graph'], None] | None = None
 
 
 @dataclass
@@ -256,6 +270,10 @@ class GraphResult:
     status: dict[str, str]
     route: list[tuple[float, float, float]] = field(default_factory=list)       # t, x, y
     captures: list[tuple[float, float, float, str]] = field(default_factory=list)  # t, x, y, cam
+    goals: list[dict[str, str]] = field(default_factory=list)   # final status of every goal
+    published: dict[str, int] = field(default_factory=dict)     # per topic, all nodes
+    memory_kb: dict[str, list[int]] = field(default_factory=dict)  # RSS after each goal
+    respawns: dict[str, int] = field(default_factory=dict)
 
     @property
     def deviation_m(self) -> float:
@@ -280,8 +298,10 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
+        overrides.update(options.dynamics_overrides)
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
+        overrides.update(options.vision_overrides)
     elif spec.executable == 'controller_node':
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
@@ -312,44 +332,115 @@ def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
 class Graph:
     """The running processes of one graph, stopped in order however the run ends."""
 
+    RESPAWNABLE = ('vision_node', 'controller_node')
+
     def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path) -> None:
         self.options = options
         self.domain_id = domain_id
         self.log_dir = log_dir
         env = node_environment(domain_id, log_dir)
         specs = list(options.nodes or default_nodes())
+        if options.respawn:
+            specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
+                     for spec in specs]
         if options.record is not None:
             specs.append(recorder_spec(options.record, options.storage))
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
                                       log_dir / f'{spec.name}.log', options.echo)
                           for spec in specs]
 
+    def process(self, name: str) -> NodeProcess:
+        return next(p for p in self.processes if p.name == name)
+
     def start(self) -> None:
         for process in self.processes:
             process.start()
 
-    def check_alive(self) -> None:
-        """Raise RunFailed naming a node that died (after restarting it, if it respawns)."""
+    def check_alive(self) -> list[str]:
+        """Restart dead nodes that respawn and return their names; raise for any other death.
+
+        Raises
+        ------
+        UsageError
+            A node refused its parameters (exit code 2): the message is the node's own.
+        RunFailed
+            A node died; the message names it and quotes the end of its log.
+        """
+        restarted = []
         for process in self.processes:
             code = process.exit_code()
             if code is None:
                 continue
+            process.join_output()
+            tail = '\n  '.join(process.tail) or '(no output)'
+            if code == 2 and process.starts == 1:
+                raise UsageError(f'{process.name} refused its parameters:\n  {tail}')
             if process.spec.respawn:
                 if self.options.echo:
                     self.options.echo(f'[orchestration] {process.name} exited with {code}; '
-                                      f'respawning')
+                                      f'respawning it')
                 process.start()
+                restarted.append(process.name)
                 continue
-            tail = '\n  '.join(process.tail) or '(no output)'
             raise RunFailed(f'{process.name} exited with code {code} before the outcome; '
                             f'its log ({process.log_path}) ends:\n  {tail}')
+        return restarted
+
+    def memory_kb(self) -> dict[str, int]:
+        """Resident memory of each live node process (VmRSS, kB)."""
+        sizes = {}
+        for process in self.processes:
+            if process.process is None or process.exit_code() is not None:
+                continue
+            try:
+                status = Path(f'/proc/{process.process.pid}/status').read_text()
+            except OSError:
+                continue
+            for line in status.splitlines():
+                if line.startswith('VmRSS:'):
+                    sizes[process.name] = int(line.split()[1])
+        return sizes
 
     def stop(self) -> dict[str, int | None]:
         order = sorted(self.processes, key=lambda p: (
             SHUTDOWN_ORDER.index(p.name) if p.name in SHUTDOWN_ORDER else -1))
         codes = {process.name: process.stop() for process in order}
         clean_shared_memory()
+        record = self.options.record
+        if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
+            self._recover_bag(record)
         return codes
+
+    def _recover_bag(self, bag: Path) -> None:
+        """The recorder died: turn what it flushed into a readable bag at the same path."""
+        from omni_micro_cli.bags import recover
+
+        torn = bag.with_name(bag.name + '.torn')
+        shutil.rmtree(torn, ignore_errors=True)
+        bag.rename(torn)
+        try:
+            counts = recover(torn, bag)
+        except Exception as error:   # noqa: BLE001 - keep the torn bag and say why
+            torn.rename(bag)
+            if self.options.echo:
+                self.options.echo(f'[orchestration] could not recover {bag}: {error}')
+            return
+        shutil.rmtree(torn)
+        if self.options.echo:
+            self.options.echo(f'[orchestration] the recorder died; recovered '
+                              f'{sum(counts.values())} messages into {bag}')
+
+    def published(self) -> dict[str, int]:
+        """What the nodes say they published (their last log line), summed per topic."""
+        totals: dict[str, int] = {}
+        for process in self.processes:
+            if not process.log_path.exists():
+                continue
+            for line in process.log_path.read_text().splitlines():
+                if line.startswith(PUBLISHED_MARKER):
+                    for topic, count in json.loads(line[len(PUBLISHED_MARKER):]).items():
+                        totals[topic] = totals.get(topic, 0) + count
+        return totals
 
 
 def _new_log_dir(root: Path) -> Path:
@@ -381,30 +472,46 @@ def run_graph(options: GraphOptions) -> GraphResult:
 
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
+    goals = [tuple(options.goal_m), *map(tuple, options.more_goals_m)]
     with DomainLease(options.domain_id) as domain_id:
         graph = Graph(options, domain_id, log_dir)
         monitor = GraphMonitor(domain_id, follow_route=options.follow_route)
+        recording = options.record is not None
+        statuses = []
+        memory: dict[str, list[int]] = {}
         try:
             graph.start()
-            recording = options.record is not None
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording)
-            monitor.send_goal(graph, options.goal_m, subscribers=2 if recording else 1)
             wall_start = time.monotonic()
-            monitor.unpause()
-            status = monitor.wait_for_outcome(graph, options.timeout_s)
+            for index, goal in enumerate(goals):
+                monitor.send_goal(graph, goal, subscribers=2 if recording else 1)
+                if index == 0:
+                    wall_start = time.monotonic()
+                    monitor.set_paused(False)
+                    if options.on_running is not None:
+                        options.on_running(graph)
+                status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)
+                statuses.append(status)
+                for name, size in graph.memory_kb().items():
+                    memory.setdefault(name, []).append(size)
+                if status['outcome'] not in ('reached', 'completed'):
+                    break
             wall_time = time.monotonic() - wall_start
             capture_stamp = float(status.get('capture_stamp_s', '0'))
             odom = monitor.wait_for_odometry_after(graph, capture_stamp, timeout_s=30.0)
         finally:
             monitor.close()
             graph.stop()
+    published = graph.published()
+    published['/goal_pose'] = monitor.goals_sent
     return GraphResult(
         outcome=status['outcome'], reason=status.get('reason', ''),
         periods=int(status.get('periods', '0')), final_x_m=odom[1], final_y_m=odom[2],
-        final_phi_rad=odom[3], goal_m=tuple(options.goal_m),
+        final_phi_rad=odom[3], goal_m=goals[len(statuses) - 1],
         sim_time_s=float(status.get('sim_time_s', 'nan')), wall_time_s=wall_time,
         log_dir=log_dir, domain_id=domain_id, status=status, route=monitor.route,
-        captures=monitor.captures)
+        captures=monitor.captures, goals=statuses, published=published, memory_kb=memory,
+        respawns={p.name: p.starts - 1 for p in graph.processes if p.starts > 1})
 
 
 def describe(names: Iterable[str]) -> str:

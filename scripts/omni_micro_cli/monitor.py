@@ -50,7 +50,10 @@ class GraphMonitor:
         self.node.create_subscription(DiagnosticStatus, '/controller/status', self._on_status,
                                       STATUS_QOS)
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
+        self.goal_publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
         self.recorder_ready = False
+        self.goals_sent = 0
+        self.goal_sent_at = 0
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
@@ -109,7 +112,7 @@ class GraphMonitor:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
         goal is on /goal_pose for a recorder to keep."""
-        publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
+        publisher = self.goal_publisher
         deadline = time.monotonic() + timeout_s
         while publisher.get_subscription_count() < subscribers:
             graph.check_alive()
@@ -123,8 +126,19 @@ class GraphMonitor:
         goal.pose.orientation.w = 1.0
         seen = len(self.statuses)
         publisher.publish(goal)
+        self.goals_sent += 1
+        self.goal_sent_at = seen
+        resend_at = time.monotonic() + 2.0
         while True:
             graph.check_alive()
+            answered = any(status['message'] in ('settling', 'goal rejected')
+                           for status in self.statuses[seen:])
+            if time.monotonic() > resend_at and not answered:
+                # A reader of a node that just died can still count as matched for a moment:
+                # if nobody acknowledged, the goal went there. Say it again.
+                publisher.publish(goal)
+                self.goals_sent += 1
+                resend_at = time.monotonic() + 2.0
             for status in self.statuses[seen:]:
                 if status['message'] == 'goal rejected':
                     raise UsageError(f'controller_node rejected the goal: {status["reason"]}')
@@ -134,23 +148,40 @@ class GraphMonitor:
                 raise RunFailed('controller_node did not acknowledge the goal')
             self.spin_for(0.05)
 
-    def unpause(self) -> None:
+    def set_paused(self, paused: bool) -> None:
         request = SetParameters.Request(parameters=[Parameter(
             name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
-                                                bool_value=False))])
+                                                bool_value=paused))])
         future = self.parameters.call_async(request)
         self.executor.spin_until_future_complete(future, timeout_sec=10.0)
         result = future.result()
         if result is None or not result.results[0].successful:
-            raise RunFailed(f'could not start the clock of dynamics_node: {result}')
+            raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
+                            f'dynamics_node: {result}')
 
-    def wait_for_outcome(self, graph: Graph, timeout_s: float) -> dict[str, str]:
+    def _bring_back(self, graph: Graph, restarted: list[str], goal: tuple[float, float],
+                    recording: bool) -> None:
+        """A node was respawned: hold the clock while it comes back, then go on from there."""
+        self.set_paused(True)
+        self.wait_until_ready(graph, timeout_s=60.0)
+        if 'controller_node' in restarted:
+            # The new controller knows nothing: give it the goal again; it starts over from
+            # its first capture, so nothing depends on what the old one was doing.
+            self.send_goal(graph, goal, subscribers=2 if recording else 1)
+        self.set_paused(False)
+
+    def wait_for_outcome(self, graph: Graph, timeout_s: float, goal: tuple[float, float],
+                         recording: bool = False) -> dict[str, str]:
+        """The controller's outcome for the goal sent last (respawning nodes on the way)."""
         deadline = time.monotonic() + timeout_s
         while True:
             # A dead node is the cause, whatever the controller concluded since.
-            graph.check_alive()
-            for status in self.statuses:
-                if status['message'] in TERMINAL_OUTCOMES:
+            restarted = graph.check_alive()
+            if restarted:
+                self._bring_back(graph, restarted, goal, recording)
+            for status in self.statuses[self.goal_sent_at:]:
+                if status['message'] in TERMINAL_OUTCOMES and not (
+                        status['message'] == 'cancelled' and restarted):
                     return dict(status, outcome=status['message'])
             if time.monotonic() > deadline:
                 sim = self.latest_odometry[0] if self.latest_odometry else 0.0

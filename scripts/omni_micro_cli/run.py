@@ -7,9 +7,16 @@ import json
 import sys
 from pathlib import Path
 
-from omni_micro_cli.arguments import float_list, non_negative_int, positive_float
+from omni_micro_cli.arguments import (
+    float_list,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+    probability,
+)
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
+from omni_micro_cli.platform import check_goal
 from omni_micro_cli.record import add_storage_arguments
 
 
@@ -50,6 +57,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--json', action='store_true',
                         help='print a final JSON line with the outcome and true final pose')
     add_graph_arguments(parser)
+    faults = parser.add_argument_group('fault injection (see docs/reliability.md)')
+    faults.add_argument('--drop-captures', type=probability, default=0.0, metavar='P',
+                        help='lose each camera capture with probability P (seeded)')
+    faults.add_argument('--late-captures', type=non_negative_float, default=0.0, metavar='S',
+                        help='publish each capture S simulated seconds after its exposure')
+    faults.add_argument('--freeze-camera-at', type=non_negative_float, metavar='S',
+                        help='from simulated time S the camera repeats its last frame')
+    faults.add_argument('--fault-camera', choices=('macro', 'micro', 'both'), default='both',
+                        help='which camera the faults hit (default both)')
+    faults.add_argument('--respawn', action='store_true',
+                        help='restart a crashed vision_node or controller_node and go on')
     parser.set_defaults(handler=run)
 
 
@@ -57,13 +75,31 @@ def echo_to_stderr(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
+def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if getattr(args, 'drop_captures', 0.0):
+        overrides['faults.drop_probability'] = args.drop_captures
+    if getattr(args, 'late_captures', 0.0):
+        overrides['faults.delay_s'] = args.late_captures
+    if getattr(args, 'freeze_camera_at', None) is not None:
+        overrides['faults.frozen_after_s'] = args.freeze_camera_at
+    if overrides:
+        overrides['faults.camera'] = args.fault_camera
+    return overrides
+
+
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                       open_loop_s: float | None) -> GraphOptions:
+    if args.params is not None:
+        check_params_file(args.params)
+    check_goal(goal_m, args.params)
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
                         open_loop_s=open_loop_s, params_file=args.params,
                         timeout_s=args.timeout, log_dir=args.log_dir,
                         echo=None if args.quiet else echo_to_stderr, record=args.record,
-                        storage=args.storage, force=args.force)
+                        storage=args.storage, force=args.force,
+                        vision_overrides=fault_overrides(args),
+                        respawn=getattr(args, 'respawn', False))
 
 
 def summary_line(result: GraphResult) -> str:

@@ -20,6 +20,7 @@ import time
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -37,7 +38,7 @@ from omni_micro_control.feedback import (
 )
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
 from omni_micro_sim.errors import CommandError, ParameterError
-from omni_micro_sim.node_runtime import run_node
+from omni_micro_sim.node_runtime import PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
@@ -84,14 +85,21 @@ class ControllerNode(Node):
         self.controller = VisionFeedbackController(config)
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
-        self.trajectory_pub = self.create_publisher(JointTrajectory, '/wheel_trajectory', DATA_QOS)
-        self.status_pub = self.create_publisher(DiagnosticStatus, '/controller/status', STATUS_QOS)
+        self.publication_counter = PublicationCounter()
+        count = self.publication_counter.wrap
+        self.trajectory_pub = count(self.create_publisher(JointTrajectory, '/wheel_trajectory',
+                                                          DATA_QOS))
+        self.status_pub = count(self.create_publisher(DiagnosticStatus, '/controller/status',
+                                                      STATUS_QOS))
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS)
         for name, topic in CAPTURE_TOPICS.items():
             self.create_subscription(PoseStamped, topic,
                                      lambda msg, camera=name: self._on_capture(msg, camera),
                                      CAPTURE_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
+        self.create_subscription(DiagnosticStatus, '/camera/status', self._on_camera_status,
+                                 STATUS_QOS)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_timer(0.05, self._on_timer)
         self._publish_status(DiagnosticStatus.OK, 'idle')
         self.get_logger().info(
@@ -159,6 +167,27 @@ class ControllerNode(Node):
         elif isinstance(decision, Finished):
             self.report(decision)
 
+    def _on_camera_status(self, msg: DiagnosticStatus) -> None:
+        # A camera that says it cannot see the robot ends the wait at once; one that says
+        # nothing is caught by the capture timeout.
+        if msg.level != DiagnosticStatus.OK and 'outside' in msg.message:
+            self._act(self.controller.on_out_of_field(self.robot_time_s))
+
+    def _on_set_parameters(self, params: list) -> SetParametersResult:
+        """Section 4.1's parameters may be tuned while the node runs, checked first."""
+        fields = FeedbackConfig.__dataclass_fields__
+        changes = {p.name: p.value for p in params if p.name in fields}
+        others = [p.name for p in params if p.name not in fields and p.name != 'use_sim_time']
+        if others:
+            return SetParametersResult(successful=False,
+                                       reason=f'{others} are fixed while the node runs')
+        try:
+            config = FeedbackConfig(**{**self.controller.config.__dict__, **changes})
+        except ControllerConfigError as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        self.controller.config = config
+        return SetParametersResult(successful=True)
+
     def _on_timer(self) -> None:
         tries_before = self.controller.tries
         # Timeouts count the robot's own time as far as its reports have arrived, so a busy
@@ -204,7 +233,11 @@ class ControllerNode(Node):
             return
         self.watcher.forget()
         values = {'outcome': finished.outcome.value, 'periods': str(finished.periods),
-                  'reason': finished.reason, 'sim_time_s': repr(self.now_s())}
+                  'reason': finished.reason,
+                  # The decision's own time (its capture, else the robot's last report), not
+                  # the arrival time: the same run then records the same status.
+                  'sim_time_s': repr(finished.observation.stamp_s if finished.observation
+                                     else self.robot_time_s)}
         if finished.observation is not None:
             seen = finished.observation
             values.update(measured_x_m=repr(seen.x_m), measured_y_m=repr(seen.y_m),

@@ -38,3 +38,7 @@ def body_twist(phi_rad: float, vx_m_s: float, vy_m_s: float) -> tuple[float, flo
     """The platform-frame velocity (vx, vy) expressed in the robot frame."""
     cos_phi, sin_phi = math.cos(phi_rad), math.sin(phi_rad)
     return cos_phi * vx_m_s + sin_phi * vy_m_s, -sin_phi * vx_m_s + cos_phi * vy_m_s
+
+
+# The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
+PUBLISHED_MARKER = 'published message counts: '

@@ -32,7 +32,7 @@ from trajectory_msgs.msg import JointTrajectory
 from omni_micro_sim import paper
 from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_to_quaternion
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-from omni_micro_sim.node_runtime import run_node
+from omni_micro_sim.node_runtime import PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.simulator import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
@@ -101,16 +101,17 @@ class DynamicsNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._make_messages()
-        self.clock_pub = self.create_publisher(Clock, '/clock', DATA_QOS)
-        self.odom_pub = self.create_publisher(Odometry, '/odom', DATA_QOS)
-        self.joint_pub = self.create_publisher(JointState, '/joint_states', DATA_QOS)
-        self.slip_pub = self.create_publisher(JointState, '/wheel_slip', DATA_QOS)
+        self.publication_counter = PublicationCounter()
+        count = self.publication_counter.wrap
+        self.clock_pub = count(self.create_publisher(Clock, '/clock', DATA_QOS))
+        self.odom_pub = count(self.create_publisher(Odometry, '/odom', DATA_QOS))
+        self.joint_pub = count(self.create_publisher(JointState, '/joint_states', DATA_QOS))
+        self.slip_pub = count(self.create_publisher(JointState, '/wheel_slip', DATA_QOS))
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self._wall_origin = time.monotonic()
         self._tick_origin = 0
         self._timer = self.create_timer(self._timer_period(), self._on_timer)
-        self._publish_clock()
         self.get_logger().info(
             f'robot ready: grid {period * 1e3:g} ms, real-time factor '
             f'{self.real_time_factor:g}{", paused" if self.paused else ""}')
@@ -158,8 +159,7 @@ class DynamicsNode(Node):
     # -- time --------------------------------------------------------------------------------
     def _on_timer(self) -> None:
         if self.paused:
-            self._publish_clock()
-            return
+            return   # the clock was published when it stopped; repeats would only vary bags
         elapsed = (time.monotonic() - self._wall_origin) * self.real_time_factor
         due = self._tick_origin + int(elapsed / self.grid.period_s)
         # Never more than 50 periods per callback: if the machine cannot keep up, simulated time
@@ -176,10 +176,6 @@ class DynamicsNode(Node):
         if due - self.grid.tick > 200:
             self._wall_origin = time.monotonic()
             self._tick_origin = self.grid.tick
-
-    def _publish_clock(self) -> None:
-        self._clock_msg.clock = time_msg(self.grid.time_s)
-        self.clock_pub.publish(self._clock_msg)
 
     def _make_messages(self) -> None:
         # Built once and refilled: constructing messages costs more than publishing them.

@@ -8,8 +8,10 @@ cheaper per message, but in this rclpy it leaves the parameter services unanswer
 
 from __future__ import annotations
 
+import json
 import signal
 import sys
+from collections import Counter
 from typing import Callable, TypeVar
 
 import rclpy
@@ -17,10 +19,33 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from omni_micro_sim.conventions import PUBLISHED_MARKER
+
 NodeT = TypeVar('NodeT', bound=Node)
 
 
 _stopping = False
+
+
+class PublicationCounter:
+    """Counts what a node publishes per topic; logged at shutdown, so that a bag's counts can be
+    checked against what was really sent (the soak test does)."""
+
+    def __init__(self) -> None:
+        self.counts: Counter[str] = Counter()
+
+    def wrap(self, publisher):
+        send = publisher.publish
+
+        def publish(msg) -> None:
+            send(msg)
+            self.counts[publisher.topic_name] += 1
+
+        publisher.publish = publish
+        return publisher
+
+    def report(self) -> str:
+        return PUBLISHED_MARKER + json.dumps(dict(sorted(self.counts.items())))
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -57,5 +82,8 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
         if node is not None:
             if on_shutdown is not None and rclpy.ok():
                 on_shutdown(node)
+            counter = getattr(node, 'publication_counter', None)
+            if counter is not None:
+                print(counter.report(), flush=True)
             node.destroy_node()
         rclpy.try_shutdown()

@@ -233,3 +233,78 @@ class StationaryCamera:
             events.append(Capture(self.frame_time_s(frame), *measured, camera.name,
                                   self.stop_index, frame))
         return events
+
+
+FAULT_CAMERAS = ('macro', 'micro', 'both')
+
+
+@dataclass(frozen=True)
+class CameraFaults:
+    """Injected camera faults, to see the controller cope (all off by default).
+
+    drop_probability : each capture is lost with this probability (drawn per capture from the
+        seed, so a run still repeats).
+    delay_s : each capture is published this much simulated time after its exposure.
+    frozen_after_s : from this simulated time on the camera repeats its last earlier frame,
+        stamp and all (a stuck driver); negative = never.
+    camera : which camera misbehaves: 'macro', 'micro' or 'both'.
+    """
+
+    drop_probability: float = 0.0
+    delay_s: float = 0.0
+    frozen_after_s: float = -1.0
+    camera: str = 'both'
+
+    def __post_init__(self) -> None:
+        probability = _finite('faults.drop_probability', self.drop_probability)
+        if not 0.0 <= probability <= 1.0:
+            raise CameraConfigError(
+                f'faults.drop_probability must be in [0, 1], got {self.drop_probability!r}')
+        object.__setattr__(self, 'drop_probability', probability)
+        object.__setattr__(self, 'delay_s',
+                           _finite('faults.delay_s', self.delay_s, non_negative=True))
+        object.__setattr__(self, 'frozen_after_s',
+                           _finite('faults.frozen_after_s', self.frozen_after_s))
+        if self.camera not in FAULT_CAMERAS:
+            raise CameraConfigError(
+                f'faults.camera must be one of {list(FAULT_CAMERAS)}, got {self.camera!r} '
+                f'(unknown camera)')
+
+
+class FaultInjector:
+    """Sits between the camera model and the publisher: drops, delays or freezes captures."""
+
+    def __init__(self, faults: CameraFaults, seed: int = 0) -> None:
+        self.faults = faults
+        self.seed = seed
+        self._held: list[Capture] = []
+        self._last_good: dict[str, Capture] = {}
+
+    def _applies(self, capture: Capture) -> bool:
+        return self.faults.camera in ('both', capture.camera)
+
+    def submit(self, capture: Capture) -> None:
+        faults = self.faults
+        if not self._applies(capture):
+            self._held.append(capture)
+            return
+        if 0.0 <= faults.frozen_after_s <= capture.stamp_s:
+            stale = self._last_good.get(capture.camera)
+            if stale is not None:
+                self._held.append(stale)
+            return
+        self._last_good[capture.camera] = capture
+        if faults.drop_probability > 0.0:
+            draw = np.random.default_rng(np.random.SeedSequence(
+                [self.seed, capture.stop_index, capture.frame_index, 1])).random()
+            if draw < faults.drop_probability:
+                return
+        self._held.append(capture)
+
+    def due(self, now_s: float) -> list[Capture]:
+        """The captures to publish at simulated time ``now_s``, in exposure order."""
+        delay = self.faults.delay_s
+        ready = [c for c in self._held
+                 if not self._applies(c) or c.stamp_s + delay <= now_s + 1e-9]
+        self._held = [c for c in self._held if c not in ready]
+        return ready

@@ -17,18 +17,21 @@ import math
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, yaw_to_quaternion
-from omni_micro_sim.node_runtime import run_node
+from omni_micro_sim.node_runtime import PublicationCounter, run_node
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraConfigError,
+    CameraFaults,
     CameraModel,
     CameraRig,
     Capture,
     CaptureRule,
+    FaultInjector,
     StationaryCamera,
 )
 
@@ -64,15 +67,46 @@ class VisionNode(Node):
                 self.declare_parameter(f'{name}.quantisation_px', default.quantisation_px).value,
                 baseline)
         self.camera = StationaryCamera(CameraRig(**cameras), rule, seed)
-        self.capture_pubs = {name: self.create_publisher(PoseStamped, topic, CAPTURE_QOS)
+        fault_defaults = CameraFaults()
+        faults = CameraFaults(**{
+            name: self.declare_parameter(f'faults.{name}', getattr(fault_defaults, name)).value
+            for name in CameraFaults.__dataclass_fields__})
+        self.faults = FaultInjector(faults, seed)
+        if faults != fault_defaults:
+            self.get_logger().warning(f'camera faults injected: {faults}')
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.publication_counter = PublicationCounter()
+        count = self.publication_counter.wrap
+        self.capture_pubs = {name: count(self.create_publisher(PoseStamped, topic, CAPTURE_QOS))
                              for name, topic in CAPTURE_TOPICS.items()}
-        self.status_pub = self.create_publisher(DiagnosticStatus, '/camera/status', STATUS_QOS)
+        self.status_pub = count(self.create_publisher(DiagnosticStatus, '/camera/status',
+                                                      STATUS_QOS))
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
         self._status: tuple[int, str] | None = None
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
+
+    def _on_set_parameters(self, params: list) -> SetParametersResult:
+        """Only the fault injection may change at run time; it is checked before it applies."""
+        changes = {}
+        for param in params:
+            if not param.name.startswith('faults.'):
+                return SetParametersResult(
+                    successful=False, reason=f'{param.name} is fixed while the node runs; '
+                                             f'only faults.* can change')
+            changes[param.name.removeprefix('faults.')] = param.value
+        if not changes:
+            return SetParametersResult(successful=True)
+        current = self.faults.faults
+        try:
+            faults = CameraFaults(**{**current.__dict__, **changes})
+        except (CameraConfigError, TypeError) as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        self.faults.faults = faults
+        self.get_logger().warning(f'camera faults now: {faults}')
+        return SetParametersResult(successful=True)
 
     def _publish_status(self, level: int, message: str, **values: str) -> None:
         if self._status == (level, message):
@@ -97,13 +131,15 @@ class VisionNode(Node):
             math.hypot(twist.linear.x, twist.linear.y), twist.angular.z)
         for event in events:
             if isinstance(event, Capture):
-                self._publish_capture(event)
+                self.faults.submit(event)
             else:
                 self._publish_status(DiagnosticStatus.WARN, 'robot outside the macro field',
                                      x_m=repr(pose.position.x), y_m=repr(pose.position.y))
                 self.get_logger().warning(
                     f'robot at ({pose.position.x * 1e3:.3f}, {pose.position.y * 1e3:.3f}) mm '
                     f'is outside the macro field: no capture', throttle_duration_sec=5.0)
+        for capture in self.faults.due(join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)):
+            self._publish_capture(capture)
 
     def _publish_capture(self, capture: Capture) -> None:
         msg = PoseStamped()
