@@ -164,6 +164,7 @@ class NodeProcess:
         self.tail: deque[str] = deque(maxlen=20)
         self.starts = 0
         self._pump: threading.Thread | None = None
+        self._ready = threading.Event()
 
     @property
     def name(self) -> str:
@@ -171,6 +172,7 @@ class NodeProcess:
 
     def start(self) -> None:
         self.starts += 1
+        self._ready.clear()
         log = open(self.log_path, 'a')
         log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
         log.flush()
@@ -188,8 +190,14 @@ class NodeProcess:
                 log.write(line)
                 log.flush()
                 self.tail.append(line.rstrip())
+                if ' ready' in line:   # every node logs "<what> ready: ..." when set up
+                    self._ready.set()
                 if self.echo is not None:
                     self.echo(f'[{self.name}] {line.rstrip()}')
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Wait until the current start of the node has logged that it is ready."""
+        return self._ready.wait(timeout_s)
 
     def exit_code(self) -> int | None:
         return None if self.process is None else self.process.poll()
@@ -221,12 +229,29 @@ class NodeProcess:
         return process.poll()
 
 
-def clean_shared_memory() -> None:
-    """Remove Fast DDS shared-memory segments whose owners are gone (a SIGKILL leaves them)."""
+SHM = Path('/dev/shm')
+
+
+def shared_memory_files() -> set[str]:
+    return {path.name for path in SHM.glob('*fastrtps*')} if SHM.is_dir() else set()
+
+
+def clean_shared_memory(before: set[str]) -> None:
+    """Remove Fast DDS shared-memory files this run left behind.
+
+    `fastdds shm clean` removes segments and ports whose owner died (a SIGKILL leaves them).
+    It leaves port files with no `_el` lock file: nobody listens on those any more, yet they
+    stay in /dev/shm. Those are removed too, but only ones that appeared during this run.
+    """
     tool = shutil.which('fastdds', path=str(Path(sys.prefix) / 'bin'))
     if tool:
         subprocess.run([tool, 'shm', 'clean'], stdout=subprocess.DEVNULL,
                        stderr=subprocess.DEVNULL, timeout=30, check=False)
+    for name in shared_memory_files() - before:
+        if name.startswith('fastrtps_port') and not name.endswith('_el') \
+                and not (SHM / f'{name}_el').exists():
+            for leftover in (SHM / name, SHM / f'sem.{name}_mutex'):
+                leftover.unlink(missing_ok=True)
 
 
 @dataclass
@@ -338,6 +363,7 @@ class Graph:
         self.options = options
         self.domain_id = domain_id
         self.log_dir = log_dir
+        self.shm_before = shared_memory_files()
         env = node_environment(domain_id, log_dir)
         specs = list(options.nodes or default_nodes())
         if options.respawn:
@@ -382,6 +408,9 @@ class Graph:
                 process.start()
                 restarted.append(process.name)
                 continue
+            if self.options.echo:
+                self.options.echo(f'[orchestration] {process.name} exited with code {code}; '
+                                  f'stopping the graph')
             raise RunFailed(f'{process.name} exited with code {code} before the outcome; '
                             f'its log ({process.log_path}) ends:\n  {tail}')
         return restarted
@@ -405,7 +434,7 @@ class Graph:
         order = sorted(self.processes, key=lambda p: (
             SHUTDOWN_ORDER.index(p.name) if p.name in SHUTDOWN_ORDER else -1))
         codes = {process.name: process.stop() for process in order}
-        clean_shared_memory()
+        clean_shared_memory(self.shm_before)
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
             self._recover_bag(record)

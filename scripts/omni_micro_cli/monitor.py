@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     from omni_micro_cli.graph import Graph
 
 TERMINAL_OUTCOMES = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
+REPLACED = 'replaced by a new goal'   # the controller's reason when a goal is sent again
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -163,11 +164,16 @@ class GraphMonitor:
                     recording: bool) -> None:
         """A node was respawned: hold the clock while it comes back, then go on from there."""
         self.set_paused(True)
-        self.wait_until_ready(graph, timeout_s=60.0)
-        if 'controller_node' in restarted:
-            # The new controller knows nothing: give it the goal again; it starts over from
-            # its first capture, so nothing depends on what the old one was doing.
-            self.send_goal(graph, goal, subscribers=2 if recording else 1)
+        # The dead node's endpoints stay in the ROS graph until their lease runs out, so the
+        # graph cannot tell: wait for the new process to say it is ready, then for matching.
+        for name in restarted:
+            if not graph.process(name).wait_ready(60.0):
+                raise RunFailed(f'respawned {name} did not come up within 60 s')
+        self.spin_for(1.0)
+        graph.check_alive()
+        # The goal again: a new controller knows nothing, and an old one may have counted its
+        # capture timeout while the camera was gone. Either starts over from the next stop.
+        self.send_goal(graph, goal, subscribers=2 if recording else 1)
         self.set_paused(False)
 
     def wait_for_outcome(self, graph: Graph, timeout_s: float, goal: tuple[float, float],
@@ -180,8 +186,8 @@ class GraphMonitor:
             if restarted:
                 self._bring_back(graph, restarted, goal, recording)
             for status in self.statuses[self.goal_sent_at:]:
-                if status['message'] in TERMINAL_OUTCOMES and not (
-                        status['message'] == 'cancelled' and restarted):
+                replaced = status.get('reason') == REPLACED
+                if status['message'] in TERMINAL_OUTCOMES and not replaced:
                     return dict(status, outcome=status['message'])
             if time.monotonic() > deadline:
                 sim = self.latest_odometry[0] if self.latest_odometry else 0.0

@@ -116,3 +116,29 @@ def test_move_watcher_needs_the_rotation_and_a_standstill():
     assert not watcher.on_wheel_state((1.0, 6.0, 6.0), (8.7, 8.7, 8.7))   # turning
     assert watcher.on_wheel_state((1.74, 6.74, 6.74), (0.0, 0.0, 0.0))
     assert not watcher.on_wheel_state((1.74, 6.74, 6.74), (0.0, 0.0, 0.0))  # reported once
+
+
+def test_out_of_view_before_timer2_ends_is_lost_when_it_ends():
+    controller = settled_controller()
+    assert controller.on_out_of_field(0.04) is None
+    assert controller.on_time(0.08) == (0, None)
+    tries, finished = controller.on_time(0.1)
+    assert finished.outcome is Outcome.LOST and 'outside' in finished.reason
+
+
+def test_a_move_whose_end_is_never_reported_ends_lost():
+    controller = settled_controller()
+    move = controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    assert controller.on_time(move.start_s + 1.0) == (0, None)
+    tries, finished = controller.on_time(move.start_s + 10.0)
+    assert finished.outcome is Outcome.LOST and 'end of the move' in finished.reason
+
+
+def test_a_new_goal_during_a_move_waits_for_its_end():
+    controller = settled_controller()
+    controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    replaced = controller.set_goal((0.05, 0.0), stopped_at_s=0.3)
+    assert replaced.outcome is Outcome.CANCELLED and controller.phase is Phase.MOVING
+    controller.on_wheels_stopped(0.6)
+    assert controller.deadline_s == pytest.approx(0.7)
+    assert isinstance(controller.on_capture(Observation(0.71, 0.003, 0.0, 0.0)), Move)

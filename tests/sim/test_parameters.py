@@ -58,3 +58,9 @@ def test_profile_turns_the_wheels_by_cruise_speed_times_duration(duration):
     if duration < 8.7 / 50.0:
         assert profile.knot_times_s.size == 3 and peak < 8.7   # triangle
     assert math.isclose(profile.end_time_s, duration + 0.174) or duration < 0.174
+
+
+def test_finite_values_whose_inertia_overflows_are_refused():
+    # Found by the property test: R = 1e154 m is finite, m R^2 / 2 is not.
+    with pytest.raises(ParameterError, match='moment of inertia'):
+        RobotParameters(chassis_radius_m=1.3e154)

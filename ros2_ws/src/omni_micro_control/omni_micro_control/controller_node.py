@@ -34,6 +34,7 @@ from omni_micro_control.feedback import (
     MoveWatcher,
     Observation,
     Outcome,
+    Phase,
     VisionFeedbackController,
 )
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
@@ -145,6 +146,10 @@ class ControllerNode(Node):
         rotations = tuple(msg.position[i] for i in index)
         speeds = tuple(msg.velocity[i] for i in index)
         stamp = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        if self.robot_time_s == 0.0 and stamp > 0.0:
+            # First word from a robot whose clock was already running (this node was started
+            # late, e.g. respawned): timer2 counts from now, not from the time 0 we assumed.
+            self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
         if self.watcher.on_wheel_state(rotations, speeds):
             self._act(self.controller.on_wheels_stopped(stamp))
@@ -231,7 +236,8 @@ class ControllerNode(Node):
     def report(self, finished: Finished | None) -> None:
         if finished is None:
             return
-        self.watcher.forget()
+        if self.controller.phase is Phase.DONE:
+            self.watcher.forget()   # a replaced goal keeps watching the move still running
         values = {'outcome': finished.outcome.value, 'periods': str(finished.periods),
                   'reason': finished.reason,
                   # The decision's own time (its capture, else the robot's last report), not
@@ -246,11 +252,16 @@ class ControllerNode(Node):
         if self.controller.goal_m is not None:
             values.update(goal_x_m=repr(self.controller.goal_m[0]),
                           goal_y_m=repr(self.controller.goal_m[1]))
-        if finished.outcome in (Outcome.LOST, Outcome.CANCELLED):
+        # Lost: never move blind. A goal replaced mid-move lets the move finish (its end is
+        # what starts timer2 for the new goal); a shutdown stops the robot in main().
+        if finished.outcome is Outcome.LOST:
             self.stop_robot()
-        log = (self.get_logger().info if STATUS_LEVELS[finished.outcome] == DiagnosticStatus.OK
-               else self.get_logger().warning)
-        log(f'{finished.outcome.value}: {finished.reason} ({finished.periods} periods)')
+        line = f'{finished.outcome.value}: {finished.reason} ({finished.periods} periods)'
+        # rclpy fixes a logging call site's severity on first use: one site per severity.
+        if STATUS_LEVELS[finished.outcome] == DiagnosticStatus.OK:
+            self.get_logger().info(line)
+        else:
+            self.get_logger().warning(line)
         self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, **values)
 
     def _publish_status(self, level: int, message: str, **values: str) -> None:

@@ -142,6 +142,8 @@ class VisionFeedbackController:
         self.tries = 0
         self.last_observation: Observation | None = None
         self._early_captures: list[Observation] = []
+        self._blind = False
+        self._move_overdue_s = math.inf
 
     def set_goal(self, goal_m: tuple[float, float], stopped_at_s: float) -> Finished | None:
         """Aim for ``goal_m`` (platform frame) once the robot has been still since
@@ -158,6 +160,12 @@ class VisionFeedbackController:
         self._settle_from(stopped_at_s)
         return replaced
 
+    def restart_wait(self, stopped_at_s: float) -> None:
+        """Count timer2 again from ``stopped_at_s`` if waiting for a capture that came earlier."""
+        if self.phase is Phase.SETTLING and stopped_at_s + self.config.settle_wait_s > \
+                self.deadline_s:
+            self._settle_from(stopped_at_s)
+
     def cancel(self, reason: str) -> Finished | None:
         if self.phase in (Phase.IDLE, Phase.DONE):
             return None
@@ -167,6 +175,7 @@ class VisionFeedbackController:
         self.phase = Phase.SETTLING
         self.deadline_s = stopped_at_s + self.config.settle_wait_s
         self.tries = 0
+        self._blind = False
 
     def _finish(self, outcome: Outcome, reason: str) -> Finished:
         self.phase = Phase.DONE
@@ -227,11 +236,18 @@ class VisionFeedbackController:
         self.periods += 1
         self.phase = Phase.MOVING
         self._early_captures = []
+        # Ramps add at most a second to a move; then the same patience as for a capture.
+        self._move_overdue_s = (observation.stamp_s + config.command_lead_s + duration + 1.0
+                                + config.capture_timeout_s * config.max_capture_tries)
         return Move(observation.stamp_s + config.command_lead_s, steering, duration,
                     self.periods, remaining, observation)
 
     def on_out_of_field(self, stamp_s: float) -> Finished | None:
-        if self.phase is Phase.SETTLING and stamp_s >= self.deadline_s - 1e-9:
+        """The camera reports it cannot see the robot: lost once timer2 has run out."""
+        if self.phase is not Phase.SETTLING:
+            return None
+        self._blind = True
+        if stamp_s >= self.deadline_s - 1e-9:
             return self._finish(Outcome.LOST, 'the robot is outside every camera field')
         return None
 
@@ -240,8 +256,15 @@ class VisionFeedbackController:
 
         Returns (tries used so far, Finished if the controller gives up on the camera).
         """
+        if self.phase is Phase.MOVING and now_s > self._move_overdue_s:
+            # The wheels never reported the end of the move: do not wait for ever.
+            return self.tries, self._finish(
+                Outcome.LOST, 'the wheels did not report the end of the move')
         if self.phase is not Phase.SETTLING:
             return self.tries, None
+        if self._blind and now_s >= self.deadline_s - 1e-9:
+            return self.tries, self._finish(Outcome.LOST,
+                                            'the robot is outside every camera field')
         overdue = now_s - self.deadline_s
         tries = int(overdue // self.config.capture_timeout_s) if overdue > 0 else 0
         if tries > self.tries:

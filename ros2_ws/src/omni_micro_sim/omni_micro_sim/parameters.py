@@ -134,6 +134,17 @@ class RobotParameters:
         if not isinstance(self.wheel1_active, (bool, np.bool_)):
             raise ParameterError(f'wheel1_active must be a bool, got {self.wheel1_active!r}')
         object.__setattr__(self, 'wheel1_active', bool(self.wheel1_active))
+        # Each value finite is not enough: I = m R^2 / 2 can still overflow (found by
+        # tests/sim/test_properties.py with R = 1e154 m).
+        try:
+            inertia = self.moment_of_inertia_kg_m2
+        except OverflowError:
+            inertia = math.inf
+        if not math.isfinite(inertia) or inertia <= 0.0:
+            raise ParameterError(
+                f'the moment of inertia m*R^2/2 from mass_kg={self.mass_kg!r} and '
+                f'chassis_radius_m={self.chassis_radius_m!r} must be a finite number > 0, '
+                f'got {inertia!r}')
 
     @property
     def moment_of_inertia_kg_m2(self) -> float:

@@ -1,0 +1,219 @@
+"""Faults are survived and bad input changes nothing: each row of docs/reliability.md."""
+
+import math
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import PoseStamped
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from omni_micro_cli.bags import read_bag
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.graph import GraphOptions, run_graph
+
+GOAL = (0.1, 0.0)
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def shm_files() -> set[str]:
+    return {name for name in os.listdir('/dev/shm') if name.startswith('fastrtps')}
+
+
+def run(tmp_path: Path, **options) -> object:
+    options.setdefault('real_time_factor', 5.0)
+    return run_graph(GraphOptions(goal_m=options.pop('goal_m', GOAL), log_dir=tmp_path / 'logs',
+                                  **options))
+
+
+# -- vision faults ---------------------------------------------------------------------------
+def test_dropped_and_late_captures_still_reach_the_goal(tmp_path):
+    dropped = run(tmp_path, vision_overrides={'faults.drop_probability': 0.5})
+    assert dropped.outcome == 'reached' and dropped.deviation_m < 5e-6
+    late = run(tmp_path, vision_overrides={'faults.delay_s': 0.5})
+    assert late.outcome == 'reached'
+    # Latency costs time, never position: the same stop as without the fault.
+    clean = run(tmp_path)
+    assert late.final_x_m == pytest.approx(clean.final_x_m, abs=1e-9)
+    assert late.sim_time_s > clean.sim_time_s + 0.4 * clean.periods
+
+
+def test_a_frozen_camera_ends_lost_with_the_robot_stopped(tmp_path):
+    result = run(tmp_path, vision_overrides={'faults.frozen_after_s': 3.0}, record=tmp_path / 'b')
+    assert result.outcome == 'lost' and 'no capture' in result.reason
+    bag = read_bag(tmp_path / 'b', topics=['/odom', '/wheel_trajectory'])
+    last_move = [m for m in bag.messages['/wheel_trajectory'] if m.points][-1]
+    start = last_move.header.stamp.sec + last_move.header.stamp.nanosec * 1e-9
+    # It did not move blind: nothing was commanded after the freeze but the final stop, and
+    # the robot stands still at the end.
+    assert start < 3.0 + 0.2
+    assert bag.messages['/wheel_trajectory'][-1].points == []
+    final = bag.messages['/odom'][-1].twist.twist
+    assert math.hypot(final.linear.x, final.linear.y) < 1e-9
+
+
+def test_leaving_the_macro_field_is_lost_at_once(tmp_path):
+    # Start 10 mm beyond the field's left edge (x = -25 mm): no camera sees the robot.
+    result = run(tmp_path, goal_m=(0.0, 0.0),
+                 dynamics_overrides={'initial_pose': [-0.035, 0.0, 0.0]})
+    assert result.outcome == 'lost' and 'outside' in result.reason
+    assert result.sim_time_s < 1.0   # told by the camera status, not by the timeout
+
+
+# -- node deaths -------------------------------------------------------------------------------
+def kill_after(node: str, wall_s: float, record: dict):
+    def on_running(graph):
+        def kill():
+            time.sleep(wall_s)
+            record['killed_at'] = time.monotonic()
+            os.kill(graph.process(node).process.pid, signal.SIGKILL)
+        threading.Thread(target=kill, daemon=True).start()
+    return on_running
+
+
+@pytest.mark.parametrize('node', ['dynamics_node', 'vision_node', 'controller_node',
+                                  'bag_recorder'])
+def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_path):
+    before = shm_files()
+    events = {}
+    noticed = []
+
+    def echo(line):
+        if 'stopping the graph' in line:
+            noticed.append(time.monotonic())
+
+    with pytest.raises(RunFailed, match=f'{node} exited with code -9'):
+        run(tmp_path, record=tmp_path / 'bag', echo=echo, on_running=kill_after(node, 1.5,
+                                                                                 events))
+    assert noticed and noticed[0] - events['killed_at'] < 1.0
+    bag = read_bag(tmp_path / 'bag', topics=['/odom'])
+    assert len(bag.messages['/odom']) > 10
+    assert shm_files() <= before   # no shared-memory leftovers
+
+
+@pytest.mark.parametrize('node', ['vision_node', 'controller_node'])
+def test_respawn_brings_a_crashed_node_back_and_the_run_goes_on(node, tmp_path):
+    result = run(tmp_path, respawn=True, on_running=kill_after(node, 1.5, {}))
+    assert result.respawns == {node: 1}
+    assert result.outcome == 'reached' and result.deviation_m < 5e-6
+
+
+# -- bad input at run time ---------------------------------------------------------------------
+def test_bad_goals_are_rejected_and_the_controller_stays_idle(start_node, probe, tmp_path):
+    start_node('omni_micro_control', 'controller_node')
+    statuses = []
+    probe.node.create_subscription(DiagnosticStatus, '/controller/status',
+                                   lambda m: statuses.append(m.message), STATUS_QOS)
+    goals = probe.node.create_publisher(PoseStamped, '/goal_pose', 10)
+    probe.spin_until(lambda: goals.get_subscription_count() > 0 and statuses, 30.0,
+                     'the controller')
+    for x, y, frame in ((math.nan, 0.0, 'platform'), (math.inf, 0.0, 'platform'),
+                        (0.5, 0.0, 'platform'), (0.01, 0.0, 'map')):
+        goal = PoseStamped()
+        goal.header.frame_id = frame
+        goal.pose.position.x, goal.pose.position.y = x, y
+        count = len(statuses)
+        goals.publish(goal)
+        probe.spin_until(lambda: len(statuses) > count, 10.0, f'an answer to {x, y, frame}')
+        assert statuses[-1] == 'goal rejected'
+    log = (tmp_path / 'controller_node.log').read_text()
+    assert 'not finite' in log and 'outside the platform' in log and "frame 'map'" in log
+    set_ = probe.node.create_client(SetParameters, '/controller_node/set_parameters')
+    result = probe.call(set_, SetParameters.Request(parameters=[Parameter(
+        name='tolerance_m', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                 double_value=-1.0))])).results[0]
+    assert not result.successful and 'tolerance_m' in result.reason
+
+
+def test_vision_fault_parameters_are_checked_when_set(start_node, probe):
+    start_node('omni_micro_vision', 'vision_node')
+    set_ = probe.node.create_client(SetParameters, '/vision_node/set_parameters')
+
+    def set_string(name, value):
+        return probe.call(set_, SetParameters.Request(parameters=[Parameter(
+            name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                            string_value=value))])).results[0]
+
+    answer = set_string('faults.camera', 'telescope')
+    assert not answer.successful and 'unknown camera' in answer.reason
+    assert set_string('faults.camera', 'micro').successful
+    answer = probe.call(set_, SetParameters.Request(parameters=[Parameter(
+        name='faults.drop_probability', value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE, double_value=1.5))])).results[0]
+    assert not answer.successful and 'drop_probability' in answer.reason
+
+
+def test_a_params_file_with_a_bad_value_is_refused_with_the_nodes_words(tmp_path, omni_micro):
+    params = tmp_path / 'bad.yaml'
+    params.write_text('vision_node:\n  ros__parameters:\n    macro:\n      noise_px: -0.5\n')
+    result = omni_micro('run', '--goal-mm', '100,0', '--params', str(params), '--quiet',
+                        '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 2
+    assert 'vision_node refused its parameters' in result.stderr and 'noise_px' in result.stderr
+
+
+@pytest.mark.parametrize('args, message', [
+    (['--goal-mm', '200,0'], 'outside the platform'),
+    (['--goal-mm', '100,0', '--drop-captures', '1.5'], 'probability'),
+    (['--goal-mm', '100,0', '--late-captures', '-1'], '>= 0'),
+    (['--goal-mm', '100,0', '--fault-camera', 'telescope'], 'invalid choice'),
+    (['--goal-mm', '100,0', '--rtf', 'inf'], 'finite'),
+    (['--goal-mm', '100,0', '--open-loop', '-7'], '> 0'),
+])
+def test_bad_flags_exit_2_and_start_nothing(args, message, tmp_path, omni_micro):
+    result = omni_micro('run', *args, '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 2 and message in result.stderr
+    assert not (tmp_path / 'logs').exists()
+
+
+# -- long runs ---------------------------------------------------------------------------------
+def test_soak_fifty_goals_flat_memory_and_a_complete_bag(tmp_path, omni_micro):
+    import json
+
+    result = omni_micro('soak', '--goals', '50', '--rtf', '5', '--out', str(tmp_path),
+                        '--json', '--quiet')
+    assert result.returncode == 0, result.stderr[-3000:]
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    print(result.stderr)   # the memory figures, for the log
+    assert report['reached'] == 50
+    assert report['missing_from_bag'] == {}
+    for name, memory in report['memory'].items():
+        assert memory['growth_kb'] < 10_000, name
+
+
+def test_same_seed_same_recorded_messages(tmp_path):
+    # Identical bags need every command to arrive before its start stamp (a late one starts
+    # on arrival and shifts the clock of the rest); a 0.3 s lead makes sure of it here.
+    params = tmp_path / 'lead.yaml'
+    params.write_text('controller_node:\n  ros__parameters:\n    command_lead_s: 0.3\n')
+    runs = []
+    for index in range(2):
+        bag = tmp_path / f'run{index}'
+        result = run(tmp_path, real_time_factor=4.0, seed=7, record=bag, params_file=params)
+        assert result.outcome == 'reached'
+        assert 'arrived' not in (result.log_dir / 'dynamics_node.log').read_text()
+        runs.append((read_bag(bag), result.sim_time_s))
+    end = min(sim for _, sim in runs)
+
+    def content_until_end(bag, topic):
+        """Messages stamped up to the outcome: after it each recording runs on for as long as
+        the shutdown takes, and the bag's receive times depend on the wall clock."""
+        kept = []
+        for raw, msg in zip(bag.raw[topic], bag.messages[topic]):
+            stamp = msg.clock if topic == '/clock' else getattr(msg, 'header', None) and \
+                msg.header.stamp
+            if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end:
+                kept.append(raw)
+        return kept
+
+    (first, _), (second, _) = runs
+    assert set(first.raw) == set(second.raw)
+    for topic in first.raw:
+        assert content_until_end(first, topic) == content_until_end(second, topic), topic
