@@ -142,3 +142,13 @@ def test_a_new_goal_during_a_move_waits_for_its_end():
     controller.on_wheels_stopped(0.6)
     assert controller.deadline_s == pytest.approx(0.7)
     assert isinstance(controller.on_capture(Observation(0.71, 0.003, 0.0, 0.0)), Move)
+
+
+def test_a_late_started_controller_counts_timer2_from_the_robots_clock():
+    on_time = settled_controller()
+    on_time.restart_wait(0.02)          # first wheel state of a normal start: no change
+    assert on_time.deadline_s == pytest.approx(0.1)
+    late = settled_controller()
+    late.restart_wait(7.5)              # respawned into a running graph
+    assert late.deadline_s == pytest.approx(7.6)
+    assert late.on_time(7.7) == (0, None)

@@ -161,9 +161,10 @@ class VisionFeedbackController:
         return replaced
 
     def restart_wait(self, stopped_at_s: float) -> None:
-        """Count timer2 again from ``stopped_at_s`` if waiting for a capture that came earlier."""
-        if self.phase is Phase.SETTLING and stopped_at_s + self.config.settle_wait_s > \
-                self.deadline_s:
+        """The robot's clock turned out to be at ``stopped_at_s``, past timer2's end (this
+        controller started late): count timer2 again from there. Earlier stamps change
+        nothing, so a controller that was there from time 0 keeps its deadline."""
+        if self.phase is Phase.SETTLING and stopped_at_s > self.deadline_s:
             self._settle_from(stopped_at_s)
 
     def cancel(self, reason: str) -> Finished | None:
