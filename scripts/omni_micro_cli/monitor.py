@@ -15,21 +15,17 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
+from omni_micro_sim.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
 
 if TYPE_CHECKING:
     from omni_micro_cli.graph import Graph
 
 TERMINAL_OUTCOMES = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
 REPLACED = 'replaced by a new goal'   # the controller's reason when a goal is sent again
-DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Topic -> how many subscribers it needs before time may start (the monitor's own included).
-CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 READY_SUBSCRIBERS = {'/wheel_trajectory': 1, '/joint_states': 1, '/camera/macro/pose': 1,
                      '/camera/micro/pose': 1, '/odom': 1}
 # Discovery shows an endpoint a little before every peer has matched it.

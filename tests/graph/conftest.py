@@ -36,6 +36,11 @@ class Probe:
                 raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
             self.executor.spin_once(timeout_sec=0.05)
 
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.05)
+
     def call(self, client, request, timeout_s: float = 10.0):
         assert client.wait_for_service(timeout_sec=timeout_s), 'service not available'
         future = client.call_async(request)

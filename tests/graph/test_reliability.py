@@ -15,7 +15,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_cli.bags import read_bag
-from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import GraphOptions, run_graph
 
 GOAL = (0.1, 0.0)

@@ -22,7 +22,6 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -42,13 +41,9 @@ from omni_micro_sim.errors import CommandError, ParameterError
 from omni_micro_sim.node_runtime import PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits
 from omni_micro_sim.profile import move_profile
+from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
 from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
 
-DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
                  Outcome.LOST: DiagnosticStatus.ERROR}

@@ -24,7 +24,6 @@ from builtin_interfaces.msg import Time
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -34,6 +33,7 @@ from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_sim.node_runtime import PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.qos import DATA_QOS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
@@ -42,9 +42,6 @@ from omni_micro_sim.wheel_trajectory import (
     command_from_points,
 )
 
-# Deep enough that a subscriber a few hundred samples behind at a high real-time factor still
-# gets every sample (the vision node's stationarity rule needs them all).
-DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 SLIP_NAMES = [f'wheel_{k}_{part}' for k in (1, 2, 3) for part in ('longitudinal', 'transverse')]
 # Fixed at start-up: they define the robot, and changing them mid-run would change physics.
 _READ_ONLY = ParameterDescriptor(read_only=True)

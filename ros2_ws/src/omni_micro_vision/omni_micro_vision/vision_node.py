@@ -19,10 +19,10 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, yaw_to_quaternion
 from omni_micro_sim.node_runtime import PublicationCounter, run_node
+from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, latched
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraConfigError,
@@ -35,12 +35,8 @@ from omni_micro_vision.camera import (
     StationaryCamera,
 )
 
-DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-# Latched, so a subscriber that comes later still learns which camera is in use.
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
-CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+# Latched: a subscriber that comes later still learns which camera is in use.
+CAMERA_STATUS_QOS = latched(1)
 
 
 class VisionNode(Node):
@@ -80,7 +76,7 @@ class VisionNode(Node):
         self.capture_pubs = {name: count(self.create_publisher(PoseStamped, topic, CAPTURE_QOS))
                              for name, topic in CAPTURE_TOPICS.items()}
         self.status_pub = count(self.create_publisher(DiagnosticStatus, '/camera/status',
-                                                      STATUS_QOS))
+                                                      CAMERA_STATUS_QOS))
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
         self._status: tuple[int, str] | None = None
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')

@@ -1,0 +1,21 @@
+"""QoS and names of the graph's topics, in one place for every node and tool so they match.
+
+All reliable: a lost sample would change what the camera and the controller decide. Sample
+streams keep 1000 (20 s of simulated time at the default grid) so that a reader a few hundred
+samples behind at a high real-time factor loses none; statuses are latched.
+"""
+
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+
+
+def latched(depth: int) -> QoSProfile:
+    """Transient-local: a subscriber that comes later still gets the last ``depth`` messages."""
+    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+STATUS_QOS = latched(10)
