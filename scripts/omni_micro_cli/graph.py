@@ -24,7 +24,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Iterable, TextIO
+from typing import Callable, TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.conventions import PUBLISHED_MARKER
@@ -488,6 +488,8 @@ def run_graph(options: GraphOptions) -> GraphResult:
 
     Raises
     ------
+    UsageError
+        A bad params file, an existing bag path, or a node refusing its parameters.
     RunFailed
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
@@ -542,6 +544,3 @@ def run_graph(options: GraphOptions) -> GraphResult:
         captures=monitor.captures, goals=statuses, published=published, memory_kb=memory,
         respawns={p.name: p.starts - 1 for p in graph.processes if p.starts > 1})
 
-
-def describe(names: Iterable[str]) -> str:
-    return ', '.join(sorted(names))

@@ -10,7 +10,6 @@ starts this as its own process with `run --record BAG`.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import time
 from pathlib import Path
@@ -43,10 +42,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticStatus
@@ -60,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
 
     check_output_path(args.bag, args.force)
     topics = {name: GRAPH_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
+    # Ctrl-C and SIGTERM arrive as KeyboardInterrupt (cli.main), with the context still valid.
     rclpy.init(domain_id=args.domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _interrupt)
     node = Node('bag_recorder', parameter_overrides=[Parameter('use_sim_time', value=True)])
     writer, connections = open_writer(args.bag, args.storage, topics)
     counts = dict.fromkeys(topics, 0)

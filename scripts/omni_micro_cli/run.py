@@ -16,7 +16,7 @@ from omni_micro_cli.arguments import (
 )
 from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
-from omni_micro_cli.platform import check_goal
+from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
 
 
