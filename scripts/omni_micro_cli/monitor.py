@@ -49,6 +49,7 @@ class GraphMonitor:
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
         self.goal_publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
         self.recorder_ready = False
+        self.known_endpoints: dict[str, set[bytes]] = {}
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
@@ -103,6 +104,7 @@ class GraphMonitor:
             self.spin_for(0.05)
         self.spin_for(MATCH_GRACE_S)
         graph.check_alive()
+        self.remember_endpoints()
 
     def send_goal(self, graph: Graph, goal_m: tuple[float, float], subscribers: int = 1,
                   timeout_s: float = 30.0) -> None:
@@ -156,20 +158,48 @@ class GraphMonitor:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
 
+    INPUTS = {'vision_node': ('/odom',),
+              'controller_node': ('/joint_states', '/camera/macro/pose', '/goal_pose')}
+
+    def _endpoints(self, name: str) -> set[bytes]:
+        return {bytes(info.endpoint_gid) for topic in self.INPUTS.get(name, ())
+                for info in self.node.get_subscriptions_info_by_topic(topic)
+                if info.node_name == name}
+
+    def _has_new_endpoints(self, name: str) -> bool:
+        topics = self.INPUTS.get(name, ())
+        fresh = {topic for topic in topics
+                 for info in self.node.get_subscriptions_info_by_topic(topic)
+                 if info.node_name == name and bytes(info.endpoint_gid)
+                 not in self.known_endpoints.get(name, set())}
+        return len(fresh) == len(topics)
+
+    def remember_endpoints(self) -> None:
+        """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
+        self.known_endpoints = {name: self._endpoints(name) for name in self.INPUTS}
+
     def _bring_back(self, graph: Graph, restarted: list[str], goal: tuple[float, float],
                     recording: bool) -> None:
         """A node was respawned: hold the clock while it comes back, then go on from there."""
         self.set_paused(True)
-        # The dead node's endpoints stay in the ROS graph until their lease runs out, so the
-        # graph cannot tell: wait for the new process to say it is ready, then for matching.
+        # The dead node's endpoints stay in the ROS graph until their lease runs out, so a
+        # count of subscribers cannot tell: wait for the new process to say it is ready and
+        # for endpoints of it that were not there before to appear on the topics it reads.
         for name in restarted:
             if not graph.process(name).wait_ready(60.0):
                 raise RunFailed(f'respawned {name} did not come up within 60 s')
-        self.spin_for(1.0)
+            deadline = time.monotonic() + 60.0
+            while not self._has_new_endpoints(name):
+                graph.check_alive()
+                if time.monotonic() > deadline:
+                    raise RunFailed(f'respawned {name} was not discovered within 60 s')
+                self.spin_for(0.05)
+        self.spin_for(MATCH_GRACE_S)
         graph.check_alive()
         # The goal again: a new controller knows nothing, and an old one may have counted its
         # capture timeout while the camera was gone. Either starts over from the next stop.
         self.send_goal(graph, goal, subscribers=2 if recording else 1)
+        self.remember_endpoints()
         self.set_paused(False)
 
     def wait_for_outcome(self, graph: Graph, timeout_s: float, goal: tuple[float, float],

@@ -25,6 +25,8 @@ NodeT = TypeVar('NodeT', bound=Node)
 
 
 _stopping = False
+_publishing = False        # inside a counted publish: an interrupt waits until it is counted
+_interrupt_pending = False
 
 
 class PublicationCounter:
@@ -38,8 +40,17 @@ class PublicationCounter:
         send = publisher.publish
 
         def publish(msg) -> None:
-            send(msg)
-            self.counts[publisher.topic_name] += 1
+            # Sent and counted, or neither: the counts are checked against bags at shutdown.
+            global _publishing, _interrupt_pending
+            _publishing = True
+            try:
+                send(msg)
+                self.counts[publisher.topic_name] += 1
+            finally:
+                _publishing = False
+            if _interrupt_pending:
+                _interrupt_pending = False
+                raise KeyboardInterrupt
 
         publisher.publish = publish
         return publisher
@@ -49,8 +60,11 @@ class PublicationCounter:
 
 
 def _interrupt(signum: int, frame: object) -> None:
-    global _stopping
+    global _stopping, _interrupt_pending
     _stopping = True
+    if _publishing:
+        _interrupt_pending = True   # raised once the message is sent and counted
+        return
     raise KeyboardInterrupt
 
 
