@@ -1,4 +1,5 @@
-"""The orchestration's own node: sees the graph come up, unpauses the clock, waits for the outcome
+"""The orchestration's own node: sees the graph come up, hands the controller its goal, runs and
+holds the clock (dynamics_node's `paused`), brings respawned nodes back, waits for the outcome
 and reads the true final pose from /odom. It commands nothing that moves the robot."""
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
-from omni_micro_sim.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
+from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
 
 if TYPE_CHECKING:
     from omni_micro_cli.graph import Graph
@@ -59,9 +60,9 @@ class GraphMonitor:
         self._following = follow_route
         if follow_route:
             self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
-            for camera in ('macro', 'micro'):
+            for camera, topic in CAPTURE_TOPICS.items():
                 self.node.create_subscription(
-                    PoseStamped, f'/camera/{camera}/pose',
+                    PoseStamped, topic,
                     lambda msg, name=camera: self.captures.append(
                         (join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
                          msg.pose.position.x, msg.pose.position.y, name)), CAPTURE_QOS)
