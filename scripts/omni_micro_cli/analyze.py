@@ -14,8 +14,8 @@ from omni_micro_cli import plots
 from omni_micro_cli.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
+from omni_micro_control.feedback import OUTCOME_NAMES
 
-TERMINAL = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -61,7 +61,7 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     slip = np.array([(_stamp(m), *m.velocity) for m in slip_msgs]).reshape(-1, 7)
     remaining = [(int(s['periods']), float(s['remaining_m'])) for s in statuses
                  if s['message'] == 'moving' and 'remaining_m' in s]
-    ends = [s for s in statuses if s['message'] in TERMINAL]
+    ends = [s for s in statuses if s['message'] in OUTCOME_NAMES]
     final = route[-1]
     summary = {
         'bag': str(bag),

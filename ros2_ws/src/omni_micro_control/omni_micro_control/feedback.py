@@ -30,6 +30,13 @@ class Outcome(enum.Enum):
     CANCELLED = 'cancelled'    # a new goal or a shutdown replaced this one
 
 
+# Every outcome ends a goal; this is how a status names them.
+OUTCOME_NAMES = tuple(outcome.value for outcome in Outcome)
+# The reason of the CANCELLED outcome a goal gets when another replaces it (it does not end a
+# run: the new goal goes on).
+REPLACED_REASON = 'replaced by a new goal'
+
+
 class Phase(enum.Enum):
     IDLE = 'idle'
     SETTLING = 'settling'      # waiting for timer2 and then a capture
@@ -150,7 +157,7 @@ class VisionFeedbackController:
         ``stopped_at_s``. Returns the end of a goal this one replaces, if any."""
         replaced = None
         if self.phase in (Phase.SETTLING, Phase.MOVING):
-            replaced = Finished(Outcome.CANCELLED, 'replaced by a new goal', self.periods,
+            replaced = Finished(Outcome.CANCELLED, REPLACED_REASON, self.periods,
                                 self.last_observation)
         self.goal_m = (float(goal_m[0]), float(goal_m[1]))
         self.periods = 0
