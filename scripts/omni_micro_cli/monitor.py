@@ -18,14 +18,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
 
 if TYPE_CHECKING:
     from omni_micro_cli.graph import Graph
 
-TERMINAL_OUTCOMES = ('reached', 'gave_up', 'lost', 'completed', 'cancelled')
-REPLACED = 'replaced by a new goal'   # the controller's reason when a goal is sent again
 # Topic -> how many subscribers it needs before time may start (the monitor's own included).
 READY_SUBSCRIBERS = {'/wheel_trajectory': 1, '/joint_states': 1, '/camera/macro/pose': 1,
                      '/camera/micro/pose': 1, '/odom': 1}
@@ -53,6 +52,10 @@ class GraphMonitor:
         self.known_endpoints: dict[str, set[bytes]] = {}
         self.goals_sent = 0
         self.goal_sent_at = 0
+        self.camera_statuses: list[str] = []
+        self.node.create_subscription(DiagnosticStatus, '/camera/status',
+                                      lambda msg: self.camera_statuses.append(msg.message),
+                                      STATUS_QOS)
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
@@ -201,7 +204,30 @@ class GraphMonitor:
         # capture timeout while the camera was gone. Either starts over from the next stop.
         self.send_goal(graph, goal, subscribers=2 if recording else 1)
         self.remember_endpoints()
+        seen = len(self.camera_statuses)
         self.set_paused(False)
+        if 'vision_node' in restarted:
+            # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
+            # for its first capture (its status names the camera), then give the controller
+            # the goal once more, so that no capture timeout ran while the camera was blind.
+            deadline = time.monotonic() + 60.0
+            while not any(message.endswith(' camera') for message in self.camera_statuses[seen:]):
+                graph.check_alive()
+                if time.monotonic() > deadline:
+                    raise RunFailed('respawned vision_node published no capture within 60 s')
+                self.spin_for(0.05)
+            # ... and the controller's reader of captures may match the new writer later
+            # still: give the goal again until the controller acts on a capture.
+            for _ in range(20):
+                self.send_goal(graph, goal, subscribers=2 if recording else 1)
+                acted_from = self.goal_sent_at
+                self.spin_for(3.0)
+                if any(status['message'] in ('moving', 'reached')
+                       for status in self.statuses[acted_from:]):
+                    break
+            else:
+                raise RunFailed('controller_node receives no capture from the respawned '
+                                'vision_node')
 
     def wait_for_outcome(self, graph: Graph, timeout_s: float, goal: tuple[float, float],
                          recording: bool = False) -> dict[str, str]:
@@ -213,8 +239,8 @@ class GraphMonitor:
             if restarted:
                 self._bring_back(graph, restarted, goal, recording)
             for status in self.statuses[self.goal_sent_at:]:
-                replaced = status.get('reason') == REPLACED
-                if status['message'] in TERMINAL_OUTCOMES and not replaced:
+                replaced = status.get('reason') == REPLACED_REASON
+                if status['message'] in OUTCOME_NAMES and not replaced:
                     return dict(status, outcome=status['message'])
             if time.monotonic() > deadline:
                 sim = self.latest_odometry[0] if self.latest_odometry else 0.0
