@@ -24,6 +24,38 @@ def positive_float(text: str) -> float:
     return value
 
 
+def real_time_factor(text: str) -> float:
+    """A real-time factor > 0, or 'max' (math.inf): as fast as the lockstep allows."""
+    if text.strip().lower() == 'max':
+        return math.inf
+    try:
+        return positive_float(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"expected a number > 0 or 'max', got {text!r}") from None
+
+
+def add_timing_arguments(parser: argparse.ArgumentParser, default_rtf: str) -> None:
+    """--rtf and --free-running, the same for run, demo and soak."""
+    parser.add_argument('--rtf', type=real_time_factor, default=real_time_factor(default_rtf),
+                        metavar='R',
+                        help='real-time factor: simulated seconds per wall second, or max for '
+                             f'as fast as the nodes allow (default {default_rtf}); the result '
+                             'does not depend on it')
+    parser.add_argument('--free-running', action='store_true',
+                        help="the robot's clock does not wait for the vision and controller "
+                             'nodes (what a real camera driver that does not report needs); '
+                             'then a busy machine can change the run. Not with --rtf max')
+
+
+def check_timing(args: argparse.Namespace) -> None:
+    """Raises argparse.ArgumentTypeError for a combination that cannot work."""
+    if args.free_running and math.isinf(args.rtf):
+        raise argparse.ArgumentTypeError(
+            '--rtf max needs the lockstep: with --free-running the nodes could not keep up '
+            'with an unbounded clock; give a number')
+
+
 def non_negative_float(text: str) -> float:
     value = finite_float(text)
     if value < 0.0:

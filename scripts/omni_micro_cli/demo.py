@@ -17,9 +17,9 @@ import numpy as np
 from omni_micro_sim import paper
 
 from omni_micro_cli import figures, plots
-from omni_micro_cli.arguments import non_negative_int, positive_float
+from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
 from omni_micro_cli.bags import check_output_path
-from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_cli.record import add_storage_arguments
@@ -37,8 +37,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "comparison figure, plus the open-loop figures of Figs. 6-8 from the core.")
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='where the figures and summary go (default out/demo)')
-    parser.add_argument('--rtf', type=positive_float, default=2.0, metavar='R',
-                        help='real-time factor of the graph runs (default 2)')
+    add_timing_arguments(parser, default_rtf='max')
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
@@ -67,6 +66,7 @@ def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Pat
               bag: Path | None) -> GraphResult:
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
+        lockstep=not args.free_running,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
         force=args.force))
@@ -86,6 +86,10 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        check_timing(args)
+    except argparse.ArgumentTypeError as error:
+        raise UsageError(str(error)) from None
     started = time.perf_counter()
     bags = bag_paths(args)
     with staged_directory(args.out) as scratch:

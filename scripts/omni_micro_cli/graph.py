@@ -5,6 +5,11 @@ params file, on loopback only and in a private DDS domain; keeps and prefixes th
 the graph up with the clock paused so that nothing moves before every node listens; waits for the
 controller's outcome; shuts down in order (SIGINT, grace, SIGTERM, SIGKILL) and cleans Fast DDS
 shared-memory leftovers.
+
+The children cannot outlive it: each inherits the read end of a lifeline pipe whose write end
+only this process holds (when it dies, however it dies, every node reads end-of-file and stops),
+and the lock file of the run's DDS domain, so that the domain is not handed to another run while
+any process of this one is still in it.
 """
 
 from __future__ import annotations
@@ -27,10 +32,13 @@ from pathlib import Path
 from typing import Callable, TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_sim.conventions import PUBLISHED_MARKER
+from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
 
-# The recorder goes last, so that it keeps the stop and the final samples.
-SHUTDOWN_ORDER = ('controller_node', 'vision_node', 'dynamics_node', 'bag_recorder')
+# Stopped phase by phase, each phase at once: the controller first (its stop command is its last
+# word), the recorder last (it keeps the stop and the final samples); anyone else in between.
+SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
+# Nodes that report to the dynamics in lockstep (a stand-in started by command does not).
+LOCKSTEP_NODES = ('vision_node', 'controller_node')
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
 
@@ -49,6 +57,10 @@ class NodeSpec:
     @property
     def name(self) -> str:
         return self.executable
+
+    @property
+    def reports_lockstep(self) -> bool:
+        return self.command is None and self.executable in LOCKSTEP_NODES
 
 
 def default_nodes() -> list[NodeSpec]:
@@ -97,7 +109,7 @@ def format_parameter(value: object) -> str:
     if isinstance(value, bool):
         return 'true' if value else 'false'
     if isinstance(value, float):
-        return repr(value)
+        return ('.inf' if value > 0 else '-.inf') if math.isinf(value) else repr(value)
     if isinstance(value, (list, tuple)):
         return '[' + ','.join(format_parameter(v) for v in value) + ']'
     return str(value)
@@ -145,6 +157,12 @@ class DomainLease:
             return candidate
         raise RunFailed(f'no free ROS_DOMAIN_ID among {candidates[:5]}...')
 
+    @property
+    def fileno(self) -> int:
+        """The locked file: a child that inherits it holds the lease until it exits too."""
+        assert self._file is not None, 'the lease is not held'
+        return self._file.fileno()
+
     def __exit__(self, *exc: object) -> None:
         if self._file is not None:
             self._file.close()
@@ -154,8 +172,9 @@ class NodeProcess:
     """A node's OS process, with its output kept in a log file and echoed with a prefix."""
 
     def __init__(self, spec: NodeSpec, argv: list[str], env: dict[str, str], log_path: Path,
-                 echo: Callable[[str], None] | None) -> None:
+                 echo: Callable[[str], None] | None, inherited_fds: tuple[int, ...] = ()) -> None:
         self.spec = spec
+        self.inherited_fds = inherited_fds
         self.argv = argv
         self.env = env
         self.log_path = log_path
@@ -178,7 +197,7 @@ class NodeProcess:
         log.flush()
         self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True, bufsize=1,
-                                        start_new_session=True)
+                                        start_new_session=True, pass_fds=self.inherited_fds)
         self._pump = threading.Thread(target=self._copy_output, args=(self.process, log),
                                       daemon=True)
         self._pump.start()
@@ -207,26 +226,40 @@ class NodeProcess:
         if self._pump is not None:
             self._pump.join(timeout=2.0)
 
-    def stop(self, grace_s: float = 5.0) -> int | None:
-        """SIGINT, then SIGTERM, then SIGKILL, each after a grace period; returns the exit code."""
-        process = self.process
-        if process is None:
-            return None
-        for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0),
-                            (signal.SIGKILL, 5.0)):
-            if process.poll() is not None:
-                break
+    def signal(self, sig: int) -> None:
+        if self.process is not None and self.process.poll() is None:
             try:
-                process.send_signal(sig)
+                self.process.send_signal(sig)
             except ProcessLookupError:
-                break
-            try:
-                process.wait(wait_s)
-            except subprocess.TimeoutExpired:
-                continue
-        if self._pump is not None:
-            self._pump.join(timeout=2.0)
-        return process.poll()
+                pass
+
+    def wait(self, timeout_s: float) -> bool:
+        """True once the process has exited (within ``timeout_s``)."""
+        if self.process is None:
+            return True
+        try:
+            self.process.wait(max(timeout_s, 0.0))
+        except subprocess.TimeoutExpired:
+            return False
+        return True
+
+
+def stop_together(processes: list[NodeProcess], grace_s: float = 5.0) -> dict[str, int | None]:
+    """SIGINT to all at once, then SIGTERM, then SIGKILL to whoever is left after each grace
+    period; returns their exit codes. Every node stops on its first signal within a second, so
+    the later steps are for a node that hangs."""
+    for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
+        alive = [p for p in processes if p.exit_code() is None]
+        if not alive:
+            break
+        for process in alive:
+            process.signal(sig)
+        deadline = time.monotonic() + wait_s
+        for process in alive:
+            process.wait(deadline - time.monotonic())
+    for process in processes:
+        process.join_output()
+    return {process.name: process.exit_code() for process in processes}
 
 
 SHM = Path('/dev/shm')
@@ -258,7 +291,8 @@ def clean_shared_memory(before: set[str]) -> None:
 class GraphOptions:
     goal_m: tuple[float, float]
     seed: int = 0
-    real_time_factor: float = 1.0
+    real_time_factor: float = 1.0         # math.inf: as fast as the lockstep allows
+    lockstep: bool = True                 # False: the dynamics runs free at the factor
     open_loop_s: float | None = None
     params_file: Path | None = None
     timeout_s: float = 600.0
@@ -323,6 +357,10 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
+        taking_part = [other.name for other in (options.nodes or default_nodes())
+                       if other.reports_lockstep]
+        overrides.update(lockstep_nodes=taking_part if options.lockstep and taking_part
+                         else [''])
         overrides.update(options.dynamics_overrides)
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
@@ -359,12 +397,18 @@ class Graph:
 
     RESPAWNABLE = ('vision_node', 'controller_node')
 
-    def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path) -> None:
+    def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path,
+                 lease_fd: int | None = None) -> None:
         self.options = options
         self.domain_id = domain_id
         self.log_dir = log_dir
         self.shm_before = shared_memory_files()
         env = node_environment(domain_id, log_dir)
+        # Only this process holds the write end (os.pipe() fds are not inherited); the read end
+        # goes to every child, which stops when it reads end-of-file.
+        self._lifeline_read, self._lifeline_write = os.pipe()
+        env[LIFELINE_ENV] = str(self._lifeline_read)
+        inherited = (self._lifeline_read,) + (() if lease_fd is None else (lease_fd,))
         specs = list(options.nodes or default_nodes())
         if options.respawn:
             specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
@@ -372,11 +416,14 @@ class Graph:
         if options.record is not None:
             specs.append(recorder_spec(options.record, options.storage))
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
-                                      log_dir / f'{spec.name}.log', options.echo)
+                                      log_dir / f'{spec.name}.log', options.echo, inherited)
                           for spec in specs]
 
     def process(self, name: str) -> NodeProcess:
         return next(p for p in self.processes if p.name == name)
+
+    def wait_ready(self, name: str, timeout_s: float) -> bool:
+        return self.process(name).wait_ready(timeout_s)
 
     def start(self) -> None:
         for process in self.processes:
@@ -430,10 +477,20 @@ class Graph:
                     sizes[process.name] = int(line.split()[1])
         return sizes
 
+    def _cut_lifeline(self) -> None:
+        for fd in (self._lifeline_read, self._lifeline_write):
+            if fd >= 0:
+                os.close(fd)
+        self._lifeline_read = self._lifeline_write = -1
+
     def stop(self) -> dict[str, int | None]:
-        order = sorted(self.processes, key=lambda p: (
-            SHUTDOWN_ORDER.index(p.name) if p.name in SHUTDOWN_ORDER else -1))
-        codes = {process.name: process.stop() for process in order}
+        named = {name for phase in SHUTDOWN_PHASES if phase for name in phase}
+        codes: dict[str, int | None] = {}
+        for phase in SHUTDOWN_PHASES:
+            members = [p for p in self.processes
+                       if (p.name in phase if phase else p.name not in named)]
+            codes.update(stop_together(members))
+        self._cut_lifeline()
         clean_shared_memory(self.shm_before)
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
@@ -504,8 +561,9 @@ def run_graph(options: GraphOptions) -> GraphResult:
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
     goals = [tuple(options.goal_m), *map(tuple, options.more_goals_m)]
-    with DomainLease(options.domain_id) as domain_id:
-        graph = Graph(options, domain_id, log_dir)
+    lease = DomainLease(options.domain_id)
+    with lease as domain_id:
+        graph = Graph(options, domain_id, log_dir, lease.fileno)
         monitor = GraphMonitor(domain_id, follow_route=options.follow_route)
         recording = options.record is not None
         statuses = []

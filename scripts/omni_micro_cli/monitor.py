@@ -5,7 +5,8 @@ and reads the true final pose from /odom. It commands nothing that moves the rob
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import Protocol
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -22,8 +23,20 @@ from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
 
-if TYPE_CHECKING:
-    from omni_micro_cli.graph import Graph
+
+class Supervisor(Protocol):
+    """What the monitor needs of whoever runs the processes (graph.Graph): it watches the ROS
+    side and leaves the processes to its supervisor, so the dependency runs one way."""
+
+    log_dir: Path
+
+    def check_alive(self) -> list[str]:
+        """Raise if a node died for good; return the names of nodes just respawned."""
+        ...
+
+    def wait_ready(self, name: str, timeout_s: float) -> bool:
+        """Wait until the node's current process says it is ready."""
+        ...
 
 # Topic -> how many subscribers it needs before time may start (the monitor's own included).
 READY_SUBSCRIBERS = {'/wheel_trajectory': 1, '/joint_states': 1, '/camera/macro/pose': 1,
@@ -91,7 +104,8 @@ class GraphMonitor:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
-    def wait_until_ready(self, graph: Graph, timeout_s: float, recording: bool = False) -> None:
+    def wait_until_ready(self, graph: Supervisor, timeout_s: float,
+                         recording: bool = False) -> None:
         deadline = time.monotonic() + timeout_s
         while True:
             graph.check_alive()
@@ -110,7 +124,7 @@ class GraphMonitor:
         graph.check_alive()
         self.remember_endpoints()
 
-    def send_goal(self, graph: Graph, goal_m: tuple[float, float], subscribers: int = 1,
+    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], subscribers: int = 1,
                   timeout_s: float = 30.0) -> None:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
@@ -182,7 +196,7 @@ class GraphMonitor:
         """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
         self.known_endpoints = {name: self._endpoints(name) for name in self.INPUTS}
 
-    def _bring_back(self, graph: Graph, restarted: list[str], goal: tuple[float, float],
+    def _bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
                     recording: bool) -> None:
         """A node was respawned: hold the clock while it comes back, then go on from there."""
         self.set_paused(True)
@@ -190,7 +204,7 @@ class GraphMonitor:
         # count of subscribers cannot tell: wait for the new process to say it is ready and
         # for endpoints of it that were not there before to appear on the topics it reads.
         for name in restarted:
-            if not graph.process(name).wait_ready(60.0):
+            if not graph.wait_ready(name, 60.0):
                 raise RunFailed(f'respawned {name} did not come up within 60 s')
             deadline = time.monotonic() + 60.0
             while not self._has_new_endpoints(name):
@@ -229,7 +243,7 @@ class GraphMonitor:
                 raise RunFailed('controller_node receives no capture from the respawned '
                                 'vision_node')
 
-    def wait_for_outcome(self, graph: Graph, timeout_s: float, goal: tuple[float, float],
+    def wait_for_outcome(self, graph: Supervisor, timeout_s: float, goal: tuple[float, float],
                          recording: bool = False) -> dict[str, str]:
         """The controller's outcome for the goal sent last (respawning nodes on the way)."""
         deadline = time.monotonic() + timeout_s
@@ -249,7 +263,7 @@ class GraphMonitor:
                                 f'{graph.log_dir}')
             self.spin_for(0.05)
 
-    def wait_for_odometry_after(self, graph: Graph, stamp_s: float,
+    def wait_for_odometry_after(self, graph: Supervisor, stamp_s: float,
                                 timeout_s: float) -> tuple[float, float, float, float]:
         if not self._following:
             # Subscribed only now: following /odom all run long would slow a fast graph down,

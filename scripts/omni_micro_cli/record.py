@@ -11,13 +11,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.bags import GRAPH_TOPICS, STORAGES, check_output_path, flush, open_writer
-
-FLUSH_PERIOD_S = 0.5
+from omni_micro_cli.bags import GRAPH_TOPICS, STORAGES, check_output_path
 
 
 def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,71 +40,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import rclpy
-    from diagnostic_msgs.msg import DiagnosticStatus
-    from rclpy.clock import Clock, ClockType
-    from rclpy.node import Node
-    from rclpy.parameter import Parameter
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from rclpy.signals import SignalHandlerOptions
-
-    from omni_micro_cli.graph import message_class
+    from omni_micro_cli.recorder_node import BagRecorder
+    from omni_micro_sim.node_runtime import run_node
 
     check_output_path(args.bag, args.force)
     topics = {name: GRAPH_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
-    # Ctrl-C and SIGTERM arrive as KeyboardInterrupt (cli.main), with the context still valid.
-    rclpy.init(domain_id=args.domain_id, signal_handler_options=SignalHandlerOptions.NO)
-    node = Node('bag_recorder', parameter_overrides=[Parameter('use_sim_time', value=True)])
-    writer, connections = open_writer(args.bag, args.storage, topics)
-    counts = dict.fromkeys(topics, 0)
+    recorders: list[BagRecorder] = []
 
-    def record(topic: str):
-        connection = connections[topic]
+    def make() -> BagRecorder:
+        recorders.append(BagRecorder(args.bag, args.storage, topics))
+        return recorders[-1]
 
-        def on_message(data: bytes) -> None:
-            writer.write(connection, node.get_clock().now().nanoseconds, data)
-            counts[topic] += 1
-        return on_message
-
-    for topic, spec in topics.items():
-        qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
-                                     else DurabilityPolicy.VOLATILE))
-        node.create_subscription(message_class(spec.msgtype), topic, record(topic), qos,
-                                 raw=True)
-    subscriptions = list(node.subscriptions)
-    status_pub = node.create_publisher(DiagnosticStatus, '/bag_recorder/status', QoSProfile(
-        depth=1, reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    announced = []
-    last_flush = [time.monotonic()]
-
-    def on_wall_timer() -> None:
-        if time.monotonic() - last_flush[0] >= FLUSH_PERIOD_S:
-            flush(writer)
-            last_flush[0] = time.monotonic()
-        # "recording" once every recorded topic has a matched publisher, so that whoever starts
-        # the graph's clock knows nothing will be missed from the beginning.
-        if not announced and all(sub.get_publisher_count() > 0 for sub in subscriptions
-                                 if sub.topic_name in topics and sub.topic_name != '/goal_pose'):
-            status_pub.publish(DiagnosticStatus(level=DiagnosticStatus.OK, name='bag_recorder',
-                                                message='recording'))
-            announced.append(True)
-
-    node.create_timer(0.1, on_wall_timer,
-                      clock=Clock(clock_type=ClockType.STEADY_TIME))
-    node.get_logger().info(f'recording {len(topics)} topics into {args.bag} ({args.storage})')
+    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death; the bag is
+    # closed (metadata.yaml written) on every way out.
     try:
-        rclpy.spin(node)
-    except KeyboardInterrupt:
-        pass
-    except RuntimeError:
-        # An interrupt inside rclpy's message conversion surfaces as a RuntimeError.
-        pass
+        run_node(make, config_errors=(), domain_id=args.domain_id)
     finally:
-        writer.close()   # writes metadata.yaml: the bag is complete
-        node.destroy_node()
-        rclpy.try_shutdown()
+        for recorder in recorders:
+            recorder.close()
+    counts = recorders[-1].counts if recorders else {}
     print(f'recorded {sum(counts.values())} messages into {args.bag}: '
           + ', '.join(f'{topic} {count}' for topic, count in counts.items()), file=sys.stderr)
     return 0

@@ -8,13 +8,15 @@ import sys
 from pathlib import Path
 
 from omni_micro_cli.arguments import (
+    add_timing_arguments,
+    check_timing,
     float_list,
     non_negative_float,
     non_negative_int,
     positive_float,
     probability,
 )
-from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
 from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
@@ -24,11 +26,10 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--params', type=Path, metavar='FILE',
                         help='a ROS params YAML applied to every node after its package '
                              'defaults (sections dynamics_node:, vision_node:, controller_node:)')
-    parser.add_argument('--rtf', type=positive_float, default=1.0, metavar='R',
-                        help='real-time factor: simulated seconds per wall second (default 1)')
+    add_timing_arguments(parser, default_rtf='1')
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0); the same seed gives the same run '
-                             'at any --rtf')
+                             'at any --rtf and any load')
     parser.add_argument('--timeout', type=positive_float, default=600.0, metavar='S',
                         help='give up after this many wall seconds (default 600)')
     parser.add_argument('--log-dir', type=Path, default=Path('out/runs'), metavar='DIR',
@@ -93,7 +94,12 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     if args.params is not None:
         check_params_file(args.params)
     check_goal(goal_m, args.params)
+    try:
+        check_timing(args)
+    except argparse.ArgumentTypeError as error:
+        raise UsageError(str(error)) from None
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
+                        lockstep=not args.free_running,
                         open_loop_s=open_loop_s, params_file=args.params,
                         timeout_s=args.timeout, log_dir=args.log_dir,
                         echo=None if args.quiet else echo_to_stderr, record=args.record,

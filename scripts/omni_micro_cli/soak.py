@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from omni_micro_cli.arguments import non_negative_int, positive_float
+from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, run_graph
 from omni_micro_cli.run import echo_to_stderr
@@ -31,7 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'the messages the nodes say they published. Exit 0 when every goal was '
                     'reached and no message is missing.')
     parser.add_argument('--goals', type=non_negative_int, default=50, metavar='N')
-    parser.add_argument('--rtf', type=positive_float, default=5.0, metavar='R')
+    add_timing_arguments(parser, default_rtf='max')
     parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N')
     parser.add_argument('--out', type=Path, default=Path('out/soak'), metavar='DIR',
                         help='the bag, logs and report go into a new folder here')
@@ -55,6 +55,10 @@ def bag_counts(bag: Path) -> dict[str, int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        check_timing(args)
+    except argparse.ArgumentTypeError as error:
+        raise UsageError(str(error)) from None
     if args.goals < 1:
         raise UsageError(f'--goals must be at least 1, got {args.goals}')
     folder = args.out / time.strftime('%Y%m%d-%H%M%S')
@@ -63,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     goals = random_goals(args.goals, args.seed)
     result = run_graph(GraphOptions(
         goal_m=goals[0], more_goals_m=goals[1:], seed=args.seed, real_time_factor=args.rtf,
+        lockstep=not args.free_running,
         log_dir=folder / 'logs', record=bag, timeout_s=600.0,
         dynamics_overrides={'initial_pose': [*DEFAULT_RIG.micro.center_m, 0.0]},
         echo=None if args.quiet else echo_to_stderr))

@@ -8,6 +8,7 @@ Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
   /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
                        (reached / gave_up / lost / completed / cancelled), latched
+  /lockstep            its report after each input (omni_micro_sim.lockstep)
 Timers follow /clock (use_sim_time); the decisions themselves are taken on capture stamps, see
 :mod:`omni_micro_control.feedback`. On shutdown the robot is told to stop.
 """
@@ -38,10 +39,17 @@ from omni_micro_control.feedback import (
 )
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
 from omni_micro_sim.errors import CommandError, ParameterError
-from omni_micro_sim.node_runtime import PublicationCounter, run_node
+from omni_micro_sim.lockstep import Ack
+from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
+from omni_micro_sim.qos import (
+    CAPTURE_QOS,
+    CAPTURE_TOPICS,
+    DATA_QOS,
+    PER_TICK_SUBSCRIPTION,
+    STATUS_QOS,
+)
 from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
 
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
@@ -81,13 +89,18 @@ class ControllerNode(Node):
         self.controller = VisionFeedbackController(config)
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
+        self._robot_time_ns = 0
+        self._capture_handled_ns = -1
+        self._command_ns: int | None = None
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
         self.trajectory_pub = count(self.create_publisher(JointTrajectory, '/wheel_trajectory',
                                                           DATA_QOS))
         self.status_pub = count(self.create_publisher(DiagnosticStatus, '/controller/status',
                                                       STATUS_QOS))
-        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS)
+        self.lockstep = LockstepReporter(self)
+        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
+                                 **PER_TICK_SUBSCRIPTION)
         for name, topic in CAPTURE_TOPICS.items():
             self.create_subscription(PoseStamped, topic,
                                      lambda msg, camera=name: self._on_capture(msg, camera),
@@ -146,10 +159,27 @@ class ControllerNode(Node):
             # late, e.g. respawned): timer2 counts from now, not from the time 0 we assumed.
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
+        self._robot_time_ns = max(self._robot_time_ns,
+                                  msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
         if self.watcher.on_wheel_state(rotations, speeds):
             self._act(self.controller.on_wheels_stopped(stamp))
+        self._report_lockstep()
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
+        self._handle_capture(msg, camera)
+        self._capture_handled_ns = max(
+            self._capture_handled_ns,
+            msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        self._report_lockstep()
+
+    def _report_lockstep(self) -> None:
+        """Everything received so far is handled and what it caused is published."""
+        self.lockstep.report(Ack(
+            self.get_name(), self._robot_time_ns, capture_handled_ns=self._capture_handled_ns,
+            command_ns=self._command_ns,
+            command_lead_ns=round(self.controller.config.command_lead_s * 1e9)))
+
+    def _handle_capture(self, msg: PoseStamped, camera: str) -> None:
         if msg.header.frame_id != self.frame_id:
             self.get_logger().warning(
                 f'ignored {camera} capture in frame {msg.header.frame_id!r}: expected '
@@ -172,6 +202,7 @@ class ControllerNode(Node):
         # nothing is caught by the capture timeout.
         if msg.level != DiagnosticStatus.OK and 'outside' in msg.message:
             self._act(self.controller.on_out_of_field(self.robot_time_s))
+            self._report_lockstep()
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
@@ -200,6 +231,7 @@ class ControllerNode(Node):
                 f'{self.controller.config.max_capture_tries})')
         if finished is not None:
             self.report(finished)
+            self._report_lockstep()
 
     # -- outputs -----------------------------------------------------------------------------
     def _command(self, move: Move) -> None:
@@ -219,7 +251,7 @@ class ControllerNode(Node):
                 positions=list(point.positions), velocities=list(point.velocities),
                 time_from_start=Duration(sec=sec, nanosec=nanosec)))
         self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-        self.trajectory_pub.publish(msg)
+        self._publish_trajectory(msg)
         self.get_logger().info(
             f'period {move.period}: {move.observation.camera} sees '
             f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
@@ -266,10 +298,20 @@ class ControllerNode(Node):
         self.status_pub.publish(status)
 
     def stop_robot(self) -> None:
-        """An empty trajectory: the dynamics (or the real robot) ramps the wheels down now."""
+        """An empty trajectory: the dynamics (or the real robot) ramps the wheels down now.
+
+        Stamped with the robot's time when it was decided, so that it can be told apart from
+        the moves (the lockstep waits for the last command by its stamp)."""
         msg = JointTrajectory()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self._robot_time_ns,
+                                                                1_000_000_000)
+        msg.header.frame_id = 'base_link'
         msg.joint_names = list(JOINT_NAMES)
+        self._publish_trajectory(msg)
+
+    def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
+        self._command_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 def _stop_on_shutdown(node: ControllerNode) -> None:

@@ -9,9 +9,14 @@ Publishes, once per grid period of simulated time (``publish_period_s``):
 Subscribes:
   /wheel_trajectory  trajectory_msgs/JointTrajectory (contract in omni_micro_sim.wheel_trajectory)
 
-Time is owned here and runs on a wall timer at ``real_time_factor`` (the node itself never uses
-sim time). While ``paused`` is true the clock stands still, which lets an orchestrator bring the
-whole graph up before time 0 moves.
+Time is owned here and paced by a wall timer at ``real_time_factor`` (``.inf``: as fast as the
+graph allows; the node itself never uses sim time). While ``paused`` is true the clock stands
+still, which lets an orchestrator bring the whole graph up before time 0 moves.
+
+Lockstep (``lockstep_nodes``, see :mod:`omni_micro_sim.lockstep`): simulated time goes no further
+than the reports on /lockstep of the named nodes allow, so a busy machine slows a run down but
+never changes it. An empty list (the default for a node started alone) runs free, as a real
+camera driver that does not report would need.
 """
 
 from __future__ import annotations
@@ -22,7 +27,8 @@ from dataclasses import fields
 
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -31,9 +37,11 @@ from trajectory_msgs.msg import JointTrajectory
 from omni_micro_sim import paper
 from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_to_quaternion
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-from omni_micro_sim.node_runtime import PublicationCounter, run_node
+from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, DEFAULT_MAX_LEAD_S, Ack, \
+    LockstepError, LockstepGate
+from omni_micro_sim.node_runtime import LOCKSTEP_QOS, PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
-from omni_micro_sim.qos import DATA_QOS
+from omni_micro_sim.qos import DATA_QOS, PER_TICK_PUBLISHER, PER_TICK_SUBSCRIPTION
 from omni_micro_sim.simulator import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
@@ -45,6 +53,10 @@ from omni_micro_sim.wheel_trajectory import (
 SLIP_NAMES = [f'wheel_{k}_{part}' for k in (1, 2, 3) for part in ('longitudinal', 'transverse')]
 # Fixed at start-up: they define the robot, and changing them mid-run would change physics.
 _READ_ONLY = ParameterDescriptor(read_only=True)
+_NODE_LIST = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
+# With no lockstep and an unbounded factor the timer would spin; with lockstep, reports drive
+# time and the timer only restarts it after a pause.
+_KICK_PERIOD_S = 0.01
 
 
 def time_msg(seconds: float) -> Time:
@@ -87,6 +99,10 @@ class DynamicsNode(Node):
         self.real_time_factor = self._checked_rtf(
             self.declare_parameter('real_time_factor', 1.0).value)
         self.paused = bool(self.declare_parameter('paused', False).value)
+        lockstep_nodes = [name for name in self.declare_parameter(
+            'lockstep_nodes', [''], _NODE_LIST).value if name]
+        max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
+                                            _READ_ONLY).value
         # Raises ParameterError naming the value: main() reports it and exits non-zero.
         if len(initial) != 3:
             raise ParameterError(f'initial_pose must be [x_m, y_m, phi_rad], got {list(initial)}')
@@ -95,23 +111,36 @@ class DynamicsNode(Node):
             RobotParameters.from_mapping(robot_values), period_s=period,
             limits=MotorLimits(**limit_values),
             state=RobotState(x_m=initial[0], y_m=initial[1], phi_rad=initial[2]))
+        try:
+            self.lockstep = LockstepGate(lockstep_nodes, round(period * 1e9),
+                                         round(float(max_lead_s) * 1e9))
+        except (LockstepError, TypeError, ValueError) as error:
+            raise ParameterError(f'lockstep_max_lead_s: {error}') from None
+        if math.isinf(self.real_time_factor) and not self.lockstep.enabled:
+            raise ParameterError('real_time_factor .inf needs lockstep_nodes: running free, '
+                                 'the other nodes could not keep up with an unbounded clock')
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self._make_messages()
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
-        self.clock_pub = count(self.create_publisher(Clock, '/clock', DATA_QOS))
-        self.odom_pub = count(self.create_publisher(Odometry, '/odom', DATA_QOS))
-        self.joint_pub = count(self.create_publisher(JointState, '/joint_states', DATA_QOS))
-        self.slip_pub = count(self.create_publisher(JointState, '/wheel_slip', DATA_QOS))
+        self.clock_pub = count(self.create_publisher(Clock, '/clock', DATA_QOS, **PER_TICK_PUBLISHER))
+        self.odom_pub = count(self.create_publisher(Odometry, '/odom', DATA_QOS, **PER_TICK_PUBLISHER))
+        self.joint_pub = count(self.create_publisher(JointState, '/joint_states', DATA_QOS, **PER_TICK_PUBLISHER))
+        self.slip_pub = count(self.create_publisher(JointState, '/wheel_slip', DATA_QOS, **PER_TICK_PUBLISHER))
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
+        if self.lockstep.enabled:
+            self.create_subscription(DiagnosticStatus, ACK_TOPIC, self._on_ack, LOCKSTEP_QOS,
+                                     **PER_TICK_SUBSCRIPTION)
         self._wall_origin = time.monotonic()
         self._tick_origin = 0
         self._timer = self.create_timer(self._timer_period(), self._on_timer)
         self.get_logger().info(
             f'robot ready: grid {period * 1e3:g} ms, real-time factor '
-            f'{self.real_time_factor:g}{", paused" if self.paused else ""}')
+            f'{self.real_time_factor:g}, '
+            + (f'lockstep with {list(self.lockstep.nodes)}' if self.lockstep.enabled
+               else 'free-running') + (', paused' if self.paused else ''))
 
     # -- parameters --------------------------------------------------------------------------
     @staticmethod
@@ -120,8 +149,9 @@ class DynamicsNode(Node):
             rtf = float(value)
         except (TypeError, ValueError):
             raise ParameterError(f'real_time_factor must be a number, got {value!r}') from None
-        if not math.isfinite(rtf) or rtf <= 0.0:
-            raise ParameterError(f'real_time_factor must be a finite number > 0, got {value!r}')
+        if math.isnan(rtf) or rtf <= 0.0:
+            raise ParameterError(f'real_time_factor must be a number > 0 (.inf: as fast as the '
+                                 f'lockstep allows), got {value!r}')
         return rtf
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
@@ -132,6 +162,9 @@ class DynamicsNode(Node):
                     changes['rtf'] = self._checked_rtf(param.value)
                 except ParameterError as error:
                     return SetParametersResult(successful=False, reason=str(error))
+                if math.isinf(changes['rtf']) and not self.lockstep.enabled:
+                    return SetParametersResult(
+                        successful=False, reason='real_time_factor .inf needs lockstep_nodes')
             elif param.name == 'paused':
                 if not isinstance(param.value, bool):
                     return SetParametersResult(
@@ -140,6 +173,10 @@ class DynamicsNode(Node):
         if 'rtf' in changes:
             self.real_time_factor = changes['rtf']
         if 'paused' in changes:
+            if self.paused and not changes['paused']:
+                # A node may have been replaced while time stood still: a new process knows
+                # nothing of its predecessor's reports, so everyone starts level from here.
+                self.lockstep.reset(self.grid.tick * self._period_ns)
             self.paused = changes['paused']
         # Pacing restarts from here, so a pause or a new factor never makes time jump.
         self._wall_origin = time.monotonic()
@@ -150,18 +187,48 @@ class DynamicsNode(Node):
         return SetParametersResult(successful=True)
 
     def _timer_period(self) -> float:
+        if math.isinf(self.real_time_factor):
+            return _KICK_PERIOD_S
         # Beyond ~2 kHz of callbacks Python spends its time in the executor: catch up instead.
         return max(self.grid.period_s / self.real_time_factor, 5e-4)
 
+    @property
+    def _period_ns(self) -> int:
+        return self.lockstep.period_ns
+
     # -- time --------------------------------------------------------------------------------
     def _on_timer(self) -> None:
+        self._advance()
+
+    def _on_ack(self, msg: DiagnosticStatus) -> None:
+        if msg.message != ACK_MESSAGE:
+            return
+        try:
+            ack = Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
+        except LockstepError as error:
+            self.get_logger().error(f'ignored: {error}', throttle_duration_sec=5.0)
+            return
+        self.lockstep.on_ack(ack)
+        self._advance()
+
+    def _due_tick(self) -> int | float:
+        """The last tick the wall clock allows at the real-time factor."""
+        if math.isinf(self.real_time_factor):
+            return math.inf
+        elapsed = (time.monotonic() - self._wall_origin) * self.real_time_factor
+        return self._tick_origin + int(elapsed / self.grid.period_s)
+
+    def _advance(self) -> None:
         if self.paused:
             return   # the clock was published when it stopped; repeats would only vary bags
-        elapsed = (time.monotonic() - self._wall_origin) * self.real_time_factor
-        due = self._tick_origin + int(elapsed / self.grid.period_s)
+        due = self._due_tick()
+        if self.lockstep.enabled:
+            reachable = self.lockstep.reachable_ns()   # whole ns, as the nodes' stamps
+            due = min(due, reachable // self._period_ns if math.isfinite(reachable)
+                      else reachable)
         # Never more than 50 periods per callback: if the machine cannot keep up, simulated time
         # slows down rather than the node starving its subscriptions.
-        steps = min(due - self.grid.tick, 50)
+        steps = int(min(due - self.grid.tick, 50))
         for _ in range(steps):
             try:
                 sample = self.grid.advance()
@@ -170,7 +237,9 @@ class DynamicsNode(Node):
                 self.grid.schedule_stop()
                 return
             self._publish(sample)
-        if due - self.grid.tick > 200:
+        if self._due_tick() - self.grid.tick > 200 and not math.isinf(self.real_time_factor):
+            # Far behind the wall clock (held by the lockstep, or a busy machine): pace again
+            # from here instead of racing to catch up.
             self._wall_origin = time.monotonic()
             self._tick_origin = self.grid.tick
 
@@ -216,6 +285,12 @@ class DynamicsNode(Node):
 
     # -- commands ----------------------------------------------------------------------------
     def _on_trajectory(self, msg: JointTrajectory) -> None:
+        self._schedule_trajectory(msg)
+        if self.lockstep.enabled:
+            self._advance()   # time may have been waiting for this very command
+
+    def _schedule_trajectory(self, msg: JointTrajectory) -> None:
+        self.lockstep.on_command(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
         points = [TrajectoryPoint(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9,
                                   list(p.positions), list(p.velocities)) for p in msg.points]
         try:

@@ -1,32 +1,51 @@
 """How every omni-micro node process starts, spins and stops (shared by the three packages).
 
-SIGINT and SIGTERM both end the spin as a KeyboardInterrupt, with the context still valid, so a
-node can still publish its last words (the controller's stop) before it is destroyed; rclpy's
-own handlers would invalidate the context first. (rclpy's experimental EventsExecutor would be
-cheaper per message, but in this rclpy it leaves the parameter services unanswered.)
+``run_node`` is the rclpy examples' main (spin; KeyboardInterrupt / ExternalShutdownException;
+destroy the node; ``try_shutdown``) with one difference. rclpy's own SIGINT handler shuts the
+context down before ``spin`` returns, after which the controller could no longer publish its
+last words (the stop command). So SIGINT and SIGTERM are handled here, and, as rclpy's handler
+does, ours wakes the executor through a guard condition. Python runs a signal handler only
+between bytecodes, never while the executor waits in C, so the C-level wake-up fd
+(``signal.set_wakeup_fd``) is watched by a thread that triggers the guard condition. Without it
+a node with nothing to do (no /clock running) ignored Ctrl-C until a message happened to come.
+
+The same thread watches the orchestrator's lifeline (``OMNI_MICRO_LIFELINE_FD``): the read end of
+a pipe whose write end only the orchestrator holds. When the orchestrator dies, however it dies,
+the kernel closes that end, the read returns end-of-file, and the node stops as on SIGTERM.
+
+A second signal during the shutdown ends the process at once (exit code 130).
 """
 
 from __future__ import annotations
 
+import cProfile
 import json
+import os
+import select
 import signal
 import sys
+import threading
 from collections import Counter
-from typing import Callable, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from omni_micro_sim.conventions import PUBLISHED_MARKER
+from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+from omni_micro_sim.qos import PER_TICK_PUBLISHER
 
 NodeT = TypeVar('NodeT', bound=Node)
 
-
-_stopping = False
-_publishing = False        # inside a counted publish: an interrupt waits until it is counted
-_interrupt_pending = False
+# Reports are small and every one counts: the robot waits for them.
+# Set to a folder: each node writes its cProfile statistics there at exit (the benchmark does).
+PROFILE_ENV = 'OMNI_MICRO_PROFILE'
+LOCKSTEP_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class PublicationCounter:
@@ -36,21 +55,13 @@ class PublicationCounter:
     def __init__(self) -> None:
         self.counts: Counter[str] = Counter()
 
-    def wrap(self, publisher):
+    def wrap(self, publisher: Any) -> Any:
         send = publisher.publish
+        topic = publisher.topic_name
 
-        def publish(msg) -> None:
-            # Sent and counted, or neither: the counts are checked against bags at shutdown.
-            global _publishing, _interrupt_pending
-            _publishing = True
-            try:
-                send(msg)
-                self.counts[publisher.topic_name] += 1
-            finally:
-                _publishing = False
-            if _interrupt_pending:
-                _interrupt_pending = False
-                raise KeyboardInterrupt
+        def publish(msg: object) -> None:
+            send(msg)
+            self.counts[topic] += 1
 
         publisher.publish = publish
         return publisher
@@ -59,45 +70,142 @@ class PublicationCounter:
         return PUBLISHED_MARKER + json.dumps(dict(sorted(self.counts.items())))
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    global _stopping, _interrupt_pending
-    _stopping = True
-    if _publishing:
-        _interrupt_pending = True   # raised once the message is sent and counted
-        return
-    raise KeyboardInterrupt
+class LockstepReporter:
+    """Publishes this node's lockstep reports (see :mod:`omni_micro_sim.lockstep`).
+
+    Not counted among the node's publications: they are the graph's plumbing, not its data.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._name = node.get_name()
+        self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
+                                               **PER_TICK_PUBLISHER)
+
+    def report(self, ack: Ack) -> None:
+        self._publisher.publish(DiagnosticStatus(
+            level=DiagnosticStatus.OK, name=self._name, message=ACK_MESSAGE,
+            values=[KeyValue(key=key, value=value) for key, value in ack.to_values()]))
+
+
+class _Shutdown:
+    """Why and whether the node was asked to stop (set by the signal handler)."""
+
+    def __init__(self) -> None:
+        self.signals = 0
+
+    @property
+    def requested(self) -> bool:
+        return self.signals > 0
+
+    def on_signal(self, signum: int, frame: object) -> None:
+        self.signals += 1
+        if self.signals > 1:
+            raise KeyboardInterrupt   # a second Ctrl-C: no more last words
+
+
+class _Waker(threading.Thread):
+    """Wakes the executor when a signal arrives, and turns the lifeline's end into SIGTERM."""
+
+    def __init__(self, wake: Callable[[], None], lifeline_fd: int | None) -> None:
+        super().__init__(name='omni-micro-waker', daemon=True)
+        self._wake = wake
+        self._signal_read, signal_write = os.pipe()
+        os.set_blocking(signal_write, False)
+        self._signal_write = signal_write
+        self._previous_fd = signal.set_wakeup_fd(signal_write, warn_on_full_buffer=False)
+        self._lifeline_fd = lifeline_fd
+
+    def run(self) -> None:
+        watched = [self._signal_read]
+        if self._lifeline_fd is not None:
+            watched.append(self._lifeline_fd)
+        while True:
+            try:
+                ready, _, _ = select.select(watched, [], [])
+            except (OSError, ValueError):
+                return   # the pipe was closed: the process is on its way out
+            for fd in ready:
+                try:
+                    data = os.read(fd, 512)
+                except OSError:
+                    return
+                if fd == self._lifeline_fd and not data:
+                    # The orchestrator is gone: stop as if it had sent SIGTERM. The signal
+                    # handler runs in the main thread; its wake-up byte brings us back here.
+                    watched.remove(fd)
+                    os.kill(os.getpid(), signal.SIGTERM)
+            self._wake()
+
+    def close(self) -> None:
+        signal.set_wakeup_fd(self._previous_fd)
+
+
+def lifeline_fd() -> int | None:
+    """The inherited read end of the orchestrator's lifeline, if this process has one."""
+    text = os.environ.get(LIFELINE_ENV)
+    if not text:
+        return None
+    try:
+        fd = int(text)
+        os.fstat(fd)
+    except (ValueError, OSError):
+        print(f'{LIFELINE_ENV}={text!r} is not an open file descriptor; ignored',
+              file=sys.stderr, flush=True)
+        return None
+    return fd
 
 
 def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exception], ...],
              on_shutdown: Callable[[NodeT], None] | None = None,
-             args: list[str] | None = None) -> None:
-    """Create the node, spin it until a signal, and tear it down; a bad parameter exits 2."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, _interrupt)
-    signal.signal(signal.SIGTERM, _interrupt)
-    node = None
+             args: list[str] | None = None, domain_id: int | None = None) -> None:
+    """Create the node, spin it until a signal (or the lifeline's end), and tear it down.
+
+    A bad parameter (one of ``config_errors``) exits 2 naming it; a second signal during the
+    shutdown exits 130 at once.
+    """
+    rclpy.init(args=args, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+    shutdown = _Shutdown()
+    signal.signal(signal.SIGINT, shutdown.on_signal)
+    signal.signal(signal.SIGTERM, shutdown.on_signal)
+    node: NodeT | None = None
+    waker: _Waker | None = None
     try:
-        node = factory()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        # The interrupt can land inside rclpy's C++ message conversion, which then reports a
-        # conversion failure instead of the KeyboardInterrupt: that is still just a shutdown.
-        if not _stopping:
-            raise
-    except config_errors as error:
-        # A bad parameter: say which value, exit non-zero before any message is sent.
-        print(f'{sys.argv[0].rsplit("/", 1)[-1]}: invalid parameter: {error}', flush=True)
-        raise SystemExit(2) from None
-    finally:
-        if node is not None:
-            if on_shutdown is not None and rclpy.ok():
-                on_shutdown(node)
-            counter = getattr(node, 'publication_counter', None)
-            if counter is not None:
-                print(counter.report(), flush=True)
-            node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            node = factory()
+            guard = node.create_guard_condition(lambda: None)
+            waker = _Waker(guard.trigger, lifeline_fd())
+            waker.start()
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            profile_dir = os.environ.get(PROFILE_ENV)
+            profiler = cProfile.Profile() if profile_dir else None
+            if profiler is not None:
+                profiler.enable()
+            # A signal that comes before the wait leaves the guard triggered: the wait returns
+            # at once, so none is missed between the check and the wait.
+            try:
+                while not shutdown.requested:
+                    executor.spin_once()
+            finally:
+                if profiler is not None and profile_dir:
+                    profiler.disable()
+                    profiler.dump_stats(os.path.join(profile_dir, f'{node.get_name()}.prof'))
+        except ExternalShutdownException:
+            pass
+        except config_errors as error:
+            # A bad parameter: say which value, exit non-zero before any message is sent.
+            print(f'{sys.argv[0].rsplit("/", 1)[-1]}: invalid parameter: {error}', flush=True)
+            raise SystemExit(2) from None
+        finally:
+            if node is not None:
+                if on_shutdown is not None and rclpy.ok():
+                    on_shutdown(node)
+                counter = getattr(node, 'publication_counter', None)
+                if counter is not None:
+                    print(counter.report(), flush=True)
+                node.destroy_node()
+            if waker is not None:
+                waker.close()
+            rclpy.try_shutdown()
+    except KeyboardInterrupt:
+        raise SystemExit(130) from None

@@ -5,6 +5,7 @@ streams keep 1000 (20 s of simulated time at the default grid) so that a reader 
 samples behind at a high real-time factor loses none; statuses are latched.
 """
 
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
@@ -19,3 +20,13 @@ def latched(depth: int) -> QoSProfile:
 
 
 STATUS_QOS = latched(10)
+
+
+# For the endpoints used every tick: rclpy gives each publisher and subscription two QoS event
+# handlers by default (incompatible QoS or type), and every handler is one more entity the
+# executor rebuilds its wait set with, on each wake-up: a third of the per-tick cost (profile in
+# the README). Their QoS is fixed here for every node and tool, so they cannot be incompatible
+# with each other; the latched and command topics, which outside tools join, keep the warnings.
+PER_TICK_PUBLISHER = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
+PER_TICK_SUBSCRIPTION = {
+    'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}

@@ -6,6 +6,7 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
   /camera/micro/pose   captures of the micro camera (2 mm x 2 mm field)
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
+  /lockstep            its report after each odometry sample (omni_micro_sim.lockstep)
 The stamp of a capture is its exposure time in simulated time. The camera model and the capture
 rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and out.
 """
@@ -21,8 +22,15 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, yaw_to_quaternion
-from omni_micro_sim.node_runtime import PublicationCounter, run_node
-from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, latched
+from omni_micro_sim.lockstep import Ack
+from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_sim.qos import (
+    CAPTURE_QOS,
+    CAPTURE_TOPICS,
+    DATA_QOS,
+    PER_TICK_SUBSCRIPTION,
+    latched,
+)
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraConfigError,
@@ -77,7 +85,9 @@ class VisionNode(Node):
                              for name, topic in CAPTURE_TOPICS.items()}
         self.status_pub = count(self.create_publisher(DiagnosticStatus, '/camera/status',
                                                       CAMERA_STATUS_QOS))
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+        self.lockstep = LockstepReporter(self)
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
+                                 **PER_TICK_SUBSCRIPTION)
         self._status: tuple[int, str] | None = None
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
         self.get_logger().info(
@@ -114,12 +124,20 @@ class VisionNode(Node):
         self.status_pub.publish(status)
 
     def _on_odometry(self, msg: Odometry) -> None:
+        published = self._see(msg)
+        # Last: everything this sample caused is out before the robot may move on.
+        self.lockstep.report(Ack(
+            self.get_name(), msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+            captures_ns=(min(published), max(published)) if published else None))
+
+    def _see(self, msg: Odometry) -> list[int]:
+        """Feed one sample to the cameras; returns the stamps (ns) of the captures published."""
         pose, twist = msg.pose.pose, msg.twist.twist
         values = (pose.position.x, pose.position.y, pose.orientation.z, pose.orientation.w,
                   twist.linear.x, twist.linear.y, twist.angular.z)
         if not all(math.isfinite(v) for v in values):
             self.get_logger().error(f'ignored odometry with a non-finite value: {values}')
-            return
+            return []
         events = self.camera.on_odometry(
             join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
             pose.position.x, pose.position.y,
@@ -134,10 +152,11 @@ class VisionNode(Node):
                 self.get_logger().warning(
                     f'robot at ({pose.position.x * 1e3:.3f}, {pose.position.y * 1e3:.3f}) mm '
                     f'is outside the macro field: no capture', throttle_duration_sec=5.0)
-        for capture in self.faults.due(join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)):
-            self._publish_capture(capture)
+        return [self._publish_capture(capture) for capture in
+                self.faults.due(join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec))]
 
-    def _publish_capture(self, capture: Capture) -> None:
+    def _publish_capture(self, capture: Capture) -> int:
+        """Publish one capture; returns its stamp in nanoseconds."""
         msg = PoseStamped()
         msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
         msg.header.frame_id = self.frame_id
@@ -147,6 +166,7 @@ class VisionNode(Node):
         self.capture_pubs[capture.camera].publish(msg)
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
                              camera=capture.camera)
+        return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
 def main(args: list[str] | None = None) -> None:

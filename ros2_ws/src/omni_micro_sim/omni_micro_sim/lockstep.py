@@ -1,0 +1,176 @@
+"""Lockstep: how far the simulated robot may run ahead of the nodes that close its loop.
+
+Webots' ``synchronization TRUE`` and CARLA's synchronous mode wait for every controller each
+step; this does the same with a bounded lead. Every node that takes part reports on
+``/lockstep`` after each input it has fully handled (every output it causes already published):
+
+- ``processed_ns``: every sample stamped up to here is handled;
+- ``captures_ns``: the first and last capture stamp it published while doing so (a camera);
+- ``capture_handled_ns``: the latest capture stamp it has handled (a controller);
+- ``command_ns``: the stamp of the last command it published, and ``command_lead_ns``, how long
+  after their capture its moves start (a controller).
+
+A plain "processed up to" stamp is not enough: a capture, a command and a report travel on
+different topics, and DDS orders messages per writer only. So the robot also waits until the
+captures a camera reported are handled by the controller, and until the commands a controller
+reported have arrived. With a lead of at most ``command_lead_s``, a command can then never
+arrive after its start stamp and no sample is ever dropped, whatever the machine's load: the
+run is a function of its inputs and the seed, not of the CPU.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+# Reports travel here as diagnostic_msgs/DiagnosticStatus: name = the node, values = the fields.
+ACK_TOPIC = '/lockstep'
+ACK_MESSAGE = 'lockstep'
+# A move starts this long after its capture unless the controller says otherwise.
+DEFAULT_MAX_LEAD_S = 0.04
+
+_FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
+           'command_ns', 'command_lead_ns')
+
+
+class LockstepError(ValueError):
+    """A lockstep report or setting is malformed; the message names the value."""
+
+
+@dataclass(frozen=True)
+class Ack:
+    """One node's report: see the module docstring for each field."""
+
+    node: str
+    processed_ns: int
+    captures_ns: tuple[int, int] | None = None
+    capture_handled_ns: int | None = None
+    command_ns: int | None = None
+    command_lead_ns: int | None = None
+
+    def to_values(self) -> list[tuple[str, str]]:
+        values = [('processed_ns', str(self.processed_ns))]
+        if self.captures_ns is not None:
+            values += [('capture_first_ns', str(self.captures_ns[0])),
+                       ('capture_last_ns', str(self.captures_ns[1]))]
+        for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns'):
+            value = getattr(self, name)
+            if value is not None:
+                values.append((name, str(value)))
+        return values
+
+    @classmethod
+    def from_values(cls, node: str, values: Iterable[tuple[str, str]]) -> Ack:
+        """Raises LockstepError naming a missing, unknown or non-integer field."""
+        fields: dict[str, int] = {}
+        for key, text in values:
+            if key not in _FIELDS:
+                raise LockstepError(f'lockstep report of {node!r}: unknown field {key!r}')
+            try:
+                fields[key] = int(text)
+            except ValueError:
+                raise LockstepError(f'lockstep report of {node!r}: {key} must be a whole '
+                                    f'number of nanoseconds, got {text!r}') from None
+        if 'processed_ns' not in fields:
+            raise LockstepError(f'lockstep report of {node!r} has no processed_ns')
+        first, last = fields.get('capture_first_ns'), fields.get('capture_last_ns')
+        if (first is None) != (last is None):
+            raise LockstepError(f'lockstep report of {node!r}: capture_first_ns and '
+                                f'capture_last_ns come together')
+        return cls(node, fields['processed_ns'],
+                   None if first is None or last is None else (first, last),
+                   fields.get('capture_handled_ns'), fields.get('command_ns'),
+                   fields.get('command_lead_ns'))
+
+
+class LockstepGate:
+    """Decides how far simulated time may go, from the reports of the nodes that take part.
+
+    Parameters
+    ----------
+    nodes : names of the nodes that take part (reports of others are ignored).
+    period_ns : the robot's grid period.
+    max_lead_ns : the most the robot may run ahead of the slowest node; a controller's
+        ``command_lead_ns`` lowers it. Never less than one period (the robot must be able to
+        publish the sample the nodes wait for).
+    """
+
+    RECEIVED_COMMANDS_KEPT = 256
+
+    def __init__(self, nodes: Sequence[str], period_ns: int, max_lead_ns: int) -> None:
+        if period_ns <= 0:
+            raise LockstepError(f'the grid period must be > 0 ns, got {period_ns}')
+        if max_lead_ns < 0:
+            raise LockstepError(f'lockstep lead must be >= 0, got {max_lead_ns} ns')
+        self.nodes = tuple(dict.fromkeys(name for name in nodes if name))
+        self.period_ns = period_ns
+        self.max_lead_ns = max_lead_ns
+        self._lead_ns = max_lead_ns
+        self._processed: dict[str, int] = {}
+        self._capture_handled: dict[str, int] = {}
+        self._awaited_commands: dict[str, int] = {}
+        self._pending_captures: list[tuple[int, int]] = []
+        self._received_commands: deque[int] = deque(maxlen=self.RECEIVED_COMMANDS_KEPT)
+        self.reset(0)
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.nodes)
+
+    @property
+    def lead_ticks(self) -> int:
+        return max(1, self._lead_ns // self.period_ns)
+
+    def reset(self, now_ns: int) -> None:
+        """Every node counts as caught up at ``now_ns`` (start, or resuming after a pause in
+        which a node may have been replaced: a new process knows nothing of the old one's)."""
+        self._processed = dict.fromkeys(self.nodes, now_ns)
+        self._capture_handled.clear()
+        self._awaited_commands.clear()
+        self._pending_captures.clear()
+
+    def on_ack(self, ack: Ack) -> None:
+        if ack.node not in self._processed:
+            return
+        self._processed[ack.node] = ack.processed_ns
+        if ack.captures_ns is not None:
+            self._pending_captures.append(ack.captures_ns)
+            if not self._capture_handled:
+                # Nobody who handles captures has reported (yet): keep a bounded memory.
+                del self._pending_captures[:-self.RECEIVED_COMMANDS_KEPT]
+        if ack.capture_handled_ns is not None:
+            self._capture_handled[ack.node] = ack.capture_handled_ns
+        if ack.command_ns is not None:
+            self._awaited_commands[ack.node] = ack.command_ns
+        if ack.command_lead_ns is not None:
+            self._lead_ns = min(self.max_lead_ns, max(0, ack.command_lead_ns))
+
+    def on_command(self, stamp_ns: int) -> None:
+        """A command stamped ``stamp_ns`` reached the robot."""
+        self._received_commands.append(stamp_ns)
+
+    def waiting_for(self) -> str | None:
+        """What holds time back right now, for a log line (None: nothing beyond the lead)."""
+        missing = [f'{node} command at {ns} ns' for node, ns in self._awaited_commands.items()
+                   if ns not in self._received_commands]
+        if missing:
+            return ', '.join(missing)
+        slowest = min(self._processed, key=self._processed.__getitem__, default=None)
+        return None if slowest is None else f'{slowest} at {self._processed[slowest]} ns'
+
+    def reachable_ns(self) -> int | float:
+        """The latest grid time the robot may reach now (``inf`` when nobody takes part)."""
+        if not self.nodes:
+            return math.inf
+        if any(ns not in self._received_commands for ns in self._awaited_commands.values()):
+            return -math.inf   # a command is on its way: wait for it, whatever its stamp
+        bound = min(self._processed.values())
+        if self._capture_handled:
+            handled = min(self._capture_handled.values())
+            self._pending_captures = [c for c in self._pending_captures if c[1] > handled]
+            if self._pending_captures:
+                # The move a capture causes starts a lead after it: stop short of that.
+                bound = min(bound, min(first for first, _ in self._pending_captures))
+        return bound + self.lead_ticks * self.period_ns

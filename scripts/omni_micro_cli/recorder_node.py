@@ -1,0 +1,71 @@
+"""The recorder's node: raw messages of the graph's topics into a rosbag2 bag (`record`)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from omni_micro_cli.bags import TopicSpec, flush, open_writer
+from omni_micro_cli.graph import message_class
+
+# Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
+FLUSH_PERIOD_S = 0.5
+
+
+class BagRecorder(Node):
+    """Writes each message as it arrives, stamped with the simulated time of its arrival."""
+
+    def __init__(self, bag: Path, storage: str, topics: dict[str, TopicSpec]) -> None:
+        super().__init__('bag_recorder',
+                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        self.writer, self.connections = open_writer(bag, storage, topics)
+        self.counts = dict.fromkeys(topics, 0)
+        self._closed = False
+        for topic, spec in topics.items():
+            qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
+                                         else DurabilityPolicy.VOLATILE))
+            self.create_subscription(message_class(spec.msgtype), topic, self._writer_of(topic),
+                                     qos, raw=True)
+        self._watched = [sub for sub in self.subscriptions
+                         if sub.topic_name in topics and sub.topic_name != '/goal_pose']
+        self.status_pub = self.create_publisher(DiagnosticStatus, '/bag_recorder/status',
+                                                QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self._announced = False
+        self._last_flush = time.monotonic()
+        self.create_timer(0.1, self._on_wall_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(f'recording {len(topics)} topics into {bag} ({storage})')
+
+    def _writer_of(self, topic: str) -> Callable[[bytes], None]:
+        connection = self.connections[topic]
+
+        def on_message(data: bytes) -> None:
+            self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+            self.counts[topic] += 1
+        return on_message
+
+    def _on_wall_timer(self) -> None:
+        if time.monotonic() - self._last_flush >= FLUSH_PERIOD_S:
+            flush(self.writer)
+            self._last_flush = time.monotonic()
+        # "recording" once every recorded topic has a matched publisher, so that whoever starts
+        # the graph's clock knows nothing will be missed from the beginning.
+        if not self._announced and all(sub.get_publisher_count() > 0 for sub in self._watched):
+            self.status_pub.publish(DiagnosticStatus(level=DiagnosticStatus.OK,
+                                                     name='bag_recorder', message='recording'))
+            self._announced = True
+
+    def close(self) -> None:
+        """Write metadata.yaml: the bag is complete (once; later calls do nothing)."""
+        if not self._closed:
+            self._closed = True
+            self.writer.close()
