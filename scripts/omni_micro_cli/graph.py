@@ -484,6 +484,8 @@ class Graph:
         self._lifeline_read = self._lifeline_write = -1
 
     def stop(self) -> dict[str, int | None]:
+        """Stop every node, phase by phase; returns their exit codes (-9: it needed SIGKILL)."""
+        started = time.monotonic()
         named = {name for phase in SHUTDOWN_PHASES if phase for name in phase}
         codes: dict[str, int | None] = {}
         for phase in SHUTDOWN_PHASES:
@@ -491,6 +493,10 @@ class Graph:
                        if (p.name in phase if phase else p.name not in named)]
             codes.update(stop_together(members))
         self._cut_lifeline()
+        if self.options.echo:
+            self.options.echo(f'[orchestration] graph stopped in '
+                              f'{time.monotonic() - started:.2f} s; exit codes: '
+                              + ', '.join(f'{name} {code}' for name, code in codes.items()))
         clean_shared_memory(self.shm_before)
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():

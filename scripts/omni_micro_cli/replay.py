@@ -31,13 +31,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--wait-subscribers', type=positive_float, metavar='S',
                         help='first wait up to S seconds until every replayed topic has a '
                              'subscriber')
+    parser.add_argument('--sync', nargs='+', metavar='NODE', default=[],
+                        help='wait for these nodes (e.g. vision_node) to report on /lockstep '
+                             'that they have handled each message before sending more than '
+                             f'{SYNC_WINDOW} ahead: a node that cannot keep up then loses '
+                             'nothing (the original spacing is kept when they are faster)')
     parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
                         help='DDS domain (default: $ROS_DOMAIN_ID or 0)')
     parser.set_defaults(handler=run)
 
 
+# With --sync: how many stamped messages may be sent beyond what the slowest node handled.
+SYNC_WINDOW = 10
+
+
+def header_stamp_ns(msg: object) -> int | None:
+    header = getattr(msg, 'header', None)
+    if header is None:
+        return None
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
 def run(args: argparse.Namespace) -> int:
-    data = read_bag(args.bag, decode=False)
+    data = read_bag(args.bag, decode=bool(args.sync))
     available = sorted(data.raw)
     topics = args.topics or [t for t in available if t != '/clock']
     unknown = sorted(set(topics) - set(available))
@@ -53,10 +69,14 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f'no messages to replay on {topics}')
 
     import rclpy
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from omni_micro_cli.graph import message_class
+    from omni_micro_sim.lockstep import ACK_MESSAGE, Ack, LockstepError
+    from omni_micro_sim.node_runtime import LOCKSTEP_QOS
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     rclpy.init(domain_id=args.domain_id)
@@ -69,6 +89,35 @@ def run(args: argparse.Namespace) -> int:
                          durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec and spec.latched
                                      else DurabilityPolicy.VOLATILE))
         publishers[topic] = node.create_publisher(message_class(data.msgtypes[topic]), topic, qos)
+    handled: dict[str, int] = {}
+
+    def on_report(msg: DiagnosticStatus) -> None:
+        if msg.message == ACK_MESSAGE and msg.name in args.sync:
+            try:
+                ack = Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
+            except LockstepError:
+                return
+            handled[msg.name] = max(handled.get(msg.name, -1), ack.processed_ns)
+
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    sent_stamps: list[int] = []
+    if args.sync:
+        node.create_subscription(DiagnosticStatus, '/lockstep', on_report, LOCKSTEP_QOS)
+
+    def wait_for_sync(behind: int) -> None:
+        """Until every --sync node handled the message sent ``behind`` stamped ones ago."""
+        if not args.sync or len(sent_stamps) < behind:
+            return
+        needed = sent_stamps[-behind]
+        deadline = time.monotonic() + 30.0
+        while any(handled.get(name, -1) < needed for name in args.sync):
+            if time.monotonic() > deadline:
+                raise RunFailed(f'--sync: {sorted(set(args.sync) - set(handled)) or args.sync} '
+                                f'reported nothing on /lockstep for 30 s (is it running, in '
+                                f'this domain?)')
+            executor.spin_once(timeout_sec=0.05)
+
     published = 0
     try:
         if args.wait_subscribers:
@@ -86,14 +135,21 @@ def run(args: argparse.Namespace) -> int:
                 delay = (stamp - first) * 1e-9 / args.rate - (time.monotonic() - started)
                 if delay > 0:
                     time.sleep(delay)
+                wait_for_sync(SYNC_WINDOW)
                 publishers[topic].publish(data.raw[topic][index])
                 published += 1
+                if args.sync:
+                    stamp = header_stamp_ns(data.messages[topic][index])
+                    if stamp is not None:
+                        sent_stamps.append(stamp)
             if not args.loop:
                 break
+        wait_for_sync(1)
         time.sleep(0.5)   # let reliable writers hand over the tail before the node goes
     except KeyboardInterrupt:
         pass
     finally:
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
     print(f'replayed {published} messages on {len(topics)} topics', file=sys.stderr)

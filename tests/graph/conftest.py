@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Callable, Iterator
@@ -105,3 +107,25 @@ def run_omni_micro(*args: str, env: dict[str, str] | None = None,
 @pytest.fixture(scope='session')
 def omni_micro():
     return run_omni_micro
+
+
+# Spins one core until stopped, and stops by itself if its parent (the test) dies.
+_HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n'
+
+
+@contextlib.contextmanager
+def machine_kept_busy() -> Iterator[None]:
+    """Every core of the machine kept busy by other programs, as on a shared CI host."""
+    hogs = [subprocess.Popen([sys.executable, '-c', _HOG]) for _ in range(os.cpu_count() or 2)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+@pytest.fixture
+def busy_machine():
+    """``with busy_machine(): ...`` runs the block with every core kept busy."""
+    return machine_kept_busy

@@ -160,9 +160,10 @@ def test_a_killed_recorder_loses_at_most_the_last_second(domain_id, probe, tmp_p
 
 
 def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
-        recorded, start_node, probe, domain_id):
+        recorded, start_node, probe, domain_id, busy_machine):
     """Feeding a node from a bag: the camera model is a function of the odometry and the seed,
-    so the recorded /odom replayed into a fresh vision_node yields the recorded captures."""
+    so the recorded /odom replayed into a fresh vision_node yields the recorded captures, even
+    when the machine is too busy for the node to keep up with the replay's pace (--sync)."""
     from geometry_msgs.msg import PoseStamped
 
     bag, _ = recorded
@@ -174,11 +175,13 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
             lambda msg: captures.append(msg), QoSProfile(depth=1000,
                                                          reliability=ReliabilityPolicy.RELIABLE))
     # The probe spins while the replay runs: a capture writer keeps only its last 100.
-    replay = subprocess.Popen(
-        [str(ROOT / 'scripts' / 'omni-micro'), 'replay', str(bag), '--topics', '/odom',
-         '--rate', '10', '--wait-subscribers', '30', '--domain-id', str(domain_id)],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    probe.spin_until(lambda: replay.poll() is not None, 120.0, 'the replay to finish')
+    with busy_machine():
+        replay = subprocess.Popen(
+            [str(ROOT / 'scripts' / 'omni-micro'), 'replay', str(bag), '--topics', '/odom',
+             '--rate', '10', '--wait-subscribers', '30', '--sync', 'vision_node',
+             '--domain-id', str(domain_id)],
+            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        probe.spin_until(lambda: replay.poll() is not None, 240.0, 'the replay to finish')
     assert replay.returncode == 0, replay.stdout.read()
     recorded_captures = read_bag(bag, topics=['/camera/macro/pose', '/camera/micro/pose'])
     expected = sorted((m.header.stamp.sec, m.header.stamp.nanosec, m.pose.position.x,
@@ -190,3 +193,40 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
     missing = sorted(set(expected) - set(got))
     assert not missing, f'{len(missing)} of {len(expected)} missing, first {missing[:3]}; ' \
                         f'got {len(got)}'
+
+
+@pytest.mark.parametrize('synced', [True, False], ids=['sync', 'no-sync'])
+def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, domain_id, synced):
+    """A slow node (10-deep queue, 5 ms per sample) gets every /odom sample with --sync; without
+    it the replay outruns the node and samples are lost (which shows the test can fail)."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from nav_msgs.msg import Odometry
+
+    from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+    from omni_micro_sim.node_runtime import LOCKSTEP_QOS
+
+    bag, _ = recorded
+    reports = probe.node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS)
+    received = []
+
+    def slow_node(msg: Odometry) -> None:
+        time.sleep(0.005)
+        received.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        reports.publish(DiagnosticStatus(name='slow_node', message=ACK_MESSAGE, values=[
+            KeyValue(key=k, value=v) for k, v in Ack('slow_node', received[-1]).to_values()]))
+
+    probe.node.create_subscription(Odometry, '/odom', slow_node, QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    replay = subprocess.Popen(
+        [str(ROOT / 'scripts' / 'omni-micro'), 'replay', str(bag), '--topics', '/odom',
+         '--rate', '200', '--wait-subscribers', '30', '--domain-id', str(domain_id)]
+        + (['--sync', 'slow_node'] if synced else []),
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    probe.spin_until(lambda: replay.poll() is not None, 240.0, 'the replay to finish')
+    assert replay.returncode == 0, replay.stdout.read()
+    probe.spin_for(1.0)
+    expected = len(read_bag(bag, topics=['/odom']).messages['/odom'])
+    if synced:
+        assert len(received) == expected
+    else:
+        assert len(received) < expected

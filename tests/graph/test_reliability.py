@@ -188,35 +188,52 @@ def test_soak_fifty_goals_flat_memory_and_a_complete_bag(tmp_path, omni_micro):
         assert memory['growth_kb'] < 10_000, name
 
 
-def test_same_seed_same_recorded_messages(tmp_path):
-    # Identical bags need every command to arrive before its start stamp (a late one starts
-    # on arrival and shifts the clock of the rest; a lost DDS sample is repaired ~0.1 s later):
-    # a 0.5 s lead at rtf 2 leaves 0.25 s of wall time. A short run on the micro platform.
-    params = tmp_path / 'lead.yaml'
-    params.write_text('controller_node:\n  ros__parameters:\n    command_lead_s: 0.5\n')
-    runs = []
-    for index in range(2):
-        bag = tmp_path / f'run{index}'
-        result = run(tmp_path, goal_m=(0.1005, 0.0004), real_time_factor=2.0, seed=7,
-                     record=bag, params_file=params,
-                     dynamics_overrides={'initial_pose': [0.1, 0.0, 0.0]})
-        assert result.outcome == 'reached' and result.periods >= 2
-        assert 'arrived' not in (result.log_dir / 'dynamics_node.log').read_text()
-        runs.append((read_bag(bag), result.sim_time_s))
-    end = min(sim for _, sim in runs)
-
-    def content_until_end(bag, topic):
-        """Messages stamped up to the outcome: after it each recording runs on for as long as
-        the shutdown takes, and the bag's receive times depend on the wall clock."""
-        kept = []
+def recorded_until(bag_path: Path, end_s: float) -> dict[str, list[bytes]]:
+    """Every topic's messages (raw bytes, in order) stamped up to ``end_s``: after the outcome
+    each recording runs on for as long as the shutdown takes."""
+    bag = read_bag(bag_path)
+    kept: dict[str, list[bytes]] = {}
+    for topic in bag.raw:
+        kept[topic] = []
         for raw, msg in zip(bag.raw[topic], bag.messages[topic]):
             stamp = msg.clock if topic == '/clock' else getattr(msg, 'header', None) and \
                 msg.header.stamp
-            if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end:
-                kept.append(raw)
-        return kept
+            if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end_s:
+                kept[topic].append(raw)
+    return kept
 
-    (first, _), (second, _) = runs
-    assert set(first.raw) == set(second.raw)
-    for topic in first.raw:
-        assert content_until_end(first, topic) == content_until_end(second, topic), topic
+
+@pytest.fixture
+def same_seed_run(tmp_path):
+    """A short run on the micro platform, recorded, with the default command lead."""
+    def run_once(name: str, real_time_factor: float):
+        bag = tmp_path / name
+        result = run(tmp_path, goal_m=(0.1005, 0.0004), real_time_factor=real_time_factor,
+                     seed=7, record=bag, dynamics_overrides={'initial_pose': [0.1, 0.0, 0.0]})
+        assert result.outcome == 'reached' and result.periods >= 2
+        assert 'arrived' not in (result.log_dir / 'dynamics_node.log').read_text()
+        return bag, result
+    return run_once
+
+
+def test_same_seed_same_bag_at_any_speed(same_seed_run):
+    slow_bag, slow = same_seed_run('rtf2', 2.0)
+    fast_bag, fast = same_seed_run('max', math.inf)
+    assert fast.sim_time_s == slow.sim_time_s
+    end = slow.sim_time_s
+    slow_messages, fast_messages = recorded_until(slow_bag, end), recorded_until(fast_bag, end)
+    assert set(slow_messages) == set(fast_messages)
+    for topic in slow_messages:
+        assert slow_messages[topic] == fast_messages[topic], topic
+
+
+def test_same_seed_same_bag_on_a_busy_machine(same_seed_run, busy_machine):
+    """Both cores kept busy by other programs: the run is slower, never different."""
+    idle_bag, idle = same_seed_run('idle', math.inf)
+    with busy_machine():
+        busy_bag, busy = same_seed_run('busy', math.inf)
+    assert busy.sim_time_s == idle.sim_time_s
+    end = idle.sim_time_s
+    idle_messages, busy_messages = recorded_until(idle_bag, end), recorded_until(busy_bag, end)
+    for topic in idle_messages:
+        assert idle_messages[topic] == busy_messages[topic], topic
