@@ -11,6 +11,7 @@ from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_cli import (
     analyze,
     bench,
+    bench_graph,
     demo,
     figures,
     record,
@@ -22,7 +23,8 @@ from omni_micro_cli import (
 )
 from omni_micro_cli.errors import RunFailed, UsageError
 
-COMMANDS = (demo, run, record, replay, analyze, recover, soak, simulate, figures, bench)
+COMMANDS = (demo, run, record, replay, analyze, recover, soak, simulate, figures, bench,
+            bench_graph)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -359,8 +359,7 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
         taking_part = [other.name for other in (options.nodes or default_nodes())
                        if other.reports_lockstep]
-        overrides.update(lockstep_nodes=taking_part if options.lockstep and taking_part
-                         else [''])
+        overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
         overrides.update(options.dynamics_overrides)
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))

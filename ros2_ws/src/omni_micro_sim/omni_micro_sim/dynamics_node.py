@@ -99,8 +99,9 @@ class DynamicsNode(Node):
         self.real_time_factor = self._checked_rtf(
             self.declare_parameter('real_time_factor', 1.0).value)
         self.paused = bool(self.declare_parameter('paused', False).value)
+        # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
         lockstep_nodes = [name for name in self.declare_parameter(
-            'lockstep_nodes', [''], _NODE_LIST).value if name]
+            'lockstep_nodes', [''], _NODE_LIST).value or [] if name]
         max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
                                             _READ_ONLY).value
         # Raises ParameterError naming the value: main() reports it and exits non-zero.

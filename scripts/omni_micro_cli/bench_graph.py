@@ -1,0 +1,125 @@
+"""`omni-micro bench-graph`: how fast the node graph runs Fig. 11's closed loop, idle and busy.
+
+Each row is one recorded run of the Fig. 11 closed loop through the three node processes; the
+figure of merit is the real-time factor reached (simulated seconds per wall second, from the
+clock's start to the outcome). Load comes from other programs spinning on the machine's cores,
+as on a shared CI host. The lockstep rows must all end at the same pose: a busy machine may
+slow a run down, never change it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import pstats
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from omni_micro_sim import paper
+
+from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+
+# Spins one core until killed, and stops by itself if its parent dies.
+_HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n'
+# (label, real-time factor, lockstep, cores kept busy by other programs)
+CASES = (('lockstep --rtf max, idle', math.inf, True, 0),
+         ('lockstep --rtf max, 1 core busy', math.inf, True, 1),
+         ('lockstep --rtf max, 2 cores busy', math.inf, True, 2),
+         ('free-running --rtf 20, idle', 20.0, False, 0),
+         ('free-running --rtf 20, 1 core busy', 20.0, False, 1))
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'bench-graph', help="real-time factor the node graph reaches on Fig. 11, idle and busy",
+        description='Run the Fig. 11 closed loop, recorded, through the node graph in lockstep '
+                    'at --rtf max (idle, one and two cores kept busy by other programs) and '
+                    'free-running at --rtf 20, and print the real-time factor each reached, '
+                    'its outcome and final pose. Target: >= 30x in lockstep on an idle 2-core '
+                    'machine.')
+    parser.add_argument('--profile', type=Path, metavar='DIR',
+                        help='then one more idle lockstep run with each node under cProfile '
+                             '(slower, so not in the table): print where its time goes and keep '
+                             'the .prof files in DIR')
+    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.set_defaults(handler=run)
+
+
+@contextlib.contextmanager
+def busy_cores(count: int) -> Iterator[None]:
+    hogs = [subprocess.Popen([sys.executable, '-c', _HOG]) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
+def one_run(rtf: float, lockstep: bool, busy: int, scratch: Path, name: str) -> GraphResult:
+    with busy_cores(busy):
+        return run_graph(GraphOptions(
+            goal_m=paper.FIG11_GOAL_M, real_time_factor=rtf, lockstep=lockstep,
+            log_dir=scratch / 'logs', record=scratch / name, timeout_s=300.0))
+
+
+def profile_summary(folder: Path, top: int = 8) -> dict[str, list[tuple[str, float]]]:
+    """Per node: the functions with the most own time (s), rclpy's wait excluded (idle)."""
+    summary = {}
+    for path in sorted(folder.glob('*.prof')):
+        stats = pstats.Stats(str(path)).stats  # type: ignore[attr-defined]
+        rows = sorted(((f'{Path(file).name}:{line}({function})', values[2])
+                       for (file, line, function), values in stats.items()
+                       if function != "<built-in method rclpy._rclpy_pybind11.wait>"),
+                      key=lambda row: -row[1])
+        summary[path.stem] = rows[:top]
+    return summary
+
+
+def run(args: argparse.Namespace) -> int:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix='omni-micro-bench-graph-') as folder:
+        scratch = Path(folder)
+        for index, (label, rtf, lockstep, busy) in enumerate(CASES):
+            result = one_run(rtf, lockstep, busy, scratch, f'bag{index}')
+            rtf_reached = result.sim_time_s / result.wall_time_s
+            rows.append({'case': label, 'outcome': result.outcome,
+                         'rtf_reached': round(rtf_reached, 1),
+                         'sim_time_s': round(result.sim_time_s, 3),
+                         'wall_time_s': round(result.wall_time_s, 2),
+                         'periods': result.periods,
+                         'final_x_mm': round(result.final_x_m * 1e3, 7),
+                         'deviation_um': round(result.deviation_m * 1e6, 3)})
+            print(f'{label:36s} {result.outcome:8s} rtf {rtf_reached:5.1f}  '
+                  f'{result.sim_time_s:6.2f} s sim in {result.wall_time_s:5.2f} s wall, '
+                  f'{result.periods} periods, {result.deviation_m * 1e6:.3f} um from the goal',
+                  flush=True)
+    lockstep_poses = {(row['final_x_mm'], row['sim_time_s'], row['periods'])
+                      for row, case in zip(rows, CASES) if case[2]}
+    idle = rows[0]['rtf_reached']
+    print(f'lockstep runs identical: {len(lockstep_poses) == 1}; idle lockstep rtf {idle} '
+          f'(target >= 30), free-running rtf 20 reached {rows[3]["rtf_reached"]}')
+    report: dict[str, object] = {'runs': rows, 'lockstep_identical': len(lockstep_poses) == 1}
+    if args.profile is not None:
+        args.profile.mkdir(parents=True, exist_ok=True)
+        os.environ['OMNI_MICRO_PROFILE'] = str(args.profile.resolve())
+        try:
+            with tempfile.TemporaryDirectory(prefix='omni-micro-bench-graph-') as folder:
+                one_run(math.inf, True, 0, Path(folder), 'profiled')
+        finally:
+            os.environ.pop('OMNI_MICRO_PROFILE', None)
+        summary = profile_summary(args.profile)
+        for node, top in summary.items():
+            print(f'profile {node} (own time, s):')
+            for function, seconds in top:
+                print(f'  {seconds:7.3f}  {function}')
+        report['profile'] = summary
+    if args.json:
+        print(json.dumps(report))
+    return 0
