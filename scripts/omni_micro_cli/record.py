@@ -45,20 +45,15 @@ def run(args: argparse.Namespace) -> int:
 
     check_output_path(args.bag, args.force)
     topics = {name: GRAPH_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
-    recorders: list[BagRecorder] = []
 
-    def make() -> BagRecorder:
-        recorders.append(BagRecorder(args.bag, args.storage, topics))
-        return recorders[-1]
+    def finish(recorder: BagRecorder) -> None:
+        recorder.close()
+        print(f'recorded {sum(recorder.counts.values())} messages into {args.bag}: '
+              + ', '.join(f'{topic} {count}' for topic, count in recorder.counts.items()),
+              file=sys.stderr)
 
-    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death; the bag is
-    # closed (metadata.yaml written) on every way out.
-    try:
-        run_node(make, config_errors=(), domain_id=args.domain_id)
-    finally:
-        for recorder in recorders:
-            recorder.close()
-    counts = recorders[-1].counts if recorders else {}
-    print(f'recorded {sum(counts.values())} messages into {args.bag}: '
-          + ', '.join(f'{topic} {count}' for topic, count in counts.items()), file=sys.stderr)
+    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
+    # (metadata.yaml written) through finish(), and ends the process.
+    run_node(lambda: BagRecorder(args.bag, args.storage, topics), config_errors=(),
+             on_shutdown=finish, domain_id=args.domain_id)
     return 0

@@ -169,11 +169,14 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
     bag, _ = recorded
     start_node('omni_micro_vision', 'vision_node', 'seed:=1')
     captures = []
-    for camera in ('macro', 'micro'):
-        probe.node.create_subscription(
-            PoseStamped, f'/camera/{camera}/pose',
-            lambda msg: captures.append(msg), QoSProfile(depth=1000,
-                                                         reliability=ReliabilityPolicy.RELIABLE))
+    readers = [probe.node.create_subscription(
+        PoseStamped, f'/camera/{camera}/pose', captures.append,
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        for camera in ('macro', 'micro')]
+    # Captures are volatile: the probe must be matched to the camera before the first one goes
+    # out (on a busy machine discovery takes longer than the replay's wait for /odom readers).
+    probe.spin_until(lambda: all(r.get_publisher_count() > 0 for r in readers), 60.0,
+                     "the probe matched to the vision_node's capture writers")
     # The probe spins while the replay runs: a capture writer keeps only its last 100.
     with busy_machine():
         replay = subprocess.Popen(

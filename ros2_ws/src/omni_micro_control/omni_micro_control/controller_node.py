@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import time
 
+import rclpy
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
@@ -315,6 +316,8 @@ class ControllerNode(Node):
 
 
 def _stop_on_shutdown(node: ControllerNode) -> None:
+    if not rclpy.ok():
+        return   # the context is gone: nothing can be sent any more
     node.report(node.controller.cancel('shutdown'))
     node.stop_robot()
     time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
