@@ -20,6 +20,16 @@ from omni_micro_control.feedback import (
 GOAL = (0.1, 0.0)
 
 
+
+def a_move(decision: Move | Finished | None) -> Move:
+    assert isinstance(decision, Move), decision
+    return decision
+
+
+def an_end(decision: Move | Finished | None) -> Finished:
+    assert isinstance(decision, Finished), decision
+    return decision
+
 def settled_controller(config: FeedbackConfig | None = None) -> VisionFeedbackController:
     controller = VisionFeedbackController(config)
     controller.set_goal(GOAL, stopped_at_s=0.0)
@@ -37,7 +47,7 @@ def test_first_capture_after_timer2_decides_and_earlier_ones_do_not():
 def test_angle_modifier_is_alpha_minus_phi_wrapped():
     controller = settled_controller()
     # Robot at (0.1, -0.01) facing +170 deg: goal straight up (alpha = 90 deg).
-    move = controller.on_capture(Observation(0.2, 0.1, -0.01, math.radians(170.0)))
+    move = a_move(controller.on_capture(Observation(0.2, 0.1, -0.01, math.radians(170.0))))
     assert math.degrees(move.steering_rad) == pytest.approx(-80.0)
     assert wrap_angle(math.radians(190.0)) == pytest.approx(math.radians(-170.0))
     assert wrap_angle(-math.pi) == pytest.approx(math.pi)
@@ -50,7 +60,7 @@ def test_angle_modifier_is_alpha_minus_phi_wrapped():
 ])
 def test_distance_comparator_and_shortened_last_move(distance_m, expected_s):
     controller = settled_controller()
-    move = controller.on_capture(Observation(0.2, GOAL[0] - distance_m, 0.0, 0.0))
+    move = a_move(controller.on_capture(Observation(0.2, GOAL[0] - distance_m, 0.0, 0.0)))
     assert move.duration_s == pytest.approx(expected_s)
     assert move.remaining_m == pytest.approx(distance_m)
 
@@ -64,7 +74,7 @@ def test_reached_within_tolerance_and_gave_up_after_max_periods():
     controller = settled_controller(FeedbackConfig(max_periods=1))
     assert isinstance(controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0)), Move)
     controller.on_wheels_stopped(1.0)
-    done = controller.on_capture(Observation(1.2, 0.05, 0.0, 0.0))
+    done = an_end(controller.on_capture(Observation(1.2, 0.05, 0.0, 0.0)))
     assert done.outcome is Outcome.GAVE_UP and done.periods == 1
 
 
@@ -83,15 +93,16 @@ def test_timeout_tries_again_then_reports_lost():
     assert controller.on_time(0.55) == (0, None)
     assert controller.on_time(0.65) == (1, None)
     tries, finished = controller.on_time(1.65)
-    assert tries == 3 and finished.outcome is Outcome.LOST
+    assert tries == 3 and an_end(finished).outcome is Outcome.LOST
 
 
 def test_open_loop_makes_one_move_then_completes():
     controller = settled_controller(FeedbackConfig(open_loop_duration_s=7.0))
-    move = controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    move = a_move(controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0)))
     assert move.duration_s == 7.0
     controller.on_wheels_stopped(7.5)
-    assert controller.on_capture(Observation(7.7, 0.09, 0.01, 0.0)).outcome is Outcome.COMPLETED
+    assert an_end(controller.on_capture(Observation(7.7, 0.09, 0.01, 0.0))).outcome is \
+        Outcome.COMPLETED
 
 
 def test_non_finite_capture_is_ignored():
@@ -122,15 +133,17 @@ def test_out_of_view_before_timer2_ends_is_lost_when_it_ends():
     controller = settled_controller()
     assert controller.on_out_of_field(0.04) is None
     assert controller.on_time(0.08) == (0, None)
-    tries, finished = controller.on_time(0.1)
+    _, finished = controller.on_time(0.1)
+    assert finished is not None
     assert finished.outcome is Outcome.LOST and 'outside' in finished.reason
 
 
 def test_a_move_whose_end_is_never_reported_ends_lost():
     controller = settled_controller()
-    move = controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
+    move = a_move(controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0)))
     assert controller.on_time(move.start_s + 1.0) == (0, None)
-    tries, finished = controller.on_time(move.start_s + 10.0)
+    _, finished = controller.on_time(move.start_s + 10.0)
+    assert finished is not None
     assert finished.outcome is Outcome.LOST and 'end of the move' in finished.reason
 
 
@@ -138,7 +151,7 @@ def test_a_new_goal_during_a_move_waits_for_its_end():
     controller = settled_controller()
     controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0))
     replaced = controller.set_goal((0.05, 0.0), stopped_at_s=0.3)
-    assert replaced.outcome is Outcome.CANCELLED and controller.phase is Phase.MOVING
+    assert an_end(replaced).outcome is Outcome.CANCELLED and controller.phase is Phase.MOVING
     controller.on_wheels_stopped(0.6)
     assert controller.deadline_s == pytest.approx(0.7)
     assert isinstance(controller.on_capture(Observation(0.71, 0.003, 0.0, 0.0)), Move)

@@ -7,8 +7,9 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import IO
 
 import pytest
 import rclpy
@@ -71,7 +72,8 @@ def probe(domain_id: int) -> Iterator[Probe]:
 @pytest.fixture
 def start_node(domain_id: int, tmp_path: Path):
     """Start an installed node with its package params file; stopped with SIGINT afterwards."""
-    processes: list[subprocess.Popen] = []
+    processes: list[subprocess.Popen[bytes]] = []
+    logs: list[IO[str]] = []
 
     def start(package: str, executable: str, *params: str) -> subprocess.Popen:
         from omni_micro_cli.graph import package_params_file, resolve_executable
@@ -80,7 +82,9 @@ def start_node(domain_id: int, tmp_path: Path):
                 str(package_params_file(package, executable))]
         for param in params:
             argv += ['-p', param]
-        log = open(tmp_path / f'{executable}.log', 'w')
+        # Open for the node's whole life: closed after it has stopped, below.
+        log = open(tmp_path / f'{executable}.log', 'w')  # noqa: SIM115
+        logs.append(log)
         process = subprocess.Popen(argv, env=node_environment(domain_id, tmp_path), stdout=log,
                                    stderr=subprocess.STDOUT)
         processes.append(process)
@@ -94,6 +98,9 @@ def start_node(domain_id: int, tmp_path: Path):
             process.wait(10)
         except subprocess.TimeoutExpired:
             process.kill()
+            process.wait()
+    for log in logs:
+        log.close()
 
 
 def run_omni_micro(*args: str, env: dict[str, str] | None = None,

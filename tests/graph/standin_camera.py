@@ -22,10 +22,10 @@ class StandInCamera(Node):
             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.create_subscription(Odometry, '/odom', self.on_odometry,
                                  QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
-        self.still_since = None
-        self.next_frame = None
+        self.still_since: float | None = None
+        self.next_frame = 0.0
 
-    def on_odometry(self, msg):
+    def on_odometry(self, msg: Odometry) -> None:
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         twist = msg.twist.twist
         if math.hypot(twist.linear.x, twist.linear.y) > 1e-6 or abs(twist.angular.z) > 1e-4:
@@ -37,7 +37,7 @@ class StandInCamera(Node):
             capture = PoseStamped()
             capture.header.frame_id = 'platform'
             capture.header.stamp.sec = int(self.next_frame)
-            capture.header.stamp.nanosec = int(round((self.next_frame % 1) * 1e9)) % 1000000000
+            capture.header.stamp.nanosec = round((self.next_frame % 1) * 1e9) % 1000000000
             capture.pose = msg.pose.pose
             self.publisher.publish(capture)
             self.next_frame += 0.1

@@ -168,7 +168,7 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
 
     bag, _ = recorded
     start_node('omni_micro_vision', 'vision_node', 'seed:=1')
-    captures = []
+    captures: list[PoseStamped] = []
     readers = [probe.node.create_subscription(
         PoseStamped, f'/camera/{camera}/pose', captures.append,
         QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
@@ -185,7 +185,7 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
              '--domain-id', str(domain_id)],
             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         probe.spin_until(lambda: replay.poll() is not None, 240.0, 'the replay to finish')
-    assert replay.returncode == 0, replay.stdout.read()
+    assert replay.returncode == 0, replay.communicate()[0]
     recorded_captures = read_bag(bag, topics=['/camera/macro/pose', '/camera/micro/pose'])
     expected = sorted((m.header.stamp.sec, m.header.stamp.nanosec, m.pose.position.x,
                        m.pose.position.y) for topic in recorded_captures.messages
@@ -226,7 +226,7 @@ def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, doma
         + (['--sync', 'slow_node'] if synced else []),
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     probe.spin_until(lambda: replay.poll() is not None, 240.0, 'the replay to finish')
-    assert replay.returncode == 0, replay.stdout.read()
+    assert replay.returncode == 0, replay.communicate()[0]
     probe.spin_for(1.0)
     expected = len(read_bag(bag, topics=['/odom']).messages['/odom'])
     if synced:

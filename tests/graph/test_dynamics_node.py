@@ -1,6 +1,8 @@
 """dynamics_node as a real process: its topics, parameters and wheel commands."""
 
+import itertools
 import math
+from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Duration
@@ -42,7 +44,7 @@ def trajectory_msg(start_s, duration_s, steering_rad=0.0, joint_names=JOINT_NAME
 @pytest.fixture
 def robot(start_node, probe):
     process = start_node('omni_micro_sim', 'dynamics_node', 'real_time_factor:=4.0')
-    seen = {'clock': [], 'odom': [], 'joints': [], 'slip': []}
+    seen: dict[str, list[Any]] = {'clock': [], 'odom': [], 'joints': [], 'slip': []}
     probe.node.create_subscription(Clock, '/clock', lambda m: seen['clock'].append(m), 10)
     probe.node.create_subscription(Odometry, '/odom', lambda m: seen['odom'].append(m), QOS)
     probe.node.create_subscription(JointState, '/joint_states',
@@ -60,7 +62,7 @@ def test_publishes_clock_odometry_joint_states_and_slip(robot):
     odom = seen['odom'][-1]
     assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in seen['odom']]
-    assert all(b - a == pytest.approx(0.02) for a, b in zip(stamps, stamps[1:]))
+    assert all(b - a == pytest.approx(0.02) for a, b in itertools.pairwise(stamps))
     assert seen['clock'] and seen['joints'][-1].name == list(JOINT_NAMES)
     assert seen['slip'][-1].name == [f'wheel_{k}_{part}' for k in (1, 2, 3)
                                      for part in ('longitudinal', 'transverse')]

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
@@ -19,8 +20,6 @@ from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import DomainLease, GraphOptions, run_graph
 from omni_micro_sim.node_runtime import LOCKSTEP_QOS
 from omni_micro_sim.qos import DATA_QOS
-
-from conftest import ROOT
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
             'controller_node': 'omni_micro_control'}
@@ -48,7 +47,7 @@ def time_to_exit(process: subprocess.Popen, timeout_s: float = 10.0) -> float:
 @pytest.mark.parametrize('node', list(PACKAGES))
 def test_an_idle_node_stops_on_its_first_signal(node, sig, start_node, probe, tmp_path):
     """No clock, no messages: the executor waits with nothing to wake it but the signal."""
-    stops = []
+    stops: list[JointTrajectory] = []
     probe.node.create_subscription(JointTrajectory, '/wheel_trajectory', stops.append, DATA_QOS)
     process = start_node(PACKAGES[node], node)
     log = tmp_path / f'{node}.log'
@@ -71,7 +70,7 @@ def test_an_idle_node_stops_on_its_first_signal(node, sig, start_node, probe, tm
 @pytest.mark.parametrize('node', ['vision_node', 'controller_node'])
 def test_a_busy_node_stops_on_its_first_signal(node, sig, start_node, probe, tmp_path):
     """With the robot's clock running and a sample every tick."""
-    reports = []
+    reports: list[str] = []
     probe.node.create_subscription(DiagnosticStatus, '/lockstep',
                                    lambda msg: reports.append(msg.name), LOCKSTEP_QOS)
     start_node('omni_micro_sim', 'dynamics_node', 'real_time_factor:=5.0')
@@ -120,7 +119,7 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
     try:
         assert run.stderr is not None
         for line in run.stderr:   # the robot is moving: every node is up and busy
-            if 'period 2:' in line:
+            if 'period 3:' in line:
                 break
         else:
             raise AssertionError(f'the run ended before it moved: {run.wait()}')
@@ -143,8 +142,10 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
     assert gone_after < 1.0, f'children still there {gone_after:.2f} s after the kill'
     # The recorder closed its bag on the way out: readable as it is, no recovery needed.
     assert (bag / 'metadata.yaml').exists()
+    # It holds the run up to the kill: the first move was sent a whole period before it (the
+    # latest ones may still have been on their way to the recorder).
     recorded = read_bag(bag, topics=['/odom', '/wheel_trajectory']).messages
-    assert len(recorded['/wheel_trajectory']) >= 2   # it holds the run up to the second move
+    assert len(recorded['/wheel_trajectory']) >= 1
     assert len(recorded['/odom']) > 20
     # The domain is free again, and only now.
     with DomainLease(domain) as leased:
@@ -158,9 +159,8 @@ def test_a_domain_is_not_leased_while_a_process_of_its_run_lives():
                                  pass_fds=(lease.fileno,))
     try:
         # The orchestrator let go of the lease, but its child still holds the lock.
-        with pytest.raises(RunFailed, match='no free ROS_DOMAIN_ID'):
-            with DomainLease(domain):
-                pass
+        with pytest.raises(RunFailed, match='no free ROS_DOMAIN_ID'), DomainLease(domain):
+            pass
     finally:
         child.kill()
         child.wait()

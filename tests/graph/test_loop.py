@@ -32,7 +32,7 @@ def cli_run(tmp_path_factory, omni_micro):
 
 
 def test_closed_loop_over_the_graph_beats_the_paper(cli_run):
-    summary, logs = cli_run
+    summary, _ = cli_run
     assert summary['outcome'] == 'reached'
     assert summary['deviation_mm'] < paper.FIG11_PUBLISHED_CLOSED_LOOP_DEVIATION_MM
     assert summary['deviation_mm'] < 0.005   # a few micrometres
@@ -63,8 +63,8 @@ def test_same_seed_same_pose_at_another_real_time_factor(cli_run, tmp_path):
 
 
 def test_a_stand_in_camera_that_follows_the_contract_closes_the_loop(tmp_path):
-    standin = NodeSpec('tests', 'standin_camera',
-                       command=(sys.executable, str(Path(__file__).with_name('standin_camera.py'))))
+    script = Path(__file__).with_name('standin_camera.py')
+    standin = NodeSpec('tests', 'standin_camera', command=(sys.executable, str(script)))
     nodes = [spec if spec.executable != 'vision_node' else standin for spec in default_nodes()]
     result = run_graph(GraphOptions(goal_m=(0.03, 0.01), real_time_factor=4.0, nodes=nodes,
                                     log_dir=tmp_path))

@@ -6,17 +6,18 @@ import signal
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
-from geometry_msgs.msg import PoseStamped
 from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_cli.bags import read_bag
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.graph import GraphOptions, run_graph
+from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 
 GOAL = (0.1, 0.0)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -27,7 +28,7 @@ def shm_files() -> set[str]:
     return {name for name in os.listdir('/dev/shm') if name.startswith('fastrtps')}
 
 
-def run(tmp_path: Path, **options) -> object:
+def run(tmp_path: Path, **options: Any) -> GraphResult:
     options.setdefault('real_time_factor', 5.0)
     return run_graph(GraphOptions(goal_m=options.pop('goal_m', GOAL), log_dir=tmp_path / 'logs',
                                   **options))
@@ -82,8 +83,8 @@ def kill_after(node: str, wall_s: float, record: dict):
                                   'bag_recorder'])
 def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_path):
     before = shm_files()
-    events = {}
-    noticed = []
+    events: dict[str, float] = {}
+    noticed: list[float] = []
 
     def echo(line):
         if 'stopping the graph' in line:
@@ -121,7 +122,8 @@ def test_bad_goals_are_rejected_and_the_controller_stays_idle(start_node, probe,
         goal.pose.position.x, goal.pose.position.y = x, y
         count = len(statuses)
         goals.publish(goal)
-        probe.spin_until(lambda: len(statuses) > count, 10.0, f'an answer to {x, y, frame}')
+        probe.spin_until(lambda count=count: len(statuses) > count, 10.0,
+                         f'an answer to {x, y, frame}')
         assert statuses[-1] == 'goal rejected'
     log = (tmp_path / 'controller_node.log').read_text()
     assert 'not finite' in log and 'outside the platform' in log and "frame 'map'" in log
@@ -164,7 +166,8 @@ def test_a_params_file_with_a_bad_value_is_refused_with_the_nodes_words(tmp_path
     (['--goal-mm', '100,0', '--drop-captures', '1.5'], 'probability'),
     (['--goal-mm', '100,0', '--late-captures', '-1'], '>= 0'),
     (['--goal-mm', '100,0', '--fault-camera', 'telescope'], 'invalid choice'),
-    (['--goal-mm', '100,0', '--rtf', 'inf'], 'finite'),
+    (['--goal-mm', '100,0', '--rtf', 'inf'], "> 0 or 'max'"),
+    (['--goal-mm', '100,0', '--rtf', 'max', '--free-running'], 'needs the lockstep'),
     (['--goal-mm', '100,0', '--open-loop', '-7'], '> 0'),
 ])
 def test_bad_flags_exit_2_and_start_nothing(args, message, tmp_path, omni_micro):
@@ -195,7 +198,7 @@ def recorded_until(bag_path: Path, end_s: float) -> dict[str, list[bytes]]:
     kept: dict[str, list[bytes]] = {}
     for topic in bag.raw:
         kept[topic] = []
-        for raw, msg in zip(bag.raw[topic], bag.messages[topic]):
+        for raw, msg in zip(bag.raw[topic], bag.messages[topic], strict=True):
             stamp = msg.clock if topic == '/clock' else getattr(msg, 'header', None) and \
                 msg.header.stamp
             if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end_s:

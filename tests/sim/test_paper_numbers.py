@@ -3,8 +3,9 @@
 import math
 
 import pytest
+
 from omni_micro_sim import simulate_open_loop
-from omni_micro_sim.paper import FIG11_OPEN_LOOP, FIG8, FIG8_PUBLISHED_DRIFT_MM
+from omni_micro_sim.paper import FIG8, FIG8_PUBLISHED_DRIFT_MM, FIG11_OPEN_LOOP
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.reference import solve_ivp_reference
 

@@ -1,6 +1,7 @@
 import math
 
 import pytest
+
 from omni_micro_sim import CommandError, MotorLimits, ParameterError, RobotParameters, move_profile
 
 
@@ -29,13 +30,13 @@ def test_bad_parameter_is_named(name, value):
 
 def test_bad_offsets_and_unknown_names_are_rejected():
     with pytest.raises(ParameterError, match='wheel_offsets_rad'):
-        RobotParameters(wheel_offsets_rad=(0.0, 0.1))
+        RobotParameters(wheel_offsets_rad=(0.0, 0.1))  # type: ignore[arg-type]  # on purpose
     with pytest.raises(ParameterError, match=r'wheel_offsets_rad\[2\]'):
         RobotParameters(wheel_offsets_rad=(0.0, 0.1, float('nan')))
     with pytest.raises(ParameterError, match='wheel_count'):
         RobotParameters().replace(wheel_count=4)
     with pytest.raises(ParameterError, match='cantilever_side'):
-        RobotParameters(cantilever_side='up')
+        RobotParameters(cantilever_side='up')  # type: ignore[arg-type]  # a user's YAML string
 
 
 @pytest.mark.parametrize('duration', [0.0, -1.0, float('nan'), float('inf'), 'x'])

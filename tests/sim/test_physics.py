@@ -4,15 +4,15 @@ import math
 
 import numpy as np
 import pytest
-from omni_micro_sim import RobotParameters, RobotState, SlipSimulator, simulate_open_loop
-from omni_micro_sim import kernels
+
+from omni_micro_sim import RobotParameters, RobotState, SlipSimulator, kernels, simulate_open_loop
 from omni_micro_sim.paper import FIG8
 from omni_micro_sim.simulator import wheel_headings_rad
 
 
 def literal_equations(params, state, wheel_speeds, steering):
-    """Eqs. 3-13 written as the paper does, with 3-vectors, rotation matrices and cross products."""
-    x, y, phi, vx, vy, omega = state
+    """Eqs. 3-13 as the paper writes them, with 3-vectors, rotation matrices, cross products."""
+    _, _, phi, vx, vy, omega = state
     rot = np.array([[math.cos(phi), -math.sin(phi), 0], [math.sin(phi), math.cos(phi), 0],
                     [0, 0, 1]])
     v_r = np.array([vx, vy, 0.0])

@@ -72,6 +72,7 @@ def test_trajectory_round_trip_keeps_the_profile():
                                                    p.velocities[::-1]) for p in points],
                                   1.0, 0.5, MotorLimits())
     assert command.start_s == 1.0 and command.steering_rad == 0.3
+    assert command.profile is not None
     assert command.profile.rotation_rad() == pytest.approx(np.full(3, 8.7 * 0.5))
 
 

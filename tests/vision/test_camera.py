@@ -1,6 +1,7 @@
 """Camera model: pixel-derived noise, quantisation, fields, and the stationary-capture rule."""
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -49,8 +50,8 @@ def test_noise_depends_only_on_seed_stop_and_frame():
 
 
 def test_micro_camera_inside_its_field_none_outside_the_macro_field():
-    assert DEFAULT_RIG.camera_for(0.1, 0.0005).name == 'micro'
-    assert DEFAULT_RIG.camera_for(0.098, 0.0).name == 'macro'
+    assert DEFAULT_RIG.camera_for(0.1, 0.0005) is DEFAULT_RIG.micro
+    assert DEFAULT_RIG.camera_for(0.098, 0.0) is DEFAULT_RIG.macro
     assert DEFAULT_RIG.camera_for(0.2, 0.0) is None
 
 
@@ -93,7 +94,7 @@ def test_repeated_samples_add_nothing():
     ({'field_m': (0.0, 0.1)}, 'field_m'), ({'resolution_px': (1280.5, 1024)}, 'resolution_px'),
     ({'noise_px': -1.0}, 'noise_px'), ({'center_m': (math.nan, 0.0)}, 'center_m')])
 def test_bad_camera_parameters_name_the_value(kwargs, name):
-    base = dict(name='macro', center_m=(0.0, 0.0), field_m=(0.15, 0.15))
+    base: dict[str, Any] = dict(name='macro', center_m=(0.0, 0.0), field_m=(0.15, 0.15))
     base.update(kwargs)
     with pytest.raises(CameraConfigError, match=name):
         CameraModel(**base)
