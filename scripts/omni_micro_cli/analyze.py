@@ -1,4 +1,4 @@
-"""`omni-micro analyze BAG --out DIR`: figures and a summary of a recorded run, from the bag alone."""
+"""`omni-micro analyze BAG --out DIR`: figures and a summary of a recorded run, from its bag."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from omni_micro_cli.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_control.feedback import OUTCOME_NAMES
-
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Final
 
 from rosbags.interfaces import (
     Qos,
@@ -27,7 +28,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
-BAG_VERSION = 9
+BAG_VERSION: Final = 9
 
 
 @dataclass(frozen=True)
@@ -100,9 +101,10 @@ def flush(writer: Writer) -> None:
     if storage is None:
         return
     if hasattr(storage, 'close_chunk'):
-        if storage.chunk.msgs:
+        # Private parts of rosbags' mcap writer (see above), which its stubs do not declare.
+        if storage.chunk.msgs:  # type: ignore[attr-defined]
             storage.close_chunk()
-        storage.bio.flush()
+        storage.bio.flush()  # type: ignore[attr-defined]
     elif hasattr(storage, 'conn'):
         storage.conn.commit()
 
@@ -128,7 +130,7 @@ def _recovered_topics(source: Path) -> Iterator[tuple[str, str, int, bytes]]:
                     elif isinstance(record, Message):
                         topic, msgtype = channels[record.channel_id]
                         yield topic, msgtype, record.log_time, record.data
-            except Exception:   # noqa: BLE001 - the torn tail of a killed writer ends the stream
+            except Exception:
                 return
     elif databases:
         connection = sqlite3.connect(f'file:{databases[0]}?mode=ro', uri=True)
@@ -180,7 +182,7 @@ class BagMessages:
     """A bag read back: per topic, the receive timestamps (ns) and the decoded messages."""
 
     timestamps: dict[str, list[int]]
-    messages: dict[str, list[object]]
+    messages: dict[str, list[Any]]   # decoded: rosbags builds their classes at run time
     raw: dict[str, list[bytes]]
     msgtypes: dict[str, str]
 

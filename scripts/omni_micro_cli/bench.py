@@ -16,11 +16,11 @@ import sys
 import time
 
 import numpy as np
-from omni_micro_sim import RobotParameters, move_profile, simulate_open_loop, paper
-from omni_micro_sim.simulator import simulate_open_loop_batch
 
 from omni_micro_cli.arguments import positive_float
 from omni_micro_cli.errors import UsageError
+from omni_micro_sim import RobotParameters, move_profile, paper, simulate_open_loop
+from omni_micro_sim.simulator import simulate_open_loop_batch
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -33,7 +33,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--batch', type=int, default=1000, metavar='N',
                         help='moves in the batch (default 1000)')
     parser.add_argument('--repeats', type=int, default=30, metavar='N',
-                        help='timed repeats of the single run; the median is reported (default 30)')
+                        help='timed repeats of the single run; the median is reported '
+                             '(default 30)')
     parser.add_argument('--reference-timeout', type=positive_float, default=600.0, metavar='S',
                         help='give up on the reference after S seconds (default 600)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
@@ -46,7 +47,7 @@ def _fig11() -> tuple[RobotParameters, float, float]:
 
 
 def reference_main() -> None:
-    """Child process: the LSODA reference with the kernels running as plain Python (median of 3)."""
+    """Child process: the LSODA reference, kernels running as plain Python (median of 3)."""
     from omni_micro_sim.reference import solve_ivp_reference
     params, steering, duration = _fig11()
     end_time = float(sys.argv[1])
@@ -126,11 +127,14 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(figures))
         return 0
     print('omni-micro bench (7 s open-loop move of Fig. 11; batch = Fig. 7 sweep of 1 s moves)')
-    print(f'  reference solve_ivp LSODA rtol 1e-9, Python rhs : {reference["seconds"]:8.3f} s (median of 3)')
+    print(f'  reference solve_ivp LSODA rtol 1e-9, Python rhs : '
+          f'{reference["seconds"]:8.3f} s (median of 3)')
     print(f'  slip core (numba RK4), one run                 : {core_single * 1e3:8.2f} ms')
-    print(f'  speed-up                                       : {figures["speedup_vs_reference"]:8.1f} x  (target >= 50)')
+    print(f'  speed-up                                       : '
+          f'{figures["speedup_vs_reference"]:8.1f} x  (target >= 50)')
     print(f'  final position core vs reference               : {difference_m * 1e6:8.4f} um')
-    print(f'  batch of {args.batch} moves                        : {batch_seconds:8.2f} s  (target < 10 s)')
+    print(f'  batch of {args.batch} moves                        : '
+          f'{batch_seconds:8.2f} s  (target < 10 s)')
     if batch_7s_seconds is not None:
         print(f'  batch of 100 seven-second moves                : {batch_7s_seconds:8.2f} s')
     print(f'  first call in a new process (compile/cache)    : {first_call:8.2f} s')

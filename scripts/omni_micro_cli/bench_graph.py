@@ -21,9 +21,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from omni_micro_sim import paper
-
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_sim import paper
 
 # Spins one core until killed, and stops by itself if its parent dies.
 _HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n'
@@ -101,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
                   f'{result.periods} periods, {result.deviation_m * 1e6:.3f} um from the goal',
                   flush=True)
     lockstep_poses = {(row['final_x_mm'], row['sim_time_s'], row['periods'])
-                      for row, case in zip(rows, CASES) if case[2]}
+                      for row, case in zip(rows, CASES, strict=True) if case[2]}
     idle = rows[0]['rtf_reached']
     print(f'lockstep runs identical: {len(lockstep_poses) == 1}; idle lockstep rtf {idle} '
           f'(target >= 30), free-running rtf 20 reached {rows[3]["rtf_reached"]}')

@@ -6,8 +6,6 @@ import argparse
 import signal
 import sys
 
-from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-
 from omni_micro_cli import (
     analyze,
     bench,
@@ -22,6 +20,7 @@ from omni_micro_cli import (
     soak,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
 COMMANDS = (demo, run, record, replay, analyze, recover, soak, simulate, figures, bench,
             bench_graph)

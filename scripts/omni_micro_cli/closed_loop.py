@@ -125,5 +125,6 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
         if finished is None:
             finished = controller.on_time(stamp)[1]
     return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
-                            grid.simulator.state, grid.time_s, tuple(goal_m), used,
+                            grid.simulator.state, grid.time_s,
+                            (float(goal_m[0]), float(goal_m[1])), used,
                             np.array(route))

@@ -14,8 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_micro_sim import paper
-
 from omni_micro_cli import figures, plots
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
 from omni_micro_cli.bags import check_output_path
@@ -24,6 +22,7 @@ from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_cli.record import add_storage_arguments
 from omni_micro_cli.run import echo_to_stderr
+from omni_micro_sim import paper
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
 

@@ -5,5 +5,5 @@ class UsageError(ValueError):
     """A command-line value is malformed or out of range."""
 
 
-class RunFailed(RuntimeError):
+class RunFailed(RuntimeError):  # noqa: N818 - an outcome, named as the CLI reports it
     """A run did not reach its goal, or a node failed; the message names what failed."""

@@ -10,12 +10,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from omni_micro_sim import RobotParameters, simulate_open_loop, simulate_open_loop_batch
-from omni_micro_sim import paper
 
 from omni_micro_cli import plots
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
+from omni_micro_sim import RobotParameters, paper, simulate_open_loop, simulate_open_loop_batch
 
 TRACE_INTERVAL_S = 1e-3
 
@@ -43,15 +42,18 @@ def run(args: argparse.Namespace) -> int:
     for name in ('angle_step_deg', 'offset_step_deg'):
         value = getattr(args, name)
         if not math.isfinite(value) or not 0.0 < value <= 30.0:
-            raise UsageError(f'--{name.replace("_", "-")} must be in (0, 30] degrees, got {value!r}')
+            raise UsageError(
+                f'--{name.replace("_", "-")} must be in (0, 30] degrees, got {value!r}')
     started = time.perf_counter()
     with staged_directory(args.out) as scratch:
         numbers = write_figures(scratch, args.angle_step_deg, args.offset_step_deg)
     _progress(f'done in {time.perf_counter() - started:.1f} s: {args.out}')
-    print(f'fig. 8 drift: {numbers["fig8_drift_mm"]:.4f} mm (paper {paper.FIG8_PUBLISHED_DRIFT_MM} mm)')
+    print(f'fig. 8 drift: {numbers["fig8_drift_mm"]:.4f} mm '
+          f'(paper {paper.FIG8_PUBLISHED_DRIFT_MM} mm)')
     print(f'fig. 11 open-loop deviation: {numbers["fig11_open_loop_deviation_mm"]:.3f} mm '
           f'(paper {paper.FIG11_PUBLISHED_OPEN_LOOP_DEVIATION_MM:g} mm)')
-    print(f'wrote {", ".join(sorted(p.name for p in args.out.iterdir() if not p.name.startswith(".")))}')
+    written = sorted(p.name for p in args.out.iterdir() if not p.name.startswith('.'))
+    print(f'wrote {", ".join(written)}')
     return 0
 
 
@@ -77,7 +79,7 @@ def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float) -> d
 
     # Fig. 7: drift against the common offset of wheels 2 and 3.
     low, high = paper.FIG7_OFFSET_RANGE_DEG
-    offsets_deg = np.linspace(low, high, int(round((high - low) / offset_step_deg)) + 1)
+    offsets_deg = np.linspace(low, high, round((high - low) / offset_step_deg) + 1)
     goal = np.array(paper.FIG7_GOAL_M)
     steering7 = math.atan2(goal[1], goal[0])
     duration7 = paper.duration_for_distance(float(np.hypot(*goal)))

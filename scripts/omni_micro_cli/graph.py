@@ -14,6 +14,7 @@ any process of this one is still in it.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import math
@@ -27,9 +28,10 @@ import tempfile
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, TextIO
+from typing import TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
@@ -83,7 +85,8 @@ def recorder_spec(bag: Path, storage: str) -> NodeSpec:
 
 
 def install_prefixes() -> list[Path]:
-    return [Path(p) for p in os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep) if p]
+    prefixes = os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep)
+    return [Path(p) for p in prefixes if p]
 
 
 def resolve_executable(package: str, executable: str) -> Path:
@@ -192,7 +195,8 @@ class NodeProcess:
     def start(self) -> None:
         self.starts += 1
         self._ready.clear()
-        log = open(self.log_path, 'a')
+        # Handed to the thread that copies the process's output; it closes it at the end.
+        log = open(self.log_path, 'a')  # noqa: SIM115
         log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
         log.flush()
         self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
@@ -228,10 +232,8 @@ class NodeProcess:
 
     def signal(self, sig: int) -> None:
         if self.process is not None and self.process.poll() is None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 self.process.send_signal(sig)
-            except ProcessLookupError:
-                pass
 
     def wait(self, timeout_s: float) -> bool:
         """True once the process has exited (within ``timeout_s``)."""
@@ -310,7 +312,7 @@ class GraphOptions:
     vision_overrides: dict[str, object] = field(default_factory=dict)
     dynamics_overrides: dict[str, object] = field(default_factory=dict)
     # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
-    on_running: Callable[['Graph'], None] | None = None
+    on_running: Callable[[Graph], None] | None = None
 
 
 @dataclass
@@ -364,9 +366,8 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
         overrides.update(options.vision_overrides)
-    elif spec.executable == 'controller_node':
-        if options.open_loop_s is not None:
-            overrides.update(open_loop_duration_s=float(options.open_loop_s))
+    elif spec.executable == 'controller_node' and options.open_loop_s is not None:
+        overrides.update(open_loop_duration_s=float(options.open_loop_s))
     overrides.update(spec.overrides)
     return overrides
 
@@ -386,7 +387,8 @@ def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
 def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
     env = dict(os.environ)
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1', RCUTILS_COLORIZED_OUTPUT='0')
+               ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
+               RCUTILS_COLORIZED_OUTPUT='0')
     env.pop('ROS_LOCALHOST_ONLY', None)
     return env
 
@@ -511,7 +513,7 @@ class Graph:
         bag.rename(torn)
         try:
             counts = recover(torn, bag)
-        except Exception as error:   # noqa: BLE001 - keep the torn bag and say why
+        except Exception as error:
             torn.rename(bag)
             if self.options.echo:
                 self.options.echo(f'[orchestration] could not recover {bag}: {error}')
@@ -556,7 +558,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_cli.monitor import GraphMonitor   # rclpy only where a graph runs
+    from omni_micro_cli.monitor import GraphMonitor  # rclpy only where a graph runs
 
     if options.params_file is not None:
         check_params_file(options.params_file)
@@ -565,7 +567,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
 
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
-    goals = [tuple(options.goal_m), *map(tuple, options.more_goals_m)]
+    goals = [(float(x), float(y)) for x, y in [options.goal_m, *options.more_goals_m]]
     lease = DomainLease(options.domain_id)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)

@@ -4,9 +4,10 @@ and reads the true final pose from /odom. It commands nothing that moves the rob
 
 from __future__ import annotations
 
+import functools
 import time
 from pathlib import Path
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -67,8 +68,7 @@ class GraphMonitor:
         self.goal_sent_at = 0
         self.camera_statuses: list[str] = []
         self.node.create_subscription(DiagnosticStatus, '/camera/status',
-                                      lambda msg: self.camera_statuses.append(msg.message),
-                                      STATUS_QOS)
+                                      self._on_camera_status, STATUS_QOS)
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
@@ -78,10 +78,15 @@ class GraphMonitor:
             self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
             for camera, topic in CAPTURE_TOPICS.items():
                 self.node.create_subscription(
-                    PoseStamped, topic,
-                    lambda msg, name=camera: self.captures.append(
-                        (join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
-                         msg.pose.position.x, msg.pose.position.y, name)), CAPTURE_QOS)
+                    PoseStamped, topic, functools.partial(self._on_capture, camera=camera),
+                    CAPTURE_QOS)
+
+    def _on_camera_status(self, msg: DiagnosticStatus) -> None:
+        self.camera_statuses.append(msg.message)
+
+    def _on_capture(self, msg: PoseStamped, camera: str) -> None:
+        self.captures.append((join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
+                              msg.pose.position.x, msg.pose.position.y, camera))
 
     def _on_odometry(self, msg: Odometry) -> None:
         pose = msg.pose.pose
@@ -176,7 +181,7 @@ class GraphMonitor:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
 
-    INPUTS = {'vision_node': ('/odom',),
+    INPUTS: ClassVar[dict[str, tuple[str, ...]]] = {'vision_node': ('/odom',),
               'controller_node': ('/joint_states', '/camera/macro/pose', '/goal_pose')}
 
     def _endpoints(self, name: str) -> set[bytes]:

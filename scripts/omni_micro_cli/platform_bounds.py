@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -10,9 +11,9 @@ from omni_micro_cli.errors import UsageError
 from omni_micro_cli.graph import package_params_file
 
 
-def controller_parameter(name: str, params_file: Path | None) -> object:
+def controller_parameter(name: str, params_file: Path | None) -> Any:
     """A controller_node parameter as the node will see it: package file, then --params."""
-    value = None
+    value: Any = None
     files = [package_params_file('omni_micro_control', 'controller_node')]
     if params_file is not None:
         files.append(params_file)
@@ -20,7 +21,7 @@ def controller_parameter(name: str, params_file: Path | None) -> object:
         content = yaml.safe_load(path.read_text()) or {}
         for node in ('controller_node', '/**'):
             params = (content.get(node) or {}).get('ros__parameters') or {}
-            node_value = params
+            node_value: Any = params
             for part in name.split('.'):
                 node_value = node_value.get(part) if isinstance(node_value, dict) else None
             if node_value is not None:

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
 WHEEL_COLOURS = ('tab:blue', 'tab:orange', 'tab:green')
 
@@ -49,7 +49,8 @@ def wheel_slip(path: Path, time_s: np.ndarray, slip_m_s: np.ndarray, *, componen
 
 
 def routes(path: Path, routes_m: dict[str, np.ndarray], *, ideal_m: np.ndarray | None = None,
-           goal_m: Sequence[float] | None = None, captures_m: np.ndarray | None = None,
+           goal_m: Sequence[float] | np.ndarray | None = None,
+           captures_m: np.ndarray | None = None,
            title: str, equal_aspect: bool = False) -> None:
     """Routes (N x 2 arrays of x, y in m) against the ideal straight route."""
     figure, axes = plt.subplots(figsize=(7.0, 4.2))
@@ -108,7 +109,7 @@ def closed_loop_comparison(path: Path, open_loop_m: np.ndarray, closed_loop_m: n
 
 
 def remaining_distance(path: Path, periods_remaining: np.ndarray) -> None:
-    """Distance to the goal seen at the start of each period (log scale): the comparator at work."""
+    """Distance to the goal seen at each period's start (log scale): the comparator at work."""
     figure, axes = plt.subplots(figsize=(6.4, 4.2))
     axes.semilogy(periods_remaining[:, 0], periods_remaining[:, 1] * 1e3, 'o-', ms=3)
     axes.axhline(2.0, color='k', ls=':', lw=1, label='comparator, 2 mm')

@@ -14,7 +14,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_cli.bags import TopicSpec, flush, open_writer
 from omni_micro_cli.graph import message_class
-from omni_micro_sim.qos import PER_TICK_SUBSCRIPTION
+from omni_micro_sim.qos import PER_TICK_SUBSCRIPTION_EVENTS
 
 # Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
 FLUSH_PERIOD_S = 0.5
@@ -34,9 +34,9 @@ class BagRecorder(Node):
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
                                          else DurabilityPolicy.VOLATILE))
             # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_sim.qos).
-            quiet = PER_TICK_SUBSCRIPTION if spec.depth >= 1000 else {}
+            quiet = PER_TICK_SUBSCRIPTION_EVENTS if spec.depth >= 1000 else None
             self.create_subscription(message_class(spec.msgtype), topic, self._writer_of(topic),
-                                     qos, raw=True, **quiet)
+                                     qos, raw=True, event_callbacks=quiet)
         self._watched = [sub for sub in self.subscriptions
                          if sub.topic_name in topics and sub.topic_name != '/goal_pose']
         self.status_pub = self.create_publisher(DiagnosticStatus, '/bag_recorder/status',

@@ -139,9 +139,9 @@ def run(args: argparse.Namespace) -> int:
                 publishers[topic].publish(data.raw[topic][index])
                 published += 1
                 if args.sync:
-                    stamp = header_stamp_ns(data.messages[topic][index])
-                    if stamp is not None:
-                        sent_stamps.append(stamp)
+                    header_ns = header_stamp_ns(data.messages[topic][index])
+                    if header_ns is not None:
+                        sent_stamps.append(header_ns)
             if not args.loop:
                 break
         wait_for_sync(1)

@@ -7,9 +7,8 @@ import json
 import math
 import time
 
-from omni_micro_sim import RobotParameters, simulate_open_loop
-
 from omni_micro_cli.arguments import finite_float, float_list, positive_float
+from omni_micro_sim import RobotParameters, simulate_open_loop
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -36,7 +35,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = RobotParameters(
-        wheel_offsets_rad=tuple(math.radians(v) for v in args.xi_deg),
+        wheel_offsets_rad=(math.radians(args.xi_deg[0]), math.radians(args.xi_deg[1]),
+                           math.radians(args.xi_deg[2])),
         wheel1_active=not args.passive_wheel1)
     started = time.perf_counter()
     result = simulate_open_loop(params, math.radians(args.theta_deg), args.duration)

@@ -44,8 +44,8 @@ def random_goals(count: int, seed: int) -> list[tuple[float, float]]:
     micro = DEFAULT_RIG.micro
     rng = np.random.default_rng(seed)
     half = np.array(micro.field_m) / 2 - MARGIN_M
-    return [tuple(map(float, np.array(micro.center_m) + rng.uniform(-half, half)))
-            for _ in range(count)]
+    goals = np.array(micro.center_m) + rng.uniform(-half, half, size=(count, 2))
+    return [(float(x), float(y)) for x, y in goals]
 
 
 def bag_counts(bag: Path) -> dict[str, int]:

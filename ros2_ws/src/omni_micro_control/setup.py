@@ -17,7 +17,8 @@ setup(
     zip_safe=True,
     maintainer='omni-micro developers',
     maintainer_email='dev@omni-micro.invalid',
-    description='Vision-feedback controller of section 4: timer1/timer2, angle modifier, distance comparator.',
+    description=('Vision-feedback controller of section 4: timer1/timer2, angle modifier, '
+                 'distance comparator.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -17,7 +17,8 @@ setup(
     zip_safe=True,
     maintainer='omni-micro developers',
     maintainer_email='dev@omni-micro.invalid',
-    description='Slip dynamics of the tri-wheeled omnidirectional microrobot (Jin, Chen and Li, ICIRA 2008) and the node that integrates them.',
+    description=('Slip dynamics of the tri-wheeled omnidirectional microrobot (Jin, Chen and '
+                 'Li, ICIRA 2008) and the node that integrates them.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -17,7 +17,8 @@ setup(
     zip_safe=True,
     maintainer='omni-micro developers',
     maintainer_email='dev@omni-micro.invalid',
-    description='Macro and micro overhead camera model: stationary pose captures with pixel noise.',
+    description=('Macro and micro overhead camera model: stationary pose captures with pixel '
+                 'noise.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -15,6 +15,7 @@ Timers follow /clock (use_sim_time); the decisions themselves are taken on captu
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 
@@ -48,7 +49,7 @@ from omni_micro_sim.qos import (
     CAPTURE_QOS,
     CAPTURE_TOPICS,
     DATA_QOS,
-    PER_TICK_SUBSCRIPTION,
+    PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
 from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
@@ -101,10 +102,10 @@ class ControllerNode(Node):
                                                       STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
-                                 **PER_TICK_SUBSCRIPTION)
+                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         for name, topic in CAPTURE_TOPICS.items():
             self.create_subscription(PoseStamped, topic,
-                                     lambda msg, camera=name: self._on_capture(msg, camera),
+                                     functools.partial(self._on_capture, camera=name),
                                      CAPTURE_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, '/camera/status', self._on_camera_status,
@@ -115,7 +116,8 @@ class ControllerNode(Node):
         self.get_logger().info(
             f'controller ready: timer2 {config.settle_wait_s:g} s, timer1 '
             f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
-            f'{config.comparator_distance_m * 1e3:g} mm, tolerance {config.tolerance_m * 1e6:g} um')
+            f'{config.comparator_distance_m * 1e3:g} mm, '
+            f'tolerance {config.tolerance_m * 1e6:g} um')
         if len(goal) == 2:
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)

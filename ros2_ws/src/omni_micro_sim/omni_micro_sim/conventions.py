@@ -12,7 +12,7 @@ import math
 
 def split_stamp(seconds: float) -> tuple[int, int]:
     """(sec, nanosec) of a time in seconds, rounded to the nanosecond."""
-    total = int(round(seconds * 1e9))
+    total = round(seconds * 1e9)
     return total // 1_000_000_000, total % 1_000_000_000
 
 

@@ -24,10 +24,11 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import fields
+from typing import Any
 
 from builtin_interfaces.msg import Time
-from nav_msgs.msg import Odometry
 from diagnostic_msgs.msg import DiagnosticStatus
+from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -37,11 +38,17 @@ from trajectory_msgs.msg import JointTrajectory
 from omni_micro_sim import paper
 from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_to_quaternion
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, DEFAULT_MAX_LEAD_S, Ack, \
-    LockstepError, LockstepGate
+from omni_micro_sim.lockstep import (
+    ACK_MESSAGE,
+    ACK_TOPIC,
+    DEFAULT_MAX_LEAD_S,
+    Ack,
+    LockstepError,
+    LockstepGate,
+)
 from omni_micro_sim.node_runtime import LOCKSTEP_QOS, PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
-from omni_micro_sim.qos import DATA_QOS, PER_TICK_PUBLISHER, PER_TICK_SUBSCRIPTION
+from omni_micro_sim.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
@@ -125,15 +132,20 @@ class DynamicsNode(Node):
         self._make_messages()
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
-        self.clock_pub = count(self.create_publisher(Clock, '/clock', DATA_QOS, **PER_TICK_PUBLISHER))
-        self.odom_pub = count(self.create_publisher(Odometry, '/odom', DATA_QOS, **PER_TICK_PUBLISHER))
-        self.joint_pub = count(self.create_publisher(JointState, '/joint_states', DATA_QOS, **PER_TICK_PUBLISHER))
-        self.slip_pub = count(self.create_publisher(JointState, '/wheel_slip', DATA_QOS, **PER_TICK_PUBLISHER))
+
+        def per_tick(msg_type: type, topic: str) -> Any:
+            return count(self.create_publisher(msg_type, topic, DATA_QOS,
+                                               event_callbacks=PER_TICK_PUBLISHER_EVENTS))
+
+        self.clock_pub = per_tick(Clock, '/clock')
+        self.odom_pub = per_tick(Odometry, '/odom')
+        self.joint_pub = per_tick(JointState, '/joint_states')
+        self.slip_pub = per_tick(JointState, '/wheel_slip')
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         if self.lockstep.enabled:
             self.create_subscription(DiagnosticStatus, ACK_TOPIC, self._on_ack, LOCKSTEP_QOS,
-                                     **PER_TICK_SUBSCRIPTION)
+                                     event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._wall_origin = time.monotonic()
         self._tick_origin = 0
         self._timer = self.create_timer(self._timer_period(), self._on_timer)
@@ -145,7 +157,7 @@ class DynamicsNode(Node):
 
     # -- parameters --------------------------------------------------------------------------
     @staticmethod
-    def _checked_rtf(value: object) -> float:
+    def _checked_rtf(value: Any) -> float:
         try:
             rtf = float(value)
         except (TypeError, ValueError):
@@ -156,7 +168,7 @@ class DynamicsNode(Node):
         return rtf
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
-        changes = {}
+        changes: dict[str, Any] = {}
         for param in params:
             if param.name == 'real_time_factor':
                 try:
@@ -280,7 +292,7 @@ class DynamicsNode(Node):
         slip = self._slip_msg
         slip.header.stamp = stamp
         slip.velocity = [float(value) for pair in zip(sample.slip.longitudinal_m_s,
-                                                       sample.slip.transverse_m_s)
+                                                       sample.slip.transverse_m_s, strict=True)
                          for value in pair]
         self.slip_pub.publish(slip)
 

@@ -14,8 +14,13 @@ import math
 
 import numba
 import numpy as np
+import numpy.typing as npt
 
 from omni_micro_sim.parameters import KERNEL_INDEX
+
+# For mypy only: numba types the kernels itself, from the arrays it is called with.
+Array = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 STATE_SIZE = 6
 _M = KERNEL_INDEX['mass_kg']
@@ -40,7 +45,7 @@ def friction_coefficient(mu: float, steepness: float, slip_speed: float) -> floa
 
 
 @numba.njit(cache=True)
-def wheel_geometry(wheel_angles, params):
+def wheel_geometry(wheel_angles: Array, params: Array) -> Array:
     """Body-frame cos/sin of each wheel's position angle and rolling direction, a (4, 3) array.
 
     They stay fixed during a command, so the right-hand side only rotates them by phi.
@@ -56,8 +61,9 @@ def wheel_geometry(wheel_angles, params):
 
 
 @numba.njit(cache=True)
-def contact_terms(state, wheel_speeds, geometry, params, slip_long, slip_trans, force_x,
-                  force_y):
+def contact_terms(state: Array, wheel_speeds: Array, geometry: Array, params: Array,
+                  slip_long: Array, slip_trans: Array, force_x: Array,
+                  force_y: Array) -> float:
     """Slip velocities (eqs. 3-9) and friction forces (eq. 11) of the three contacts.
 
     ``geometry`` comes from :func:`wheel_geometry`. Fills ``slip_long``/``slip_trans`` (m/s,
@@ -109,7 +115,8 @@ def contact_terms(state, wheel_speeds, geometry, params, slip_long, slip_trans, 
 
 
 @numba.njit(cache=True)
-def state_derivative(state, wheel_speeds, geometry, params, out, scratch):
+def state_derivative(state: Array, wheel_speeds: Array, geometry: Array, params: Array,
+                     out: Array, scratch: Array) -> None:
     """Eq. 13: fills ``out`` with d(state)/dt. ``scratch`` is a (4, 3) work array."""
     force_x = scratch[2]
     force_y = scratch[3]
@@ -125,8 +132,9 @@ def state_derivative(state, wheel_speeds, geometry, params, out, scratch):
 
 
 @numba.njit(cache=True)
-def speeds_at(time_s, knot_times, knot_speeds, knot_count, out):
-    """Piecewise-linear wheel speeds at ``time_s``; constant before the first/after the last knot."""
+def speeds_at(time_s: float, knot_times: Array, knot_speeds: Array, knot_count: int,
+              out: Array) -> None:
+    """Piecewise-linear wheel speeds at ``time_s``; constant outside the knots."""
     if time_s <= knot_times[0]:
         for k in range(3):
             out[k] = knot_speeds[0, k]
@@ -145,10 +153,10 @@ def speeds_at(time_s, knot_times, knot_speeds, knot_count, out):
 
 
 @numba.njit(cache=True)
-def _next_knot_after(time_s, knot_times, knot_count):
+def _next_knot_after(time_s: float, knot_times: Array, knot_count: int) -> float:
     for i in range(knot_count):
         if knot_times[i] > time_s:
-            return knot_times[i]
+            return float(knot_times[i])
     return math.inf
 
 
@@ -159,14 +167,14 @@ STEADY_ACCELERATION = 1e-9
 
 
 @numba.njit(cache=True)
-def _sinc(x):
+def _sinc(x: float) -> float:
     if abs(x) < 1e-4:
         return 1.0 - x * x / 6.0
     return math.sin(x) / x
 
 
 @numba.njit(cache=True)
-def steady_arc(state, duration):
+def steady_arc(state: Array, duration: float) -> None:
     """Advance ``state`` in place along the motion with constant body-frame velocity and rate.
 
     With constant wheel speeds the equations are invariant under rotation, so their steady
@@ -191,8 +199,8 @@ def steady_arc(state, duration):
 
 
 @numba.njit(cache=True)
-def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angles, params,
-            max_step):
+def advance(state: Array, t_from: float, t_to: float, knot_times: Array, knot_speeds: Array,
+            knot_count: int, wheel_angles: Array, params: Array, max_step: float) -> bool:
     """Integrate ``state`` in place from ``t_from`` to ``t_to`` (move time) with classical RK4.
 
     Steps never straddle a knot, where the wheel acceleration jumps, so each step integrates a
@@ -212,7 +220,8 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
     while t_to - time_s > 1e-15 * max(1.0, abs(t_to)):
         segment_end = min(_next_knot_after(time_s, knot_times, knot_count), t_to)
         span = segment_end - time_s
-        steps = max(1, int(math.ceil(span / max_step - 1e-9)))
+        # int(): numba's math.ceil returns a float.
+        steps = max(1, int(math.ceil(span / max_step - 1e-9)))  # noqa: RUF046
         h = span / steps
         start = time_s
         speeds_at(start, knot_times, knot_speeds, knot_count, speeds)
@@ -252,15 +261,16 @@ def advance(state, t_from, t_to, knot_times, knot_speeds, knot_count, wheel_angl
 
 
 @numba.njit(cache=True)
-def is_at_rest(state, params, rest_speed):
+def is_at_rest(state: Array, params: Array, rest_speed: float) -> bool:
     """Translation and the rotation's rim speed at the wheels both under ``rest_speed`` (m/s)."""
     speed = math.hypot(state[3], state[4])
     return speed < rest_speed and abs(state[5]) * params[_L] < rest_speed
 
 
 @numba.njit(cache=True)
-def settle(state, t_from, knot_times, knot_speeds, knot_count, wheel_angles, params, max_step,
-           rest_speed, max_settle_s, check_interval_s):
+def settle(state: Array, t_from: float, knot_times: Array, knot_speeds: Array,
+           knot_count: int, wheel_angles: Array, params: Array, max_step: float,
+           rest_speed: float, max_settle_s: float, check_interval_s: float) -> float:
     """Integrate from ``t_from`` (after the last knot) until the robot is at rest.
 
     Returns the move time at which it was first seen at rest, or -1 if it did not come to rest
@@ -278,8 +288,9 @@ def settle(state, t_from, knot_times, knot_speeds, knot_count, wheel_angles, par
 
 
 @numba.njit(cache=True)
-def run_move(state, knot_times, knot_speeds, knot_count, wheel_angles, params, max_step,
-             rest_speed, max_settle_s, check_interval_s):
+def run_move(state: Array, knot_times: Array, knot_speeds: Array, knot_count: int,
+             wheel_angles: Array, params: Array, max_step: float, rest_speed: float,
+             max_settle_s: float, check_interval_s: float) -> float:
     """One open-loop move: advance ``state`` through its profile, then settle (see settle)."""
     end = knot_times[knot_count - 1]
     if not advance(state, 0.0, end, knot_times, knot_speeds, knot_count, wheel_angles, params,
@@ -290,8 +301,9 @@ def run_move(state, knot_times, knot_speeds, knot_count, wheel_angles, params, m
 
 
 @numba.njit(cache=True, parallel=True)
-def run_batch(states, knot_times, knot_speeds, knot_counts, wheel_angles, params, max_step,
-              rest_speed, max_settle_s, check_interval_s, rest_times):
+def run_batch(states: Array, knot_times: Array, knot_speeds: Array, knot_counts: IntArray,
+              wheel_angles: Array, params: Array, max_step: float, rest_speed: float,
+              max_settle_s: float, check_interval_s: float, rest_times: Array) -> None:
     """:func:`run_move` for every row of ``states``, in parallel; results in ``rest_times``."""
     for i in numba.prange(states.shape[0]):
         rest_times[i] = run_move(states[i], knot_times[i], knot_speeds[i], knot_counts[i],

@@ -38,7 +38,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
 from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-from omni_micro_sim.qos import PER_TICK_PUBLISHER
+from omni_micro_sim.qos import PER_TICK_PUBLISHER_EVENTS
 
 NodeT = TypeVar('NodeT', bound=Node)
 
@@ -79,7 +79,7 @@ class LockstepReporter:
     def __init__(self, node: Node) -> None:
         self._name = node.get_name()
         self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
-                                               **PER_TICK_PUBLISHER)
+                                               event_callbacks=PER_TICK_PUBLISHER_EVENTS)
 
     def report(self, ack: Ack) -> None:
         self._publisher.publish(DiagnosticStatus(

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from omni_micro_sim.errors import ParameterError
 
 
 class CantileverSide(enum.Enum):
-    """Side of wheel 1 that carries its single-side cantilever, seen along its rolling direction."""
+    """Side of wheel 1 carrying its single-side cantilever, seen along its rolling direction."""
 
     LEFT = 1.0
     RIGHT = -1.0

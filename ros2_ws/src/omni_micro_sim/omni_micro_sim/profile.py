@@ -78,7 +78,9 @@ class WheelSpeedProfile:
         inner = self.knot_times_s[(self.knot_times_s > 0.0) & (self.knot_times_s < time_s)]
         times = np.concatenate(([0.0], inner, [time_s])) if time_s > 0.0 else np.zeros(1)
         speeds = np.array([self.speeds_at(t) for t in times])
-        return np.sum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times)[:, None], axis=0)
+        rotation: np.ndarray = np.sum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times)[:, None],
+                                      axis=0)
+        return rotation
 
     def check_limits(self, limits: MotorLimits) -> None:
         """Raise CommandError if any speed or speed change exceeds the motors' limits."""
@@ -105,9 +107,11 @@ def move_profile(duration_s: float, limits: MotorLimits | None = None) -> WheelS
     try:
         duration = float(duration_s)
     except (TypeError, ValueError):
-        raise CommandError(f'move duration must be a number of seconds, got {duration_s!r}') from None
+        raise CommandError(
+            f'move duration must be a number of seconds, got {duration_s!r}') from None
     if not math.isfinite(duration) or duration <= 0.0:
-        raise CommandError(f'move duration must be a finite number of seconds > 0, got {duration_s!r}')
+        raise CommandError(
+            f'move duration must be a finite number of seconds > 0, got {duration_s!r}')
     cruise = limits.cruise_speed_rad_s
     ramp_up = cruise / limits.acceleration_rad_s2
     ramp_down = cruise / limits.deceleration_rad_s2

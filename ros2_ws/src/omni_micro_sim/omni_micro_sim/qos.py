@@ -27,6 +27,6 @@ STATUS_QOS = latched(10)
 # executor rebuilds its wait set with, on each wake-up: a third of the per-tick cost (profile in
 # the README). Their QoS is fixed here for every node and tool, so they cannot be incompatible
 # with each other; the latched and command topics, which outside tools join, keep the warnings.
-PER_TICK_PUBLISHER = {'event_callbacks': PublisherEventCallbacks(use_default_callbacks=False)}
-PER_TICK_SUBSCRIPTION = {
-    'event_callbacks': SubscriptionEventCallbacks(use_default_callbacks=False)}
+# Pass as event_callbacks=... to create_publisher / create_subscription.
+PER_TICK_PUBLISHER_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
+PER_TICK_SUBSCRIPTION_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)

@@ -7,6 +7,8 @@ variable NUMBA_DISABLE_JIT=1 the right-hand side runs as plain Python (the bench
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.integrate import solve_ivp
 
@@ -42,7 +44,7 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
     breaks = [t for t in knot_times if 0.0 < t < end_time_s]
     edges = [0.0, *breaks, end_time_s]
     state = (start or RobotState()).as_array()
-    for t0, t1 in zip(edges[:-1], edges[1:]):
+    for t0, t1 in itertools.pairwise(edges):
         solution = solve_ivp(rhs, (t0, t1), state, method=method, rtol=rtol, atol=atol)
         if not solution.success:
             raise SimulationError(f'reference solver {method} failed on [{t0}, {t1}] s: '

@@ -15,7 +15,7 @@ import numpy as np
 
 from omni_micro_sim import kernels
 from omni_micro_sim.errors import CommandError, SimulationError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
+from omni_micro_sim.parameters import KERNEL_INDEX, MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
 
 # RK4 step: with p = 1000 the fastest friction time constant is ~0.4 ms; 0.4 ms steps agree with
@@ -146,7 +146,7 @@ class SlipSimulator:
             # Free rolling: the spin that cancels the longitudinal contact velocity, i.e. the
             # body's contact velocity along W_1 (the slip of a driven wheel at zero spin) over r.
             driven = self._kernel_params.copy()
-            driven[kernels.KERNEL_INDEX['wheel1_drive']] = 1.0
+            driven[KERNEL_INDEX['wheel1_drive']] = 1.0
             speeds[0] = 0.0
             slip_long, scratch = np.empty(3), np.empty((3, 3))
             kernels.contact_terms(self._state, speeds, self._geometry, driven, slip_long,
@@ -156,7 +156,9 @@ class SlipSimulator:
 
     def wheel_rotations_rad(self) -> np.ndarray:
         """Total commanded rotation of each wheel since the simulator started."""
-        return self._rotation_before_move + self._profile.rotation_until(self.move_time_s)
+        rotation: np.ndarray = (self._rotation_before_move
+                                + self._profile.rotation_until(self.move_time_s))
+        return rotation
 
     def slip(self) -> ContactSlip:
         """Longitudinal and transverse slip of each contact now."""
@@ -256,7 +258,7 @@ class OpenLoopResult:
 
 def ideal_stop(params: RobotParameters, start: RobotState, steering_rad: float,
                rotation_rad: float) -> tuple[float, float]:
-    """Where a slip-free robot ends: the wheel rotation times r along theta (eq. 1 with V_s = 0)."""
+    """Where a slip-free robot ends: wheel rotation times r along theta (eq. 1 with V_s = 0)."""
     distance = rotation_rad * params.wheel_radius_m
     heading = start.phi_rad + steering_rad
     return (start.x_m + distance * math.cos(heading), start.y_m + distance * math.sin(heading))
@@ -315,7 +317,7 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
         samples['wheel_speed_rad_s'].append(simulator.wheel_speeds())
 
     record()
-    steps = int(math.ceil(profile.end_time_s / interval - 1e-9))
+    steps = math.ceil(profile.end_time_s / interval - 1e-9)
     for index in range(steps):
         target = min((index + 1) * interval, profile.end_time_s)
         simulator.step(target - simulator.time_s)
@@ -337,12 +339,14 @@ class BatchResult:
 
     @property
     def drifts_m(self) -> np.ndarray:
-        return np.hypot(self.final_states[:, 0] - self.ideal_stops_m[:, 0],
-                        self.final_states[:, 1] - self.ideal_stops_m[:, 1])
+        drifts: np.ndarray = np.hypot(self.final_states[:, 0] - self.ideal_stops_m[:, 0],
+                                      self.final_states[:, 1] - self.ideal_stops_m[:, 1])
+        return drifts
 
 
 def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
-                             steering_rad: np.ndarray, duration_s: np.ndarray, *,
+                             steering_rad: np.ndarray | float,
+                             duration_s: np.ndarray | float, *,
                              limits: MotorLimits | None = None, start: RobotState | None = None,
                              max_step_s: float = DEFAULT_MAX_STEP_S,
                              max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> BatchResult:
@@ -374,9 +378,9 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
     knot_speeds = np.zeros((count, knots, WHEEL_COUNT))
     knot_counts = np.zeros(count, dtype=np.int64)
     wheel_angles = np.zeros((count, WHEEL_COUNT))
-    kernel_params = np.zeros((count, len(kernels.KERNEL_INDEX)))
+    kernel_params = np.zeros((count, len(KERNEL_INDEX)))
     ideal = np.zeros((count, 2))
-    for i, (profile, robot) in enumerate(zip(profiles, robots)):
+    for i, (profile, robot) in enumerate(zip(profiles, robots, strict=True)):
         n = profile.knot_times_s.size
         knot_times[i, :n] = profile.knot_times_s
         knot_speeds[i, :n] = profile.knot_speeds_rad_s

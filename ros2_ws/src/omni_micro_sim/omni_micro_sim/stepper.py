@@ -133,7 +133,7 @@ class GridSimulator:
         if self._pending is not None and self._pending[0] <= self._tick:
             command = self._pending[1]
             self._pending = None
-            if command.is_stop:
+            if command.profile is None:   # a stop
                 self.simulator.stop(self.limits)
             else:
                 self.simulator.command(command.steering_rad, command.profile, self.limits)

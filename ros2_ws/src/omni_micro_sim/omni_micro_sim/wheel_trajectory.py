@@ -16,8 +16,8 @@ one; the nodes only move numbers between these and the messages.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -42,7 +42,8 @@ def points_from_profile(steering_rad: float,
                         profile: WheelSpeedProfile) -> list[TrajectoryPoint]:
     """The points of a command running ``profile`` along ``steering_rad``, in JOINT_NAMES order."""
     points = []
-    for time_s, speeds in zip(profile.knot_times_s, profile.knot_speeds_rad_s):
+    for time_s, speeds in zip(profile.knot_times_s, profile.knot_speeds_rad_s,
+                                  strict=True):
         rotation = profile.rotation_until(float(time_s))
         points.append(TrajectoryPoint(float(time_s), [steering_rad, *map(float, rotation)],
                                       [0.0, *map(float, speeds)]))
@@ -92,6 +93,7 @@ def command_from_points(joint_names: Sequence[str], points: Sequence[TrajectoryP
     if np.any(speeds[-1] != 0.0):
         raise CommandError(
             f'the last point must stop every wheel (velocities 0), got {speeds[-1].tolist()}')
+    assert steering is not None   # points is not empty
     profile = WheelSpeedProfile(times, speeds)
     profile.check_limits(limits)
     return WheelCommand(start_s=start, steering_rad=steering, profile=profile)

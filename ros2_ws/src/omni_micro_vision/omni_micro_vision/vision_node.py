@@ -21,14 +21,19 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, yaw_to_quaternion
+from omni_micro_sim.conventions import (
+    join_stamp,
+    quaternion_to_yaw,
+    split_stamp,
+    yaw_to_quaternion,
+)
 from omni_micro_sim.lockstep import Ack
 from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
 from omni_micro_sim.qos import (
     CAPTURE_QOS,
     CAPTURE_TOPICS,
     DATA_QOS,
-    PER_TICK_SUBSCRIPTION,
+    PER_TICK_SUBSCRIPTION_EVENTS,
     latched,
 )
 from omni_micro_vision.camera import (
@@ -53,9 +58,10 @@ class VisionNode(Node):
         rule_defaults = CaptureRule()
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         seed = self.declare_parameter('seed', 0).value
-        rule = CaptureRule(**{name: self.declare_parameter(name, getattr(rule_defaults, name)).value
-                              for name in ('speed_threshold_m_s', 'angular_threshold_rad_s',
-                                           'dwell_s', 'frame_rate_hz')})
+        rule = CaptureRule(**{
+            name: self.declare_parameter(name, getattr(rule_defaults, name)).value
+            for name in ('speed_threshold_m_s', 'angular_threshold_rad_s', 'dwell_s',
+                         'frame_rate_hz')})
         baseline = self.declare_parameter('marker_baseline_m',
                                           DEFAULT_RIG.macro.marker_baseline_m).value
         cameras = {}
@@ -87,7 +93,7 @@ class VisionNode(Node):
                                                       CAMERA_STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
-                                 **PER_TICK_SUBSCRIPTION)
+                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._status: tuple[int, str] | None = None
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
         self.get_logger().info(
