@@ -19,6 +19,8 @@ A second signal during the shutdown ends the process at once (exit code 130).
 from __future__ import annotations
 
 import cProfile
+import difflib
+import itertools
 import json
 import os
 import select
@@ -30,13 +32,17 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
+import yaml
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
 from omni_micro_sim.qos import PER_TICK_PUBLISHER_EVENTS
 
@@ -155,6 +161,118 @@ def lifeline_fd() -> int | None:
     return fd
 
 
+# -- parameters a node was given ---------------------------------------------------------------
+# Sections a params file may have: a node of the graph (with or without its leading slash), or
+# every node ('/**').
+GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
+WILDCARD_SECTIONS = ('/**', '**')
+
+
+def params_files(argv: list[str]) -> list[str]:
+    """The --params-file paths of a ROS command line, in order."""
+    files = []
+    for flag, value in itertools.pairwise(argv):
+        if flag == '--params-file':
+            files.append(value)
+    return files
+
+
+def _flatten(values: dict[str, Any], prefix: str = '') -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            flat.update(_flatten(value, f'{name}.'))
+        else:
+            flat[name] = value
+    return flat
+
+
+def _suggestion(word: str, choices: list[str]) -> str:
+    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+    return f' (did you mean {close[0]!r}?)' if close else ''
+
+
+def check_given_parameters(node: Node, argv: list[str]) -> None:
+    """Refuse what rclpy would pass over in silence: a params-file section that names no node of
+    the graph, a key the node does not declare (from a file or -p), for this node.
+
+    Raises
+    ------
+    ParameterError
+        Naming the file (or -p), the node, the key, the value and what was expected.
+    """
+    name = node.get_name()
+    wildcard_keys: set[str] = set()
+    origin: dict[str, str] = {}
+    for path in params_files(argv):
+        try:
+            with open(path) as handle:
+                content = yaml.safe_load(handle) or {}
+        except (OSError, yaml.YAMLError) as error:
+            raise ParameterError(f'params file {path!r} cannot be read: {error}') from None
+        if not isinstance(content, dict):
+            raise ParameterError(f'params file {path!r} must map node names to '
+                                 f'{{ros__parameters: ...}}, got {content!r:.100}')
+        for section, body in content.items():
+            bare = str(section).lstrip('/')
+            if section not in WILDCARD_SECTIONS and bare not in GRAPH_NODE_NAMES:
+                raise ParameterError(
+                    f'params file {path!r}: section {section!r} names no node of the graph '
+                    f'{list(GRAPH_NODE_NAMES)}{_suggestion(bare, list(GRAPH_NODE_NAMES))}')
+            if not isinstance(body, dict) or not isinstance(body.get('ros__parameters'), dict):
+                raise ParameterError(f'params file {path!r}: section {section!r} must hold '
+                                     f'ros__parameters: {{...}}, got {body!r:.100}')
+            keys = _flatten(body['ros__parameters'])
+            if section in WILDCARD_SECTIONS:
+                wildcard_keys.update(keys)
+            elif bare == name:
+                origin.update(dict.fromkeys(keys, f'params file {path!r}'))
+            for key, value in keys.items():
+                if bare == name or (section in WILDCARD_SECTIONS and node.has_parameter(key)):
+                    _check_type(node, key, value, f'params file {path!r}')
+    # rclpy keeps no public list of what it was given, nor of what the node declared.
+    declared = sorted(node._parameters)
+    for key, parameter in node._parameter_overrides.items():
+        if key in declared or key in wildcard_keys:
+            continue
+        where = origin.get(key, 'given with -p')
+        raise ParameterError(
+            f'{where}, node {name!r}: unknown parameter {key!r} = {parameter.value!r}'
+            f'{_suggestion(key, declared)}; {name} declares: {", ".join(declared)}')
+
+
+_TYPE_NAMES = {Parameter.Type.BOOL: 'true or false', Parameter.Type.INTEGER: 'a whole number',
+               Parameter.Type.DOUBLE: 'a number with a decimal point (e.g. 5.0)',
+               Parameter.Type.STRING: 'a string',
+               Parameter.Type.BOOL_ARRAY: 'a list of true/false',
+               Parameter.Type.INTEGER_ARRAY: 'a list of whole numbers',
+               Parameter.Type.DOUBLE_ARRAY: 'a list of numbers with decimal points',
+               Parameter.Type.STRING_ARRAY: 'a list of strings'}
+
+
+def _check_type(node: Node, key: str, value: Any, where: str) -> None:
+    """A value whose type differs from the declared one: rclpy refuses it from a single file,
+    but from a second file rcl drops it without a word, so check it here for both."""
+    if not node.has_parameter(key):
+        return
+    expected = node.get_parameter(key).type_
+    if expected == Parameter.Type.NOT_SET:
+        return
+    if isinstance(value, list) and not value and expected in (
+            Parameter.Type.BOOL_ARRAY, Parameter.Type.INTEGER_ARRAY,
+            Parameter.Type.DOUBLE_ARRAY, Parameter.Type.STRING_ARRAY):
+        return   # [] has no element type: any array type takes it
+    try:
+        given = Parameter.Type.from_parameter_value(value)
+    except TypeError:
+        given = None
+    if given != expected:
+        raise ParameterError(
+            f'{where}, node {node.get_name()!r}: parameter {key!r} = {value!r} has the wrong '
+            f'type: expected {_TYPE_NAMES.get(expected, expected.name)}')
+
+
 def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exception], ...],
              on_shutdown: Callable[[NodeT], None] | None = None,
              args: list[str] | None = None, domain_id: int | None = None) -> None:
@@ -165,15 +283,22 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     ends with code 0. A bad parameter (one of ``config_errors``) exits 2 naming it; a second
     signal during the shutdown exits 130 at once.
     """
+    argv = list(sys.argv if args is None else args)
     rclpy.init(args=args, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     shutdown = _Shutdown()
     signal.signal(signal.SIGINT, shutdown.on_signal)
     signal.signal(signal.SIGTERM, shutdown.on_signal)
     node: NodeT | None = None
+    refused = False   # its parameters: then it leaves without a word
     waker: _Waker | None = None
     try:
         try:
-            node = factory()
+            try:
+                node = factory()
+            except (InvalidParameterTypeException, InvalidParameterValueException) as error:
+                raise ParameterError(f'{error} (from {", ".join(params_files(argv)) or "-p"})') \
+                    from None
+            check_given_parameters(node, argv)
             guard = node.create_guard_condition(lambda: None)
             waker = _Waker(guard.trigger, lifeline_fd())
             waker.start()
@@ -194,17 +319,19 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
                     profiler.dump_stats(os.path.join(profile_dir, f'{node.get_name()}.prof'))
         except ExternalShutdownException:
             pass
-        except config_errors as error:
+        except (ParameterError, *config_errors) as error:  # type: ignore[misc]  # a starred tuple of classes
             # A bad parameter: say which value, exit non-zero before any message is sent.
+            refused = True
             print(f'{sys.argv[0].rsplit("/", 1)[-1]}: invalid parameter: {error}', flush=True)
             raise SystemExit(2) from None
         finally:
             if node is not None:
-                if on_shutdown is not None:
-                    on_shutdown(node)
-                counter = getattr(node, 'publication_counter', None)
-                if counter is not None:
-                    print(counter.report(), flush=True)
+                if not refused:
+                    if on_shutdown is not None:
+                        on_shutdown(node)
+                    counter = getattr(node, 'publication_counter', None)
+                    if counter is not None:
+                        print(counter.report(), flush=True)
                 node.destroy_node()
             if waker is not None:
                 waker.close()
