@@ -19,14 +19,15 @@ from omni_micro_control.feedback import OUTCOME_NAMES
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'analyze', help='figures and a summary of a recorded bag',
+        'analyze', aliases=['analyse'], help='figures and a summary of a recorded bag',
         description='From a bag alone: the route against the ideal straight route (Figs. 8(c), '
                     '11) with the capture points, each wheel\'s longitudinal and transverse slip '
                     'against time (Fig. 8(a)(b)), the distance left after each period, and a '
                     'summary (final deviation, periods, duration, outcome) as JSON and markdown.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='a bag recorded with --record')
     parser.add_argument('--out', type=Path, required=True, metavar='DIR',
-                        help='folder for the figures and summary (replaced as a whole)')
+                        help='folder for the figures and summary (made if missing; files of '
+                             'the same names are replaced, each whole, other files are kept)')
     parser.set_defaults(handler=run)
 
 

@@ -64,8 +64,8 @@ GRAPH_TOPICS: dict[str, TopicSpec] = {
 def check_output_path(path: Path, force: bool) -> None:
     """Refuse to overwrite, unless ``force`` and the path is a bag (never an arbitrary folder)."""
     if not path.exists():
-        if not path.parent.exists():
-            raise UsageError(f'the folder of the bag, {str(path.parent)!r}, does not exist')
+        # Made here, as demo does: a newcomer's `--record out/bags/mine` should just work.
+        path.parent.mkdir(parents=True, exist_ok=True)
         return
     if not force:
         raise UsageError(f'{str(path)!r} exists already; give --force to replace it')
@@ -187,12 +187,25 @@ class BagMessages:
     msgtypes: dict[str, str]
 
 
+def check_readable_bag(path: Path) -> None:
+    """Raises UsageError saying why ``path`` is not a bag that can be read, and what to do."""
+    if not path.exists():
+        raise UsageError(f'{str(path)!r} does not exist')
+    if not path.is_dir():
+        raise UsageError(f'{str(path)!r} is a file: a rosbag2 bag is a folder with a '
+                         f'metadata.yaml (give the folder)')
+    if (path / 'metadata.yaml').is_file():
+        return
+    if any(child.suffix in ('.mcap', '.db3') for child in path.iterdir()):
+        raise UsageError(f'{str(path)!r} holds a bag file but no metadata.yaml: its recorder '
+                         f'was killed; recover it with: omni-micro bag-recover {path}')
+    raise UsageError(f'{str(path)!r} is not a bag: no metadata.yaml and no .mcap or .db3 file')
+
+
 def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -> BagMessages:
     from rosbags.highlevel import AnyReader
 
-    if not (path / 'metadata.yaml').is_file():
-        raise UsageError(f'{str(path)!r} is not a readable bag (no metadata.yaml); if its '
-                         f'recorder was killed, run: omni-micro bag-recover {path}')
+    check_readable_bag(path)
     result = BagMessages({}, {}, {}, {})
     with AnyReader([path], default_typestore=TYPESTORE) as reader:
         connections = [c for c in reader.connections if topics is None or c.topic in topics]

@@ -16,9 +16,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'mcap file without its footer), which readers refuse. This copies every '
                     'complete message into a new bag (default BAG-recovered); the recorder '
                     'pushes its data to the file every 0.5 s, so at most that much is lost.')
-    parser.add_argument('bag', type=Path, metavar='BAG')
+    parser.add_argument('bag', type=Path, metavar='BAG',
+                        help='the folder of a bag whose recorder was killed (an .mcap or .db3 '
+                             'file and no metadata.yaml)')
     parser.add_argument('--out', type=Path, metavar='DIR', help='default: BAG-recovered')
-    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap')
+    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap',
+                        help='storage of the recovered bag (default mcap)')
     parser.add_argument('--force', action='store_true', help='replace an existing --out bag')
     parser.set_defaults(handler=run)
 

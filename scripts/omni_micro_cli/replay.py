@@ -21,7 +21,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     '--domain-id), loopback only. /clock is replayed only with --clock, so '
                     'that nodes with use_sim_time follow the bag. Example: replay /odom into a '
                     'vision_node to get the captures again.')
-    parser.add_argument('bag', type=Path, metavar='BAG')
+    parser.add_argument('bag', type=Path, metavar='BAG', help='the folder of a recorded bag')
     parser.add_argument('--rate', type=positive_float, default=1.0, metavar='R',
                         help='speed-up of the original spacing (default 1)')
     parser.add_argument('--topics', nargs='+', metavar='T',

@@ -49,7 +49,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     '(loopback only, private ROS_DOMAIN_ID), drive the robot from the origin '
                     'to the goal with vision feedback (or one open-loop move), print where it '
                     'really stopped, and shut the graph down. Exit 0 when the goal was reached '
-                    '(or the open-loop move completed), 1 otherwise.')
+                    '(or the open-loop move completed), 1 otherwise (a node died, the '
+                    'controller gave up or was lost), 2 for a bad argument or parameter '
+                    '(nothing is started).')
     parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'), required=True,
                         metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0')
     parser.add_argument('--open-loop', type=positive_float, metavar='S',

@@ -29,14 +29,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     '--goals random goals (seeded) one after the other, record everything, and '
                     "report every process's memory growth and whether the bag holds exactly "
                     'the messages the nodes say they published. Exit 0 when every goal was '
-                    'reached and no message is missing.')
-    parser.add_argument('--goals', type=non_negative_int, default=50, metavar='N')
+                    'reached and no message is missing, 1 otherwise, 2 for a bad argument.')
+    parser.add_argument('--goals', type=non_negative_int, default=50, metavar='N',
+                        help='how many random goals, one after the other (default 50)')
     add_timing_arguments(parser, default_rtf='max')
-    parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N')
+    parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N',
+                        help='seed of the goals and of the camera noise (default 1)')
     parser.add_argument('--out', type=Path, default=Path('out/soak'), metavar='DIR',
                         help='the bag, logs and report go into a new folder here')
     parser.add_argument('--json', action='store_true', help='print the report as a JSON line')
-    parser.add_argument('--quiet', action='store_true')
+    parser.add_argument('--quiet', action='store_true',
+                        help="do not echo the nodes' logs (they are still kept)")
     parser.set_defaults(handler=run)
 
 

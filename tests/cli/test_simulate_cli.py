@@ -89,6 +89,8 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     assert (tmp_path / 'demo' / 'fig11_graph_comparison.png').stat().st_size > 10_000
     runs = json.loads((tmp_path / 'demo' / 'fig11_graph.json').read_text())
     assert runs['closed_loop']['deviation_mm'] < 0.0124
+    for run in runs.values():   # the logs it names are where it says, not in a deleted folder
+        assert (Path(run['log_dir']) / 'controller_node.log').is_file(), run['log_dir']
     assert 5.0 < runs['open_loop']['deviation_mm'] < 20.0
     for name in ('fig11_open_loop', 'fig11_closed_loop'):
         assert (tmp_path / 'bags' / name / 'metadata.yaml').is_file()
