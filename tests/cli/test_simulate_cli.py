@@ -87,6 +87,15 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     assert '| vision feedback: deviation | 0.0124 mm | 0.00' in done.stdout
     assert (tmp_path / 'demo' / 'fig8c_route.png').stat().st_size > 10_000
     assert (tmp_path / 'demo' / 'fig11_graph_comparison.png').stat().st_size > 10_000
+    # The README shows what demo prints, row for row.
+    readme = (ROOT / 'README.md').read_text()
+    section = readme.split('## What `demo` prints', 1)[1].split('\n## ', 1)[0]
+    headers = ('| result', '| Fig. 11, (0,0)', '| ---')
+    rows = [line for line in section.splitlines()
+            if line.startswith('| ') and not line.startswith(headers)]
+    assert len(rows) == 8
+    for row in rows:
+        assert row in done.stdout, f'README row not printed by demo: {row}'
     runs = json.loads((tmp_path / 'demo' / 'fig11_graph.json').read_text())
     assert runs['closed_loop']['deviation_mm'] < 0.0124
     for run in runs.values():   # the logs it names are where it says, not in a deleted folder
