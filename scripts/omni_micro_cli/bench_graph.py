@@ -10,22 +10,17 @@ slow a run down, never change it.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import os
 import pstats
-import subprocess
-import sys
 import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.machine_load import busy_cores
 from omni_micro_sim import paper
 
-# Spins one core until killed, and stops by itself if its parent dies.
-_HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n'
 # (label, real-time factor, lockstep, cores kept busy by other programs)
 CASES = (('lockstep --rtf max, idle', math.inf, True, 0),
          ('lockstep --rtf max, 1 core busy', math.inf, True, 1),
@@ -48,17 +43,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'the .prof files in DIR')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     parser.set_defaults(handler=run)
-
-
-@contextlib.contextmanager
-def busy_cores(count: int) -> Iterator[None]:
-    hogs = [subprocess.Popen([sys.executable, '-c', _HOG]) for _ in range(count)]
-    try:
-        yield
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
 
 
 def one_run(rtf: float, lockstep: bool, busy: int, scratch: Path, name: str) -> GraphResult:

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
+import functools
 import os
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -18,6 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.graph import DomainLease, node_environment
+from omni_micro_cli.machine_load import busy_cores
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -116,23 +116,7 @@ def omni_micro():
     return run_omni_micro
 
 
-# Spins one core until stopped, and stops by itself if its parent (the test) dies.
-_HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pass\n'
-
-
-@contextlib.contextmanager
-def machine_kept_busy() -> Iterator[None]:
-    """Every core of the machine kept busy by other programs, as on a shared CI host."""
-    hogs = [subprocess.Popen([sys.executable, '-c', _HOG]) for _ in range(os.cpu_count() or 2)]
-    try:
-        yield
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
-
-
 @pytest.fixture
 def busy_machine():
     """``with busy_machine(): ...`` runs the block with every core kept busy."""
-    return machine_kept_busy
+    return functools.partial(busy_cores, os.cpu_count() or 2)

@@ -46,3 +46,12 @@ def test_mypy_is_strict_on_the_plain_modules(tmp_path):
          '--python-executable', sys.executable, '--no-incremental', '--no-error-summary',
          str(package / 'lockstep.py')], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert result.returncode == 1 and 'no-untyped-def' in result.stdout, result.stdout
+
+
+def test_readme_figures_are_read_from_their_table_rows():
+    from omni_micro_cli.readme_figures import readme_range
+
+    readme = ('| measure | figure |\n| speed-up (target 50x) | **56.9-58.3x** |\n'
+              '| one | 0.64 ms |\n')
+    assert readme_range(readme, 'speed-up') == (56.9, 58.3)
+    assert readme_range(readme, 'one') == (0.64, 0.64)
