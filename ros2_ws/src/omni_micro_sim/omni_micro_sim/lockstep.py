@@ -28,7 +28,8 @@ from dataclasses import dataclass
 # Reports travel here as diagnostic_msgs/DiagnosticStatus: name = the node, values = the fields.
 ACK_TOPIC = '/lockstep'
 ACK_MESSAGE = 'lockstep'
-# A move starts this long after its capture unless the controller says otherwise.
+# The most the robot runs ahead of the slowest node taking part (two 20 ms ticks); a controller
+# whose moves start sooner after their capture (command_lead_s) lowers it to that.
 DEFAULT_MAX_LEAD_S = 0.04
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
