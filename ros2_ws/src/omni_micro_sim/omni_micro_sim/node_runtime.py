@@ -94,7 +94,7 @@ class LockstepReporter:
 
 
 class _Shutdown:
-    """Why and whether the node was asked to stop (set by the signal handler)."""
+    """Whether the node was asked to stop, and how often (set by the signal handler)."""
 
     def __init__(self) -> None:
         self.signals = 0
