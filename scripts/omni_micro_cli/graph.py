@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_sim.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
@@ -66,9 +66,9 @@ class NodeSpec:
 
 
 def default_nodes() -> list[NodeSpec]:
-    return [NodeSpec('omni_micro_sim', 'dynamics_node'),
-            NodeSpec('omni_micro_vision', 'vision_node'),
-            NodeSpec('omni_micro_control', 'controller_node')]
+    packages = ('omni_micro_sim', 'omni_micro_vision', 'omni_micro_control')
+    return [NodeSpec(package, name)
+            for package, name in zip(packages, GRAPH_NODE_NAMES, strict=True)]
 
 
 def message_class(msgtype: str) -> type:

@@ -43,5 +43,8 @@ def body_twist(phi_rad: float, vx_m_s: float, vy_m_s: float) -> tuple[float, flo
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
 PUBLISHED_MARKER = 'published message counts: '
 
+# The nodes of the graph, by name (a params file's sections name them).
+GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
+
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

@@ -41,7 +41,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from omni_micro_sim.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_sim.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
 from omni_micro_sim.qos import PER_TICK_PUBLISHER_EVENTS
@@ -164,7 +164,6 @@ def lifeline_fd() -> int | None:
 # -- parameters a node was given ---------------------------------------------------------------
 # Sections a params file may have: a node of the graph (with or without its leading slash), or
 # every node ('/**').
-GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
 WILDCARD_SECTIONS = ('/**', '**')
 
 
