@@ -3,7 +3,8 @@
 Starts each node as its own OS process through its installed entry point, with its package's
 params file, on loopback only and in a private DDS domain; keeps and prefixes their logs; brings
 the graph up with the clock paused so that nothing moves before every node listens; waits for the
-controller's outcome; shuts down in order (SIGINT, grace, SIGTERM, SIGKILL) and cleans Fast DDS
+controller's outcome; shuts down in phases (the controller, then the rest at once, then the
+recorder; SIGINT, and SIGTERM / SIGKILL only for a node that hangs) and cleans Fast DDS
 shared-memory leftovers.
 
 The children cannot outlive it: each inherits the read end of a lifeline pipe whose write end

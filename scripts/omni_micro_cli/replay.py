@@ -46,10 +46,10 @@ SYNC_WINDOW = 10
 
 
 def header_stamp_ns(msg: object) -> int | None:
+    from omni_micro_sim.conventions import stamp_ns
+
     header = getattr(msg, 'header', None)
-    if header is None:
-        return None
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    return None if header is None else stamp_ns(header.stamp)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -75,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from omni_micro_cli.graph import message_class
-    from omni_micro_sim.lockstep import ACK_MESSAGE, Ack, LockstepError
-    from omni_micro_sim.node_runtime import LOCKSTEP_QOS
+    from omni_micro_sim.lockstep import ACK_TOPIC, LockstepError
+    from omni_micro_sim.node_runtime import LOCKSTEP_QOS, decode_ack
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     rclpy.init(domain_id=args.domain_id)
@@ -92,18 +92,18 @@ def run(args: argparse.Namespace) -> int:
     handled: dict[str, int] = {}
 
     def on_report(msg: DiagnosticStatus) -> None:
-        if msg.message == ACK_MESSAGE and msg.name in args.sync:
-            try:
-                ack = Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
-            except LockstepError:
-                return
-            handled[msg.name] = max(handled.get(msg.name, -1), ack.processed_ns)
+        try:
+            ack = decode_ack(msg)
+        except LockstepError:
+            return
+        if ack is not None and ack.node in args.sync:
+            handled[ack.node] = max(handled.get(ack.node, -1), ack.processed_ns)
 
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     sent_stamps: list[int] = []
     if args.sync:
-        node.create_subscription(DiagnosticStatus, '/lockstep', on_report, LOCKSTEP_QOS)
+        node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report, LOCKSTEP_QOS)
 
     def wait_for_sync(behind: int) -> None:
         """Until every --sync node handled the message sent ``behind`` stamped ones ago."""

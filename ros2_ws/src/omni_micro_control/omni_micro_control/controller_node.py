@@ -39,7 +39,7 @@ from omni_micro_control.feedback import (
     Phase,
     VisionFeedbackController,
 )
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
+from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
 from omni_micro_sim.errors import CommandError, ParameterError
 from omni_micro_sim.lockstep import Ack
 from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
@@ -162,17 +162,14 @@ class ControllerNode(Node):
             # late, e.g. respawned): timer2 counts from now, not from the time 0 we assumed.
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
-        self._robot_time_ns = max(self._robot_time_ns,
-                                  msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        self._robot_time_ns = max(self._robot_time_ns, stamp_ns(msg.header.stamp))
         if self.watcher.on_wheel_state(rotations, speeds):
             self._act(self.controller.on_wheels_stopped(stamp))
         self._report_lockstep()
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
         self._handle_capture(msg, camera)
-        self._capture_handled_ns = max(
-            self._capture_handled_ns,
-            msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(msg.header.stamp))
         self._report_lockstep()
 
     def _report_lockstep(self) -> None:
@@ -314,7 +311,7 @@ class ControllerNode(Node):
 
     def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
-        self._command_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self._command_ns = stamp_ns(msg.header.stamp)
 
 
 def _stop_on_shutdown(node: ControllerNode) -> None:

@@ -8,6 +8,7 @@ Odometry twists are in the robot frame (REP-103/105).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 
 def split_stamp(seconds: float) -> tuple[int, int]:
@@ -18,6 +19,11 @@ def split_stamp(seconds: float) -> tuple[int, int]:
 
 def join_stamp(sec: int, nanosec: int) -> float:
     return sec + nanosec * 1e-9
+
+
+def stamp_ns(stamp: Any) -> int:
+    """A builtin_interfaces/Time as whole nanoseconds: exact, for comparing stamps."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def through_stamp(seconds: float) -> float:

@@ -36,17 +36,21 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_sim import paper
-from omni_micro_sim.conventions import body_twist, join_stamp, split_stamp, yaw_to_quaternion
+from omni_micro_sim.conventions import (
+    body_twist,
+    join_stamp,
+    split_stamp,
+    stamp_ns,
+    yaw_to_quaternion,
+)
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_sim.lockstep import (
-    ACK_MESSAGE,
     ACK_TOPIC,
     DEFAULT_MAX_LEAD_S,
-    Ack,
     LockstepError,
     LockstepGate,
 )
-from omni_micro_sim.node_runtime import LOCKSTEP_QOS, PublicationCounter, run_node
+from omni_micro_sim.node_runtime import LOCKSTEP_QOS, PublicationCounter, decode_ack, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
@@ -214,14 +218,13 @@ class DynamicsNode(Node):
         self._advance()
 
     def _on_ack(self, msg: DiagnosticStatus) -> None:
-        if msg.message != ACK_MESSAGE:
-            return
         try:
-            ack = Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
+            ack = decode_ack(msg)
         except LockstepError as error:
             self.get_logger().error(f'ignored: {error}', throttle_duration_sec=5.0)
             return
-        self.lockstep.on_ack(ack)
+        if ack is not None:
+            self.lockstep.on_ack(ack)
         self._advance()
 
     def _due_tick(self) -> int | float:
@@ -303,7 +306,7 @@ class DynamicsNode(Node):
             self._advance()   # time may have been waiting for this very command
 
     def _schedule_trajectory(self, msg: JointTrajectory) -> None:
-        self.lockstep.on_command(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        self.lockstep.on_command(stamp_ns(msg.header.stamp))
         points = [TrajectoryPoint(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9,
                                   list(p.positions), list(p.velocities)) for p in msg.points]
         try:

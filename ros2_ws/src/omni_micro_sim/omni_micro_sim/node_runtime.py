@@ -93,6 +93,19 @@ class LockstepReporter:
             values=[KeyValue(key=key, value=value) for key, value in ack.to_values()]))
 
 
+def decode_ack(msg: DiagnosticStatus) -> Ack | None:
+    """The lockstep report a /lockstep message carries (None for another kind of status).
+
+    Raises
+    ------
+    LockstepError
+        A report with a missing, unknown or malformed field, named.
+    """
+    if msg.message != ACK_MESSAGE:
+        return None
+    return Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
+
+
 class _Shutdown:
     """Whether the node was asked to stop, and how often (set by the signal handler)."""
 

@@ -25,6 +25,7 @@ from omni_micro_sim.conventions import (
     join_stamp,
     quaternion_to_yaw,
     split_stamp,
+    stamp_ns,
     yaw_to_quaternion,
 )
 from omni_micro_sim.lockstep import Ack
@@ -133,7 +134,7 @@ class VisionNode(Node):
         published = self._see(msg)
         # Last: everything this sample caused is out before the robot may move on.
         self.lockstep.report(Ack(
-            self.get_name(), msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec,
+            self.get_name(), stamp_ns(msg.header.stamp),
             captures_ns=(min(published), max(published)) if published else None))
 
     def _see(self, msg: Odometry) -> list[int]:
@@ -172,7 +173,7 @@ class VisionNode(Node):
         self.capture_pubs[capture.camera].publish(msg)
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
                              camera=capture.camera)
-        return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        return stamp_ns(msg.header.stamp)
 
 
 def main(args: list[str] | None = None) -> None:
