@@ -55,6 +55,10 @@ GRAPH_TOPICS: dict[str, TopicSpec] = {
     '/wheel_trajectory': TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
     '/camera/macro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
     '/camera/micro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
+    '/camera/macro/pose_with_covariance': TopicSpec(
+        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
+    '/camera/micro/pose_with_covariance': TopicSpec(
+        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
     '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
     '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
     '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),

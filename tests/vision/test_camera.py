@@ -6,6 +6,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from omni_micro_sim.conventions import CaptureUncertainty
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraConfigError,
@@ -105,3 +106,43 @@ def test_bad_rule_and_seed_name_the_value():
         CaptureRule(frame_rate_hz=0.0)
     with pytest.raises(CameraConfigError, match='seed'):
         StationaryCamera(seed=-1)
+
+
+@pytest.mark.parametrize('camera', [DEFAULT_RIG.macro, DEFAULT_RIG.micro], ids=['macro', 'micro'])
+@pytest.mark.parametrize('heading', [0.0, 0.7, 2.0])
+def test_the_stated_uncertainty_is_the_spread_of_the_captures(camera, heading):
+    x0, y0 = camera.center_m[0] + 3.3e-5, camera.center_m[1] - 2.1e-5
+    samples = np.array([camera.measure(x0, y0, heading, capture_rng(5, 0, k))
+                        for k in range(4000)])
+    stated = camera.uncertainty(heading)
+    measured = (np.std(samples[:, 0]), np.std(samples[:, 1]),
+                np.std(np.remainder(samples[:, 2] - heading + math.pi, 2 * math.pi) - math.pi))
+    # 4000 draws pin a standard deviation to about 2 %; the model must be within 10 %.
+    assert measured == pytest.approx((stated.x_sigma_m, stated.y_sigma_m,
+                                      stated.heading_sigma_rad), rel=0.1)
+    distances = np.hypot(samples[:, 0] - x0, samples[:, 1] - y0)
+    inside = np.mean(distances <= stated.radius_95_m)
+    assert 0.94 <= inside <= 0.995   # the larger axis is used, so at least 95 %
+
+
+def test_each_capture_carries_its_uncertainty_through_a_covariance():
+    camera = StationaryCamera(seed=3)
+    events = camera.on_odometry(1.0, 0.1, 0.0, 0.3, 0.0, 0.0) + \
+        camera.on_odometry(1.05, 0.1, 0.0, 0.3, 0.0, 0.0)
+    capture = next(event for event in events if isinstance(event, Capture))
+    assert capture.uncertainty == DEFAULT_RIG.micro.uncertainty(capture.phi_rad)
+    matrix = capture.uncertainty.covariance()
+    assert len(matrix) == 36 and matrix[0] > 0 and matrix[7] > 0 and matrix[35] > 0
+    back = CaptureUncertainty.from_covariance(matrix)
+    assert back.x_sigma_m == pytest.approx(capture.uncertainty.x_sigma_m, rel=1e-15)
+    assert back.radius_95_m < 0.4e-6 < DEFAULT_RIG.macro.uncertainty(0.0).radius_95_m
+
+
+@pytest.mark.parametrize('matrix, message', [
+    ([0.0] * 35, '36 values'),
+    ([-1.0] + [0.0] * 35, 'x variance'),
+    ([0.0] * 35 + [math.nan], 'yaw variance'),
+])
+def test_a_broken_covariance_is_refused_naming_the_problem(matrix, message):
+    with pytest.raises(ValueError, match=message):
+        CaptureUncertainty.from_covariance(matrix)

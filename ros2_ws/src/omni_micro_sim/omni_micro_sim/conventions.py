@@ -8,6 +8,7 @@ Odometry twists are in the robot frame (REP-103/105).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 
@@ -44,6 +45,65 @@ def body_twist(phi_rad: float, vx_m_s: float, vy_m_s: float) -> tuple[float, flo
     """The platform-frame velocity (vx, vy) expressed in the robot frame."""
     cos_phi, sin_phi = math.cos(phi_rad), math.sin(phi_rad)
     return cos_phi * vx_m_s + sin_phi * vy_m_s, -sin_phi * vx_m_s + cos_phi * vy_m_s
+
+
+# The radius holding 95 % of a 2-D Gaussian's draws, in standard deviations: sqrt(-2 ln 0.05).
+RADIUS_95_PER_SIGMA = math.sqrt(-2.0 * math.log(0.05))
+
+
+@dataclass(frozen=True)
+class CaptureUncertainty:
+    """One capture's standard deviations: x and y of the position, and the heading.
+
+    A camera publishes them beside each PoseStamped capture as a PoseWithCovarianceStamped
+    (README, "Camera contract"); the covariance layout is :meth:`covariance`.
+    """
+
+    x_sigma_m: float
+    y_sigma_m: float
+    heading_sigma_rad: float
+
+    @property
+    def radius_95_m(self) -> float:
+        """Radius around the capture that holds the true position with 95 % probability
+        (exact for equal x and y spreads; the larger one is used otherwise)."""
+        return RADIUS_95_PER_SIGMA * max(self.x_sigma_m, self.y_sigma_m)
+
+    def averaged(self, count: int) -> CaptureUncertainty:
+        """The spread of the mean of ``count`` captures with independent errors."""
+        root = math.sqrt(count)
+        return CaptureUncertainty(self.x_sigma_m / root, self.y_sigma_m / root,
+                                  self.heading_sigma_rad / root)
+
+    def covariance(self) -> list[float]:
+        """Row-major 6 x 6 covariance of (x, y, z, roll, pitch, yaw), as in
+        geometry_msgs/PoseWithCovariance. The platform fixes z, roll and pitch: variance 0."""
+        matrix = [0.0] * 36
+        matrix[0] = self.x_sigma_m ** 2
+        matrix[7] = self.y_sigma_m ** 2
+        matrix[35] = self.heading_sigma_rad ** 2
+        return matrix
+
+    @classmethod
+    def from_covariance(cls, matrix: list[float] | tuple[float, ...]) -> CaptureUncertainty:
+        """Read back :meth:`covariance` (or a real tracker's own estimate).
+
+        Raises
+        ------
+        ValueError
+            If the matrix is not 36 values or a needed variance is negative or not finite.
+        """
+        values = list(matrix)
+        if len(values) != 36:
+            raise ValueError(f'a pose covariance has 36 values, got {len(values)}')
+        sigmas = []
+        for name, index in (('x', 0), ('y', 7), ('yaw', 35)):
+            variance = float(values[index])
+            if not math.isfinite(variance) or variance < 0.0:
+                raise ValueError(
+                    f'the {name} variance of a capture must be finite and >= 0, got {variance!r}')
+            sigmas.append(math.sqrt(variance))
+        return cls(*sigmas)
 
 
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).

@@ -11,6 +11,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+# Beside each capture, the same pose with its uncertainty (geometry_msgs/PoseWithCovarianceStamped,
+# same stamp): the captures stay PoseStamped, so a driver that cannot estimate its own
+# uncertainty still fits the contract (the controller then takes a fixed one from its params).
+CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
+                             'micro': '/camera/micro/pose_with_covariance'}
 
 
 def latched(depth: int) -> QoSProfile:

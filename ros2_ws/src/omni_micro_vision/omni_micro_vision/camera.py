@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_micro_sim.conventions import CaptureUncertainty
+
 
 class CameraConfigError(ValueError):
     """A camera or capture parameter is out of range; the message names it."""
@@ -77,6 +79,23 @@ class CameraModel:
     @property
     def pixel_size_m(self) -> tuple[float, float]:
         return (self.field_m[0] / self.resolution_px[0], self.field_m[1] / self.resolution_px[1])
+
+    @property
+    def mark_sigma_px(self) -> float:
+        """Standard deviation of one mark's position in pixels: the tracker's Gaussian error
+        plus the rounding to the sub-pixel grid (uniform, variance q^2 / 12)."""
+        return math.sqrt(self.noise_px ** 2 + self.quantisation_px ** 2 / 12.0)
+
+    def uncertainty(self, phi_rad: float) -> CaptureUncertainty:
+        """The analytic spread of a capture of a robot heading ``phi_rad`` (see
+        :class:`CaptureUncertainty`); tests/vision checks it against sampled captures."""
+        sigma_x = self.mark_sigma_px * self.pixel_size_m[0]
+        sigma_y = self.mark_sigma_px * self.pixel_size_m[1]
+        # The heading comes from the marks' offset across the baseline: the difference of two
+        # independent mark errors, projected on the baseline's normal.
+        across = math.hypot(sigma_x * math.sin(phi_rad), sigma_y * math.cos(phi_rad))
+        return CaptureUncertainty(sigma_x / math.sqrt(2.0), sigma_y / math.sqrt(2.0),
+                                  math.sqrt(2.0) * across / self.marker_baseline_m)
 
     def contains(self, x_m: float, y_m: float) -> bool:
         return (abs(x_m - self.center_m[0]) <= 0.5 * self.field_m[0]
@@ -144,6 +163,7 @@ class Capture:
     camera: str
     stop_index: int
     frame_index: int
+    uncertainty: CaptureUncertainty
 
 
 @dataclass(frozen=True)
@@ -231,7 +251,7 @@ class StationaryCamera:
             measured = camera.measure(x_m, y_m, phi_rad,
                                       capture_rng(self.seed, self.stop_index, frame))
             events.append(Capture(self.frame_time_s(frame), *measured, camera.name,
-                                  self.stop_index, frame))
+                                  self.stop_index, frame, camera.uncertainty(measured[2])))
         return events
 
 

@@ -4,6 +4,8 @@ Subscribes /odom (the robot's true motion, from the dynamics node) and publishes
 is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
   /camera/macro/pose   captures of the macro camera (15 cm x 15 cm field)
   /camera/micro/pose   captures of the micro camera (2 mm x 2 mm field)
+  /camera/<name>/pose_with_covariance   each capture again, same stamp, with its uncertainty
+                       (geometry_msgs/PoseWithCovarianceStamped, from the camera model)
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
   /lockstep            its report after each odometry sample (omni_micro_sim.lockstep)
@@ -16,7 +18,7 @@ from __future__ import annotations
 import math
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -31,6 +33,7 @@ from omni_micro_sim.conventions import (
 from omni_micro_sim.lockstep import Ack
 from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
 from omni_micro_sim.qos import (
+    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
     DATA_QOS,
@@ -90,6 +93,9 @@ class VisionNode(Node):
         count = self.publication_counter.wrap
         self.capture_pubs = {name: count(self.create_publisher(PoseStamped, topic, CAPTURE_QOS))
                              for name, topic in CAPTURE_TOPICS.items()}
+        self.covariance_pubs = {
+            name: count(self.create_publisher(PoseWithCovarianceStamped, topic, CAPTURE_QOS))
+            for name, topic in CAPTURE_COVARIANCE_TOPICS.items()}
         self.status_pub = count(self.create_publisher(DiagnosticStatus, '/camera/status',
                                                       CAMERA_STATUS_QOS))
         self.lockstep = LockstepReporter(self)
@@ -170,6 +176,12 @@ class VisionNode(Node):
         msg.pose.position.x = capture.x_m
         msg.pose.position.y = capture.y_m
         msg.pose.orientation.z, msg.pose.orientation.w = yaw_to_quaternion(capture.phi_rad)
+        # The uncertainty first: a controller reading it has the whole capture when the
+        # PoseStamped arrives, and the lockstep report comes after both.
+        with_covariance = PoseWithCovarianceStamped(header=msg.header)
+        with_covariance.pose.pose = msg.pose
+        with_covariance.pose.covariance = capture.uncertainty.covariance()
+        self.covariance_pubs[capture.camera].publish(with_covariance)
         self.capture_pubs[capture.camera].publish(msg)
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
                              camera=capture.camera)
