@@ -21,9 +21,12 @@ from omni_micro_control.feedback import (
     MoveWatcher,
     Observation,
     Outcome,
+    PaperRule,
     VisionFeedbackController,
 )
+from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
 from omni_micro_sim.conventions import (
+    CaptureUncertainty,
     body_twist,
     quaternion_to_yaw,
     through_stamp,
@@ -53,6 +56,8 @@ class ClosedLoopResult:
     goal_m: tuple[float, float]
     captures_used: list[Observation] = field(default_factory=list)
     route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # t, x, y
+    moves: list[Move] = field(default_factory=list)
+    planner: PaperRule | ModelBasedPlanner | None = None
 
     @property
     def deviation_m(self) -> float:
@@ -65,8 +70,12 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                     config: FeedbackConfig | None = None, rig: CameraRig = DEFAULT_RIG,
                     rule: CaptureRule | None = None, seed: int = 0,
                     start: RobotState | None = None, period_s: float = DEFAULT_PERIOD_S,
-                    max_sim_time_s: float = 600.0) -> ClosedLoopResult:
+                    max_sim_time_s: float = 600.0, model_robot: RobotParameters | None = None,
+                    model: ModelConfig | None = None) -> ClosedLoopResult:
     """Drive the robot to ``goal_m`` as the graph would; stop at the controller's outcome.
+
+    ``robot`` is the true robot; in the model mode (``config.mode``) the controller starts
+    from ``model_robot`` (the nominal robot by default: no offsets), as the node does.
 
     Raises
     ------
@@ -76,7 +85,9 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     limits = limits or MotorLimits()
     grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
     camera = StationaryCamera(rig, rule, seed)
-    controller = VisionFeedbackController(config)
+    planner = planner_for(config or FeedbackConfig(), model_robot, limits, model)
+    controller = VisionFeedbackController(config, planner)
+    moves: list[Move] = []
     watcher = MoveWatcher()
     controller.set_goal(goal_m, 0.0)
     used: list[Observation] = []
@@ -101,13 +112,16 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
             if isinstance(event, Capture):
                 observation = Observation(
                     through_stamp(event.stamp_s), event.x_m, event.y_m,
-                    quaternion_to_yaw(*yaw_to_quaternion(event.phi_rad)), event.camera)
+                    quaternion_to_yaw(*yaw_to_quaternion(event.phi_rad)), event.camera,
+                    # The uncertainty crosses a PoseWithCovarianceStamped: variances.
+                    CaptureUncertainty.from_covariance(event.uncertainty.covariance()))
                 decisions.append(controller.on_capture(observation))
             else:
                 decisions.append(controller.on_out_of_field(through_stamp(event.stamp_s)))
         for decision in decisions:
             if isinstance(decision, Move):
                 used.append(decision.observation)
+                moves.append(decision)
                 profile = move_profile(decision.duration_s, limits)
                 watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
                 # The command crosses a JointTrajectory: knot times become nanosecond stamps.
@@ -127,4 +141,4 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
                             grid.simulator.state, grid.time_s,
                             (float(goal_m[0]), float(goal_m[1])), used,
-                            np.array(route))
+                            np.array(route), moves, planner)

@@ -31,11 +31,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'demo', help="the paper's results reproduced: Fig. 11 through the node graph",
         description="Run the paper's Fig. 11 scenario, (0,0) -> (100,0) mm, through the ROS 2 "
-                    "node graph: one open-loop move of 7 s, then vision feedback; print both "
-                    "deviations beside the paper's (13 mm and 0.0124 mm) and write the "
-                    "comparison figure, plus the open-loop figures of Figs. 6-8 from the core. "
-                    "Exit 0 when the closed loop reached the goal, 1 otherwise, 2 for a bad "
-                    "argument.")
+                    "node graph: one open-loop move of 7 s, then vision feedback by the "
+                    "paper's rule, then by the model-based controller; print the deviations "
+                    "beside the paper's (13 mm and 0.0124 mm) and write the comparison figure, "
+                    "plus the open-loop figures of Figs. 6-8 from the core. Exit 0 when both "
+                    "closed loops reached the goal, 1 otherwise, 2 for a bad argument.")
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='where the figures and summary go (default out/demo)')
     add_timing_arguments(parser, default_rtf='max')
@@ -43,8 +43,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
     parser.add_argument('--record', type=Path, metavar='DIR',
-                        help='record both runs as bags DIR/fig11_open_loop and '
-                             'DIR/fig11_closed_loop')
+                        help='record the runs as bags DIR/fig11_open_loop, '
+                             'DIR/fig11_closed_loop and DIR/fig11_model')
     add_storage_arguments(parser)
     parser.set_defaults(handler=run)
 
@@ -55,25 +55,27 @@ def _progress(message: str) -> None:
 
 def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
     if args.record is None:
-        return {'open_loop': None, 'closed_loop': None}
+        return {'open_loop': None, 'closed_loop': None, 'model': None}
     args.record.mkdir(parents=True, exist_ok=True)
-    paths = {name: args.record / f'fig11_{name}' for name in ('open_loop', 'closed_loop')}
+    paths = {name: args.record / f'fig11_{name}'
+             for name in ('open_loop', 'closed_loop', 'model')}
     for path in paths.values():
         check_output_path(path, args.force)   # refuse before anything runs
     return paths
 
 
 def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
-              bag: Path | None) -> GraphResult:
+              bag: Path | None, mode: str = 'paper') -> GraphResult:
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
         lockstep=not args.free_running,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
-        force=args.force))
+        force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {}))
 
 
-def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
+def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
+                     model: GraphResult) -> str:
     return '\n'.join([
         '| Fig. 11, (0,0) -> (100,0) mm | paper | this graph |',
         '|---|---|---|',
@@ -83,6 +85,9 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult) -> str:
         f'{closed_loop.deviation_m * 1e3:.4f} mm ({closed_loop.deviation_m * 1e6:.2f} um) |',
         f'| vision feedback: periods | - | {closed_loop.periods} |',
         f'| vision feedback: simulated time | - | {closed_loop.sim_time_s:.2f} s |',
+        f'| model-based controller: deviation | - | {model.deviation_m * 1e6:.2f} um |',
+        f'| model-based controller: periods | - | {model.periods} |',
+        f'| model-based controller: simulated time | - | {model.sim_time_s:.2f} s |',
         ''])
 
 
@@ -104,8 +109,13 @@ def run(args: argparse.Namespace) -> int:
         closed_loop = graph_run(args, None, scratch / 'logs', bags['closed_loop'])
         _progress(f'  {closed_loop.outcome}: deviation {closed_loop.deviation_m * 1e6:.2f} um '
                   f'after {closed_loop.periods} periods')
-        if closed_loop.outcome != 'reached':
-            raise RunFailed(f'the closed loop ended {closed_loop.outcome}: {closed_loop.reason}')
+        _progress('Fig. 11 with the model-based controller through the node graph')
+        model = graph_run(args, None, scratch / 'logs', bags['model'], mode='model')
+        _progress(f'  {model.outcome}: deviation {model.deviation_m * 1e6:.2f} um '
+                  f'after {model.periods} periods')
+        for name, result in (('closed loop', closed_loop), ('model-based loop', model)):
+            if result.outcome != 'reached':
+                raise RunFailed(f'the {name} ended {result.outcome}: {result.reason}')
         used = np.array([c[1:3] for c in closed_loop.captures]).reshape(-1, 2)
         plots.closed_loop_comparison(
             scratch / 'fig11_graph_comparison.png',
@@ -113,9 +123,10 @@ def run(args: argparse.Namespace) -> int:
             np.array([r[1:] for r in closed_loop.route]).reshape(-1, 2), used,
             paper.FIG11_GOAL_M, zoom_half_width_m=20e-6,
             title='Fig. 11 through the node graph')
-        table = comparison_table(open_loop, closed_loop)
+        table = comparison_table(open_loop, closed_loop, model)
         (scratch / 'fig11_graph.md').write_text(table)
-        summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json()}
+        summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json(),
+                     'model': model.as_json()}
         for summary in summaries.values():
             # The logs move with the rest from the scratch folder into --out.
             summary['log_dir'] = str(args.out / Path(str(summary['log_dir'])).relative_to(scratch))

@@ -311,6 +311,7 @@ class GraphOptions:
     more_goals_m: list[tuple[float, float]] = field(default_factory=list)
     respawn: bool = False                 # restart a crashed vision or controller node
     vision_overrides: dict[str, object] = field(default_factory=dict)
+    controller_overrides: dict[str, object] = field(default_factory=dict)
     dynamics_overrides: dict[str, object] = field(default_factory=dict)
     # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
     on_running: Callable[[Graph], None] | None = None
@@ -367,8 +368,10 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
         overrides.update(options.vision_overrides)
-    elif spec.executable == 'controller_node' and options.open_loop_s is not None:
-        overrides.update(open_loop_duration_s=float(options.open_loop_s))
+    elif spec.executable == 'controller_node':
+        if options.open_loop_s is not None:
+            overrides.update(open_loop_duration_s=float(options.open_loop_s))
+        overrides.update(options.controller_overrides)
     overrides.update(spec.overrides)
     return overrides
 

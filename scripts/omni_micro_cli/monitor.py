@@ -22,7 +22,13 @@ from rclpy.node import Node
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
-from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, STATUS_QOS
+from omni_micro_sim.qos import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_QOS,
+    CAPTURE_TOPICS,
+    DATA_QOS,
+    STATUS_QOS,
+)
 
 
 class Supervisor(Protocol):
@@ -40,8 +46,11 @@ class Supervisor(Protocol):
         ...
 
 # Topic -> how many subscribers it needs before time may start (the monitor's own included).
-READY_SUBSCRIBERS = {'/wheel_trajectory': 1, '/joint_states': 1, '/camera/macro/pose': 1,
-                     '/camera/micro/pose': 1, '/odom': 1}
+# The graph is up once each of these is heard by someone; the controller reads a camera's
+# captures with their uncertainty, or bare (capture_uncertainty: fixed): either will do.
+READY_SUBSCRIBERS: list[tuple[str, ...]] = [
+    ('/wheel_trajectory',), ('/joint_states',), ('/odom',),
+    *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera]) for camera in CAPTURE_TOPICS)]
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
 
@@ -114,8 +123,8 @@ class GraphMonitor:
         deadline = time.monotonic() + timeout_s
         while True:
             graph.check_alive()
-            missing = [topic for topic, count in READY_SUBSCRIBERS.items()
-                       if self.node.count_subscribers(topic) < count]
+            missing = [' or '.join(topics) for topics in READY_SUBSCRIBERS
+                       if not any(self.node.count_subscribers(topic) for topic in topics)]
             if recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher yet)')
             if not missing and self.parameters.service_is_ready():
@@ -181,21 +190,25 @@ class GraphMonitor:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
 
-    INPUTS: ClassVar[dict[str, tuple[str, ...]]] = {'vision_node': ('/odom',),
-              'controller_node': ('/joint_states', '/camera/macro/pose', '/goal_pose')}
+    # What each respawnable node reads; of alternatives, whichever it subscribes (the
+    # controller reads captures with their covariance, or bare ones).
+    INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
+        'vision_node': (('/odom',),),
+        'controller_node': (('/joint_states',), ('/goal_pose',),
+                            ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
 
     def _endpoints(self, name: str) -> set[bytes]:
-        return {bytes(info.endpoint_gid) for topic in self.INPUTS.get(name, ())
+        return {bytes(info.endpoint_gid) for topics in self.INPUTS.get(name, ())
+                for topic in topics
                 for info in self.node.get_subscriptions_info_by_topic(topic)
                 if info.node_name == name}
 
     def _has_new_endpoints(self, name: str) -> bool:
-        topics = self.INPUTS.get(name, ())
-        fresh = {topic for topic in topics
-                 for info in self.node.get_subscriptions_info_by_topic(topic)
-                 if info.node_name == name and bytes(info.endpoint_gid)
-                 not in self.known_endpoints.get(name, set())}
-        return len(fresh) == len(topics)
+        known = self.known_endpoints.get(name, set())
+        return all(any(info.node_name == name and bytes(info.endpoint_gid) not in known
+                       for topic in topics
+                       for info in self.node.get_subscriptions_info_by_topic(topic))
+                   for topics in self.INPUTS.get(name, ()))
 
     def remember_endpoints(self) -> None:
         """Note the readers of every respawnable node, to tell a new process's from a ghost's."""

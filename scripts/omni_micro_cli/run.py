@@ -20,6 +20,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
 from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
+from omni_micro_control.feedback import MODES
 
 
 def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,6 +43,25 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     add_storage_arguments(parser)
 
 
+def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('--controller', choices=MODES, default='paper',
+                        help="paper: section 4.1's rule (default); model: plan each move "
+                             "through the slip model and identify the robot's offsets as it "
+                             'goes (README, "Model-based control")')
+    parser.add_argument('--tolerance-um', type=positive_float, metavar='UM',
+                        help="reached when a capture's distance to the goal plus its 95 %% "
+                             'uncertainty is within this (default 3, from the params)')
+
+
+def controller_overrides(args: argparse.Namespace) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if getattr(args, 'controller', 'paper') != 'paper':
+        overrides['mode'] = args.controller
+    if getattr(args, 'tolerance_um', None) is not None:
+        overrides['tolerance_m'] = args.tolerance_um * 1e-6
+    return overrides
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'run', help='drive the robot to a goal through the ROS 2 node graph',
@@ -50,7 +70,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'to the goal with vision feedback (or one open-loop move), print where it '
                     'really stopped, and shut the graph down. Exit 0 when the goal was reached '
                     '(or the open-loop move completed), 1 otherwise (a node died, the '
-                    'controller gave up or was lost), 2 for a bad argument or parameter '
+                    'controller gave up or was lost, or the camera that sees the goal cannot '
+                    'resolve the tolerance: unresolved), 2 for a bad argument or parameter '
                     '(nothing is started).')
     parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'), required=True,
                         metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0')
@@ -59,6 +80,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'uses 7 s for 100 mm)')
     parser.add_argument('--json', action='store_true',
                         help='print a final JSON line with the outcome and true final pose')
+    add_controller_arguments(parser)
     add_graph_arguments(parser)
     faults = parser.add_argument_group('fault injection (see docs/reliability.md)')
     faults.add_argument('--drop-captures', type=probability, default=0.0, metavar='P',
@@ -107,6 +129,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         echo=None if args.quiet else echo_to_stderr, record=args.record,
                         storage=args.storage, force=args.force,
                         vision_overrides=fault_overrides(args),
+                        controller_overrides=controller_overrides(args),
                         respawn=getattr(args, 'respawn', False))
 
 

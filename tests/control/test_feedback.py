@@ -1,10 +1,12 @@
 """Section 4.1 logic: angle modifier, distance comparator, end rule, timeouts, event order."""
 
 import math
+import re
 
 import pytest
 
 from omni_micro_control.feedback import (
+    MODEL_CAPTURES_PER_STOP,
     ControllerConfigError,
     FeedbackConfig,
     Finished,
@@ -16,6 +18,7 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
     wrap_angle,
 )
+from omni_micro_sim.conventions import CaptureUncertainty
 
 GOAL = (0.1, 0.0)
 
@@ -165,3 +168,69 @@ def test_a_late_started_controller_counts_timer2_from_the_robots_clock():
     late.restart_wait(7.5)              # respawned into a running graph
     assert late.deadline_s == pytest.approx(7.6)
     assert late.on_time(7.7) == (0, None)
+
+
+# -- honest outcomes: the capture's uncertainty counts ---------------------------------------
+MICRO = CaptureUncertainty(0.115e-6, 0.144e-6, 6e-5)     # 95 % radius 0.35 um
+MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4e-3)        # 95 % radius 26 um
+
+
+def test_reached_only_when_distance_plus_uncertainty_is_within_tolerance():
+    config = FeedbackConfig(tolerance_m=0.5e-6)
+    close = settled_controller(config)
+    # 0.2 um from the goal, but the capture is only good to 0.35 um: not proven yet.
+    move = a_move(close.on_capture(Observation(0.2, 0.1 - 0.2e-6, 0.0, 0.0, 'micro', MICRO)))
+    assert move.duration_s > 0
+    sharper = settled_controller(config)
+    end = an_end(sharper.on_capture(
+        Observation(0.2, 0.1 - 0.1e-6, 0.0, 0.0, 'micro', MICRO.averaged(5))))
+    assert end.outcome is Outcome.REACHED
+    assert '0.10 um' in end.reason and '+-0.16 um at 95 %' in end.reason
+
+
+def test_a_camera_that_cannot_resolve_the_tolerance_ends_unresolved_with_its_resolution():
+    controller = settled_controller(FeedbackConfig(tolerance_m=3e-6))
+    # The macro camera says 2.4 um: within tolerance by its numbers, but it sees to 26 um.
+    end = an_end(controller.on_capture(Observation(0.2, 0.1 - 2.44e-6, 0.0, 0.0, 'macro',
+                                                   MACRO)))
+    assert end.outcome is Outcome.UNRESOLVED
+    assert 'macro' in end.reason and '+-26.44 um' in end.reason and '3.00 um' in end.reason
+    # Farther than the camera's uncertainty: it keeps moving toward the goal.
+    far = settled_controller(FeedbackConfig(tolerance_m=3e-6))
+    a_move(far.on_capture(Observation(0.2, 0.1 - 60e-6, 0.0, 0.0, 'macro', MACRO)))
+
+
+def test_a_stop_averages_its_captures_and_their_spread_shrinks():
+    controller = settled_controller(FeedbackConfig(captures_per_stop=4, tolerance_m=0.5e-6))
+    xs = [0.1 - 0.4e-6, 0.1 + 0.1e-6, 0.1 - 0.3e-6, 0.1 + 0.2e-6]   # mean 0.1 - 0.1e-6
+    decisions = [controller.on_capture(Observation(0.2 + k / 30, x, 0.0, 0.0, 'micro', MICRO))
+                 for k, x in enumerate(xs)]
+    assert decisions[:3] == [None, None, None]
+    end = an_end(decisions[3])
+    assert end.outcome is Outcome.REACHED
+    seen = end.observation
+    assert seen is not None and seen.count == 4 and seen.stamp_s == pytest.approx(0.3)
+    assert seen.x_m == pytest.approx(0.1 - 0.1e-6, abs=1e-15)
+    assert seen.radius_95_m == pytest.approx(MICRO.radius_95_m / 2)
+
+
+def test_a_camera_change_within_a_stop_starts_the_average_again():
+    controller = settled_controller(FeedbackConfig(captures_per_stop=2))
+    assert controller.on_capture(Observation(0.2, 0.05, 0.0, 0.0, 'macro', MACRO)) is None
+    assert controller.on_capture(Observation(0.23, 0.05, 0.0, 0.0, 'micro', MICRO)) is None
+    move = a_move(controller.on_capture(Observation(0.26, 0.05, 0.0, 0.0, 'micro', MICRO)))
+    assert move.observation.camera == 'micro' and move.observation.count == 2
+
+
+@pytest.mark.parametrize('mode, expected', [('paper', 1), ('model', MODEL_CAPTURES_PER_STOP)])
+def test_captures_per_stop_zero_means_the_modes_own(mode, expected):
+    assert FeedbackConfig(mode=mode).captures_per_stop == expected
+
+
+@pytest.mark.parametrize('changes, message', [
+    ({'mode': 'magic'}, "mode must be one of ['paper', 'model'], got 'magic'"),
+    ({'captures_per_stop': -1}, 'captures_per_stop must be a whole number >= 1, got -1'),
+])
+def test_bad_mode_settings_are_refused_naming_the_value(changes, message):
+    with pytest.raises(ControllerConfigError, match=re.escape(message)):
+        FeedbackConfig(**changes)

@@ -119,7 +119,7 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
     try:
         assert run.stderr is not None
         for line in run.stderr:   # the robot is moving: every node is up and busy
-            if 'period 3:' in line:
+            if 'period 3 (' in line:
                 break
         else:
             raise AssertionError(f'the run ended before it moved: {run.wait()}')

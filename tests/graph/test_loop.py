@@ -10,6 +10,7 @@ import pytest
 
 from omni_micro_cli.closed_loop import run_closed_loop
 from omni_micro_cli.graph import GraphOptions, NodeSpec, default_nodes, run_graph
+from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
 
 GOAL_MM = (100.0, 0.0)
@@ -66,8 +67,13 @@ def test_a_stand_in_camera_that_follows_the_contract_closes_the_loop(tmp_path):
     script = Path(__file__).with_name('standin_camera.py')
     standin = NodeSpec('tests', 'standin_camera', command=(sys.executable, str(script)))
     nodes = [spec if spec.executable != 'vision_node' else standin for spec in default_nodes()]
+    # A driver of bare PoseStamped captures: the controller takes their spread from its params.
+    spread = [1e-7, 1e-7, 1e-5]
+    fixed: dict[str, object] = {'capture_uncertainty': 'fixed',
+                                'fixed_uncertainty.macro': spread,
+                                'fixed_uncertainty.micro': spread}
     result = run_graph(GraphOptions(goal_m=(0.03, 0.01), real_time_factor=4.0, nodes=nodes,
-                                    log_dir=tmp_path))
+                                    log_dir=tmp_path, controller_overrides=fixed))
     assert result.outcome == 'reached', result.reason
     assert result.deviation_m < 5e-6
 
@@ -99,3 +105,33 @@ def test_params_file_that_does_not_parse_is_refused(tmp_path, omni_micro):
     result = omni_micro('run', '--goal-mm', '1,0', '--params', str(bad),
                         '--log-dir', str(tmp_path / 'logs'))
     assert result.returncode == 2 and 'does not parse' in result.stderr
+
+
+def test_the_model_mode_over_the_graph_is_the_twin(tmp_path):
+    twin = run_closed_loop(paper.FIG11_GOAL_M, robot=paper.FIG11_OPEN_LOOP.robot(), seed=SEED,
+                           config=FeedbackConfig(mode='model'))
+    graph = run_graph(GraphOptions(goal_m=paper.FIG11_GOAL_M, seed=SEED,
+                                   real_time_factor=math.inf, log_dir=tmp_path,
+                                   controller_overrides={'mode': 'model'}))
+    assert graph.outcome == 'reached' and graph.periods == twin.periods <= 3
+    assert graph.final_x_m == pytest.approx(twin.final_state.x_m, abs=1e-7)
+    assert graph.final_y_m == pytest.approx(twin.final_state.y_m, abs=1e-7)
+    log = next(tmp_path.glob('*/controller_node.log')).read_text()
+    assert 'period 2 (model)' in log and 'xi2 2.9' in log   # the offsets as it learns them
+
+
+@pytest.mark.parametrize('goal_mm, outcome, exit_code, words', [
+    # Outside the micro field only the macro camera sees the goal: it cannot tell 3 um.
+    ('50,20', 'unresolved', 1, ('macro', '95 % uncertainty', 'coarser than the 3.00 um')),
+    ('100.4,-0.3', 'reached', 0, ('micro', 'at 95 %')),
+])
+def test_an_outcome_never_claims_more_than_the_camera_sees(goal_mm, outcome, exit_code, words,
+                                                           tmp_path, omni_micro):
+    result = omni_micro('run', '--goal-mm', goal_mm, '--rtf', 'max', '--json', '--quiet',
+                        '--log-dir', str(tmp_path))
+    assert result.returncode == exit_code, result.stderr[-2000:]
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert summary['outcome'] == outcome
+    assert all(word in summary['reason'] for word in words), summary['reason']
+    if outcome == 'reached':
+        assert summary['deviation_mm'] * 1e3 <= 3.0

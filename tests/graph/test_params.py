@@ -44,7 +44,7 @@ def test_run_refuses_a_params_file_mistake_before_anything_moves(text, expected,
         assert words in result.stderr, result.stderr[-2000:]
     # Nothing moved: the robot's clock never ran and no move was commanded.
     logs = ''.join(log.read_text() for log in (tmp_path / 'logs').rglob('*.log'))
-    assert 'period 1:' not in logs and '"/clock"' not in logs
+    assert 'period 1 (' not in logs and '"/clock"' not in logs
 
 
 @pytest.mark.parametrize('node', list(PACKAGES))

@@ -2,7 +2,9 @@
 
 Subscribes:
   /goal_pose           geometry_msgs/PoseStamped in the ``platform`` frame (x, y; heading unused)
-  /camera/macro/pose, /camera/micro/pose   captures (the camera contract, README)
+  /camera/<name>/pose_with_covariance   captures with their uncertainty (the camera
+                       contract, README); with capture_uncertainty: fixed, the bare
+                       /camera/<name>/pose captures and the fixed_uncertainty.<name> params
   /joint_states        wheel states, to know when a commanded move is over
 Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
@@ -10,7 +12,9 @@ Publishes:
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_sim.lockstep)
 Timers follow /clock (use_sim_time); the decisions themselves are taken on capture stamps, see
-:mod:`omni_micro_control.feedback`. On shutdown the robot is told to stop.
+:mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves through the slip core and
+identifies the robot as it goes (:mod:`omni_micro_control.model_based`). On shutdown the robot
+is told to stop.
 """
 
 from __future__ import annotations
@@ -22,10 +26,11 @@ import time
 import rclpy
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_control.feedback import (
@@ -39,13 +44,21 @@ from omni_micro_control.feedback import (
     Phase,
     VisionFeedbackController,
 )
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
+from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
+from omni_micro_sim.conventions import (
+    CaptureUncertainty,
+    join_stamp,
+    quaternion_to_yaw,
+    split_stamp,
+    stamp_ns,
+)
 from omni_micro_sim.errors import CommandError, ParameterError
 from omni_micro_sim.lockstep import Ack
 from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
-from omni_micro_sim.parameters import MotorLimits
+from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.qos import (
+    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
     DATA_QOS,
@@ -56,7 +69,10 @@ from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_fr
 
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
-                 Outcome.LOST: DiagnosticStatus.ERROR}
+                 Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
+# Where a capture's uncertainty comes from: the camera's PoseWithCovarianceStamped beside each
+# capture, or (a driver that publishes bare PoseStamped captures) this node's parameters.
+UNCERTAINTY_SOURCES = ('covariance', 'fixed')
 
 
 def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -> str | None:
@@ -73,10 +89,11 @@ def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__('controller_node')
-        defaults = FeedbackConfig()
+        # The fields' own defaults, not a FeedbackConfig()'s: captures_per_stop 0 means "the
+        # mode's own", which an instance has already resolved.
         config = FeedbackConfig(**{
-            name: self.declare_parameter(name, getattr(defaults, name)).value
-            for name in FeedbackConfig.__dataclass_fields__})
+            name: self.declare_parameter(name, field.default).value
+            for name, field in FeedbackConfig.__dataclass_fields__.items()})
         self.limits = MotorLimits(**{
             name: self.declare_parameter(f'motor.{name}', getattr(MotorLimits(), name)).value
             for name in MotorLimits.__dataclass_fields__})
@@ -88,7 +105,10 @@ class ControllerNode(Node):
         self.platform_center = list(self.declare_parameter('platform.center_m', [0.05, 0.0]).value)
         self.platform_size = list(self.declare_parameter('platform.size_m', [0.15, 0.15]).value)
         goal = list(self.declare_parameter('goal_m', [0.0]).value)
-        self.controller = VisionFeedbackController(config)
+        self.uncertainty_source = self._declare_uncertainty()
+        self.controller = VisionFeedbackController(
+            config, planner_for(config, self._declare_model_robot(), self.limits,
+                                self._declare_model_config()))
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
         self._robot_time_ns = 0
@@ -103,10 +123,16 @@ class ControllerNode(Node):
         self.lockstep = LockstepReporter(self)
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
-        for name, topic in CAPTURE_TOPICS.items():
-            self.create_subscription(PoseStamped, topic,
-                                     functools.partial(self._on_capture, camera=name),
-                                     CAPTURE_QOS)
+        for name in CAPTURE_TOPICS:
+            if self.uncertainty_source == 'covariance':
+                self.create_subscription(
+                    PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[name],
+                    functools.partial(self._on_capture_with_covariance, camera=name),
+                    CAPTURE_QOS)
+            else:
+                self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
+                                         functools.partial(self._on_capture, camera=name),
+                                         CAPTURE_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, '/camera/status', self._on_camera_status,
                                  STATUS_QOS)
@@ -114,15 +140,51 @@ class ControllerNode(Node):
         self.create_timer(0.05, self._on_timer)
         self._publish_status(DiagnosticStatus.OK, 'idle')
         self.get_logger().info(
-            f'controller ready: timer2 {config.settle_wait_s:g} s, timer1 '
+            f'controller ready ({config.mode} mode): timer2 {config.settle_wait_s:g} s, timer1 '
             f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
             f'{config.comparator_distance_m * 1e3:g} mm, '
-            f'tolerance {config.tolerance_m * 1e6:g} um')
+            f'tolerance {config.tolerance_m * 1e6:g} um, {config.captures_per_stop} '
+            f'capture(s) per stop, uncertainty from {self.uncertainty_source}')
         if len(goal) == 2:
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)
         elif goal != [0.0]:
             raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
+
+    def _declare_uncertainty(self) -> str:
+        source = self.declare_parameter('capture_uncertainty', 'covariance').value
+        if source not in UNCERTAINTY_SOURCES:
+            raise ParameterError(f'capture_uncertainty must be one of '
+                                 f'{list(UNCERTAINTY_SOURCES)}, got {source!r}')
+        self.fixed_uncertainty: dict[str, CaptureUncertainty] = {}
+        for name in CAPTURE_TOPICS:
+            key = f'fixed_uncertainty.{name}'
+            values = list(self.declare_parameter(key, [0.0, 0.0, 0.0]).value)
+            if source != 'fixed':
+                continue
+            if len(values) != 3 or not all(math.isfinite(v) and v > 0.0 for v in values):
+                raise ParameterError(
+                    f'{key} must be [x_sigma_m, y_sigma_m, heading_sigma_rad], three numbers '
+                    f'> 0 (capture_uncertainty is fixed), got {values}')
+            self.fixed_uncertainty[name] = CaptureUncertainty(*map(float, values))
+        return str(source)
+
+    def _declare_model_robot(self) -> RobotParameters:
+        """The model mode's nominal robot: what it assumes of every parameter it does not
+        fit, and where the fitted ones start (no offsets by default)."""
+        return RobotParameters.from_mapping({
+            name: self.declare_parameter(f'model.robot.{name}', default).value
+            for name, default in robot_parameter_values(RobotParameters()).items()})
+
+    def _declare_model_config(self) -> ModelConfig:
+        defaults = ModelConfig()
+        return ModelConfig(
+            free_parameters=tuple(self.declare_parameter(
+                'model.free_parameters', list(defaults.free_parameters)).value),
+            prior_sigma_rad=self.declare_parameter('model.prior_sigma_rad',
+                                                   defaults.prior_sigma_rad).value,
+            max_chain_moves=self.declare_parameter('model.max_chain_moves',
+                                                   defaults.max_chain_moves).value)
 
     def now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -168,7 +230,18 @@ class ControllerNode(Node):
         self._report_lockstep()
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
-        self._handle_capture(msg, camera)
+        self._handle_capture(msg.header, msg.pose, self.fixed_uncertainty[camera], camera)
+        self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(msg.header.stamp))
+        self._report_lockstep()
+
+    def _on_capture_with_covariance(self, msg: PoseWithCovarianceStamped, camera: str) -> None:
+        try:
+            uncertainty = CaptureUncertainty.from_covariance(msg.pose.covariance)
+        except ValueError as error:
+            self.get_logger().warning(f'ignored {camera} capture: {error}',
+                                      throttle_duration_sec=5.0)
+        else:
+            self._handle_capture(msg.header, msg.pose.pose, uncertainty, camera)
         self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(msg.header.stamp))
         self._report_lockstep()
 
@@ -179,16 +252,17 @@ class ControllerNode(Node):
             command_ns=self._command_ns,
             command_lead_ns=round(self.controller.config.command_lead_s * 1e9)))
 
-    def _handle_capture(self, msg: PoseStamped, camera: str) -> None:
-        if msg.header.frame_id != self.frame_id:
+    def _handle_capture(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
+                        camera: str) -> None:
+        if header.frame_id != self.frame_id:
             self.get_logger().warning(
-                f'ignored {camera} capture in frame {msg.header.frame_id!r}: expected '
+                f'ignored {camera} capture in frame {header.frame_id!r}: expected '
                 f'{self.frame_id!r}', throttle_duration_sec=5.0)
             return
         observation = Observation(
-            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
-            msg.pose.position.x, msg.pose.position.y,
-            quaternion_to_yaw(msg.pose.orientation.z, msg.pose.orientation.w), camera)
+            join_stamp(header.stamp.sec, header.stamp.nanosec),
+            pose.position.x, pose.position.y,
+            quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera, uncertainty)
         self._act(self.controller.on_capture(observation))
 
     def _act(self, decision: Move | Finished | None) -> None:
@@ -208,7 +282,9 @@ class ControllerNode(Node):
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
         fields = FeedbackConfig.__dataclass_fields__
         changes = {p.name: p.value for p in params if p.name in fields}
-        others = [p.name for p in params if p.name not in fields and p.name != 'use_sim_time']
+        # The mode chose the planner, and the planner holds what it has learnt: fixed.
+        others = [p.name for p in params
+                  if (p.name not in fields or p.name == 'mode') and p.name != 'use_sim_time']
         if others:
             return SetParametersResult(successful=False,
                                        reason=f'{others} are fixed while the node runs')
@@ -252,13 +328,24 @@ class ControllerNode(Node):
                 time_from_start=Duration(sec=sec, nanosec=nanosec)))
         self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
         self._publish_trajectory(msg)
-        self.get_logger().info(
-            f'period {move.period}: {move.observation.camera} sees '
-            f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
-            f'{move.remaining_m * 1e3:.4f} mm to go; theta1 '
-            f'{math.degrees(move.steering_rad):.3f} deg for {move.duration_s:.4f} s')
-        self._publish_status(DiagnosticStatus.OK, 'moving', periods=str(move.period),
-                             remaining_m=repr(move.remaining_m))
+        line = (f'period {move.period} ({move.rule}): {move.observation.camera} sees '
+                f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
+                f'{move.remaining_m * 1e3:.4f} mm to go; theta1 '
+                f'{math.degrees(move.steering_rad):.3f} deg for {move.duration_s:.4f} s'
+                + (f'; {move.note}' if move.note else ''))
+        values = {'periods': str(move.period), 'remaining_m': repr(move.remaining_m),
+                  'rule': move.rule}
+        planner = self.controller.planner
+        if isinstance(planner, ModelBasedPlanner):
+            values['plan_wall_s'] = f'{planner.log.plan_wall_s[-1]:.4f}'
+            values.update({f'estimate.{name}': repr(value)
+                           for name, value in planner.estimate().items()})
+        # A fall-back to the paper's rule in the model mode is worth a warning.
+        if move.rule == 'paper' and self.controller.config.mode == 'model':
+            self.get_logger().warning(line)
+        else:
+            self.get_logger().info(line)
+        self._publish_status(DiagnosticStatus.OK, 'moving', **values)
 
     def report(self, finished: Finished | None) -> None:
         if finished is None:

@@ -7,6 +7,14 @@ stamped after that, turns the robot's wheels toward the goal with the angle modi
 would overshoot is shortened to land on the goal, and the run finishes within ``tolerance_m`` or
 after ``max_periods`` moves.
 
+A run is ``reached`` only when the capture's distance to the goal plus the capture's own 95 %
+uncertainty is within the tolerance: an outcome never claims more than the camera can see.
+When the seeing camera cannot resolve the tolerance at all, the run ends ``unresolved`` once the
+robot is as close as that camera can tell, with the camera's uncertainty in the reason.
+
+Which move to make from a stop is the planner's: :class:`PaperRule` here (section 4.1), or the
+model-based planner of :mod:`omni_micro_control.model_based`. The state machine is the same.
+
 Every decision is a function of capture stamps and contents and of the wheel states, never of
 when a message happened to arrive, so the same captures give the same moves at any speed.
 """
@@ -16,6 +24,9 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
+from typing import Protocol
+
+from omni_micro_sim.conventions import CaptureUncertainty
 
 
 class ControllerConfigError(ValueError):
@@ -23,7 +34,8 @@ class ControllerConfigError(ValueError):
 
 
 class Outcome(enum.Enum):
-    REACHED = 'reached'        # within tolerance of the goal
+    REACHED = 'reached'        # within tolerance of the goal, uncertainty included
+    UNRESOLVED = 'unresolved'  # as close as the seeing camera can tell, coarser than tolerance
     GAVE_UP = 'gave_up'        # max_periods moves and still outside tolerance
     LOST = 'lost'              # no usable capture: robot out of view or camera silent
     COMPLETED = 'completed'    # the open-loop move is done (no feedback, no tolerance)
@@ -35,6 +47,13 @@ OUTCOME_NAMES = tuple(outcome.value for outcome in Outcome)
 # The reason of the CANCELLED outcome a goal gets when another replaces it (it does not end a
 # run: the new goal goes on).
 REPLACED_REASON = 'replaced by a new goal'
+
+
+# Controller modes: who plans each move.
+MODES = ('paper', 'model')
+# Five frames (0.13 s at 30 Hz) shrink a capture's spread by sqrt(5): the micro camera's 95 %
+# radius goes from 0.35 um to 0.16 um, so a 0.5 um tolerance is met after one fine move.
+MODEL_CAPTURES_PER_STOP = 5
 
 
 class Phase(enum.Enum):
@@ -78,15 +97,25 @@ class FeedbackConfig:
     max_capture_tries: int = 3
     wheel_radius_m: float = 1.65e-3
     cruise_speed_rad_s: float = 8.7
+    mode: str = 'paper'                   # 'paper' (section 4.1) or 'model' (model_based)
+    # Average this many captures of each stop; 0 = the mode's own: 1 for the paper's rule
+    # (section 4.1 takes one), MODEL_CAPTURES_PER_STOP for the model, whose plans are only as
+    # good as the start pose they shoot from.
+    captures_per_stop: int = 0
 
     def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ControllerConfigError(f'mode must be one of {list(MODES)}, got {self.mode!r}')
         for name in ('far_period_s', 'near_period_s', 'comparator_distance_m', 'tolerance_m',
                      'capture_timeout_s', 'wheel_radius_m', 'cruise_speed_rad_s'):
             object.__setattr__(self, name, _number(name, getattr(self, name), minimum=0.0))
         for name in ('settle_wait_s', 'command_lead_s', 'open_loop_duration_s'):
             object.__setattr__(self, name, _number(name, getattr(self, name), minimum=0.0,
                                                    strictly=False))
-        for name in ('max_periods', 'max_capture_tries'):
+        if self.captures_per_stop == 0:
+            object.__setattr__(self, 'captures_per_stop',
+                               MODEL_CAPTURES_PER_STOP if self.mode == 'model' else 1)
+        for name in ('max_periods', 'max_capture_tries', 'captures_per_stop'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ControllerConfigError(f'{name} must be a whole number >= 1, got {value!r}')
@@ -106,6 +135,67 @@ class Observation:
     y_m: float
     phi_rad: float
     camera: str = ''
+    # None: unknown, taken as exact (unit tests); the nodes and the twin always give one.
+    uncertainty: CaptureUncertainty | None = None
+    count: int = 1                        # captures averaged into this one
+
+    @property
+    def radius_95_m(self) -> float:
+        return 0.0 if self.uncertainty is None else self.uncertainty.radius_95_m
+
+
+def mean_observation(observations: list[Observation]) -> Observation:
+    """One observation of a still robot from several captures of the same camera: the mean
+    position, the circular mean heading, the last stamp, and the mean's (smaller) spread."""
+    if len(observations) == 1:
+        return observations[0]
+    count = len(observations)
+    heading = math.atan2(sum(math.sin(o.phi_rad) for o in observations),
+                         sum(math.cos(o.phi_rad) for o in observations))
+    last = observations[-1]
+    return Observation(last.stamp_s, math.fsum(o.x_m for o in observations) / count,
+                       math.fsum(o.y_m for o in observations) / count, heading, last.camera,
+                       None if last.uncertainty is None else last.uncertainty.averaged(count),
+                       count)
+
+
+@dataclass(frozen=True)
+class MovePlan:
+    """What a planner chose: the steering angle, the move's duration, and why."""
+
+    steering_rad: float
+    duration_s: float
+    rule: str = 'paper'
+    note: str = ''
+
+
+class Planner(Protocol):
+    """Chooses each move; learns from each stop if it wants to."""
+
+    def on_stop(self, observation: Observation) -> None: ...
+
+    def plan(self, observation: Observation, goal_m: tuple[float, float],
+             config: FeedbackConfig) -> MovePlan: ...
+
+
+class PaperRule:
+    """Section 4.1: the angle modifier theta1 = alpha - phi and the distance comparator."""
+
+    rule = 'paper'
+
+    def on_stop(self, observation: Observation) -> None:
+        pass
+
+    def plan(self, observation: Observation, goal_m: tuple[float, float],
+             config: FeedbackConfig) -> MovePlan:
+        dx = goal_m[0] - observation.x_m
+        dy = goal_m[1] - observation.y_m
+        remaining = math.hypot(dx, dy)
+        # Distance comparator: timer1, shortened when a full period would overshoot.
+        period = (config.far_period_s if remaining > config.comparator_distance_m
+                  else config.near_period_s)
+        steering = wrap_angle(math.atan2(dy, dx) - observation.phi_rad)   # angle modifier
+        return MovePlan(steering, min(period, remaining / config.speed_m_s))
 
 
 @dataclass(frozen=True)
@@ -118,6 +208,8 @@ class Move:
     period: int
     remaining_m: float
     observation: Observation
+    rule: str = 'paper'
+    note: str = ''
 
 
 @dataclass(frozen=True)
@@ -140,8 +232,11 @@ class VisionFeedbackController:
     # Captures that arrive while a move is still running; a few seconds of frames is plenty.
     MAX_EARLY_CAPTURES = 256
 
-    def __init__(self, config: FeedbackConfig | None = None) -> None:
+    def __init__(self, config: FeedbackConfig | None = None,
+                 planner: Planner | None = None) -> None:
         self.config = config or FeedbackConfig()
+        self.planner: Planner = planner or PaperRule()
+        self._stop_captures: list[Observation] = []
         self.phase = Phase.IDLE
         self.goal_m: tuple[float, float] | None = None
         self.periods = 0
@@ -184,6 +279,7 @@ class VisionFeedbackController:
         self.deadline_s = stopped_at_s + self.config.settle_wait_s
         self.tries = 0
         self._blind = False
+        self._stop_captures = []
 
     def _finish(self, outcome: Outcome, reason: str) -> Finished:
         self.phase = Phase.DONE
@@ -216,39 +312,58 @@ class VisionFeedbackController:
         values = (observation.stamp_s, observation.x_m, observation.y_m, observation.phi_rad)
         if not all(math.isfinite(v) for v in values):
             return None   # a broken capture is as good as none: the timeout will tell
+        if self._stop_captures and self._stop_captures[0].camera != observation.camera:
+            self._stop_captures = []   # another camera took over: its captures only
+        self._stop_captures.append(observation)
+        if len(self._stop_captures) < self.config.captures_per_stop:
+            return None
+        observation = mean_observation(self._stop_captures)
+        self._stop_captures = []
+        return self._decide(observation)
+
+    def _decide(self, observation: Observation) -> Move | Finished:
         self.last_observation = observation
+        self.planner.on_stop(observation)
         assert self.goal_m is not None
         config = self.config
-        dx = self.goal_m[0] - observation.x_m
-        dy = self.goal_m[1] - observation.y_m
-        remaining = math.hypot(dx, dy)
+        remaining = math.hypot(self.goal_m[0] - observation.x_m,
+                               self.goal_m[1] - observation.y_m)
+        camera = f'{observation.camera or "camera"}'
+        if observation.count > 1:
+            camera += f' ({observation.count} captures)'
         if config.open_loop_duration_s > 0.0:
             if self.periods >= 1:
                 return self._finish(Outcome.COMPLETED, 'open-loop move done')
-            duration = config.open_loop_duration_s
+            steering = wrap_angle(math.atan2(self.goal_m[1] - observation.y_m,
+                                             self.goal_m[0] - observation.x_m)
+                                  - observation.phi_rad)
+            plan = MovePlan(steering, config.open_loop_duration_s, 'open-loop')
         else:
-            if remaining <= config.tolerance_m:
+            seen = observation.radius_95_m
+            if remaining + seen <= config.tolerance_m:
                 return self._finish(
-                    Outcome.REACHED, f'{remaining * 1e6:.2f} um from the goal by the '
-                    f'{observation.camera or "camera"}')
+                    Outcome.REACHED, f'{remaining * 1e6:.2f} um from the goal by the {camera}'
+                    f' (+-{seen * 1e6:.2f} um at 95 %)')
+            if seen > config.tolerance_m and remaining <= seen:
+                return self._finish(
+                    Outcome.UNRESOLVED,
+                    f'{remaining * 1e6:.2f} um from the goal by the {camera}, whose 95 % '
+                    f'uncertainty (+-{seen * 1e6:.2f} um) is coarser than the '
+                    f'{config.tolerance_m * 1e6:.2f} um tolerance: as close as it can tell')
             if self.periods >= config.max_periods:
                 return self._finish(
                     Outcome.GAVE_UP, f'still {remaining * 1e6:.2f} um from the goal after '
                     f'{self.periods} periods')
-            # Distance comparator: timer1, shortened when a full period would overshoot.
-            period = (config.far_period_s if remaining > config.comparator_distance_m
-                      else config.near_period_s)
-            duration = min(period, remaining / config.speed_m_s)
-        alpha = math.atan2(dy, dx)
-        steering = wrap_angle(alpha - observation.phi_rad)   # angle modifier
+            plan = self.planner.plan(observation, self.goal_m, config)
+        duration = plan.duration_s
         self.periods += 1
         self.phase = Phase.MOVING
         self._early_captures = []
         # Ramps add at most a second to a move; then the same patience as for a capture.
         self._move_overdue_s = (observation.stamp_s + config.command_lead_s + duration + 1.0
                                 + config.capture_timeout_s * config.max_capture_tries)
-        return Move(observation.stamp_s + config.command_lead_s, steering, duration,
-                    self.periods, remaining, observation)
+        return Move(observation.stamp_s + config.command_lead_s, plan.steering_rad, duration,
+                    self.periods, remaining, observation, plan.rule, plan.note)
 
     def on_out_of_field(self, stamp_s: float) -> Finished | None:
         """The camera reports it cannot see the robot: lost once timer2 has run out."""

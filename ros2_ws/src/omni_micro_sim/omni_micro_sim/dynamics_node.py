@@ -51,7 +51,7 @@ from omni_micro_sim.lockstep import (
     LockstepGate,
 )
 from omni_micro_sim.node_runtime import LOCKSTEP_QOS, PublicationCounter, decode_ack, run_node
-from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
@@ -81,16 +81,7 @@ def stamp_seconds(stamp: Time) -> float:
 
 def _robot_defaults() -> dict[str, object]:
     # The same robot as config/dynamics_node.yaml, so a run without the file behaves alike.
-    robot = paper.FIG11_OPEN_LOOP.robot()
-    values: dict[str, object] = {}
-    for field in fields(robot):
-        value = getattr(robot, field.name)
-        if field.name == 'cantilever_side':
-            value = value.name.lower()
-        elif field.name == 'wheel_offsets_rad':
-            value = [float(v) for v in value]
-        values[field.name] = value
-    return values
+    return robot_parameter_values(paper.FIG11_OPEN_LOOP.robot())
 
 
 class DynamicsNode(Node):

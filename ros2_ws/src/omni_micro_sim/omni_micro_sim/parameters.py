@@ -179,6 +179,19 @@ class RobotParameters:
         return cls().replace(**dict(values))
 
 
+def robot_parameter_values(robot: RobotParameters) -> dict[str, object]:
+    """The robot as ROS parameter values: enums by name, tuples as lists."""
+    values: dict[str, object] = {}
+    for field in fields(robot):
+        value = getattr(robot, field.name)
+        if field.name == 'cantilever_side':
+            value = value.name.lower()
+        elif field.name == 'wheel_offsets_rad':
+            value = [float(v) for v in value]
+        values[field.name] = value
+    return values
+
+
 @dataclass(frozen=True)
 class MotorLimits:
     """Wheel motor speed profile of section 3.5: ramp to a cruise speed, hold, ramp down."""

@@ -272,6 +272,28 @@ def _raise_unless_settled(rest_time: float, state: np.ndarray, max_settle_s: flo
         raise SimulationError(f'{what} did not come to rest within {max_settle_s} s of its end')
 
 
+def run_to_rest(params: RobotParameters, steering_rad: float, profile: WheelSpeedProfile,
+                start: RobotState, *, max_step_s: float = DEFAULT_MAX_STEP_S,
+                max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> tuple[RobotState, float]:
+    """Run ``profile`` along ``steering_rad`` from ``start`` until the robot is at rest.
+
+    Returns the state at rest and the time (s from the move's start) it came to rest.
+
+    Raises
+    ------
+    SimulationError
+        If the state became non-finite or the robot did not come to rest in ``max_settle_s``.
+    """
+    state = start.as_array()
+    rest_time = kernels.run_move(
+        state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
+        wheel_headings_rad(params, steering_rad), params.as_kernel_array(),
+        _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
+        _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S)
+    _raise_unless_settled(rest_time, state, max_settle_s, 'the move')
+    return RobotState.from_array(state), rest_time
+
+
 def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s: float, *,
                        limits: MotorLimits | None = None, start: RobotState | None = None,
                        sample_interval_s: float | None = None,
@@ -293,14 +315,9 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
     steering = require_finite('steering angle', steering_rad)
     goal = ideal_stop(params, start, steering, float(profile.rotation_rad()[0]))
     if sample_interval_s is None:
-        state = start.as_array()
-        rest_time = kernels.run_move(
-            state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
-            wheel_headings_rad(params, steering), params.as_kernel_array(),
-            _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
-            _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S)
-        _raise_unless_settled(rest_time, state, max_settle_s, 'the move')
-        return OpenLoopResult(RobotState.from_array(state), goal, profile.end_time_s, rest_time)
+        final, rest_time = run_to_rest(params, steering, profile, start, max_step_s=max_step_s,
+                                       max_settle_s=max_settle_s)
+        return OpenLoopResult(final, goal, profile.end_time_s, rest_time)
     interval = _check_step('sample_interval_s', sample_interval_s)
     simulator = SlipSimulator(params, start, max_step_s=max_step_s)
     simulator.command(steering, profile)

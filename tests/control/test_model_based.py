@@ -1,0 +1,129 @@
+"""The model-based mode: shooting through the slip core, identification of the offsets, the
+fall-back to the paper's rule, and what it buys over the paper's rule in the twin."""
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from omni_micro_cli.closed_loop import run_closed_loop
+from omni_micro_control.feedback import ControllerConfigError, FeedbackConfig, Observation, Outcome
+from omni_micro_control.identification import (
+    Chain,
+    IdentificationError,
+    RecordedMove,
+    Stop,
+    fit_parameters,
+)
+from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
+from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.profile import move_profile
+from omni_micro_sim.simulator import RobotState, simulate_open_loop
+
+MICRO = CaptureUncertainty(0.115e-6, 0.144e-6, 6e-5)
+MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4.3e-3)
+
+
+def robot_with(xi2_deg: float, xi3_deg: float, **changes) -> RobotParameters:
+    return RobotParameters(wheel_offsets_rad=(0.0, math.radians(xi2_deg),
+                                              math.radians(xi3_deg)), **changes)
+
+
+def test_a_plan_with_the_true_robot_stops_on_the_goal():
+    robot = robot_with(3.0, 2.0)
+    planner = ModelBasedPlanner(robot)
+    start = Observation(0.0, 0.001, -0.002, 0.4, 'macro', CaptureUncertainty(1e-9, 1e-9, 1e-9))
+    planner.on_stop(start)
+    goal = (0.06, 0.025)
+    plan = planner.plan(start, goal, FeedbackConfig(mode='model'))
+    assert plan.rule == 'model' and 'shot in' in plan.note
+    stop = simulate_open_loop(robot, plan.steering_rad, plan.duration_s,
+                              start=RobotState(0.001, -0.002, 0.4)).final_state
+    # The slip drifts this 65 mm move by millimetres; the shot aims through it.
+    assert math.hypot(stop.x_m - goal[0], stop.y_m - goal[1]) < 1e-9
+    assert planner.log.plan_wall_s[-1] < 1.0
+
+
+def chain_of(robot: RobotParameters, moves: list[tuple[float, float]],
+             sigmas: list[CaptureUncertainty], seed: int) -> Chain:
+    """Stops where ``robot`` really ends each move, seen with the given spreads."""
+    rng = np.random.default_rng(seed)
+    state = RobotState(0.0, 0.0, 0.2)
+    stops, recorded = [], []
+    for index, sigma in enumerate(sigmas):
+        noise = rng.normal(0.0, 1.0, 3) * [sigma.x_sigma_m, sigma.y_sigma_m,
+                                           sigma.heading_sigma_rad]
+        stops.append(Stop(state.x_m + noise[0], state.y_m + noise[1], state.phi_rad + noise[2],
+                          sigma))
+        if index < len(moves):
+            steering, duration = moves[index]
+            recorded.append(RecordedMove(steering, move_profile(duration)))
+            state = simulate_open_loop(robot, steering, duration, start=state).final_state
+    return Chain(stops, recorded)
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_identification_recovers_the_offsets_with_intervals_that_hold_the_truth(seed):
+    truth = robot_with(-3.7, 2.4)
+    # A long move seen by the macro camera, a correction ending under the micro camera.
+    chain = chain_of(truth, [(0.1, 6.0), (2.0, 0.7)], [MACRO, MACRO, MICRO], seed)
+    fit = fit_parameters([chain], RobotParameters(), ('xi2', 'xi3'))
+    errors = np.degrees(fit.values - [math.radians(-3.7), math.radians(2.4)])
+    assert np.all(np.abs(errors) < 0.1)
+    assert np.all(np.abs(errors) <= np.degrees(fit.half_widths_95))
+    assert fit.unidentifiable() == []
+    assert fit.reduced_chi_square < 5.0
+
+
+def test_too_little_motion_leaves_the_offsets_unidentifiable():
+    chain = chain_of(robot_with(2.0, -1.0), [(0.5, 1e-4)], [MICRO, MICRO], seed=0)
+    fit = fit_parameters([chain], RobotParameters(), ('xi2', 'xi3'))
+    assert fit.unidentifiable() == ['xi2', 'xi3']
+
+
+@pytest.mark.parametrize('chains, names, message', [
+    ([Chain([Stop(0.0, 0.0, 0.0, MICRO)], [])], ('xi2',), 'no move between two stops'),
+    ([], ('xi2', 'mu'), "cannot fit ['mu']"),
+])
+def test_a_fit_that_cannot_be_made_says_why(chains, names, message):
+    with pytest.raises(IdentificationError, match=re.escape(message)):
+        fit_parameters(chains, RobotParameters(), names)
+
+
+def test_bad_model_settings_are_refused_naming_the_value():
+    with pytest.raises(ControllerConfigError, match="got \\['xi9'\\]"):
+        ModelConfig(free_parameters=('xi9',))
+    with pytest.raises(ControllerConfigError, match='prior_sigma_rad'):
+        ModelConfig(prior_sigma_rad=-1.0)
+
+
+@pytest.mark.parametrize('xi_deg, seed', [((3.0, 2.0), 0), ((-4.7, -1.2), 1), ((5.0, -5.0), 2)])
+def test_the_twin_in_model_mode_reaches_in_three_periods_and_learns_the_offsets(xi_deg, seed):
+    robot = robot_with(*xi_deg)
+    tolerance = FeedbackConfig(tolerance_m=0.5e-6)
+    paper = run_closed_loop((0.1, 0.0), robot=robot, seed=seed, config=tolerance)
+    model = run_closed_loop((0.1, 0.0), robot=robot, seed=seed,
+                            config=FeedbackConfig(mode='model', tolerance_m=0.5e-6))
+    assert model.outcome is Outcome.REACHED and paper.outcome is Outcome.REACHED
+    assert model.periods <= 3 < paper.periods
+    assert model.deviation_m <= 0.5e-6
+    assert [move.rule for move in model.moves] == ['model'] * model.periods
+    # After the second move, the first to end under the micro camera.
+    assert isinstance(model.planner, ModelBasedPlanner)
+    learnt = model.planner.log.estimates[1]
+    assert math.degrees(learnt['xi2']) == pytest.approx(xi_deg[0], abs=0.1)
+    assert math.degrees(learnt['xi3']) == pytest.approx(xi_deg[1], abs=0.1)
+
+
+def test_a_wrong_model_falls_back_to_the_paper_rule_and_still_reaches():
+    # The model assumes wheel 1 is driven; this robot's rolls freely: no offsets explain that.
+    robot = robot_with(2.9, 1.7, wheel1_active=False)
+    result = run_closed_loop((0.1, 0.0), robot=robot, seed=2,
+                             config=FeedbackConfig(mode='model', tolerance_m=0.5e-6))
+    assert result.outcome is Outcome.REACHED and result.deviation_m <= 0.5e-6
+    fallbacks = [move for move in result.moves if move.rule == 'paper']
+    assert fallbacks and all("the paper's rule for this period" in m.note for m in fallbacks)
+    assert isinstance(result.planner, ModelBasedPlanner)
+    assert "from the model's prediction" in result.planner.log.fallbacks[0]
