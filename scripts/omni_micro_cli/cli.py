@@ -10,8 +10,10 @@ from omni_micro_cli import (
     analyze,
     bench,
     bench_graph,
+    compare_controllers,
     demo,
     figures,
+    identify,
     record,
     recover,
     replay,
@@ -22,8 +24,8 @@ from omni_micro_cli import (
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-COMMANDS = (demo, run, record, replay, analyze, recover, soak, simulate, figures, bench,
-            bench_graph)
+COMMANDS = (demo, run, record, replay, analyze, identify, recover, soak, simulate, figures,
+            compare_controllers, bench, bench_graph)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -27,3 +27,17 @@ def staged_directory(target: Path) -> Iterator[Path]:
             os.replace(item, target / item.name)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def atomic_text(target: Path, text: str) -> None:
+    """Write ``text`` to ``target`` whole or not at all (a temporary file, then a rename)."""
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f'.{target.name}.partial-', dir=target.parent)
+    try:
+        with os.fdopen(handle, 'w') as stream:
+            stream.write(text)
+        os.replace(temporary, target)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
