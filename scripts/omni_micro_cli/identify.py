@@ -194,11 +194,9 @@ def _observation(header: Any, pose: Any, camera: str,
 
 
 def _close(chain: Chain, chains: list[Chain]) -> Chain:
-    """Keep ``chain`` if it links at least one move between two stops; start a new one."""
-    if len(chain.stops) > len(chain.moves):
-        del chain.moves[len(chain.stops) - 1:]
-    else:
-        del chain.moves[max(0, len(chain.stops) - 1):]
+    """Keep ``chain``, without a last move no stop followed, if it links at least one move
+    between two stops; return a new empty chain."""
+    del chain.moves[max(0, len(chain.stops) - 1):]
     if chain.moves:
         chains.append(Chain(chain.stops, chain.moves))
     return Chain()
