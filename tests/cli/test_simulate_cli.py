@@ -93,7 +93,7 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     headers = ('| result', '| Fig. 11, (0,0)', '| ---')
     rows = [line for line in section.splitlines()
             if line.startswith('| ') and not line.startswith(headers)]
-    assert len(rows) == 8
+    assert len(rows) == 11
     for row in rows:
         assert row in done.stdout, f'README row not printed by demo: {row}'
     runs = json.loads((tmp_path / 'demo' / 'fig11_graph.json').read_text())
@@ -101,5 +101,8 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     for run in runs.values():   # the logs it names are where it says, not in a deleted folder
         assert (Path(run['log_dir']) / 'controller_node.log').is_file(), run['log_dir']
     assert 5.0 < runs['open_loop']['deviation_mm'] < 20.0
-    for name in ('fig11_open_loop', 'fig11_closed_loop'):
+    # The model-based controller on the same goal: fewer periods, closer.
+    assert runs['model']['outcome'] == 'reached' and runs['model']['periods'] <= 3
+    assert runs['model']['deviation_mm'] < runs['closed_loop']['deviation_mm']
+    for name in ('fig11_open_loop', 'fig11_closed_loop', 'fig11_model'):
         assert (tmp_path / 'bags' / name / 'metadata.yaml').is_file()
