@@ -181,8 +181,6 @@ class Planner(Protocol):
 class PaperRule:
     """Section 4.1: the angle modifier theta1 = alpha - phi and the distance comparator."""
 
-    rule = 'paper'
-
     def on_stop(self, observation: Observation) -> None:
         pass
 

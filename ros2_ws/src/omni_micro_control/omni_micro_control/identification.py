@@ -169,7 +169,6 @@ class Fit:
     values: np.ndarray               # SI, in ``names`` order
     covariance: np.ndarray           # SI, widened by the reduced chi-square when above 1
     half_widths_95: np.ndarray       # SI
-    start_poses: list[np.ndarray]    # fitted pose of each chain's first stop
     residuals: list[np.ndarray]      # per chain, per stop: measured - fitted (m, m, rad)
     normalised_residuals: list[np.ndarray]
     chi_square: float                # of the measurements alone
@@ -348,5 +347,4 @@ def fit_parameters(chains: Sequence[Chain], base: RobotParameters, names: Sequen
     values = theta[:count].copy()
     return Fit(tuple(names), problem.robot(values), values, covariance,
                Z_95 * np.sqrt(np.clip(np.diag(covariance), 0.0, None)),
-               [poses[0].copy() for poses in fitted],
                residuals, normalised, chi_square, cost, dof, iterations)

@@ -35,7 +35,6 @@ from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
     Chain,
-    Fit,
     IdentificationError,
     Prior,
     RecordedMove,
@@ -112,20 +111,16 @@ class ModelBasedPlanner:
     config : see :class:`ModelConfig`.
     """
 
-    rule = 'model'
-
     def __init__(self, robot: RobotParameters | None = None, limits: MotorLimits | None = None,
                  config: ModelConfig | None = None) -> None:
         self.config = config or ModelConfig()
         self.limits = limits or MotorLimits()
         self.nominal = robot or RobotParameters()
-        specs = [PARAMETERS[name] for name in self.config.free_parameters]
         self.robot = self.nominal
         self.names = self.config.free_parameters
-        self.prior = Prior(np.array([spec.get(self.nominal) for spec in specs]),
+        self.prior = Prior(self._values(),
                            np.diag([self._prior_sigma(name) ** 2 for name in self.names]))
         self.covariance = self.prior.covariance.copy()
-        self.fit: Fit | None = None
         self.chain = Chain()
         self._pending: tuple[Stop, RecordedMove, np.ndarray] | None = None
         self._cost = 0.0   # the chain's fit cost so far (0: a new chain sits on its prior)
@@ -153,9 +148,7 @@ class ModelBasedPlanner:
         if pending is None or not self.chain.stops or self.chain.stops[-1] is not pending[0]:
             # The first stop, or one not reached by our last move (a new goal after a
             # cancelled move): a new chain, keeping what was learnt as the prior.
-            self._fold()
-            self.chain = Chain([stop], [])
-            self._cost = 0.0
+            self._restart_chain(stop)
             return
         _, move, predicted = pending
         self.chain.stops.append(stop)
@@ -166,7 +159,7 @@ class ModelBasedPlanner:
                                  initial=self._values())
         except (IdentificationError, np.linalg.LinAlgError, SimulationError) as error:
             self._fallback(f'the refit failed ({error})')
-            self.chain = Chain([stop], [])
+            self._restart_chain(stop)
             return
         finally:
             self.log.fit_wall_s.append(time.perf_counter() - began)
@@ -176,11 +169,8 @@ class ModelBasedPlanner:
             self._fallback(f"the stop was {miss * 1e6:.2f} um from the model's prediction, "
                            f'more than its uncertainty allows (chi-square +{growth:.1f})')
             # Whatever went wrong, do not let it bend the estimate: start a new chain here.
-            self._fold()
-            self.chain = Chain([stop], [])
-            self._cost = 0.0
+            self._restart_chain(stop)
             return
-        self.fit = fit
         self.robot = fit.robot
         self._cost = fit.cost
         # The prior counts in the fit: its covariance is the posterior (not widened, since a
@@ -188,9 +178,7 @@ class ModelBasedPlanner:
         self.covariance = fit.covariance / max(1.0, fit.reduced_chi_square)
         self.log.estimates.append(self.estimate())
         if len(self.chain.moves) >= self.config.max_chain_moves:
-            self._fold()
-            self.chain = Chain([stop], [])
-            self._cost = 0.0
+            self._restart_chain(stop)
 
     def _fallback(self, reason: str) -> None:
         self._fallback_next = reason
@@ -199,9 +187,11 @@ class ModelBasedPlanner:
     def _values(self) -> np.ndarray:
         return np.array([PARAMETERS[name].get(self.robot) for name in self.names])
 
-    def _fold(self) -> None:
-        """What the chain taught becomes the prior of the next one."""
+    def _restart_chain(self, stop: Stop) -> None:
+        """A new chain from ``stop``; what the old one taught becomes its prior."""
         self.prior = Prior(self._values(), self.covariance.copy())
+        self.chain = Chain([stop], [])
+        self._cost = 0.0
 
     # -- planning ---------------------------------------------------------------------------
     def plan(self, observation: Observation, goal_m: tuple[float, float],
