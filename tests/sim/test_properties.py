@@ -76,3 +76,27 @@ def test_the_core_steps_to_a_finite_state_or_raises(robot, profile, steering, st
             assert simulator.state == before   # the state is left as it was
             continue
         assert all(math.isfinite(v) for v in state.as_array())
+
+
+knot_profiles = st.integers(min_value=1, max_value=6).flatmap(lambda count: st.tuples(
+    st.lists(st.floats(min_value=0.001, max_value=0.5), min_size=count, max_size=count),
+    st.lists(st.floats(min_value=-8.7, max_value=8.7), min_size=3 * count,
+             max_size=3 * count)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(knot_profiles, st.floats(min_value=-0.1, max_value=3.0))
+def test_profile_speeds_and_rotation_are_the_piecewise_linear_ones(profile, time_s):
+    gaps, speeds = profile
+    times = np.cumsum(gaps)
+    knots = WheelSpeedProfile(times, np.reshape(speeds, (len(gaps), 3)))
+    # numpy's own interpolation and trapezoid rule on a grid holding every knot are the truth.
+    expected_speeds = [np.interp(time_s, times, knots.knot_speeds_rad_s[:, k]) for k in range(3)]
+    assert np.allclose(knots.speeds_at(time_s), expected_speeds, rtol=1e-12, atol=1e-12)
+    grid = np.union1d(np.linspace(0.0, max(time_s, 0.0), 7),
+                      times[(times > 0.0) & (times < time_s)])
+    grid_speeds = np.array([[np.interp(t, times, knots.knot_speeds_rad_s[:, k])
+                             for k in range(3)] for t in grid])
+    expected_rotation = (np.trapezoid(grid_speeds, grid, axis=0) if time_s > 0.0
+                         else np.zeros(3))
+    assert np.allclose(knots.rotation_until(time_s), expected_rotation, rtol=1e-9, atol=1e-12)

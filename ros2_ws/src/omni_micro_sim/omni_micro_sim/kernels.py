@@ -153,6 +153,33 @@ def speeds_at(time_s: float, knot_times: Array, knot_speeds: Array, knot_count: 
 
 
 @numba.njit(cache=True)
+def rotation_until(time_s: float, knot_times: Array, knot_speeds: Array, knot_count: int,
+                   out: Array) -> None:
+    """Rotation of each wheel from time 0 to ``time_s``: the trapezoid rule over the knots,
+    exact for piecewise-linear speeds."""
+    for k in range(3):
+        out[k] = 0.0
+    if time_s <= 0.0:
+        return
+    previous = np.empty(3)
+    current = np.empty(3)
+    speeds_at(0.0, knot_times, knot_speeds, knot_count, previous)
+    previous_time = 0.0
+    for i in range(knot_count + 1):
+        if i < knot_count:
+            t = knot_times[i]
+            if t <= 0.0 or t >= time_s:
+                continue
+        else:
+            t = time_s
+        speeds_at(t, knot_times, knot_speeds, knot_count, current)
+        for k in range(3):
+            out[k] += 0.5 * (previous[k] + current[k]) * (t - previous_time)
+            previous[k] = current[k]
+        previous_time = t
+
+
+@numba.njit(cache=True)
 def _next_knot_after(time_s: float, knot_times: Array, knot_count: int) -> float:
     for i in range(knot_count):
         if knot_times[i] > time_s:

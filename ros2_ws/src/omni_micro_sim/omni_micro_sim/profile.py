@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_micro_sim import kernels
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits
 
@@ -63,8 +64,12 @@ class WheelSpeedProfile:
 
     def speeds_at(self, time_s: float) -> np.ndarray:
         """Speeds of the three wheels at ``time_s`` after the start of the move."""
-        return np.array([np.interp(time_s, self.knot_times_s, self.knot_speeds_rad_s[:, k])
-                         for k in range(WHEEL_COUNT)])
+        speeds = np.empty(WHEEL_COUNT)
+        # The kernel the integrator uses: one definition of the interpolation, and no per-wheel
+        # Python loop in the closed loop's per-tick path.
+        kernels.speeds_at(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
+                          self.knot_times_s.size, speeds)
+        return speeds
 
     def rotation_rad(self) -> np.ndarray:
         """Rotation of each wheel from the start of the move to its last knot."""
@@ -75,11 +80,9 @@ class WheelSpeedProfile:
 
         The speeds are piecewise linear, so the trapezoid rule over the knots is exact.
         """
-        inner = self.knot_times_s[(self.knot_times_s > 0.0) & (self.knot_times_s < time_s)]
-        times = np.concatenate(([0.0], inner, [time_s])) if time_s > 0.0 else np.zeros(1)
-        speeds = np.array([self.speeds_at(t) for t in times])
-        rotation: np.ndarray = np.sum(0.5 * (speeds[1:] + speeds[:-1]) * np.diff(times)[:, None],
-                                      axis=0)
+        rotation = np.empty(WHEEL_COUNT)
+        kernels.rotation_until(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
+                               self.knot_times_s.size, rotation)
         return rotation
 
     def check_limits(self, limits: MotorLimits) -> None:

@@ -47,6 +47,10 @@ class RobotState:
     omega_rad_s: float = 0.0
 
     def __post_init__(self) -> None:
+        values = (self.x_m, self.y_m, self.phi_rad, self.vx_m_s, self.vy_m_s, self.omega_rad_s)
+        # The simulator builds two states per tick from floats: check those in one pass.
+        if all(type(value) is float and math.isfinite(value) for value in values):
+            return
         for name in ('x_m', 'y_m', 'phi_rad', 'vx_m_s', 'vy_m_s', 'omega_rad_s'):
             try:
                 object.__setattr__(self, name, require_finite(name, getattr(self, name)))
@@ -59,7 +63,7 @@ class RobotState:
 
     @classmethod
     def from_array(cls, values: np.ndarray) -> RobotState:
-        return cls(*(float(v) for v in values))
+        return cls(*np.asarray(values, dtype=np.float64).tolist())
 
     @property
     def speed_m_s(self) -> float:
