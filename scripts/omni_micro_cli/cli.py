@@ -10,6 +10,7 @@ from omni_micro_cli import (
     analyze,
     bench,
     bench_graph,
+    bench_study,
     compare_controllers,
     demo,
     figures,
@@ -20,12 +21,14 @@ from omni_micro_cli import (
     run,
     simulate,
     soak,
+    study,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
 COMMANDS = (demo, run, record, replay, analyze, identify, recover, soak, simulate, figures,
-            compare_controllers, bench, bench_graph)
+            study, compare_controllers, bench, bench_graph,
+            bench_study)
 
 
 def build_parser() -> argparse.ArgumentParser:
