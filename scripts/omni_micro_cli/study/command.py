@@ -29,8 +29,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'Ctrl-C keeps every finished run; --resume DIR finishes the rest.',
         epilog='Start with: omni-micro study --example > my-study.yaml')
     parser.add_argument('study', nargs='?', type=Path, metavar='STUDY.yaml',
-                        help='the study file, or - for standard input (see --example and the README for '
-                             'the schema)')
+                        help='the study file, or - for standard input (see --example and the '
+                             'README for the schema)')
     parser.add_argument('--out', type=Path, metavar='DIR',
                         help='a new directory for the results (required with STUDY.yaml)')
     what = parser.add_mutually_exclusive_group()
