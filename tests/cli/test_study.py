@@ -124,7 +124,7 @@ def test_a_worker_killed_mid_study_costs_only_its_unfinished_runs(tmp_path):
             env=dict(os.environ, PYTHONPATH=str(SCRIPTS)))
         deadline = time.monotonic() + 60.0
         while not any(client.processing().values()):   # the study's runs are on the workers
-            assert time.monotonic() < deadline and study.poll() is None, 'the study ended before the check'
+            assert time.monotonic() < deadline and study.poll() is None, 'ended early'
             time.sleep(0.01)
         victim = next(iter(pids.values()))
         os.kill(victim, signal.SIGKILL)
@@ -148,7 +148,7 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
         text=True, start_new_session=True, env=dict(os.environ, PYTHONPATH=str(SCRIPTS)))
     deadline = time.monotonic() + 120.0
     while not list((out / 'parts').glob('part-*.parquet')):
-        assert time.monotonic() < deadline and study.poll() is None, 'the study ended before the check'
+        assert time.monotonic() < deadline and study.poll() is None, 'ended early'
         time.sleep(0.05)
     os.killpg(study.pid, signal.SIGINT)
     _, stderr = study.communicate(timeout=60)
