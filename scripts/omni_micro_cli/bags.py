@@ -47,6 +47,8 @@ class TopicSpec:
 
 
 # Every topic of the graph (README, "The node graph").
+# What markers_node draws (a run without --no-markers records it too).
+MARKERS_TOPIC = '/markers'
 GRAPH_TOPICS: dict[str, TopicSpec] = {
     '/clock': TopicSpec('rosgraph_msgs/msg/Clock', 1000),
     '/odom': TopicSpec('nav_msgs/msg/Odometry', 1000),
@@ -62,6 +64,7 @@ GRAPH_TOPICS: dict[str, TopicSpec] = {
     '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
     '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
     '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
+    MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
 }
 
 

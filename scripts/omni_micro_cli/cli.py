@@ -22,11 +22,12 @@ from omni_micro_cli import (
     simulate,
     soak,
     study,
+    view,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-COMMANDS = (demo, run, record, replay, analyze, identify, recover, soak, simulate, figures,
+COMMANDS = (demo, run, view, record, replay, analyze, identify, recover, soak, simulate, figures,
             study, compare_controllers, bench, bench_graph,
             bench_study)
 

@@ -80,9 +80,24 @@ def message_class(msgtype: str) -> type:
     return getattr(importlib.import_module(f'{package}.msg'), name)
 
 
-def recorder_spec(bag: Path, storage: str) -> NodeSpec:
+def recorder_spec(bag: Path, storage: str, markers: bool = True) -> NodeSpec:
+    from omni_micro_cli.bags import GRAPH_TOPICS, MARKERS_TOPIC
+
+    topics = [topic for topic in GRAPH_TOPICS if markers or topic != MARKERS_TOPIC]
     return NodeSpec('omni_micro_cli', 'bag_recorder', command=(
-        sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--storage', storage))
+        sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--storage', storage,
+        '--topics', *topics))
+
+
+def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
+    return NodeSpec('omni_micro_cli', 'viewer', command=(
+        sys.executable, '-m', 'omni_micro_cli', 'view', '--view-host', host, '--view-port',
+        str(port), *(() if markers else ('--no-markers',))))
+
+
+MARKERS_NODE = NodeSpec('omni_micro_vision', 'markers_node')
+# What markers_node must draw as the other nodes see it: their parameters, passed on.
+MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'micro.center_m', 'micro.field_m')
 
 
 def install_prefixes() -> list[Path]:
@@ -315,6 +330,8 @@ class GraphOptions:
     dynamics_overrides: dict[str, object] = field(default_factory=dict)
     # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
     on_running: Callable[[Graph], None] | None = None
+    markers: bool = True                  # markers_node draws the run on /markers
+    view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
 
 
 @dataclass
@@ -368,12 +385,51 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     elif spec.executable == 'vision_node':
         overrides.update(seed=int(options.seed))
         overrides.update(options.vision_overrides)
+    elif spec.executable == 'markers_node':
+        vision = node_parameters('omni_micro_vision', 'vision_node', options,
+                                 options.vision_overrides)
+        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options,
+                                   options.dynamics_overrides)
+        controller = node_parameters('omni_micro_control', 'controller_node', options,
+                                     options.controller_overrides)
+        overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
+        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller)):
+            if name in source:
+                overrides[name] = source[name]
     elif spec.executable == 'controller_node':
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)
     overrides.update(spec.overrides)
     return overrides
+
+
+def node_parameters(package: str, node: str, options: GraphOptions,
+                    overrides: dict[str, object]) -> dict[str, object]:
+    """A node's parameters as it will have them: its package file, the user's --params file,
+    then the orchestration's overrides (dotted names, as -p gives them)."""
+    import yaml
+
+    def flatten(tree: dict, prefix: str = '') -> dict[str, object]:
+        flat: dict[str, object] = {}
+        for key, value in tree.items():
+            if isinstance(value, dict):
+                flat.update(flatten(value, f'{prefix}{key}.'))
+            else:
+                flat[f'{prefix}{key}'] = value
+        return flat
+
+    values: dict[str, object] = {}
+    files = [package_params_file(package, node)]
+    if options.params_file is not None:
+        files.append(options.params_file)
+    for path in files:
+        content = yaml.safe_load(Path(path).read_text()) or {}
+        for name in (node, f'/{node}', '/**'):
+            section = content.get(name, {}).get('ros__parameters', {})
+            values.update(flatten(section))
+    values.update(overrides)
+    return values
 
 
 def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
@@ -418,8 +474,12 @@ class Graph:
         if options.respawn:
             specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
                      for spec in specs]
+        if options.markers:
+            specs.append(MARKERS_NODE)
         if options.record is not None:
-            specs.append(recorder_spec(options.record, options.storage))
+            specs.append(recorder_spec(options.record, options.storage, options.markers))
+        if options.view is not None:
+            specs.append(viewer_spec(*options.view, options.markers))
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
                                       log_dir / f'{spec.name}.log', options.echo, inherited)
                           for spec in specs]
@@ -581,7 +641,8 @@ def run_graph(options: GraphOptions) -> GraphResult:
         memory: dict[str, list[int]] = {}
         try:
             graph.start()
-            monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording)
+            monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording,
+                                     markers=options.markers)
             wall_start = time.monotonic()
             for index, goal in enumerate(goals):
                 monitor.send_goal(graph, goal, subscribers=2 if recording else 1)

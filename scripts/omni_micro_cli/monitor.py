@@ -119,12 +119,15 @@ class GraphMonitor:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until_ready(self, graph: Supervisor, timeout_s: float,
-                         recording: bool = False) -> None:
+                         recording: bool = False, markers: bool = False) -> None:
         deadline = time.monotonic() + timeout_s
         while True:
             graph.check_alive()
             missing = [' or '.join(topics) for topics in READY_SUBSCRIBERS
                        if not any(self.node.count_subscribers(topic) for topic in topics)]
+            # markers_node makes its publisher after its subscriptions: seen, it is listening.
+            if markers and not self.node.count_publishers('/markers'):
+                missing.append('(markers_node: no /markers publisher yet)')
             if recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher yet)')
             if not missing and self.parameters.service_is_ready():

@@ -20,6 +20,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
 from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
+from omni_micro_cli.view import add_view_arguments, check_view_host, view_url
 from omni_micro_control.feedback import MODES
 
 
@@ -40,7 +41,11 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--record', type=Path, metavar='BAG',
                         help='record every topic into this rosbag2 bag (a recorder node in its '
                              'own process; simulated-time stamps)')
+    parser.add_argument('--no-markers', dest='markers', action='store_false',
+                        help='do not start markers_node (the /markers it draws for RViz 2 and '
+                             'Foxglove; the run is the same with or without it)')
     add_storage_arguments(parser)
+    add_view_arguments(parser, flag=True)
 
 
 def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
@@ -113,6 +118,18 @@ def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
     return overrides
 
 
+def view_from_args(args: argparse.Namespace) -> tuple[str, int] | None:
+    """(host, port) of the live view, having said where to connect; None without --view."""
+    if not args.view:
+        return None
+    warning = check_view_host(args.view_host)
+    if warning:
+        print(warning, file=sys.stderr)
+    print(f'live view: {view_url(args.view_host, args.view_port)} (Foxglove: Open connection '
+          '> Foxglove WebSocket; layout: foxglove/omni-micro.json)', file=sys.stderr)
+    return args.view_host, args.view_port
+
+
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                       open_loop_s: float | None) -> GraphOptions:
     if args.params is not None:
@@ -130,7 +147,8 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         storage=args.storage, force=args.force,
                         vision_overrides=fault_overrides(args),
                         controller_overrides=controller_overrides(args),
-                        respawn=getattr(args, 'respawn', False))
+                        respawn=getattr(args, 'respawn', False), markers=args.markers,
+                        view=view_from_args(args))
 
 
 def summary_line(result: GraphResult) -> str:

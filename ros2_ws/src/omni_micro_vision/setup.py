@@ -18,11 +18,12 @@ setup(
     maintainer='omni-micro developers',
     maintainer_email='dev@omni-micro.invalid',
     description=('Macro and micro overhead camera model: stationary pose captures with pixel '
-                 'noise.'),
+                 'noise; markers of the run for RViz 2 and Foxglove.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
             'vision_node = omni_micro_vision.vision_node:main',
+            'markers_node = omni_micro_vision.markers_node:main',
         ],
     },
 )

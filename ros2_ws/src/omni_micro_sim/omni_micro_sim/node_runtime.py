@@ -27,6 +27,7 @@ import select
 import signal
 import sys
 import threading
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -41,7 +42,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from omni_micro_sim.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_sim.conventions import (
+    GRAPH_NODE_NAMES,
+    LIFELINE_ENV,
+    LISTENER_NODE_NAMES,
+    PUBLISHED_MARKER,
+)
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
 from omni_micro_sim.qos import PER_TICK_PUBLISHER_EVENTS
@@ -133,6 +139,7 @@ class _Waker(threading.Thread):
         self._signal_write = signal_write
         self._previous_fd = signal.set_wakeup_fd(signal_write, warn_on_full_buffer=False)
         self._lifeline_fd = lifeline_fd
+        self.orphaned = False      # the orchestrator died: leave at once, no draining
 
     def run(self) -> None:
         watched = [self._signal_read]
@@ -151,6 +158,7 @@ class _Waker(threading.Thread):
                 if fd == self._lifeline_fd and not data:
                     # The orchestrator is gone: stop as if it had sent SIGTERM. The signal
                     # handler runs in the main thread; its wake-up byte brings us back here.
+                    self.orphaned = True
                     watched.remove(fd)
                     os.kill(os.getpid(), signal.SIGTERM)
             self._wake()
@@ -228,10 +236,11 @@ def check_given_parameters(node: Node, argv: list[str]) -> None:
                                  f'{{ros__parameters: ...}}, got {content!r:.100}')
         for section, body in content.items():
             bare = str(section).lstrip('/')
-            if section not in WILDCARD_SECTIONS and bare not in GRAPH_NODE_NAMES:
+            known = [*GRAPH_NODE_NAMES, *LISTENER_NODE_NAMES]
+            if section not in WILDCARD_SECTIONS and bare not in known:
                 raise ParameterError(
                     f'params file {path!r}: section {section!r} names no node of the graph '
-                    f'{list(GRAPH_NODE_NAMES)}{_suggestion(bare, list(GRAPH_NODE_NAMES))}')
+                    f'{known}{_suggestion(bare, known)}')
             if not isinstance(body, dict) or not isinstance(body.get('ros__parameters'), dict):
                 raise ParameterError(f'params file {path!r}: section {section!r} must hold '
                                      f'ros__parameters: {{...}}, got {body!r:.100}')
@@ -287,13 +296,19 @@ def _check_type(node: Node, key: str, value: Any, where: str) -> None:
 
 def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exception], ...],
              on_shutdown: Callable[[NodeT], None] | None = None,
-             args: list[str] | None = None, domain_id: int | None = None) -> None:
+             args: list[str] | None = None, domain_id: int | None = None,
+             drain: Callable[[NodeT], int] | None = None) -> None:
     """Create the node, spin it until a signal (or the lifeline's end), and tear it down.
 
     ``on_shutdown`` runs on every way out once the node exists (the context may already be shut
     down if something else ended it: check ``rclpy.ok()`` before publishing). The process then
     ends with code 0. A bad parameter (one of ``config_errors``) exits 2 naming it; a second
     signal during the shutdown exits 130 at once.
+
+    ``drain``, for a node that only listens and may lag behind the graph: a count of messages
+    it has handled. After a signal it keeps handling what is queued until the count stops
+    moving for ``DRAIN_IDLE_S`` (at most ``DRAIN_MAX_S``), so that its last words are the
+    graph's last state.
     """
     argv = list(sys.argv if args is None else args)
     rclpy.init(args=args, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
@@ -325,6 +340,8 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
             try:
                 while not shutdown.requested:
                     executor.spin_once()
+                if drain is not None and not waker.orphaned:
+                    _drain(executor, node, drain)
             finally:
                 if profiler is not None and profile_dir:
                     profiler.disable()
@@ -351,6 +368,20 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     except KeyboardInterrupt:
         _exit_now(130)
     _exit_now(0)
+
+
+DRAIN_IDLE_S = 0.1
+DRAIN_MAX_S = 3.0
+
+
+def _drain(executor: SingleThreadedExecutor, node: NodeT,
+           handled: Callable[[NodeT], int]) -> None:
+    deadline = time.monotonic() + DRAIN_MAX_S
+    while time.monotonic() < deadline:
+        before = handled(node)
+        executor.spin_once(timeout_sec=DRAIN_IDLE_S)
+        if handled(node) == before:
+            return
 
 
 def _exit_now(code: int) -> None:

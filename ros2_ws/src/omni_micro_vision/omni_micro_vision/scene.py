@@ -1,0 +1,243 @@
+"""What a viewer draws of a run, from the graph's messages alone: robot, route, captures, moves,
+camera fields, goal and the slip at each wheel. No rclpy: ``markers_node`` turns the shapes into
+visualization_msgs/Marker, ``analyze --animate`` into matplotlib artists, so both draw the same.
+
+Everything is in the ``platform`` frame, in metres. The route is 100 mm long and the micro field
+2 mm wide: each shape is drawn at the macro view's widths, and the ones that matter near the goal
+again in the ``micro/...`` namespaces at the micro view's widths (``MICRO_SCALE`` finer), so that
+a 3D panel framed on either shows lines of a legible width.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from omni_micro_vision.camera import CameraRig
+
+Colour = tuple[float, float, float, float]
+THIRD_TURN = 2.0 * math.pi / 3.0          # wheels 2 and 3 sit 120 and 240 deg from wheel 1
+Point = tuple[float, float]
+
+# Line widths of the macro view (a 15 cm field): 0.3 mm reads at a glance.
+MACRO_WIDTH_M = 3.0e-4
+# The micro field is 75 times smaller than the macro one.
+MICRO_SCALE = 1.0 / 75.0
+# A new route point once the robot has moved this far (the route stays a few hundred points).
+ROUTE_SPACING_M = 2.0e-5
+ROUTE_SEGMENT_POINTS = 32        # a line strip per segment: only the last one changes
+# The micro close-up's copy of a route segment only where it comes this near the micro field.
+MICRO_ROUTE_MARGIN_M = 1.0e-3
+CAMERA_COLOURS: dict[str, Colour] = {'macro': (0.12, 0.47, 0.71, 1.0),
+                                     'micro': (0.84, 0.15, 0.16, 1.0)}
+WHITE: Colour = (1.0, 1.0, 1.0, 1.0)
+GREY: Colour = (0.55, 0.55, 0.55, 1.0)
+ROBOT: Colour = (0.95, 0.65, 0.1, 0.85)
+ROUTE: Colour = (0.1, 0.1, 0.1, 1.0)
+GOAL: Colour = (0.17, 0.63, 0.17, 1.0)
+MOVE: Colour = (0.58, 0.4, 0.74, 1.0)
+SLIP_LONGITUDINAL: Colour = (0.84, 0.15, 0.16, 1.0)
+SLIP_TRANSVERSE: Colour = (0.12, 0.47, 0.71, 1.0)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One marker: ``kind`` is arrow (points = tail, head), disc (points = centre; size =
+    diameter), sphere_list, line_strip, line_list or text (points = anchor)."""
+
+    namespace: str
+    id: int
+    kind: str
+    points: tuple[Point, ...]
+    colour: Colour
+    size_m: float              # line width, sphere or disc diameter, text height
+    text: str = ''
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    chassis_radius_m: float = 4.5e-3
+    wheel_distance_m: float = 4.15e-3
+    wheel_radius_m: float = 1.65e-3
+    wheel1_angle_rad: float = math.radians(45.0)
+    wheel_offsets_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def wheel_contacts(self, x: float, y: float, phi: float) -> list[Point]:
+        angles = [phi + self.wheel1_angle_rad + k * THIRD_TURN for k in range(3)]
+        return [(x + self.wheel_distance_m * math.cos(angle),
+                 y + self.wheel_distance_m * math.sin(angle)) for angle in angles]
+
+    def rolling_headings(self, phi: float, steering: float) -> list[float]:
+        return [phi + steering + offset for offset in self.wheel_offsets_rad]
+
+
+@dataclass
+class Capture:
+    camera: str
+    x_m: float
+    y_m: float
+    radius_95_m: float | None = None
+
+
+@dataclass
+class Scene:
+    """The state a viewer draws, fed message by message (``on_*``)."""
+
+    rig: CameraRig
+    robot: RobotGeometry = field(default_factory=RobotGeometry)
+    tolerance_m: float = 3.0e-6
+    slip_arrow_s: float = 2.0            # arrow length (m) per slip speed (m/s)
+    pose: tuple[float, float, float] | None = None
+    steering_rad: float = 0.0
+    goal_m: Point | None = None
+    start_m: Point | None = None
+    route: list[Point] = field(default_factory=list)
+    captures: list[Capture] = field(default_factory=list)
+    moves: list[tuple[Point, Point]] = field(default_factory=list)
+    slip_longitudinal: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    slip_transverse: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    # -- inputs ------------------------------------------------------------------------------
+    def on_odometry(self, x: float, y: float, phi: float) -> None:
+        self.pose = (x, y, phi)
+        if not self.route or math.dist(self.route[-1], (x, y)) >= ROUTE_SPACING_M:
+            self.route.append((x, y))
+
+    def on_steering(self, steering_rad: float) -> None:
+        self.steering_rad = steering_rad
+
+    def on_goal(self, x: float, y: float) -> None:
+        self.goal_m = (x, y)
+        self.start_m = (self.pose[0], self.pose[1]) if self.pose else (0.0, 0.0)
+
+    def on_capture(self, camera: str, x: float, y: float) -> None:
+        self.captures.append(Capture(camera, x, y))
+
+    def on_capture_uncertainty(self, camera: str, x: float, y: float,
+                               radius_95_m: float) -> None:
+        """The covariance beside a capture: attach it to that capture (same camera, pose)."""
+        for capture in reversed(self.captures):
+            if capture.camera == camera and math.isclose(capture.x_m, x, abs_tol=1e-12) \
+                    and math.isclose(capture.y_m, y, abs_tol=1e-12):
+                capture.radius_95_m = radius_95_m
+                return
+
+    def on_move(self, steering_rad: float, length_m: float) -> None:
+        """A commanded move from the current pose: its direction and planned length."""
+        if self.pose is None:
+            return
+        x, y, phi = self.pose
+        heading = phi + steering_rad
+        self.moves.append(((x, y), (x + length_m * math.cos(heading),
+                                    y + length_m * math.sin(heading))))
+
+    def on_slip(self, longitudinal: tuple[float, float, float],
+                transverse: tuple[float, float, float]) -> None:
+        self.slip_longitudinal = longitudinal
+        self.slip_transverse = transverse
+
+    # -- shapes ------------------------------------------------------------------------------
+    def robot_shapes(self) -> list[Shape]:
+        """The robot and its slip: what changes every tick."""
+        if self.pose is None:
+            return []
+        x, y, phi = self.pose
+        contacts = self.robot.wheel_contacts(x, y, phi)
+        headings = self.robot.rolling_headings(phi, self.steering_rad)
+        r = self.robot.wheel_radius_m
+        wheels: list[Point] = []
+        for (cx, cy), heading in zip(contacts, headings, strict=True):
+            wheels += [(cx - r * math.cos(heading), cy - r * math.sin(heading)),
+                       (cx + r * math.cos(heading), cy + r * math.sin(heading))]
+        nose = (x + self.robot.chassis_radius_m * math.cos(phi),
+                y + self.robot.chassis_radius_m * math.sin(phi))
+        shapes = [
+            Shape('robot/chassis', 0, 'disc', ((x, y),), ROBOT,
+                  2.0 * self.robot.chassis_radius_m),
+            Shape('robot/wheels', 0, 'line_list', tuple(wheels), (0.2, 0.2, 0.2, 1.0),
+                  4.0 * MACRO_WIDTH_M),
+            Shape('robot/wheel_1', 0, 'sphere_list', (contacts[0],), (0.84, 0.15, 0.16, 1.0),
+                  1.2e-3),
+            Shape('robot/heading', 0, 'arrow', ((x, y), nose), (0.1, 0.1, 0.1, 1.0),
+                  2.0 * MACRO_WIDTH_M),
+        ]
+        for k, ((cx, cy), heading) in enumerate(zip(contacts, headings, strict=True)):
+            for name, speed, angle, colour in (
+                    ('slip/longitudinal', self.slip_longitudinal[k], heading, SLIP_LONGITUDINAL),
+                    ('slip/transverse', self.slip_transverse[k], heading + math.pi / 2,
+                     SLIP_TRANSVERSE)):
+                length = self.slip_arrow_s * speed
+                shapes.append(Shape(name, k, 'arrow', ((cx, cy), (
+                    cx + length * math.cos(angle), cy + length * math.sin(angle))), colour,
+                    MACRO_WIDTH_M))
+        return shapes
+
+    def route_shapes(self, only_last: bool) -> list[Shape]:
+        """The route as line strips of ``ROUTE_SEGMENT_POINTS``; consecutive ones share a point.
+        ``only_last``: just the segment still growing."""
+        count = max(1, math.ceil((len(self.route) - 1) / (ROUTE_SEGMENT_POINTS - 1)))
+        first = count - 1 if only_last else 0
+        shapes = []
+        for segment in range(first, count):
+            start = segment * (ROUTE_SEGMENT_POINTS - 1)
+            points = tuple(self.route[start:start + ROUTE_SEGMENT_POINTS])
+            if len(points) < 2:
+                continue
+            shapes.append(Shape('route', segment, 'line_strip', points, ROUTE, MACRO_WIDTH_M))
+            if self._near_micro_field(points):
+                shapes.append(Shape('micro/route', segment, 'line_strip', points, ROUTE,
+                                    MACRO_WIDTH_M * MICRO_SCALE))
+        return shapes
+
+    def _near_micro_field(self, points: tuple[Point, ...]) -> bool:
+        (cx, cy), (w, h) = self.rig.micro.center_m, self.rig.micro.field_m
+        return any(abs(x - cx) <= w / 2 + MICRO_ROUTE_MARGIN_M
+                   and abs(y - cy) <= h / 2 + MICRO_ROUTE_MARGIN_M for x, y in points)
+
+    def static_shapes(self) -> list[Shape]:
+        """Fields, goal, ideal route, captures and moves: what changes only on an event."""
+        shapes = []
+        for index, camera in enumerate((self.rig.macro, self.rig.micro)):
+            (cx, cy), (w, h) = camera.center_m, camera.field_m
+            corners = tuple((cx + sx * w / 2, cy + sy * h / 2)
+                            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1)))
+            width = MACRO_WIDTH_M if camera is self.rig.macro else MACRO_WIDTH_M * MICRO_SCALE
+            shapes.append(Shape('fields', index, 'line_strip', corners,
+                                CAMERA_COLOURS.get(camera.name, GREY), width))
+            shapes.append(Shape('fields/labels', index, 'text', ((cx - w / 2, cy + h / 2),),
+                                CAMERA_COLOURS.get(camera.name, GREY),
+                                12 * width, f'{camera.name} camera'))
+        if self.goal_m is not None:
+            gx, gy = self.goal_m
+            circle = tuple((gx + self.tolerance_m * math.cos(a / 32 * 2 * math.pi),
+                            gy + self.tolerance_m * math.sin(a / 32 * 2 * math.pi))
+                           for a in range(33))
+            shapes += [
+                Shape('goal', 0, 'sphere_list', (self.goal_m,), GOAL, 1.5e-3),
+                Shape('micro/goal', 0, 'sphere_list', (self.goal_m,), GOAL,
+                      1.5e-3 * MICRO_SCALE),
+                Shape('micro/tolerance', 0, 'line_strip', circle, GOAL,
+                      max(self.tolerance_m / 15, 2e-8)),
+            ]
+            if self.start_m is not None:
+                shapes.append(Shape('ideal_route', 0, 'line_strip', (self.start_m, self.goal_m),
+                                    GREY, MACRO_WIDTH_M / 2))
+        for name, colour in CAMERA_COLOURS.items():
+            seen = [c for c in self.captures if c.camera == name]
+            if not seen:
+                continue
+            points = tuple((c.x_m, c.y_m) for c in seen)
+            shapes.append(Shape(f'captures/{name}', 0, 'sphere_list', points, colour, 8e-4))
+            shapes.append(Shape(f'micro/captures/{name}', 0, 'sphere_list', points, colour,
+                                8e-4 * MICRO_SCALE))
+            for index, capture in enumerate(seen):
+                if capture.radius_95_m is not None:
+                    faded = (colour[0], colour[1], colour[2], 0.3)
+                    shapes.append(Shape(f'micro/capture_uncertainty/{name}', index, 'disc',
+                                        ((capture.x_m, capture.y_m),), faded,
+                                        2.0 * capture.radius_95_m))
+        for index, (tail, head) in enumerate(self.moves):
+            length = math.dist(tail, head)
+            shapes.append(Shape('moves', index, 'arrow', (tail, head), MOVE,
+                                min(MACRO_WIDTH_M, max(length / 10, 1e-7))))
+        return shapes

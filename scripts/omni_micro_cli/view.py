@@ -1,0 +1,84 @@
+"""`omni-micro view`: serve a running graph's topics to Foxglove (what `run --view` starts)."""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import sys
+
+from omni_micro_cli.arguments import non_negative_int
+from omni_micro_cli.errors import UsageError
+
+DEFAULT_HOST = '127.0.0.1'
+DEFAULT_PORT = 8765
+
+
+def add_view_arguments(parser: argparse.ArgumentParser, flag: bool) -> None:
+    """--view-host and --view-port (and --view for the commands that start a graph)."""
+    if flag:
+        parser.add_argument('--view', action='store_true',
+                            help='watch the run live in Foxglove: serves the graph\'s topics '
+                                 f'on ws://{DEFAULT_HOST}:{DEFAULT_PORT} (Foxglove: Open '
+                                 'connection > Foxglove WebSocket); changes nothing in the run')
+    parser.add_argument('--view-port', type=non_negative_int, default=DEFAULT_PORT, metavar='N',
+                        help=f'port of the live view (default {DEFAULT_PORT}; 0: any free one)')
+    parser.add_argument('--view-host', default=DEFAULT_HOST, metavar='ADDRESS',
+                        help=f'address the live view listens on (default {DEFAULT_HOST}: '
+                             'this machine only)')
+
+
+def check_view_host(host: str) -> str | None:
+    """The warning to give for ``host``, or None for loopback.
+
+    Raises
+    ------
+    UsageError
+        If ``host`` is not an IP address.
+    """
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        raise UsageError(f'--view-host: expected an IP address such as 127.0.0.1, got '
+                         f'{host!r}') from None
+    if address.is_loopback:
+        return None
+    who = 'any machine that can reach this one' if address.is_unspecified else \
+        f'anyone who can reach {host}'
+    return (f'warning: the live view listens on {host}: {who} can connect and watch the run '
+            '(they cannot drive it: no publishing, no services)')
+
+
+def view_url(host: str, port: int) -> str:
+    return f'ws://{host}:{port}'
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'view', help='serve a running graph to Foxglove (run --view starts this)',
+        description='Subscribe to a running graph\'s topics (ROS_DOMAIN_ID or --domain-id) and '
+                    'serve them over the Foxglove WebSocket protocol, CDR-encoded with ros2msg '
+                    'schemas. Only listens; clients cannot publish. Ctrl-C stops it.')
+    add_view_arguments(parser, flag=False)
+    parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
+                        help='ROS domain of the graph (default: ROS_DOMAIN_ID)')
+    parser.add_argument('--no-markers', dest='markers', action='store_false',
+                        help='do not serve /markers (a graph without markers_node)')
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from omni_micro_cli.viewer_node import Viewer, view_topics
+    from omni_micro_sim.node_runtime import run_node
+
+    warning = check_view_host(args.view_host)
+    if warning:
+        print(warning, file=sys.stderr)
+
+    def finish(viewer: Viewer) -> None:
+        viewer.stop()
+        print('live view stopped after forwarding '
+              f'{sum(viewer.forwarded.values())} messages', file=sys.stderr)
+
+    run_node(lambda: Viewer(args.view_host, args.view_port, view_topics(args.markers)),
+             config_errors=(), on_shutdown=finish, domain_id=args.domain_id)
+    return 0

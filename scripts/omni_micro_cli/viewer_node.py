@@ -1,0 +1,74 @@
+"""The live view's node: the graph's topics, as they are, over the Foxglove WebSocket protocol.
+
+Each topic becomes a Foxglove channel with ``cdr`` encoding and its type's ``ros2msg`` schema, so
+Foxglove decodes them as it does from foxglove_bridge. It only listens, best effort: a viewer
+never holds up a publisher, and the Foxglove SDK drops frames for a client that reads slowly.
+The server advertises no capability: clients cannot publish, call services or set parameters.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from omni_micro_cli.bags import GRAPH_TOPICS, TYPESTORE, TopicSpec
+from omni_micro_cli.graph import message_class
+
+# Topics a viewer needs, in the order a layout reads them.
+VIEW_TOPICS = ('/markers', '/odom', '/camera/macro/pose', '/camera/micro/pose',
+               '/camera/macro/pose_with_covariance', '/camera/micro/pose_with_covariance',
+               '/controller/status', '/camera/status', '/wheel_slip', '/joint_states',
+               '/wheel_trajectory', '/goal_pose', '/clock')
+# A client this many messages behind loses the oldest: the graph never waits for a viewer.
+BACKLOG_MESSAGES = 1024
+
+
+def ros2msg_schema(msgtype: str) -> bytes:
+    """The ``ros2msg`` schema of a type: its definition and its dependencies', as rosbag2's MCAP
+    files and foxglove_bridge give them."""
+    text, _ = TYPESTORE.generate_msgdef(msgtype, ros_version=2)
+    return text.encode()
+
+
+class Viewer(Node):
+    def __init__(self, host: str, port: int, topics: dict[str, TopicSpec]) -> None:
+        import foxglove
+
+        super().__init__('omni_micro_viewer',
+                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        self.server = foxglove.start_server(name='omni-micro', host=host, port=port,
+                                            capabilities=[],
+                                            message_backlog_size=BACKLOG_MESSAGES)
+        self.forwarded = dict.fromkeys(topics, 0)
+        self.channels: dict[str, Any] = {}
+        for topic, spec in topics.items():
+            self.channels[topic] = foxglove.Channel(
+                topic, message_encoding='cdr',
+                schema=foxglove.Schema(name=spec.msgtype, encoding='ros2msg',
+                                       data=ros2msg_schema(spec.msgtype)))
+            qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.BEST_EFFORT,
+                             durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
+                                         else DurabilityPolicy.VOLATILE))
+            self.create_subscription(message_class(spec.msgtype), topic,
+                                     self._forwarder(topic), qos, raw=True)
+        self.get_logger().info(f'live view on ws://{host}:{self.server.port}')
+
+    def _forwarder(self, topic: str) -> Callable[[bytes], None]:
+        channel = self.channels[topic]
+
+        def forward(data: bytes) -> None:
+            channel.log(data, log_time=self.get_clock().now().nanoseconds)
+            self.forwarded[topic] += 1
+        return forward
+
+    def stop(self) -> None:
+        self.server.stop()
+
+
+def view_topics(markers: bool = True) -> dict[str, TopicSpec]:
+    return {topic: GRAPH_TOPICS[topic] for topic in VIEW_TOPICS
+            if markers or topic != '/markers'}

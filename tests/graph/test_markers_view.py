@@ -1,0 +1,249 @@
+"""Markers and the live view: /markers draws the state it was given, a WebSocket client that is
+not ours decodes the live view with the advertised schemas, and neither changes the run."""
+
+import asyncio
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import websockets
+from websockets.typing import Subprotocol
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from omni_micro_cli.bags import read_bag
+from omni_micro_sim.conventions import quaternion_to_yaw
+from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.scene import RobotGeometry
+
+ROOT = Path(__file__).resolve().parents[2]
+GOAL = (0.1, 0.0)
+# Every decision of the run. (After the outcome the graph runs on for a few ticks until it is
+# stopped, as many as wall time allows: /odom is compared up to the last capture.)
+COMPARED_TOPICS = ('/camera/macro/pose', '/camera/micro/pose', '/wheel_trajectory',
+                   '/controller/status')
+
+
+def _run(omni_micro, folder: Path, *extra: str):
+    bag = folder / 'bag'
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', '3', '--json',
+                        '--quiet', '--record', str(bag), '--log-dir', str(folder / 'logs'),
+                        *extra)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return bag, json.loads(result.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope='module')
+def with_markers(tmp_path_factory, omni_micro):
+    return _run(omni_micro, tmp_path_factory.mktemp('markers'))
+
+
+def test_markers_draw_the_odometry_goal_and_fields_they_were_given(with_markers):
+    bag, summary = with_markers
+    messages = read_bag(bag, ['/markers', '/odom'])
+    odometry = {(m.header.stamp.sec, m.header.stamp.nanosec): m.pose.pose
+                for m in messages.messages['/odom']}
+    arrays = messages.messages['/markers']
+    assert len(arrays) >= len(odometry) // 5 - 2     # one per 5 samples, as configured
+    geometry = RobotGeometry()
+    drawn = 0
+    for array in arrays:
+        by_name = {(marker.ns, marker.id): marker for marker in array.markers}
+        for marker in array.markers:
+            assert marker.header.frame_id == 'platform'
+        chassis = by_name[('robot/chassis', 0)]
+        pose = odometry[(chassis.header.stamp.sec, chassis.header.stamp.nanosec)]
+        assert (chassis.pose.position.x, chassis.pose.position.y) == \
+            (pose.position.x, pose.position.y)
+        phi = quaternion_to_yaw(pose.orientation.z, pose.orientation.w)
+        wheel_1 = by_name[('robot/wheel_1', 0)].points[0]
+        expected = geometry.wheel_contacts(pose.position.x, pose.position.y, phi)[0]
+        assert math.dist((wheel_1.x, wheel_1.y), expected) < 1e-12
+        assert chassis.scale.x == pytest.approx(9e-3)     # the 9 mm chassis
+        drawn += 1
+        if ('goal', 0) in by_name:
+            goal = by_name[('goal', 0)].points[0]
+            assert (goal.x, goal.y) == GOAL
+            fields = {marker.id: [(p.x, p.y) for p in marker.points]
+                      for marker in array.markers if marker.ns == 'fields'}
+            for index, camera in enumerate((DEFAULT_RIG.macro, DEFAULT_RIG.micro)):
+                xs = [x for x, _ in fields[index]]
+                ys = [y for _, y in fields[index]]
+                assert (min(xs) + max(xs)) / 2 == pytest.approx(camera.center_m[0])
+                assert max(xs) - min(xs) == pytest.approx(camera.field_m[0])
+                assert max(ys) - min(ys) == pytest.approx(camera.field_m[1])
+    assert drawn == len(arrays)
+    last = {(marker.ns, marker.id): marker for marker in arrays[-1].markers}
+    final = last[('robot/chassis', 0)].pose.position
+    assert math.hypot(final.x - summary['final_x_mm'] * 1e-3,
+                      final.y - summary['final_y_mm'] * 1e-3) < 1e-9
+
+
+def test_the_run_is_the_same_without_markers(with_markers, omni_micro, tmp_path):
+    bag, summary = with_markers
+    bare_bag, bare = _run(omni_micro, tmp_path, '--no-markers')
+    assert '/markers' not in read_bag(bare_bag).msgtypes
+    assert_same_run(bag, summary, bare_bag, bare)
+
+
+def assert_same_run(bag: Path, summary: dict, other_bag: Path, other: dict) -> None:
+    """The same outcome, and the same bytes on every topic up to it. (After the outcome the
+    graph runs on until it is stopped, as long as wall time makes it: more captures and odometry,
+    and the stop sent at shutdown, stamped then.)"""
+    for key in ('outcome', 'periods', 'sim_time_s'):
+        assert other[key] == summary[key], key
+    for key in ('final_x_mm', 'final_y_mm'):
+        assert other[key] == pytest.approx(summary[key], abs=1e-9), key    # 1 pm: at rest
+    ours, theirs = read_bag(bag), read_bag(other_bag)
+    outcome_ns = round(summary['sim_time_s'] * 1e9)     # the decisive capture's stamp
+    for topic in (*COMPARED_TOPICS, '/odom'):
+        assert ours.raw[topic][:5] == theirs.raw[topic][:5], topic
+        before = [raw for raw, message in zip(ours.raw[topic], ours.messages[topic],
+                                              strict=True)
+                  if _stamp_ns(message) <= outcome_ns]
+        assert theirs.raw[topic][:len(before)] == before, topic
+
+
+def _stamp_ns(message) -> int:
+    header = getattr(message, 'header', None)
+    if header is None:           # DiagnosticStatus: in order, compared whole
+        return 0
+    return header.stamp.sec * 10**9 + header.stamp.nanosec
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
+
+
+def _typestore(schema_name: str, schema: str):
+    """Decode with the schema the server advertised, not with any of ours."""
+    store = get_typestore(Stores.EMPTY)
+    first, *dependencies = schema.split('=' * 80 + '\n')
+    types = dict(get_types_from_msg(first, schema_name))
+    for dependency in dependencies:
+        header, _, body = dependency.partition('\n')
+        package, *_, type_name = header.removeprefix('MSG: ').strip().split('/')
+        types.update(get_types_from_msg(body, f'{package}/msg/{type_name}'))
+    store.register(types)
+    return store
+
+
+def _approached(received: dict[str, list]) -> bool:
+    """The robot seen 10 mm closer to the goal than it was first seen."""
+    odometry = received.get('/odom', [])
+    distances = [math.dist((m.pose.pose.position.x, m.pose.pose.position.y), GOAL)
+                 for m in (odometry[0], odometry[-1])] if odometry else [0.0, 0.0]
+    return distances[1] < distances[0] - 0.01
+
+
+async def _watch(url: str, seconds: float, slow: bool,
+                 enough: Callable[[dict[str, list]], bool] = lambda _: False) -> dict[str, list]:
+    """A Foxglove WebSocket client: subscribe to every channel, decode each message, until
+    ``enough`` of them came, the server closed, or ``seconds`` passed."""
+    received: dict[str, list] = {}
+    async with websockets.connect(url, subprotocols=[Subprotocol('foxglove.sdk.v1')],
+                                  max_size=None) as client:
+        subscriptions: dict[int, tuple] = {}
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline and not enough(received):
+            try:
+                frame = await asyncio.wait_for(client.recv(), timeout=0.5)
+            except TimeoutError:
+                continue
+            except websockets.ConnectionClosed:
+                break
+            if isinstance(frame, str):
+                message = json.loads(frame)
+                if message['op'] == 'serverInfo':
+                    assert message['capabilities'] == []     # no publishing, no services
+                if message['op'] == 'advertise':
+                    wanted = []
+                    for channel in message['channels']:
+                        assert channel['encoding'] == 'cdr'
+                        assert channel['schemaEncoding'] == 'ros2msg'
+                        subscription = len(subscriptions) + 1
+                        subscriptions[subscription] = (
+                            channel['topic'], channel['schemaName'],
+                            _typestore(channel['schemaName'], channel['schema']))
+                        wanted.append({'id': subscription, 'channelId': channel['id']})
+                    await client.send(json.dumps({'op': 'subscribe', 'subscriptions': wanted}))
+                continue
+            opcode, subscription, _ = struct.unpack_from('<BIQ', frame)
+            assert opcode == 1
+            topic, schema_name, store = subscriptions[subscription]
+            received.setdefault(topic, []).append(store.deserialize_cdr(frame[13:], schema_name))
+            if slow:
+                await asyncio.sleep(0.05)    # a viewer that reads slowly
+    return received
+
+
+def test_a_foxglove_client_watches_the_robot_approach_the_goal(tmp_path, omni_micro):
+    port = _free_port()
+    run = subprocess.Popen(
+        [str(ROOT / 'scripts' / 'omni-micro'), 'run', '--goal-mm', '100,0', '--rtf', '4',
+         '--view', '--view-port', str(port), '--quiet', '--log-dir', str(tmp_path / 'logs')],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, env=dict(os.environ))
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            with socket.socket() as sock:
+                if sock.connect_ex(('127.0.0.1', port)) == 0:
+                    break
+            assert time.monotonic() < deadline and run.poll() is None, 'no live view'
+            time.sleep(0.1)
+        received = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 60.0, slow=False,
+                                      enough=_approached))
+        assert _approached(received), f'{len(received.get("/odom", []))} odometry messages'
+        assert received['/markers'] and received['/clock']
+        assert {'/camera/macro/pose', '/controller/status'} <= set(received)
+        _, stderr = run.communicate(timeout=120)
+        assert run.returncode == 0, stderr[-3000:]
+        assert f'live view: ws://127.0.0.1:{port}' in stderr
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGINT)
+            run.communicate(timeout=60)
+
+
+def test_a_slow_viewer_changes_nothing_in_the_run(with_markers, tmp_path, omni_micro):
+    bag, summary = with_markers
+    port = _free_port()
+    folder = tmp_path / 'viewed'
+    run = subprocess.Popen(
+        [str(ROOT / 'scripts' / 'omni-micro'), 'run', '--goal-mm', '100,0', '--rtf', 'max',
+         '--seed', '3', '--json', '--quiet', '--record', str(folder / 'bag'), '--log-dir',
+         str(folder / 'logs'), '--view', '--view-port', str(port)],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, env=dict(os.environ))
+    deadline = time.monotonic() + 60
+    while True:
+        with socket.socket() as sock:
+            if sock.connect_ex(('127.0.0.1', port)) == 0:
+                break
+        assert time.monotonic() < deadline and run.poll() is None, 'no live view'
+        time.sleep(0.05)
+    received = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 10.0, slow=True))
+    stdout, stderr = run.communicate(timeout=120)
+    assert run.returncode == 0, stderr[-3000:]
+    assert received, 'the slow viewer saw nothing'
+    assert_same_run(bag, summary, folder / 'bag', json.loads(stdout.strip().splitlines()[-1]))
+
+
+def test_a_view_address_beyond_loopback_says_who_can_connect():
+    from omni_micro_cli.errors import UsageError
+    from omni_micro_cli.view import check_view_host
+
+    assert check_view_host('127.0.0.1') is None
+    assert 'any machine that can reach this one' in str(check_view_host('0.0.0.0'))
+    with pytest.raises(UsageError, match=r"an IP address such as 127\.0\.0\.1, got 'lab'"):
+        check_view_host('lab')
