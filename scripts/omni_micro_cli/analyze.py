@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli import plots
+from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
@@ -28,6 +29,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--out', type=Path, required=True, metavar='DIR',
                         help='folder for the figures and summary (made if missing; files of '
                              'the same names are replaced, each whole, other files are kept)')
+    parser.add_argument('--animate', choices=('gif', 'mp4'), nargs='?', const='gif',
+                        metavar='gif|mp4',
+                        help='also render the run as DIR/run.gif (or .mp4, needs ffmpeg) and '
+                             'its last frame as DIR/run_last_frame.png: the route forming, '
+                             'captures landing, a micro-field inset, simulated time shown')
+    parser.add_argument('--frames', type=positive_int, default=100, metavar='N',
+                        help='frames of the animation, evenly spaced in simulated time '
+                             '(default 100)')
+    parser.add_argument('--fps', type=positive_int, default=10, metavar='F',
+                        help='frames per second of the animation (default 10)')
     parser.set_defaults(handler=run)
 
 
@@ -117,6 +128,11 @@ def run(args: argparse.Namespace) -> int:
                              component='transverse', title='transverse slip of each wheel')
         if len(arrays['remaining']):
             plots.remaining_distance(scratch / 'periods.png', arrays['remaining'])
+        if args.animate:
+            from omni_micro_cli.animate import animate
+
+            animate(args.bag, scratch / f'run.{args.animate}', args.frames, args.fps,
+                    scratch / 'run_last_frame.png')
         (scratch / 'summary.json').write_text(json.dumps(summary, indent=2))
         (scratch / 'summary.md').write_text(summary_markdown(summary))
     print(summary_markdown(summary))

@@ -80,6 +80,13 @@ def non_negative_int(text: str) -> int:
     return value
 
 
+def positive_int(text: str) -> int:
+    value = non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f'expected a whole number >= 1, got {text!r}')
+    return value
+
+
 def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:
     """A parser for ``count`` comma-separated finite numbers, e.g. ``0,3,2``."""
 

@@ -22,6 +22,7 @@ from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_cli.record import add_storage_arguments
 from omni_micro_cli.run import echo_to_stderr
+from omni_micro_cli.view import add_view_arguments, view_from_args
 from omni_micro_sim import paper
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
@@ -46,6 +47,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='record the runs as bags DIR/fig11_open_loop, '
                              'DIR/fig11_closed_loop and DIR/fig11_model')
     add_storage_arguments(parser)
+    add_view_arguments(parser, flag=True)
     parser.set_defaults(handler=run)
 
 
@@ -71,7 +73,8 @@ def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Pat
         lockstep=not args.free_running,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
-        force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {}))
+        force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {},
+        view=view_from_args(args)))
 
 
 def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,

@@ -20,7 +20,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
 from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
-from omni_micro_cli.view import add_view_arguments, check_view_host, view_url
+from omni_micro_cli.view import add_view_arguments, view_from_args
 from omni_micro_control.feedback import MODES
 
 
@@ -116,18 +116,6 @@ def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
     if overrides:
         overrides['faults.camera'] = args.fault_camera
     return overrides
-
-
-def view_from_args(args: argparse.Namespace) -> tuple[str, int] | None:
-    """(host, port) of the live view, having said where to connect; None without --view."""
-    if not args.view:
-        return None
-    warning = check_view_host(args.view_host)
-    if warning:
-        print(warning, file=sys.stderr)
-    print(f'live view: {view_url(args.view_host, args.view_port)} (Foxglove: Open connection '
-          '> Foxglove WebSocket; layout: foxglove/omni-micro.json)', file=sys.stderr)
-    return args.view_host, args.view_port
 
 
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],

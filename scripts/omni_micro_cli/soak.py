@@ -15,6 +15,7 @@ from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_neg
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, run_graph
 from omni_micro_cli.run import echo_to_stderr
+from omni_micro_cli.view import add_view_arguments, view_from_args
 from omni_micro_vision.camera import DEFAULT_RIG
 
 # Goals inside the micro camera's field (so each one can be reached to the 3 um tolerance),
@@ -40,6 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--json', action='store_true', help='print the report as a JSON line')
     parser.add_argument('--quiet', action='store_true',
                         help="do not echo the nodes' logs (they are still kept)")
+    add_view_arguments(parser, flag=True)
     parser.set_defaults(handler=run)
 
 
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         lockstep=not args.free_running,
         log_dir=folder / 'logs', record=bag, timeout_s=600.0,
         dynamics_overrides={'initial_pose': [*DEFAULT_RIG.micro.center_m, 0.0]},
-        echo=None if args.quiet else echo_to_stderr))
+        echo=None if args.quiet else echo_to_stderr, view=view_from_args(args)))
     reached = sum(1 for status in result.goals if status['outcome'] == 'reached')
     recorded = bag_counts(bag)
     missing = {topic: count - recorded.get(topic, 0) for topic, count in result.published.items()

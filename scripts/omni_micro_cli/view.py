@@ -52,6 +52,18 @@ def view_url(host: str, port: int) -> str:
     return f'ws://{host}:{port}'
 
 
+def view_from_args(args: argparse.Namespace) -> tuple[str, int] | None:
+    """(host, port) of the live view, having said where to connect; None without --view."""
+    if not args.view:
+        return None
+    warning = check_view_host(args.view_host)
+    if warning:
+        print(warning, file=sys.stderr)
+    print(f'live view: {view_url(args.view_host, args.view_port)} (Foxglove: Open connection '
+          '> Foxglove WebSocket; layout: foxglove/omni-micro.json)', file=sys.stderr)
+    return args.view_host, args.view_port
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'view', help='serve a running graph to Foxglove (run --view starts this)',

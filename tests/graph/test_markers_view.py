@@ -5,6 +5,7 @@ import asyncio
 import json
 import math
 import os
+import shutil
 import signal
 import socket
 import struct
@@ -15,8 +16,8 @@ from pathlib import Path
 
 import pytest
 import websockets
-from websockets.typing import Subprotocol
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from websockets.typing import Subprotocol
 
 from omni_micro_cli.bags import read_bag
 from omni_micro_sim.conventions import quaternion_to_yaw
@@ -247,3 +248,23 @@ def test_a_view_address_beyond_loopback_says_who_can_connect():
     assert 'any machine that can reach this one' in str(check_view_host('0.0.0.0'))
     with pytest.raises(UsageError, match=r"an IP address such as 127\.0\.0\.1, got 'lab'"):
         check_view_host('lab')
+
+
+def test_analyze_animates_the_run_from_the_bag_alone(with_markers, tmp_path, omni_micro):
+    from PIL import Image
+
+    bag, _ = with_markers
+    result = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'), '--animate',
+                        '--frames', '12')
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert '12/12' in result.stderr                      # the progress bar reached the end
+    with Image.open(tmp_path / 'analysis' / 'run.gif') as movie:
+        assert movie.size == (1000, 450)
+        assert getattr(movie, 'n_frames', 1) == 12
+    with Image.open(tmp_path / 'analysis' / 'run_last_frame.png') as still:
+        assert still.size == (1000, 450)
+    if shutil.which('ffmpeg') is None:     # an MP4 cannot be made here: said, nothing written
+        failed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'mp4'), '--animate',
+                            'mp4')
+        assert failed.returncode == 2 and 'needs ffmpeg' in failed.stderr
+        assert not (tmp_path / 'mp4').exists()

@@ -204,8 +204,18 @@ class MarkersNode(Node):
 
     def _publish(self, shapes: list[Shape]) -> None:
         self._event = False
-        self.publisher.publish(MarkerArray(
-            markers=[to_marker(shape, self.frame_id, self._stamp) for shape in shapes]))
+        markers = []
+        if self.scene.cleared:
+            # The last goal's captures and moves go; everything still drawn is sent again.
+            self.scene.cleared = False
+            clear = Marker(action=Marker.DELETEALL)
+            clear.header.frame_id = self.frame_id
+            clear.header.stamp = self._stamp
+            markers.append(clear)
+            shapes = (self.scene.robot_shapes() + self.scene.route_shapes(only_last=False)
+                      + self.scene.static_shapes())
+        markers += [to_marker(shape, self.frame_id, self._stamp) for shape in shapes]
+        self.publisher.publish(MarkerArray(markers=markers))
         self.published += 1
 
 

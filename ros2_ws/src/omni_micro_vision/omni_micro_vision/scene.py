@@ -96,6 +96,7 @@ class Scene:
     moves: list[tuple[Point, Point]] = field(default_factory=list)
     slip_longitudinal: tuple[float, float, float] = (0.0, 0.0, 0.0)
     slip_transverse: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    cleared: bool = False
 
     # -- inputs ------------------------------------------------------------------------------
     def on_odometry(self, x: float, y: float, phi: float) -> None:
@@ -107,8 +108,13 @@ class Scene:
         self.steering_rad = steering_rad
 
     def on_goal(self, x: float, y: float) -> None:
+        """A new goal: the captures and moves drawn from now on are its own (a soak sends
+        fifty); the route goes on. ``cleared`` tells a viewer to drop what it drew."""
         self.goal_m = (x, y)
         self.start_m = (self.pose[0], self.pose[1]) if self.pose else (0.0, 0.0)
+        self.cleared = bool(self.captures or self.moves)
+        self.captures.clear()
+        self.moves.clear()
 
     def on_capture(self, camera: str, x: float, y: float) -> None:
         self.captures.append(Capture(camera, x, y))

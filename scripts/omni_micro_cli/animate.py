@@ -1,0 +1,163 @@
+"""`analyze BAG --animate`: the run as a GIF (or MP4), from the bag alone.
+
+The bag's messages are fed, in the order they were recorded, to the same
+:class:`omni_micro_vision.scene.Scene` that ``markers_node`` draws from; each frame draws the
+scene at one simulated time: the platform with the route forming, captures landing, moves and
+the robot, and an inset of the micro field.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omni_micro_cli.bags import read_bag
+from omni_micro_cli.errors import UsageError
+from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw
+from omni_micro_sim.wheel_trajectory import STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.scene import Scene, Shape
+
+FIGURE_SIZE_IN = (10.0, 4.5)
+DPI = 100                      # frames of 1000 x 450 pixels
+TOPICS = ('/odom', '/joint_states', '/wheel_slip', '/wheel_trajectory', '/goal_pose',
+          '/camera/macro/pose', '/camera/micro/pose', '/camera/macro/pose_with_covariance',
+          '/camera/micro/pose_with_covariance')
+
+
+def _events(bag: Path) -> list[tuple[int, str, Any]]:
+    """Every message that changes the scene, with the simulated time it was recorded at."""
+    data = read_bag(bag, list(TOPICS))
+    if not data.messages.get('/odom'):
+        raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to animate')
+    events = [(stamp, topic, message)
+              for topic in TOPICS
+              for stamp, message in zip(data.timestamps.get(topic, []),
+                                        data.messages.get(topic, []), strict=True)]
+    # The recorder's stamps are simulated time; ties keep the topics' order above.
+    events.sort(key=lambda event: event[0])
+    return events
+
+
+def _apply(scene: Scene, topic: str, message: Any) -> None:
+    if topic == '/odom':
+        pose = message.pose.pose
+        scene.on_odometry(pose.position.x, pose.position.y,
+                          quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
+    elif topic == '/joint_states' and STEERING_JOINT in message.name:
+        scene.on_steering(message.position[message.name.index(STEERING_JOINT)])
+    elif topic == '/wheel_slip':
+        speeds = dict(zip(message.name, message.velocity, strict=False))
+        scene.on_slip(tuple(speeds.get(f'wheel_{k}_longitudinal', 0.0) for k in (1, 2, 3)),
+                      tuple(speeds.get(f'wheel_{k}_transverse', 0.0) for k in (1, 2, 3)))
+    elif topic == '/wheel_trajectory' and len(message.points) >= 2:
+        steering = message.points[0].positions[message.joint_names.index(STEERING_JOINT)]
+        wheel = message.joint_names.index(WHEEL_JOINTS[1])
+        rotation = message.points[-1].positions[wheel] - message.points[0].positions[wheel]
+        scene.on_move(steering, abs(rotation) * scene.robot.wheel_radius_m)
+    elif topic == '/goal_pose':
+        scene.on_goal(message.pose.position.x, message.pose.position.y)
+    elif topic.endswith('/pose'):
+        scene.on_capture(topic.split('/')[2], message.pose.position.x, message.pose.position.y)
+    elif topic.endswith('/pose_with_covariance'):
+        pose = message.pose.pose
+        uncertainty = CaptureUncertainty.from_covariance(list(message.pose.covariance))
+        scene.on_capture_uncertainty(topic.split('/')[2], pose.position.x, pose.position.y,
+                                     uncertainty.radius_95_m)
+
+
+def _draw(axis: Any, shapes: list[Shape], micro: bool) -> None:
+    """Shapes in mm; line widths in points, so that both views stay legible."""
+    from matplotlib.patches import Circle
+
+    for shape in shapes:
+        # The inset shows the micro close-up's own shapes and the fields; the 9 mm robot and
+        # its moves would cover it.
+        if micro != shape.namespace.startswith('micro/') and shape.namespace != 'fields':
+            continue
+        points = np.array(shape.points) * 1e3
+        colour = shape.colour
+        if shape.kind in ('line_strip', 'line_list'):
+            if shape.kind == 'line_list':
+                for start in range(0, len(points) - 1, 2):
+                    axis.plot(points[start:start + 2, 0], points[start:start + 2, 1],
+                              color=colour, linewidth=2.5)
+            else:
+                axis.plot(points[:, 0], points[:, 1], color=colour, linewidth=1.2)
+        elif shape.kind == 'sphere_list':
+            axis.scatter(points[:, 0], points[:, 1], s=14, color=colour, zorder=3)
+        elif shape.kind == 'disc':
+            axis.add_patch(Circle(tuple(points[0]), shape.size_m * 1e3 / 2, color=colour,
+                                  alpha=min(colour[3], 0.5), zorder=2))
+        elif shape.kind == 'arrow' and math.dist(*shape.points) > 0:
+            axis.annotate('', xy=tuple(points[1]), xytext=tuple(points[0]),
+                          arrowprops={'arrowstyle': '->', 'color': colour, 'lw': 1.2})
+
+
+def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
+    """Render ``frames`` frames to ``target`` (.gif, or .mp4 where ffmpeg exists), and the
+    last one to ``still`` (a PNG)."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from matplotlib import animation
+    from tqdm import tqdm
+
+    if target.suffix == '.mp4' and shutil.which('ffmpeg') is None:
+        raise UsageError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
+    events = _events(bag)
+    first, last = events[0][0], events[-1][0]
+    times = np.linspace(first, last, frames)
+    scene = Scene(DEFAULT_RIG)
+    fig = plt.figure(figsize=FIGURE_SIZE_IN, dpi=DPI)
+    main = fig.add_axes((0.07, 0.12, 0.6, 0.76))
+    inset = fig.add_axes((0.72, 0.12, 0.26, 0.76))
+    title = fig.suptitle('')
+    cursor = 0
+    bar = tqdm(total=frames, unit='frame', desc='animate', file=sys.stderr, mininterval=0.5)
+
+    def frame(index: int) -> None:
+        nonlocal cursor
+        while cursor < len(events) and events[cursor][0] <= times[index]:
+            _apply(scene, events[cursor][1], events[cursor][2])
+            cursor += 1
+        shapes = (scene.static_shapes() + scene.route_shapes(only_last=False)
+                  + scene.robot_shapes())
+        for axis, micro in ((main, False), (inset, True)):
+            axis.cla()
+            _draw(axis, shapes, micro)
+            axis.set_aspect('equal')
+            axis.grid(True, alpha=0.3)
+        x_values = [x for x, _ in scene.route] + ([scene.goal_m[0]] if scene.goal_m else [])
+        y_values = [y for _, y in scene.route] + ([scene.goal_m[1]] if scene.goal_m else [])
+        margin = 6.0
+        main.set_xlim(min(x_values) * 1e3 - margin, max(x_values) * 1e3 + margin)
+        main.set_ylim(min(y_values) * 1e3 - margin - 20, max(y_values) * 1e3 + margin + 20)
+        main.set(xlabel='x (mm)', ylabel='y (mm)', title='platform (15 cm field)')
+        title.set_text(f'{bag.name}: t = {(times[index] - first) * 1e-9:6.2f} s simulated')
+        (cx, cy), (w, h) = DEFAULT_RIG.micro.center_m, DEFAULT_RIG.micro.field_m
+        inset.set_xlim((cx - w / 2) * 1e3, (cx + w / 2) * 1e3)
+        inset.set_ylim((cy - h / 2) * 1e3, (cy + h / 2) * 1e3)
+        if scene.pose is not None:
+            inset.plot(scene.pose[0] * 1e3, scene.pose[1] * 1e3, 'x', color='k')
+        inset.set_title('micro field (2 mm)', fontsize=9)
+        inset.tick_params(labelsize=7)
+        inset.locator_params(nbins=5)
+        bar.update(1)
+
+    movie = animation.FuncAnimation(fig, frame, frames=frames, repeat=False)
+    writer = (animation.PillowWriter(fps=fps) if target.suffix == '.gif'
+              else animation.FFMpegWriter(fps=fps))
+    try:
+        movie.save(str(target), writer=writer, dpi=DPI)
+        fig.savefig(still, dpi=DPI)
+    finally:
+        bar.close()
+        plt.close(fig)
+    return frames
