@@ -14,9 +14,11 @@ import json
 import math
 import os
 import pstats
+import statistics
 import tempfile
 from pathlib import Path
 
+from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.machine_load import busy_cores
 from omni_micro_sim import paper
@@ -41,15 +43,34 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='then one more idle lockstep run with each node under cProfile '
                              '(slower, so not in the table): print where its time goes and keep '
                              'the .prof files in DIR')
+    parser.add_argument('--markers-pairs', type=non_negative_int, default=3, metavar='N',
+                        help='then N pairs of idle runs without and with markers_node, for '
+                             'what the markers cost (default 3; 0 skips it)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     parser.set_defaults(handler=run)
 
 
-def one_run(rtf: float, lockstep: bool, busy: int, scratch: Path, name: str) -> GraphResult:
+def one_run(rtf: float, lockstep: bool, busy: int, scratch: Path, name: str,
+            markers: bool = True) -> GraphResult:
     with busy_cores(busy):
         return run_graph(GraphOptions(
             goal_m=paper.FIG11_GOAL_M, real_time_factor=rtf, lockstep=lockstep,
-            log_dir=scratch / 'logs', record=scratch / name, timeout_s=300.0))
+            log_dir=scratch / 'logs', record=scratch / name, timeout_s=300.0, markers=markers))
+
+
+def markers_cost(pairs: int, scratch: Path) -> dict[str, float]:
+    """Idle lockstep runs with and without markers_node, alternating; median rtf of each."""
+    reached: dict[bool, list[float]] = {True: [], False: []}
+    for pair in range(pairs):
+        for markers in (False, True):
+            result = one_run(math.inf, True, 0, scratch, f'markers{pair}{markers}', markers)
+            reached[markers].append(result.sim_time_s / result.wall_time_s)
+    without, with_markers = statistics.median(reached[False]), statistics.median(reached[True])
+    print(f'markers cost ({pairs} pairs, idle lockstep --rtf max, recorded): rtf without '
+          f'{without:.1f}, with {with_markers:.1f} (median): '
+          f'{100 * (1 - with_markers / without):+.1f} % slower (target < 10 %)', flush=True)
+    return {'rtf_without_markers': round(without, 2), 'rtf_with_markers': round(with_markers, 2),
+            'slower_percent': round(100 * (1 - with_markers / without), 1)}
 
 
 def profile_summary(folder: Path, top: int = 8) -> dict[str, list[tuple[str, float]]]:
@@ -89,6 +110,9 @@ def run(args: argparse.Namespace) -> int:
     print(f'lockstep runs identical: {len(lockstep_poses) == 1}; idle lockstep rtf {idle} '
           f'(target >= 30), free-running rtf 20 reached {rows[3]["rtf_reached"]}')
     report: dict[str, object] = {'runs': rows, 'lockstep_identical': len(lockstep_poses) == 1}
+    if args.markers_pairs:
+        with tempfile.TemporaryDirectory(prefix='omni-micro-bench-graph-') as folder:
+            report['markers'] = markers_cost(args.markers_pairs, Path(folder))
     if args.profile is not None:
         args.profile.mkdir(parents=True, exist_ok=True)
         os.environ['OMNI_MICRO_PROFILE'] = str(args.profile.resolve())

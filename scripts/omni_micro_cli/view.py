@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import socket
 import sys
 
 from omni_micro_cli.arguments import non_negative_int
@@ -53,15 +54,37 @@ def view_url(host: str, port: int) -> str:
 
 
 def view_from_args(args: argparse.Namespace) -> tuple[str, int] | None:
-    """(host, port) of the live view, having said where to connect; None without --view."""
+    """(host, port) of the live view, having said where to connect; None without --view.
+
+    Raises
+    ------
+    UsageError
+        If the address is not an IP address or the port is taken: said before the graph
+        starts, so that a viewer never ends a run.
+    """
     if not args.view:
         return None
     warning = check_view_host(args.view_host)
     if warning:
         print(warning, file=sys.stderr)
-    print(f'live view: {view_url(args.view_host, args.view_port)} (Foxglove: Open connection '
+    port = free_port(args.view_host, args.view_port)
+    print(f'live view: {view_url(args.view_host, port)} (Foxglove: Open connection '
           '> Foxglove WebSocket; layout: foxglove/omni-micro.json)', file=sys.stderr)
-    return args.view_host, args.view_port
+    return args.view_host, port
+
+
+def free_port(host: str, port: int) -> int:
+    """``port`` if nothing listens there (0: a free one), else a UsageError naming it."""
+    family = socket.AF_INET6 if ':' in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as error:
+            raise UsageError(f'--view-port {port}: cannot listen on {host}:{port} '
+                             f'({error.strerror}); give another port, or 0 for any free one') \
+                from None
+        return int(probe.getsockname()[1])
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -54,7 +54,7 @@ def test_markers_draw_the_odometry_goal_and_fields_they_were_given(with_markers)
     arrays = messages.messages['/markers']
     assert len(arrays) >= len(odometry) // 5 - 2     # one per 5 samples, as configured
     geometry = RobotGeometry()
-    drawn = 0
+    drawn = goals_drawn = fields_drawn = 0
     for array in arrays:
         by_name = {(marker.ns, marker.id): marker for marker in array.markers}
         for marker in array.markers:
@@ -72,8 +72,11 @@ def test_markers_draw_the_odometry_goal_and_fields_they_were_given(with_markers)
         if ('goal', 0) in by_name:
             goal = by_name[('goal', 0)].points[0]
             assert (goal.x, goal.y) == GOAL
-            fields = {marker.id: [(p.x, p.y) for p in marker.points]
-                      for marker in array.markers if marker.ns == 'fields'}
+            goals_drawn += 1
+        fields = {marker.id: [(p.x, p.y) for p in marker.points]
+                  for marker in array.markers if marker.ns == 'fields'}
+        if fields:
+            fields_drawn += 1
             for index, camera in enumerate((DEFAULT_RIG.macro, DEFAULT_RIG.micro)):
                 xs = [x for x, _ in fields[index]]
                 ys = [y for _, y in fields[index]]
@@ -81,6 +84,7 @@ def test_markers_draw_the_odometry_goal_and_fields_they_were_given(with_markers)
                 assert max(xs) - min(xs) == pytest.approx(camera.field_m[0])
                 assert max(ys) - min(ys) == pytest.approx(camera.field_m[1])
     assert drawn == len(arrays)
+    assert goals_drawn >= 1 and fields_drawn >= len(odometry) // 50 - 1   # refreshed at 1 Hz
     last = {(marker.ns, marker.id): marker for marker in arrays[-1].markers}
     final = last[('robot/chassis', 0)].pose.position
     assert math.hypot(final.x - summary['final_x_mm'] * 1e-3,
@@ -268,3 +272,15 @@ def test_analyze_animates_the_run_from_the_bag_alone(with_markers, tmp_path, omn
                             'mp4')
         assert failed.returncode == 2 and 'needs ffmpeg' in failed.stderr
         assert not (tmp_path / 'mp4').exists()
+
+
+def test_a_taken_view_port_is_refused_before_the_graph_starts(omni_micro, tmp_path):
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = omni_micro('run', '--goal-mm', '100,0', '--view', '--view-port', str(port),
+                            '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 2
+    assert f'--view-port {port}: cannot listen on 127.0.0.1:{port}' in result.stderr
+    assert not (tmp_path / 'logs').exists()          # no graph was started

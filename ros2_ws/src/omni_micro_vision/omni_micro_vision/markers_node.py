@@ -1,6 +1,6 @@
 """ROS 2 adapter of the scene: visualization_msgs/MarkerArray on /markers, for RViz 2 and Foxglove.
 
-Only listens (/odom, /joint_states, /wheel_slip, /wheel_trajectory, /goal_pose and the cameras'
+Only listens (/odom, /wheel_slip, /wheel_trajectory, /goal_pose and the cameras'
 captures) and publishes /markers in the ``platform`` frame, stamped with the simulated time of the
 odometry it draws. It takes no part in the lockstep, so the graph runs the same with or without
 it. What is drawn is :class:`omni_micro_vision.scene.Scene`'s; this node only moves numbers.
@@ -21,7 +21,6 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import ColorRGBA
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -43,14 +42,17 @@ MARKER_TYPES = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER,
                 'line_list': Marker.LINE_LIST, 'text': Marker.TEXT_VIEW_FACING}
 
 
-def to_marker(shape: Shape, frame_id: str, stamp: Time) -> Marker:
-    marker = Marker(ns=shape.namespace, id=shape.id, type=MARKER_TYPES[shape.kind],
-                    action=Marker.ADD, frame_locked=False)
-    marker.header.frame_id = frame_id
+def to_marker(shape: Shape, frame_id: str, stamp: Time, marker: Marker | None = None) -> Marker:
+    """The Marker of ``shape``; ``marker``, a previous one of the same shape, is updated in place
+    (building rclpy messages is most of this node's time)."""
+    if marker is None:
+        marker = Marker(ns=shape.namespace, id=shape.id, type=MARKER_TYPES[shape.kind],
+                        action=Marker.ADD, frame_locked=False)
+        marker.header.frame_id = frame_id
+        marker.pose.orientation.w = 1.0
     marker.header.stamp = stamp
-    marker.pose.orientation.w = 1.0
-    marker.color = ColorRGBA(r=shape.colour[0], g=shape.colour[1], b=shape.colour[2],
-                             a=shape.colour[3])
+    colour = marker.color
+    colour.r, colour.g, colour.b, colour.a = shape.colour
     if shape.kind in ('disc', 'text'):
         marker.pose.position.x, marker.pose.position.y = shape.points[0]
         if shape.kind == 'disc':
@@ -60,7 +62,12 @@ def to_marker(shape: Shape, frame_id: str, stamp: Time) -> Marker:
             marker.scale.z = shape.size_m
             marker.text = shape.text
         return marker
-    marker.points = [Point(x=x, y=y, z=0.0) for x, y in shape.points]
+    points = marker.points
+    if len(points) == len(shape.points):
+        for point, (x, y) in zip(points, shape.points, strict=True):
+            point.x, point.y = x, y
+    else:
+        marker.points = [Point(x=x, y=y, z=0.0) for x, y in shape.points]
     if shape.kind == 'arrow':
         # Shaft diameter, head diameter, head length (RViz's and Foxglove's convention).
         length = math.dist(*shape.points)
@@ -107,16 +114,19 @@ class MarkersNode(Node):
         self.published = 0
         self.handled = 0          # messages taken in (the drain at shutdown watches it)
         self._ticks = 0
-        self._event = False
+        self._changed: set[str] = set()     # event groups to send with the next array
         self._stamp = Time()
+        self._markers: dict[tuple[str, int], Marker] = {}
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
                                  event_callbacks=quiet)
-        # Per-tick streams read only when drawn: kept as bytes, decoded once per publication.
+        # Per-tick: each subscriber costs the dynamics node a delivery per tick, so the
+        # steering comes from the commands (/wheel_trajectory), and the slip is kept as bytes
+        # and decoded once per publication.
         self._latest: dict[str, bytes] = {}
-        for topic in ('/joint_states', '/wheel_slip'):
-            self.create_subscription(JointState, topic, self._keeper(topic), DATA_QOS,
-                                     raw=True, event_callbacks=quiet)
+        self._steering_at: list[tuple[int, float]] = []     # (start stamp ns, steering)
+        self.create_subscription(JointState, '/wheel_slip', self._keeper('/wheel_slip'),
+                                 DATA_QOS, raw=True, event_callbacks=quiet)
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
@@ -145,8 +155,8 @@ class MarkersNode(Node):
                           + self.scene.static_shapes())
         else:
             shapes = self.scene.robot_shapes() + self.scene.route_shapes(only_last=True)
-            if self._event:
-                shapes += self.scene.static_shapes()
+            if self._changed:
+                shapes += self.scene.static_shapes(frozenset(self._changed), newest_only=True)
             self._publish(shapes)
 
     def _keeper(self, topic: str) -> Callable[[bytes], None]:
@@ -156,10 +166,9 @@ class MarkersNode(Node):
         return keep
 
     def _read_wheels(self) -> None:
-        if '/joint_states' in self._latest:
-            joints = deserialize_message(self._latest['/joint_states'], JointState)
-            if STEERING_JOINT in joints.name:
-                self.scene.on_steering(joints.position[joints.name.index(STEERING_JOINT)])
+        now = self._stamp.sec * 10**9 + self._stamp.nanosec
+        while self._steering_at and self._steering_at[0][0] <= now:
+            self.scene.on_steering(self._steering_at.pop(0)[1])
         if '/wheel_slip' in self._latest:
             self._on_slip(deserialize_message(self._latest['/wheel_slip'], JointState))
 
@@ -178,18 +187,22 @@ class MarkersNode(Node):
         wheel = msg.joint_names.index(WHEEL_JOINTS[1])
         rotation = msg.points[-1].positions[wheel] - msg.points[0].positions[wheel]
         self.scene.on_move(steering, abs(rotation) * self.scene.robot.wheel_radius_m)
-        self._event = True
+        # Steering is exact and instantaneous at the command's start (the wheel command
+        # contract): the wheels are drawn turned from that stamp on.
+        self._steering_at.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
+                                  steering))
+        self._changed.add('moves')
 
     def _on_goal(self, msg: PoseStamped) -> None:
         self.handled += 1
         self.scene.on_goal(msg.pose.position.x, msg.pose.position.y)
-        self._event = True
+        self._changed.add('goal')
 
     def _capture_reader(self, camera: str) -> Callable[[PoseStamped], None]:
         def on_capture(msg: PoseStamped) -> None:
             self.handled += 1
             self.scene.on_capture(camera, msg.pose.position.x, msg.pose.position.y)
-            self._event = True
+            self._changed.add('captures')
         return on_capture
 
     def _uncertainty_reader(self, camera: str) -> Callable[[PoseWithCovarianceStamped], None]:
@@ -199,22 +212,27 @@ class MarkersNode(Node):
             uncertainty = CaptureUncertainty.from_covariance(list(msg.pose.covariance))
             self.scene.on_capture_uncertainty(camera, pose.position.x, pose.position.y,
                                               uncertainty.radius_95_m)
-            self._event = True
+            self._changed.add('captures')
         return on_uncertainty
 
     def _publish(self, shapes: list[Shape]) -> None:
-        self._event = False
+        self._changed.clear()
         markers = []
         if self.scene.cleared:
             # The last goal's captures and moves go; everything still drawn is sent again.
             self.scene.cleared = False
+            self._markers.clear()
             clear = Marker(action=Marker.DELETEALL)
             clear.header.frame_id = self.frame_id
             clear.header.stamp = self._stamp
             markers.append(clear)
             shapes = (self.scene.robot_shapes() + self.scene.route_shapes(only_last=False)
                       + self.scene.static_shapes())
-        markers += [to_marker(shape, self.frame_id, self._stamp) for shape in shapes]
+        for shape in shapes:
+            key = (shape.namespace, shape.id)
+            self._markers[key] = to_marker(shape, self.frame_id, self._stamp,
+                                           self._markers.get(key))
+            markers.append(self._markers[key])
         self.publisher.publish(MarkerArray(markers=markers))
         self.published += 1
 

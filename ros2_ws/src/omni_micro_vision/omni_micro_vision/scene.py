@@ -28,6 +28,8 @@ ROUTE_SPACING_M = 2.0e-5
 ROUTE_SEGMENT_POINTS = 32        # a line strip per segment: only the last one changes
 # The micro close-up's copy of a route segment only where it comes this near the micro field.
 MICRO_ROUTE_MARGIN_M = 1.0e-3
+# The groups of shapes that change on an event (Scene.static_shapes).
+EVENT_GROUPS = frozenset({'fields', 'goal', 'captures', 'moves'})
 CAMERA_COLOURS: dict[str, Colour] = {'macro': (0.12, 0.47, 0.71, 1.0),
                                      'micro': (0.84, 0.15, 0.16, 1.0)}
 WHITE: Colour = (1.0, 1.0, 1.0, 1.0)
@@ -200,20 +202,15 @@ class Scene:
         return any(abs(x - cx) <= w / 2 + MICRO_ROUTE_MARGIN_M
                    and abs(y - cy) <= h / 2 + MICRO_ROUTE_MARGIN_M for x, y in points)
 
-    def static_shapes(self) -> list[Shape]:
-        """Fields, goal, ideal route, captures and moves: what changes only on an event."""
+    def static_shapes(self, groups: frozenset[str] = EVENT_GROUPS,
+                      newest_only: bool = False) -> list[Shape]:
+        """What changes only on an event, by group: ``fields``, ``goal`` (with the ideal route
+        and the tolerance), ``captures`` and ``moves``. ``newest_only``: of the per-capture
+        discs and the move arrows, only the latest (a viewer keeps the others)."""
         shapes = []
-        for index, camera in enumerate((self.rig.macro, self.rig.micro)):
-            (cx, cy), (w, h) = camera.center_m, camera.field_m
-            corners = tuple((cx + sx * w / 2, cy + sy * h / 2)
-                            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1)))
-            width = MACRO_WIDTH_M if camera is self.rig.macro else MACRO_WIDTH_M * MICRO_SCALE
-            shapes.append(Shape('fields', index, 'line_strip', corners,
-                                CAMERA_COLOURS.get(camera.name, GREY), width))
-            shapes.append(Shape('fields/labels', index, 'text', ((cx - w / 2, cy + h / 2),),
-                                CAMERA_COLOURS.get(camera.name, GREY),
-                                12 * width, f'{camera.name} camera'))
-        if self.goal_m is not None:
+        if 'fields' in groups:
+            shapes += self._field_shapes()
+        if 'goal' in groups and self.goal_m is not None:
             gx, gy = self.goal_m
             circle = tuple((gx + self.tolerance_m * math.cos(a / 32 * 2 * math.pi),
                             gy + self.tolerance_m * math.sin(a / 32 * 2 * math.pi))
@@ -228,6 +225,33 @@ class Scene:
             if self.start_m is not None:
                 shapes.append(Shape('ideal_route', 0, 'line_strip', (self.start_m, self.goal_m),
                                     GREY, MACRO_WIDTH_M / 2))
+        if 'captures' in groups:
+            shapes += self._capture_shapes(newest_only)
+        if 'moves' in groups:
+            first = max(0, len(self.moves) - 1) if newest_only else 0
+            for index in range(first, len(self.moves)):
+                tail, head = self.moves[index]
+                length = math.dist(tail, head)
+                shapes.append(Shape('moves', index, 'arrow', (tail, head), MOVE,
+                                    min(MACRO_WIDTH_M, max(length / 10, 1e-7))))
+        return shapes
+
+    def _field_shapes(self) -> list[Shape]:
+        shapes = []
+        for index, camera in enumerate((self.rig.macro, self.rig.micro)):
+            (cx, cy), (w, h) = camera.center_m, camera.field_m
+            corners = tuple((cx + sx * w / 2, cy + sy * h / 2)
+                            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1)))
+            width = MACRO_WIDTH_M if camera is self.rig.macro else MACRO_WIDTH_M * MICRO_SCALE
+            shapes.append(Shape('fields', index, 'line_strip', corners,
+                                CAMERA_COLOURS.get(camera.name, GREY), width))
+            shapes.append(Shape('fields/labels', index, 'text', ((cx - w / 2, cy + h / 2),),
+                                CAMERA_COLOURS.get(camera.name, GREY),
+                                12 * width, f'{camera.name} camera'))
+        return shapes
+
+    def _capture_shapes(self, newest_only: bool) -> list[Shape]:
+        shapes = []
         for name, colour in CAMERA_COLOURS.items():
             seen = [c for c in self.captures if c.camera == name]
             if not seen:
@@ -236,14 +260,12 @@ class Scene:
             shapes.append(Shape(f'captures/{name}', 0, 'sphere_list', points, colour, 8e-4))
             shapes.append(Shape(f'micro/captures/{name}', 0, 'sphere_list', points, colour,
                                 8e-4 * MICRO_SCALE))
-            for index, capture in enumerate(seen):
+            first = len(seen) - 1 if newest_only else 0
+            for index in range(first, len(seen)):
+                capture = seen[index]
                 if capture.radius_95_m is not None:
                     faded = (colour[0], colour[1], colour[2], 0.3)
                     shapes.append(Shape(f'micro/capture_uncertainty/{name}', index, 'disc',
                                         ((capture.x_m, capture.y_m),), faded,
                                         2.0 * capture.radius_95_m))
-        for index, (tail, head) in enumerate(self.moves):
-            length = math.dist(tail, head)
-            shapes.append(Shape('moves', index, 'arrow', (tail, head), MOVE,
-                                min(MACRO_WIDTH_M, max(length / 10, 1e-7))))
         return shapes
