@@ -19,9 +19,9 @@ import numpy as np
 from omni_micro_cli.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw
-from omni_micro_sim.wheel_trajectory import STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_sim.wheel_trajectory import STEERING_JOINT
 from omni_micro_vision.camera import DEFAULT_RIG
-from omni_micro_vision.scene import Scene, Shape
+from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
 DPI = 100                      # frames of 1000 x 450 pixels
@@ -52,14 +52,10 @@ def _apply(scene: Scene, topic: str, message: Any) -> None:
     elif topic == '/joint_states' and STEERING_JOINT in message.name:
         scene.on_steering(message.position[message.name.index(STEERING_JOINT)])
     elif topic == '/wheel_slip':
-        speeds = dict(zip(message.name, message.velocity, strict=False))
-        scene.on_slip(tuple(speeds.get(f'wheel_{k}_longitudinal', 0.0) for k in (1, 2, 3)),
-                      tuple(speeds.get(f'wheel_{k}_transverse', 0.0) for k in (1, 2, 3)))
+        scene.on_slip(*slip_of(message.name, message.velocity))
     elif topic == '/wheel_trajectory' and len(message.points) >= 2:
-        steering = message.points[0].positions[message.joint_names.index(STEERING_JOINT)]
-        wheel = message.joint_names.index(WHEEL_JOINTS[1])
-        rotation = message.points[-1].positions[wheel] - message.points[0].positions[wheel]
-        scene.on_move(steering, abs(rotation) * scene.robot.wheel_radius_m)
+        scene.on_move(*move_of(message.joint_names, message.points[0].positions,
+                               message.points[-1].positions, scene.robot.wheel_radius_m))
     elif topic == '/goal_pose':
         scene.on_goal(message.pose.position.x, message.pose.position.y)
     elif topic.endswith('/pose'):

@@ -123,6 +123,16 @@ def _stamp_ns(message) -> int:
     return header.stamp.sec * 10**9 + header.stamp.nanosec
 
 
+def _wait_for_view(port: int, run: subprocess.Popen) -> None:
+    deadline = time.monotonic() + 60
+    while True:
+        with socket.socket() as sock:
+            if sock.connect_ex(('127.0.0.1', port)) == 0:
+                return
+        assert time.monotonic() < deadline and run.poll() is None, 'no live view'
+        time.sleep(0.05)
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(('127.0.0.1', 0))
@@ -199,13 +209,7 @@ def test_a_foxglove_client_watches_the_robot_approach_the_goal(tmp_path, omni_mi
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True, env=dict(os.environ))
     try:
-        deadline = time.monotonic() + 60
-        while True:
-            with socket.socket() as sock:
-                if sock.connect_ex(('127.0.0.1', port)) == 0:
-                    break
-            assert time.monotonic() < deadline and run.poll() is None, 'no live view'
-            time.sleep(0.1)
+        _wait_for_view(port, run)
         received = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 60.0, slow=False,
                                       enough=_approached))
         assert _approached(received), f'{len(received.get("/odom", []))} odometry messages'
@@ -230,13 +234,7 @@ def test_a_slow_viewer_changes_nothing_in_the_run(with_markers, tmp_path, omni_m
          str(folder / 'logs'), '--view', '--view-port', str(port)],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True, env=dict(os.environ))
-    deadline = time.monotonic() + 60
-    while True:
-        with socket.socket() as sock:
-            if sock.connect_ex(('127.0.0.1', port)) == 0:
-                break
-        assert time.monotonic() < deadline and run.poll() is None, 'no live view'
-        time.sleep(0.05)
+    _wait_for_view(port, run)
     received = asyncio.run(_watch(f'ws://127.0.0.1:{port}', 10.0, slow=True))
     stdout, stderr = run.communicate(timeout=120)
     assert run.returncode == 0, stderr[-3000:]

@@ -33,9 +33,9 @@ from omni_micro_sim.qos import (
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
 )
-from omni_micro_sim.wheel_trajectory import STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_sim.wheel_trajectory import STEERING_JOINT
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel, CameraRig
-from omni_micro_vision.scene import RobotGeometry, Scene, Shape
+from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
 
 MARKER_TYPES = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER,
                 'sphere_list': Marker.SPHERE_LIST, 'line_strip': Marker.LINE_STRIP,
@@ -170,23 +170,17 @@ class MarkersNode(Node):
         while self._steering_at and self._steering_at[0][0] <= now:
             self.scene.on_steering(self._steering_at.pop(0)[1])
         if '/wheel_slip' in self._latest:
-            self._on_slip(deserialize_message(self._latest['/wheel_slip'], JointState))
+            slip = deserialize_message(self._latest['/wheel_slip'], JointState)
+            self.scene.on_slip(*slip_of(slip.name, slip.velocity))
 
-    def _on_slip(self, msg: JointState) -> None:
-        speeds = dict(zip(msg.name, msg.velocity, strict=False))
-        longitudinal = [speeds.get(f'wheel_{k}_longitudinal', 0.0) for k in (1, 2, 3)]
-        transverse = [speeds.get(f'wheel_{k}_transverse', 0.0) for k in (1, 2, 3)]
-        self.scene.on_slip((longitudinal[0], longitudinal[1], longitudinal[2]),
-                           (transverse[0], transverse[1], transverse[2]))
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         self.handled += 1
         if len(msg.points) < 2 or STEERING_JOINT not in msg.joint_names:
             return    # a stop: nothing to draw
-        steering = msg.points[0].positions[msg.joint_names.index(STEERING_JOINT)]
-        wheel = msg.joint_names.index(WHEEL_JOINTS[1])
-        rotation = msg.points[-1].positions[wheel] - msg.points[0].positions[wheel]
-        self.scene.on_move(steering, abs(rotation) * self.scene.robot.wheel_radius_m)
+        steering, length = move_of(msg.joint_names, msg.points[0].positions,
+                                   msg.points[-1].positions, self.scene.robot.wheel_radius_m)
+        self.scene.on_move(steering, length)
         # Steering is exact and instantaneous at the command's start (the wheel command
         # contract): the wheels are drawn turned from that stamp on.
         self._steering_at.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,

@@ -11,11 +11,14 @@ a 3D panel framed on either shows lines of a legible width.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from omni_micro_sim.wheel_trajectory import STEERING_JOINT, WHEEL_JOINTS
 from omni_micro_vision.camera import CameraRig
 
 Colour = tuple[float, float, float, float]
+Triple = tuple[float, float, float]
 THIRD_TURN = 2.0 * math.pi / 3.0          # wheels 2 and 3 sit 120 and 240 deg from wheel 1
 Point = tuple[float, float]
 
@@ -54,6 +57,24 @@ class Shape:
     colour: Colour
     size_m: float              # line width, sphere or disc diameter, text height
     text: str = ''
+
+
+def slip_of(names: Sequence[str], velocities: Sequence[float]) -> tuple[Triple, Triple]:
+    """Longitudinal and transverse slip of the three wheels from a /wheel_slip JointState."""
+    speeds = dict(zip(names, velocities, strict=False))
+    longitudinal = [float(speeds.get(f'wheel_{k}_longitudinal', 0.0)) for k in (1, 2, 3)]
+    transverse = [float(speeds.get(f'wheel_{k}_transverse', 0.0)) for k in (1, 2, 3)]
+    return ((longitudinal[0], longitudinal[1], longitudinal[2]),
+            (transverse[0], transverse[1], transverse[2]))
+
+
+def move_of(joint_names: Sequence[str], first: Sequence[float], last: Sequence[float],
+            wheel_radius_m: float) -> tuple[float, float]:
+    """Steering angle and planned length of a /wheel_trajectory move, from its first and last
+    points' positions (the wheel command contract: joint order by name)."""
+    steering = float(first[list(joint_names).index(STEERING_JOINT)])
+    wheel = list(joint_names).index(WHEEL_JOINTS[1])
+    return steering, abs(float(last[wheel]) - float(first[wheel])) * wheel_radius_m
 
 
 @dataclass(frozen=True)
