@@ -124,7 +124,7 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
         else:
             raise AssertionError(f'the run ended before it moved: {run.wait()}')
         children = processes_of_run(log_root)
-        assert len(children) == 4, children   # dynamics, vision, controller, recorder
+        assert len(children) == 5, children   # dynamics, vision, controller, markers, recorder
         domain = next(int(item.split(b'=')[1]) for item in
                       Path(f'/proc/{next(iter(children))}/environ').read_bytes().split(b'\0')
                       if item.startswith(b'ROS_DOMAIN_ID='))

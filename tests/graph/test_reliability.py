@@ -201,6 +201,11 @@ def recorded_until(bag_path: Path, end_s: float) -> dict[str, list[bytes]]:
         for raw, msg in zip(bag.raw[topic], bag.messages[topic], strict=True):
             stamp = msg.clock if topic == '/clock' else getattr(msg, 'header', None) and \
                 msg.header.stamp
+            if topic == '/markers':
+                # Stamped by its markers; compared decoded: the serializer leaves the alignment
+                # padding of a MarkerArray uninitialised, so equal arrays differ in those bytes.
+                stamp = msg.markers[-1].header.stamp
+                raw = repr(msg).encode()
             if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end_s:
                 kept[topic].append(raw)
     return kept

@@ -12,9 +12,12 @@ end of the route; after an event (a goal, a capture, a move) the event's markers
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections.abc import Callable
+from typing import Literal
 
+import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
@@ -24,7 +27,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw
+from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_sim.node_runtime import run_node
 from omni_micro_sim.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -81,16 +84,25 @@ def to_marker(shape: Shape, frame_id: str, stamp: Time, marker: Marker | None = 
     return marker
 
 
+def header_stamp_ns(data: bytes) -> int:
+    """The header stamp of a serialized message that starts with a std_msgs/Header, without
+    decoding the rest: CDR puts a 4-byte encapsulation, then stamp.sec and stamp.nanosec."""
+    order: Literal['little', 'big'] = 'little' if data[1] & 1 else 'big'
+    return (int.from_bytes(data[4:8], order, signed=True) * 1_000_000_000
+            + int.from_bytes(data[8:12], order))
+
+
 class MarkersNode(Node):
     def __init__(self) -> None:
         super().__init__('markers_node')
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         self.publish_every = int(self.declare_parameter('publish_every_ticks', 5).value)
         self.refresh_every = int(self.declare_parameter('refresh_every_ticks', 50).value)
-        if self.publish_every < 1 or self.refresh_every < 1:
+        if self.publish_every < 1 or self.refresh_every % self.publish_every \
+                or self.refresh_every < 1:
             raise CameraConfigError(
-                f'publish_every_ticks and refresh_every_ticks must be >= 1, got '
-                f'{self.publish_every} and {self.refresh_every}')
+                f'publish_every_ticks must be >= 1 and refresh_every_ticks a multiple of it, '
+                f'got {self.publish_every} and {self.refresh_every}')
         cameras = {}
         for name in ('macro', 'micro'):
             default: CameraModel = getattr(DEFAULT_RIG, name)
@@ -117,16 +129,22 @@ class MarkersNode(Node):
         self._changed: set[str] = set()     # event groups to send with the next array
         self._stamp = Time()
         self._markers: dict[tuple[str, int], Marker] = {}
+        # Everything is applied in stamp order, one publication behind the odometry, so that
+        # what an array holds does not depend on which message happened to arrive first (the
+        # lockstep has every input of a tick published before the next tick's odometry).
+        self._poses: list[tuple[int, Time, tuple[float, float, float]]] = []
+        self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
+        self._slips: dict[int, bytes] = {}
+        self._due: int | None = None        # the stamp the next array draws
+        self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
                                  event_callbacks=quiet)
         # Per-tick: each subscriber costs the dynamics node a delivery per tick, so the
         # steering comes from the commands (/wheel_trajectory), and the slip is kept as bytes
         # and decoded once per publication.
-        self._latest: dict[str, bytes] = {}
-        self._steering_at: list[tuple[int, float]] = []     # (start stamp ns, steering)
-        self.create_subscription(JointState, '/wheel_slip', self._keeper('/wheel_slip'),
-                                 DATA_QOS, raw=True, event_callbacks=quiet)
+        self.create_subscription(JointState, '/wheel_slip', self._on_slip, DATA_QOS, raw=True,
+                                 event_callbacks=quiet)
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
@@ -140,17 +158,48 @@ class MarkersNode(Node):
         self.publisher = self.create_publisher(MarkerArray, '/markers', DATA_QOS)
 
     # -- inputs ------------------------------------------------------------------------------
+    def _at(self, stamp: Time, order: int, apply: Callable[[], None]) -> None:
+        """Apply ``apply`` when the drawing reaches ``stamp`` (``order`` breaks ties: a
+        capture before its covariance)."""
+        self.handled += 1
+        self._sequence += 1
+        heapq.heappush(self._events, (stamp_ns(stamp), order, self._sequence, apply))
+
     def _on_odometry(self, msg: Odometry) -> None:
         pose = msg.pose.pose
-        self.scene.on_odometry(pose.position.x, pose.position.y,
-                               quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
-        self._stamp = msg.header.stamp
+        self._poses.append((stamp_ns(msg.header.stamp), msg.header.stamp, (
+            pose.position.x, pose.position.y,
+            quaternion_to_yaw(pose.orientation.z, pose.orientation.w))))
         self._ticks += 1
         self.handled += 1
-        if self._ticks % self.publish_every and self._ticks % self.refresh_every:
+        if self._ticks % self.publish_every:
             return
-        self._read_wheels()
-        if self._ticks % self.refresh_every == 0:
+        if self._due is not None:
+            self._draw_until(self._due, everything=self._ticks % self.refresh_every == 0)
+        self._due = stamp_ns(msg.header.stamp)
+
+    def finish(self) -> None:
+        """At shutdown: publish the array already due, as the next odometry would have (so a
+        run's arrays do not depend on how many ticks ran before it was stopped)."""
+        if self._due is not None and rclpy.ok():
+            due_tick = self._ticks - self._ticks % self.publish_every
+            self._draw_until(self._due, everything=(
+                due_tick + self.publish_every) % self.refresh_every == 0)
+            self._due = None
+
+    def _draw_until(self, due: int, everything: bool) -> None:
+        while self._poses and self._poses[0][0] <= due:
+            _, self._stamp, (x, y, phi) = self._poses.pop(0)
+            while self._events and self._events[0][0] <= stamp_ns(self._stamp):
+                heapq.heappop(self._events)[3]()
+            self.scene.on_odometry(x, y, phi)
+        slips = [stamp for stamp in self._slips if stamp <= due]
+        if slips:
+            slip = deserialize_message(self._slips[max(slips)], JointState)
+            self.scene.on_slip(*slip_of(slip.name, slip.velocity))
+            for stamp in slips:
+                del self._slips[stamp]
+        if everything:
             self._publish(self.scene.robot_shapes() + self.scene.route_shapes(only_last=False)
                           + self.scene.static_shapes())
         else:
@@ -159,54 +208,49 @@ class MarkersNode(Node):
                 shapes += self.scene.static_shapes(frozenset(self._changed), newest_only=True)
             self._publish(shapes)
 
-    def _keeper(self, topic: str) -> Callable[[bytes], None]:
-        def keep(data: bytes) -> None:
-            self._latest[topic] = data
-            self.handled += 1
-        return keep
-
-    def _read_wheels(self) -> None:
-        now = self._stamp.sec * 10**9 + self._stamp.nanosec
-        while self._steering_at and self._steering_at[0][0] <= now:
-            self.scene.on_steering(self._steering_at.pop(0)[1])
-        if '/wheel_slip' in self._latest:
-            slip = deserialize_message(self._latest['/wheel_slip'], JointState)
-            self.scene.on_slip(*slip_of(slip.name, slip.velocity))
-
+    def _on_slip(self, data: bytes) -> None:
+        self.handled += 1
+        self._slips[header_stamp_ns(data)] = data     # decoded only if drawn
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
-        self.handled += 1
         if len(msg.points) < 2 or STEERING_JOINT not in msg.joint_names:
+            self.handled += 1
             return    # a stop: nothing to draw
         steering, length = move_of(msg.joint_names, msg.points[0].positions,
                                    msg.points[-1].positions, self.scene.robot.wheel_radius_m)
-        self.scene.on_move(steering, length)
-        # Steering is exact and instantaneous at the command's start (the wheel command
-        # contract): the wheels are drawn turned from that stamp on.
-        self._steering_at.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
-                                  steering))
-        self._changed.add('moves')
+
+        def start_move() -> None:
+            # Steering is exact and instantaneous at the command's start (the wheel command
+            # contract): the wheels turn, and the move's arrow appears, at that stamp.
+            self.scene.on_steering(steering)
+            self.scene.on_move(steering, length)
+            self._changed.add('moves')
+        self._at(msg.header.stamp, 0, start_move)
 
     def _on_goal(self, msg: PoseStamped) -> None:
-        self.handled += 1
-        self.scene.on_goal(msg.pose.position.x, msg.pose.position.y)
-        self._changed.add('goal')
+        def set_goal() -> None:
+            self.scene.on_goal(msg.pose.position.x, msg.pose.position.y)
+            self._changed.add('goal')
+        self._at(msg.header.stamp, 0, set_goal)
 
     def _capture_reader(self, camera: str) -> Callable[[PoseStamped], None]:
         def on_capture(msg: PoseStamped) -> None:
-            self.handled += 1
-            self.scene.on_capture(camera, msg.pose.position.x, msg.pose.position.y)
-            self._changed.add('captures')
+            def add() -> None:
+                self.scene.on_capture(camera, msg.pose.position.x, msg.pose.position.y)
+                self._changed.add('captures')
+            self._at(msg.header.stamp, 1, add)
         return on_capture
 
     def _uncertainty_reader(self, camera: str) -> Callable[[PoseWithCovarianceStamped], None]:
         def on_uncertainty(msg: PoseWithCovarianceStamped) -> None:
-            self.handled += 1
             pose = msg.pose.pose
-            uncertainty = CaptureUncertainty.from_covariance(list(msg.pose.covariance))
-            self.scene.on_capture_uncertainty(camera, pose.position.x, pose.position.y,
-                                              uncertainty.radius_95_m)
-            self._changed.add('captures')
+            radius = CaptureUncertainty.from_covariance(list(msg.pose.covariance)).radius_95_m
+
+            def attach() -> None:
+                self.scene.on_capture_uncertainty(camera, pose.position.x, pose.position.y,
+                                                  radius)
+                self._changed.add('captures')
+            self._at(msg.header.stamp, 2, attach)
         return on_uncertainty
 
     def _publish(self, shapes: list[Shape]) -> None:
@@ -234,7 +278,7 @@ class MarkersNode(Node):
 def main(args: list[str] | None = None) -> None:
     # Not in the lockstep, it may lag at --rtf max: it draws what is queued before it leaves.
     run_node(MarkersNode, config_errors=(CameraConfigError,), args=args,
-             drain=lambda node: node.handled)
+             drain=lambda node: node.handled, on_shutdown=MarkersNode.finish)
 
 
 if __name__ == '__main__':
