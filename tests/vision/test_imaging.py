@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError
-from omni_micro_vision.imaging import Motion, Sensor, render, track
+from omni_micro_vision.imaging import Sensor, render, track
 
 SENSOR = Sensor()
 SAMPLES = 24
@@ -26,7 +27,7 @@ def test_tracker_bias_and_spread_beside_the_analytic_model(camera, half_range_m)
         x = camera.center_m[0] + rng.uniform(-half_range_m, half_range_m)
         y = camera.center_m[1] + rng.uniform(-half_range_m, half_range_m)
         phi = rng.uniform(-math.pi, math.pi)
-        result = track(render(camera, SENSOR, Motion(x, y, phi),
+        result = track(render(camera, SENSOR, RobotState(x, y, phi),
                               np.random.default_rng([11, sample])), camera)
         assert result.pose is not None, result.reason
         found_x, found_y, found_phi = result.pose
@@ -42,7 +43,7 @@ def test_tracker_bias_and_spread_beside_the_analytic_model(camera, half_range_m)
 
 def test_frames_are_a_function_of_their_seed_and_motion_blurs_them():
     camera = DEFAULT_RIG.macro
-    still = Motion(0.05, 0.0, 0.2)
+    still = RobotState(0.05, 0.0, 0.2)
     first = render(camera, SENSOR, still, np.random.default_rng([3, 7]))
     assert first.dtype == np.uint8 and first.shape == (1024, 1280)
     assert np.array_equal(first, render(camera, SENSOR, still, np.random.default_rng([3, 7])))
@@ -50,7 +51,7 @@ def test_frames_are_a_function_of_their_seed_and_motion_blurs_them():
                                             np.random.default_rng([3, 8])))
     # At cruise speed (14 mm/s) over a 4 ms exposure the robot moves 57 um, half a macro pixel;
     # at 100x that, the dots smear over 50 pixels and the frame is no use.
-    moving = Motion(0.05, 0.0, 0.2, vx_m_s=1.4)
+    moving = RobotState(0.05, 0.0, 0.2, vx_m_s=1.4)
     smeared = render(camera, SENSOR, moving, np.random.default_rng([3, 7]))
     assert smeared.max() < first.max()
     assert not track(smeared, camera).found
@@ -60,7 +61,7 @@ def test_a_mono16_frame_tracks_as_well():
     camera = DEFAULT_RIG.micro
     sensor = Sensor(bit_depth=16)
     assert sensor.encoding == 'mono16'
-    frame = render(camera, sensor, Motion(0.1001, 0.0002, 2.0), np.random.default_rng(1))
+    frame = render(camera, sensor, RobotState(0.1001, 0.0002, 2.0), np.random.default_rng(1))
     assert frame.dtype == np.uint16 and frame.max() > 255
     result = track(frame, camera)
     assert result.pose is not None
@@ -74,7 +75,7 @@ def test_a_mono16_frame_tracks_as_well():
 ], ids=['cut-by-the-edge', 'front-dot-outside', 'robot-out-of-view'])
 def test_a_frame_without_a_whole_fiducial_gives_no_pose_and_says_why(pose, reason):
     camera = DEFAULT_RIG.micro
-    result = track(render(camera, SENSOR, Motion(*pose), np.random.default_rng(2)), camera)
+    result = track(render(camera, SENSOR, RobotState(*pose), np.random.default_rng(2)), camera)
     assert not result.found and result.pose is None
     assert result.reason == reason
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import CameraConfigError, CameraModel
 
 
@@ -90,20 +91,10 @@ class Sensor:
         return (1 << self.bit_depth) - 1
 
 
-@dataclass(frozen=True)
-class Motion:
-    """The robot's pose at the start of the exposure and its velocity (platform frame)."""
-
-    x_m: float
-    y_m: float
-    phi_rad: float
-    vx_m_s: float = 0.0
-    vy_m_s: float = 0.0
-    omega_rad_s: float = 0.0
-
-    def at(self, t_s: float) -> tuple[float, float, float]:
-        return (self.x_m + self.vx_m_s * t_s, self.y_m + self.vy_m_s * t_s,
-                self.phi_rad + self.omega_rad_s * t_s)
+def _pose_at(state: RobotState, t_s: float) -> tuple[float, float, float]:
+    """Where the robot is ``t_s`` into the exposure, moving as at its start."""
+    return (state.x_m + state.vx_m_s * t_s, state.y_m + state.vy_m_s * t_s,
+            state.phi_rad + state.omega_rad_s * t_s)
 
 
 def pixel_centres(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
@@ -146,9 +137,10 @@ def _reflectance(xs: np.ndarray, ys: np.ndarray, pose: tuple[float, float, float
     return image
 
 
-def render(camera: CameraModel, sensor: Sensor, motion: Motion,
+def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
            rng: np.random.Generator) -> np.ndarray:
-    """One frame (rows x columns, uint8 or uint16) of ``camera`` seeing the robot.
+    """One frame (rows x columns, uint8 or uint16) of ``camera`` seeing the robot, whose state
+    (pose and velocity, platform frame) at the start of the exposure is ``motion``.
 
     Only the region the robot (and its motion and blur) covers is computed from the scene; the
     rest of the frame is the platform's level. Noise covers the whole frame.
@@ -158,7 +150,7 @@ def render(camera: CameraModel, sensor: Sensor, motion: Motion,
     xs, ys = pixel_centres(camera)
     px, py = camera.pixel_size_m
     pixel_m = math.sqrt(px * py)
-    start, end = motion.at(0.0), motion.at(sensor.exposure_s)
+    start, end = _pose_at(motion, 0.0), _pose_at(motion, sensor.exposure_s)
     travel_px = max(math.hypot(end[0] - start[0], end[1] - start[1]) / pixel_m,
                     abs(end[2] - start[2]) * CHASSIS_RADIUS_M / pixel_m)
     steps = int(min(32, max(1, math.ceil(travel_px / 0.5))))
@@ -174,7 +166,7 @@ def render(camera: CameraModel, sensor: Sensor, motion: Motion,
         patch = np.zeros((wy.size, wx.size))
         for step in range(steps):
             t = sensor.exposure_s * (step + 0.5) / steps
-            patch += _reflectance(wx, wy, motion.at(t), pixel_m)
+            patch += _reflectance(wx, wy, _pose_at(motion, t), pixel_m)
         signal[window] = (patch / steps).astype(np.float32)
     if sensor.psf_sigma_px > 0:
         signal = np.asarray(cv2.GaussianBlur(signal, (0, 0), sensor.psf_sigma_px,
