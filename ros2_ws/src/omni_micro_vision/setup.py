@@ -24,6 +24,7 @@ setup(
         'console_scripts': [
             'vision_node = omni_micro_vision.vision_node:main',
             'markers_node = omni_micro_vision.markers_node:main',
+            'tracker_node = omni_micro_vision.tracker_node:main',
         ],
     },
 )

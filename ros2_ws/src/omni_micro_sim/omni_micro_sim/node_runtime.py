@@ -45,7 +45,7 @@ from rclpy.signals import SignalHandlerOptions
 from omni_micro_sim.conventions import (
     GRAPH_NODE_NAMES,
     LIFELINE_ENV,
-    LISTENER_NODE_NAMES,
+    OPTIONAL_NODE_NAMES,
     PUBLISHED_MARKER,
 )
 from omni_micro_sim.errors import ParameterError
@@ -236,7 +236,7 @@ def check_given_parameters(node: Node, argv: list[str]) -> None:
                                  f'{{ros__parameters: ...}}, got {content!r:.100}')
         for section, body in content.items():
             bare = str(section).lstrip('/')
-            known = [*GRAPH_NODE_NAMES, *LISTENER_NODE_NAMES]
+            known = [*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES]
             if section not in WILDCARD_SECTIONS and bare not in known:
                 raise ParameterError(
                     f'params file {path!r}: section {section!r} names no node of the graph '

@@ -1,0 +1,94 @@
+"""tracker_node alone, fed frames the way a camera driver sends them (sensor_msgs/Image and
+CameraInfo): captures of a still robot where it is, none while it moves, a reason for a frame
+without the fiducial, and a corrupt frame refused with the node staying up."""
+
+import math
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from sensor_msgs.msg import CameraInfo, Image
+
+from omni_micro_sim.conventions import quaternion_to_yaw
+from omni_micro_sim.qos import CAPTURE_QOS, latched
+from omni_micro_sim.simulator import RobotState
+from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.imaging import Sensor, render
+
+CAMERA = DEFAULT_RIG.macro
+
+
+def frame_messages(pixels: np.ndarray, stamp_s: float) -> tuple[Image, CameraInfo]:
+    image = Image(height=pixels.shape[0], width=pixels.shape[1], encoding='mono8',
+                  is_bigendian=0, step=pixels.shape[1], data=pixels.tobytes())
+    image.header.stamp.sec = int(stamp_s)
+    image.header.stamp.nanosec = round((stamp_s - int(stamp_s)) * 1e9)
+    image.header.frame_id = 'camera_macro'
+    info = CameraInfo(height=pixels.shape[0], width=pixels.shape[1])
+    info.header = image.header
+    return image, info
+
+
+def test_a_still_robot_is_captured_where_it_is_and_bad_frames_are_refused(
+        start_node, probe):
+    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]')
+    images = probe.node.create_publisher(Image, '/camera/macro/image_raw', CAPTURE_QOS)
+    infos = probe.node.create_publisher(CameraInfo, '/camera/macro/camera_info', CAPTURE_QOS)
+    captures: list[PoseStamped] = []
+    covariances: list[PoseWithCovarianceStamped] = []
+    statuses: list[str] = []
+    probe.node.create_subscription(PoseStamped, '/camera/macro/pose', captures.append,
+                                   CAPTURE_QOS)
+    probe.node.create_subscription(PoseWithCovarianceStamped,
+                                   '/camera/macro/pose_with_covariance', covariances.append,
+                                   CAPTURE_QOS)
+    probe.node.create_subscription(DiagnosticStatus, '/camera/macro/tracker_status',
+                                   lambda msg: statuses.append(msg.message), latched(1))
+    probe.spin_until(lambda: images.get_subscription_count() > 0
+                     and infos.get_subscription_count() > 0, 30.0, 'the tracker to listen')
+    probe.spin_for(0.5)
+
+    def send(state: RobotState, stamp_s: float, index: int) -> None:
+        pixels = render(CAMERA, Sensor(), state, np.random.default_rng([5, index]))
+        image, info = frame_messages(pixels, stamp_s)
+        infos.publish(info)
+        probe.spin_for(0.05)
+        images.publish(image)
+        probe.spin_for(0.3)
+
+    # Moving: the pose changes by 20 px a frame, no capture.
+    for index in range(3):
+        send(RobotState(0.04 + index * 0.0025, 0.01, 0.4), index / 30, index)
+    assert captures == []
+    # Still: once three frames agree, a capture per frame, where the robot is.
+    truth = (0.05, 0.01, 0.4)
+    for index in range(3, 7):
+        send(RobotState(*truth), index / 30, index)
+    probe.spin_until(lambda: len(captures) >= 2, 10.0, 'captures of the still robot')
+    assert len(captures) == 2 and len(covariances) == 2
+    for capture in captures:
+        assert capture.header.frame_id == 'platform'
+        position = capture.pose.position
+        assert math.hypot(position.x - truth[0], position.y - truth[1]) < 20e-6
+        heading = quaternion_to_yaw(capture.pose.orientation.z, capture.pose.orientation.w)
+        assert abs(heading - truth[2]) < 0.01
+    assert captures[0].header.stamp.nanosec == round(5 / 30 * 1e9)     # the frame's stamp
+    assert covariances[0].pose.covariance[0] > 0.0
+    # Out of view: no capture, a reason.
+    send(RobotState(0.3, 0.3, 0.0), 7 / 30, 7)
+    probe.spin_until(lambda: statuses and 'no fiducial' in statuses[-1], 10.0, 'a reason')
+    # Corrupt: half the data; the node says why and stays up.
+    image, info = frame_messages(np.zeros((1024, 1280), dtype=np.uint8), 8 / 30)
+    image.data = image.data[:1000]
+    images.publish(image)
+    probe.spin_until(lambda: statuses and 'frame refused' in statuses[-1], 10.0, 'a refusal')
+    assert 'bytes of data for 1024 rows' in statuses[-1]
+    assert len(captures) == 2
+    assert tracker.poll() is None
+
+
+def test_an_unknown_camera_is_refused_naming_it(start_node, tmp_path):
+    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro,tele]')
+    assert tracker.wait(30) == 2
+    log = (tmp_path / 'tracker_node.log').read_text()
+    assert "cameras: 'tele' is not one of ['macro', 'micro']" in log
