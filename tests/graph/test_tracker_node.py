@@ -7,10 +7,11 @@ import math
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_sim.conventions import quaternion_to_yaw
-from omni_micro_sim.qos import CAPTURE_QOS, latched
+from omni_micro_sim.conventions import quaternion_to_yaw, yaw_to_quaternion
+from omni_micro_sim.qos import CAPTURE_QOS, DATA_QOS, latched
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.imaging import Sensor, render
@@ -78,7 +79,7 @@ def test_a_still_robot_is_captured_where_it_is_and_bad_frames_are_refused(
     send(RobotState(0.3, 0.3, 0.0), 7 / 30, 7)
     probe.spin_until(lambda: statuses and 'no fiducial' in statuses[-1], 10.0, 'a reason')
     # Corrupt: half the data; the node says why and stays up.
-    image, info = frame_messages(np.zeros((1024, 1280), dtype=np.uint8), 8 / 30)
+    image, _ = frame_messages(np.zeros((1024, 1280), dtype=np.uint8), 8 / 30)
     image.data = image.data[:1000]
     images.publish(image)
     probe.spin_until(lambda: statuses and 'frame refused' in statuses[-1], 10.0, 'a refusal')
@@ -92,3 +93,38 @@ def test_an_unknown_camera_is_refused_naming_it(start_node, tmp_path):
     assert tracker.wait(30) == 2
     log = (tmp_path / 'tracker_node.log').read_text()
     assert "cameras: 'tele' is not one of ['macro', 'micro']" in log
+
+
+def test_camera_node_frames_through_tracker_node_give_captures_of_the_odometry(
+        start_node, probe):
+    """The image path end to end: /odom -> camera_node -> Image + CameraInfo -> tracker_node ->
+    captures where the odometry put the robot, stamped with the frames."""
+    start_node('omni_micro_vision', 'camera_node', 'cameras:=[macro]', 'seed:=4')
+    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]')
+    odometry = probe.node.create_publisher(Odometry, '/odom', DATA_QOS)
+    frames: list[Image] = []
+    captures: list[PoseStamped] = []
+    probe.node.create_subscription(Image, '/camera/macro/image_raw', frames.append, CAPTURE_QOS)
+    probe.node.create_subscription(PoseStamped, '/camera/macro/pose', captures.append,
+                                   CAPTURE_QOS)
+    probe.spin_until(lambda: odometry.get_subscription_count() > 0
+                     and probe.node.count_publishers('/camera/macro/pose') > 0, 30.0,
+                     'both nodes')
+    probe.spin_for(1.0)
+    truth = (0.07, -0.02, 1.2)
+    for tick in range(1, 11):     # 0.2 s of a still robot: frames at 0, 1/30, ... 6/30 s
+        message = Odometry()
+        message.header.stamp.sec, message.header.stamp.nanosec = 0, tick * 20_000_000
+        message.pose.pose.position.x, message.pose.pose.position.y = truth[:2]
+        message.pose.pose.orientation.z, message.pose.pose.orientation.w = yaw_to_quaternion(
+            truth[2])
+        odometry.publish(message)
+        probe.spin_for(0.2)
+    probe.spin_until(lambda: len(captures) >= 3, 20.0, 'captures from the rendered frames')
+    # Frame k is stamped k/30 s (frame 0, due at the first sample, included).
+    assert [f.header.stamp.nanosec for f in frames[:4]] == [round(k / 30 * 1e9)
+                                                            for k in range(4)]
+    assert (frames[0].width, frames[0].height, frames[0].encoding) == (1280, 1024, 'mono8')
+    for capture in captures:
+        position = capture.pose.position
+        assert math.hypot(position.x - truth[0], position.y - truth[1]) < 20e-6

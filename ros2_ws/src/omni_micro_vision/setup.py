@@ -25,6 +25,7 @@ setup(
             'vision_node = omni_micro_vision.vision_node:main',
             'markers_node = omni_micro_vision.markers_node:main',
             'tracker_node = omni_micro_vision.tracker_node:main',
+            'camera_node = omni_micro_vision.camera_node:main',
         ],
     },
 )

@@ -112,8 +112,9 @@ PUBLISHED_MARKER = 'published message counts: '
 # The nodes of the graph, by name (a params file's sections name them).
 GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
 # Nodes a graph may have besides those three (a params file may have their sections too): the
-# markers, which only listen, and the tracker, which turns a camera's images into captures.
-OPTIONAL_NODE_NAMES = ('markers_node', 'tracker_node')
+# markers, which only listen, the rendered cameras' images and the tracker that turns a
+# camera's images into captures.
+OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node')
 
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'
