@@ -145,13 +145,14 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
         inset.set_title('micro field (2 mm)', fontsize=9)
         inset.tick_params(labelsize=7)
         inset.locator_params(nbins=5)
-        bar.update(1)
 
     movie = animation.FuncAnimation(fig, frame, frames=frames, repeat=False)
     writer = (animation.PillowWriter(fps=fps) if target.suffix == '.gif'
               else animation.FFMpegWriter(fps=fps))
     try:
-        movie.save(str(target), writer=writer, dpi=DPI)
+        # Progress from the writer (the animation also draws a frame to initialise itself).
+        movie.save(str(target), writer=writer, dpi=DPI,
+                   progress_callback=lambda done, _: bar.update(done + 1 - bar.n))
         fig.savefig(still, dpi=DPI)
     finally:
         bar.close()

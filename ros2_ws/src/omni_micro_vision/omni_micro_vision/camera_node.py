@@ -77,7 +77,8 @@ class CameraNode(Node):
                            forward * math.sin(phi) + lateral * math.cos(phi),
                            msg.twist.twist.angular.z)
         # Every frame whose exposure starts by this sample, from it (at 30 Hz on a 50 Hz grid,
-        # at most one).
+        # at most one). Frames long past (a node started late) are not made up.
+        self._next_frame = max(self._next_frame, math.floor(now_s * self.rate_hz + 1e-9))
         while self._next_frame / self.rate_hz <= now_s + 1e-9:
             self._publish_frame(self._next_frame, state)
             self._next_frame += 1
