@@ -645,7 +645,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
                                      markers=options.markers)
             wall_start = time.monotonic()
             for index, goal in enumerate(goals):
-                monitor.send_goal(graph, goal, subscribers=2 if recording else 1)
+                monitor.send_goal(graph, goal, recording)
                 if index == 0:
                     wall_start = time.monotonic()
                     monitor.set_paused(False)

@@ -141,18 +141,22 @@ class GraphMonitor:
         graph.check_alive()
         self.remember_endpoints()
 
-    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], subscribers: int = 1,
-                  timeout_s: float = 30.0) -> None:
+    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float],
+                  recording: bool = False, timeout_s: float = 30.0) -> None:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
         goal is on /goal_pose for a recorder to keep."""
         publisher = self.goal_publisher
+        # Wait for these readers by name: others (markers_node, a viewer) read /goal_pose too,
+        # so a count would be reached before the controller listens and the goal would be lost.
+        needed = {'controller_node', *(('bag_recorder',) if recording else ())}
         deadline = time.monotonic() + timeout_s
-        while publisher.get_subscription_count() < subscribers:
+        while not needed <= {info.node_name for info in
+                             self.node.get_subscriptions_info_by_topic('/goal_pose')}:
             graph.check_alive()
             if time.monotonic() > deadline:
-                raise RunFailed(f'/goal_pose has {publisher.get_subscription_count()} of '
-                                f'{subscribers} subscribers (controller, recorder)')
+                raise RunFailed(f'/goal_pose is not read by {" and ".join(sorted(needed))} '
+                                f'within {timeout_s:g} s')
             self.spin_for(0.05)
         goal = PoseStamped()
         goal.header.frame_id = 'platform'
@@ -237,7 +241,7 @@ class GraphMonitor:
         graph.check_alive()
         # The goal again: a new controller knows nothing, and an old one may have counted its
         # capture timeout while the camera was gone. Either starts over from the next stop.
-        self.send_goal(graph, goal, subscribers=2 if recording else 1)
+        self.send_goal(graph, goal, recording)
         self.remember_endpoints()
         seen = len(self.camera_statuses)
         self.set_paused(False)
@@ -254,7 +258,7 @@ class GraphMonitor:
             # ... and the controller's reader of captures may match the new writer later
             # still: give the goal again until the controller acts on a capture.
             for _ in range(20):
-                self.send_goal(graph, goal, subscribers=2 if recording else 1)
+                self.send_goal(graph, goal, recording)
                 acted_from = self.goal_sent_at
                 self.spin_for(3.0)
                 if any(status['message'] in ('moving', 'reached')
