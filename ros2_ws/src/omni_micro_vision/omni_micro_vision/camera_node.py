@@ -59,7 +59,6 @@ class CameraNode(Node):
                                                        CAPTURE_QOS),
                                  self.create_publisher(CameraInfo, f'/camera/{name}/camera_info',
                                                        CAPTURE_QOS)))
-        self.frames = 0
         self._next_frame = 0
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
@@ -97,7 +96,6 @@ class CameraNode(Node):
             info.header = image.header
             info_pub.publish(info)
             image_pub.publish(image)
-        self.frames += 1
 
 
 def main(args: list[str] | None = None) -> None:

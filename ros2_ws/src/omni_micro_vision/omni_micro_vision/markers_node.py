@@ -123,7 +123,6 @@ class MarkersNode(Node):
         self.scene = Scene(CameraRig(**cameras), RobotGeometry(
             wheel_offsets_rad=(float(offsets[0]), float(offsets[1]), float(offsets[2]))),
                            tolerance_m=tolerance, slip_arrow_s=slip_arrow)
-        self.published = 0
         self.handled = 0          # messages taken in (the drain at shutdown watches it)
         self._ticks = 0
         self._changed: set[str] = set()     # event groups to send with the next array
@@ -272,7 +271,6 @@ class MarkersNode(Node):
                                            self._markers.get(key))
             markers.append(self._markers[key])
         self.publisher.publish(MarkerArray(markers=markers))
-        self.published += 1
 
 
 def main(args: list[str] | None = None) -> None:

@@ -67,8 +67,6 @@ class TrackerNode(Node):
         if self.still_frames < 2 or not self.still_px > 0:
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
-        self.captures = 0
-        self.refused = 0
         unknown = sorted(set(cameras) - set(CAPTURE_TOPICS))
         if unknown:
             raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
@@ -127,7 +125,6 @@ class _CameraReader:
         try:
             pixels = image_array(msg, self.size)
         except CameraConfigError as error:
-            self.node.refused += 1
             self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
             self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
             self.recent.clear()
@@ -161,7 +158,6 @@ class _CameraReader:
         covariance.pose.covariance = camera.uncertainty(pose[2]).covariance()
         self.capture_pub.publish(capture)
         self.covariance_pub.publish(covariance)
-        self.node.captures += 1
 
 
 def main(args: list[str] | None = None) -> None:
