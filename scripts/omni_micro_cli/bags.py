@@ -66,6 +66,13 @@ GRAPH_TOPICS: dict[str, TopicSpec] = {
     '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
     MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
 }
+# The rendered cameras' streams (run --vision images): recorded only when asked
+# (--record-images), a megabyte a frame. Depth as omni_micro_sim.qos.IMAGE_QOS.
+IMAGE_TOPICS: dict[str, TopicSpec] = {
+    f'/camera/{camera}/{stream}': TopicSpec(f'sensor_msgs/msg/{kind}', 10)
+    for camera in ('macro', 'micro')
+    for stream, kind in (('image_raw', 'Image'), ('camera_info', 'CameraInfo'))}
+RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
 
 
 def check_output_path(path: Path, force: bool) -> None:

@@ -41,7 +41,12 @@ from omni_micro_sim.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
 SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not).
-LOCKSTEP_NODES = ('vision_node', 'controller_node')
+LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node')
+# What stands for the cameras: vision_node's measurement model, or rendered images and the
+# tracker that turns them into captures (what a real camera and its tracker would do).
+VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
+                'images': (('omni_micro_vision', 'camera_node'),
+                           ('omni_micro_vision', 'tracker_node'))}
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
 
@@ -56,6 +61,8 @@ class NodeSpec:
     # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
     command: tuple[str, ...] | None = None
     respawn: bool = False
+    # A command that reports on /lockstep all the same (the recorder keeping every frame).
+    lockstep: bool = False
 
     @property
     def name(self) -> str:
@@ -63,13 +70,16 @@ class NodeSpec:
 
     @property
     def reports_lockstep(self) -> bool:
-        return self.command is None and self.executable in LOCKSTEP_NODES
+        return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
 
 
-def default_nodes() -> list[NodeSpec]:
-    packages = ('omni_micro_sim', 'omni_micro_vision', 'omni_micro_control')
-    return [NodeSpec(package, name)
-            for package, name in zip(packages, GRAPH_NODE_NAMES, strict=True)]
+def default_nodes(vision: str = 'model') -> list[NodeSpec]:
+    if vision not in VISION_MODES:
+        raise UsageError(f'vision must be one of {sorted(VISION_MODES)}, got {vision!r}')
+    dynamics, _, controller = GRAPH_NODE_NAMES
+    return [NodeSpec('omni_micro_sim', dynamics),
+            *(NodeSpec(package, name) for package, name in VISION_MODES[vision]),
+            NodeSpec('omni_micro_control', controller)]
 
 
 def message_class(msgtype: str) -> type:
@@ -80,13 +90,19 @@ def message_class(msgtype: str) -> type:
     return getattr(importlib.import_module(f'{package}.msg'), name)
 
 
-def recorder_spec(bag: Path, storage: str, markers: bool = True) -> NodeSpec:
+def recorder_spec(bag: Path, storage: str, markers: bool = True,
+                  images: tuple[str, ...] = ()) -> NodeSpec:
+    """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
+    takes part in the lockstep so that no frame is lost to a slow disk."""
     from omni_micro_cli.bags import GRAPH_TOPICS, MARKERS_TOPIC
 
     topics = [topic for topic in GRAPH_TOPICS if markers or topic != MARKERS_TOPIC]
+    topics += [f'/camera/{camera}/{stream}' for camera in images
+               for stream in ('image_raw', 'camera_info')]
     return NodeSpec('omni_micro_cli', 'bag_recorder', command=(
         sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--storage', storage,
-        '--topics', *topics))
+        '--topics', *topics, *(('--lockstep-frames',) if images else ())),
+        lockstep=bool(images))
 
 
 def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
@@ -332,6 +348,8 @@ class GraphOptions:
     on_running: Callable[[Graph], None] | None = None
     markers: bool = True                  # markers_node draws the run on /markers
     view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
+    vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
+    record_images: bool = False           # the recorder keeps the images too
 
 
 @dataclass
@@ -378,15 +396,15 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
-        taking_part = [other.name for other in (options.nodes or default_nodes())
-                       if other.reports_lockstep]
+        taking_part = [other.name for other in all_specs(options) if other.reports_lockstep]
         overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
         overrides.update(options.dynamics_overrides)
-    elif spec.executable == 'vision_node':
+    elif spec.executable in ('vision_node', 'camera_node'):
         overrides.update(seed=int(options.seed))
         overrides.update(options.vision_overrides)
     elif spec.executable == 'markers_node':
-        vision = node_parameters('omni_micro_vision', 'vision_node', options,
+        # The fields as the camera in use has them (camera_node has vision_node's names).
+        vision = node_parameters('omni_micro_vision', _camera_node(options), options,
                                  options.vision_overrides)
         dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options,
                                    options.dynamics_overrides)
@@ -402,6 +420,42 @@ def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.controller_overrides)
     overrides.update(spec.overrides)
     return overrides
+
+
+def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
+    """The nodes closing the loop: those given, else the default set for ``options.vision``."""
+    return list(options.nodes or default_nodes(options.vision))
+
+
+def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
+    """The cameras whose images camera_node streams in this graph (none without it)."""
+    if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
+        return ()
+    values = node_parameters('omni_micro_vision', 'camera_node', options,
+                             options.vision_overrides)
+    cameras = values.get('cameras', ['macro', 'micro'])
+    return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
+
+
+def all_specs(options: GraphOptions) -> list[NodeSpec]:
+    """Every process of the graph: the loop, then who listens (markers, recorder, viewer)."""
+    specs = graph_nodes(options)
+    if options.markers:
+        specs.append(MARKERS_NODE)
+    if options.record is not None:
+        images = streaming_cameras(options) if options.record_images else ()
+        if options.record_images and not images:
+            raise UsageError('--record-images needs the rendered cameras (--vision images)')
+        specs.append(recorder_spec(options.record, options.storage, options.markers, images))
+    if options.view is not None:
+        specs.append(viewer_spec(*options.view, options.markers))
+    return specs
+
+
+def _camera_node(options: GraphOptions) -> str:
+    names = {spec.executable for spec in graph_nodes(options)}
+    return 'camera_node' if 'camera_node' in names and 'vision_node' not in names \
+        else 'vision_node'
 
 
 def node_parameters(package: str, node: str, options: GraphOptions,
@@ -470,16 +524,10 @@ class Graph:
         self._lifeline_read, self._lifeline_write = os.pipe()
         env[LIFELINE_ENV] = str(self._lifeline_read)
         inherited = (self._lifeline_read,) + (() if lease_fd is None else (lease_fd,))
-        specs = list(options.nodes or default_nodes())
+        specs = all_specs(options)
         if options.respawn:
             specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
                      for spec in specs]
-        if options.markers:
-            specs.append(MARKERS_NODE)
-        if options.record is not None:
-            specs.append(recorder_spec(options.record, options.storage, options.markers))
-        if options.view is not None:
-            specs.append(viewer_spec(*options.view, options.markers))
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
                                       log_dir / f'{spec.name}.log', options.echo, inherited)
                           for spec in specs]
@@ -642,7 +690,8 @@ def run_graph(options: GraphOptions) -> GraphResult:
         try:
             graph.start()
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording,
-                                     markers=options.markers)
+                                     markers=options.markers,
+                                     images=streaming_cameras(options))
             wall_start = time.monotonic()
             for index, goal in enumerate(goals):
                 monitor.send_goal(graph, goal, recording)

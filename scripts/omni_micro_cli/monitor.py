@@ -119,11 +119,14 @@ class GraphMonitor:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
     def wait_until_ready(self, graph: Supervisor, timeout_s: float,
-                         recording: bool = False, markers: bool = False) -> None:
+                         recording: bool = False, markers: bool = False,
+                         images: tuple[str, ...] = ()) -> None:
+        """Until every node listens (and, with ``images``, the tracker reads those cameras')."""
         deadline = time.monotonic() + timeout_s
+        needed = [*READY_SUBSCRIBERS, *((f'/camera/{camera}/image_raw',) for camera in images)]
         while True:
             graph.check_alive()
-            missing = [' or '.join(topics) for topics in READY_SUBSCRIBERS
+            missing = [' or '.join(topics) for topics in needed
                        if not any(self.node.count_subscribers(topic) for topic in topics)]
             # markers_node makes its publisher after its subscriptions: seen, it is listening.
             if markers and not self.node.count_publishers('/markers'):

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.bags import GRAPH_TOPICS, STORAGES, check_output_path
+from omni_micro_cli.bags import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGES, check_output_path
 
 
 def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
@@ -31,8 +31,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'domain ROS_DOMAIN_ID (or --domain-id) into a rosbag2 bag, timestamps in '
                     'simulated time. `run --record BAG` does this for you.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='output bag folder (must not exist)')
-    parser.add_argument('--topics', nargs='+', metavar='T', choices=sorted(GRAPH_TOPICS),
-                        help='only these topics (default: all of the graph)')
+    parser.add_argument('--topics', nargs='+', metavar='T', choices=sorted(RECORDABLE_TOPICS),
+                        help='only these topics (default: all of the graph but the images; '
+                             'the images: /camera/<macro|micro>/<image_raw|camera_info>)')
+    parser.add_argument('--lockstep-frames', action='store_true',
+                        help='report on /lockstep which image frames are written, so that a '
+                             'graph in lockstep waits for the recorder as for its tracker and '
+                             'no frame is lost however slow the disk')
     parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
                         help='DDS domain to record from (default: $ROS_DOMAIN_ID or 0)')
     add_storage_arguments(parser)
@@ -44,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_sim.node_runtime import run_node
 
     check_output_path(args.bag, args.force)
-    topics = {name: GRAPH_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
+    topics = {name: RECORDABLE_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
 
     def finish(recorder: BagRecorder) -> None:
         recorder.close()
@@ -54,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
 
     # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
     # (metadata.yaml written) through finish(), and ends the process.
-    run_node(lambda: BagRecorder(args.bag, args.storage, topics), config_errors=(),
+    run_node(lambda: BagRecorder(args.bag, args.storage, topics, args.lockstep_frames),
+             config_errors=(),
              on_shutdown=finish, domain_id=args.domain_id)
     return 0

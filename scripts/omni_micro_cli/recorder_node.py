@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -12,8 +13,10 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.bags import TopicSpec, flush, open_writer
+from omni_micro_cli.bags import IMAGE_TOPICS, TopicSpec, flush, open_writer
 from omni_micro_cli.graph import message_class
+from omni_micro_sim.lockstep import Ack
+from omni_micro_sim.node_runtime import LockstepReporter
 from omni_micro_sim.qos import PER_TICK_SUBSCRIPTION_EVENTS
 
 # Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
@@ -23,12 +26,20 @@ FLUSH_PERIOD_S = 0.5
 class BagRecorder(Node):
     """Writes each message as it arrives, stamped with the simulated time of its arrival."""
 
-    def __init__(self, bag: Path, storage: str, topics: dict[str, TopicSpec]) -> None:
+    def __init__(self, bag: Path, storage: str, topics: dict[str, TopicSpec],
+                 lockstep_frames: bool = False) -> None:
         super().__init__('bag_recorder',
                          parameter_overrides=[Parameter('use_sim_time', value=True)])
         self.writer, self.connections = open_writer(bag, storage, topics)
         self.counts = dict.fromkeys(topics, 0)
         self._closed = False
+        # With lockstep_frames, the latest frame written per image topic (see _report_frame).
+        self._frames_written: dict[str, int] = {}
+        self.lockstep: LockstepReporter | None = None
+        if lockstep_frames:
+            self._frames_written = {topic: -1 for topic in topics
+                                    if topic in IMAGE_TOPICS and topic.endswith('image_raw')}
+            self.lockstep = LockstepReporter(self)
         for topic, spec in topics.items():
             qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.RELIABLE,
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
@@ -54,7 +65,19 @@ class BagRecorder(Node):
         def on_message(data: bytes) -> None:
             self.writer.write(connection, self.get_clock().now().nanoseconds, data)
             self.counts[topic] += 1
+            if topic in self._frames_written:
+                self._report_frame(topic, data)
         return on_message
+
+    def _report_frame(self, topic: str, data: bytes) -> None:
+        """Frames are written up to the oldest of every image topic's latest: the lockstep then
+        waits for the disk as for a tracker. The stamp is read from the raw CDR (little-endian
+        after the 4-byte encapsulation: header.stamp.sec, .nanosec first)."""
+        sec, nanosec = struct.unpack_from('<iI', data, 4)
+        self._frames_written[topic] = sec * 1_000_000_000 + nanosec
+        assert self.lockstep is not None
+        self.lockstep.report(Ack(self.get_name(), None,
+                                 frame_handled_ns=min(self._frames_written.values())))
 
     def _on_wall_timer(self) -> None:
         if time.monotonic() - self._last_flush >= FLUSH_PERIOD_S:

@@ -97,7 +97,10 @@ def run(args: argparse.Namespace) -> int:
         except LockstepError:
             return
         if ack is not None and ack.node in args.sync:
-            handled[ack.node] = max(handled.get(ack.node, -1), ack.processed_ns)
+            # A tracker reads no odometry: what it handled is the frames.
+            done = ack.processed_ns if ack.processed_ns is not None else ack.frame_handled_ns
+            if done is not None:
+                handled[ack.node] = max(handled.get(ack.node, -1), done)
 
     executor = SingleThreadedExecutor()
     executor.add_node(node)

@@ -17,7 +17,13 @@ from omni_micro_cli.arguments import (
     probability,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.graph import GraphOptions, GraphResult, check_params_file, run_graph
+from omni_micro_cli.graph import (
+    VISION_MODES,
+    GraphOptions,
+    GraphResult,
+    check_params_file,
+    run_graph,
+)
 from omni_micro_cli.platform_bounds import check_goal
 from omni_micro_cli.record import add_storage_arguments
 from omni_micro_cli.view import add_view_arguments, view_from_args
@@ -41,6 +47,14 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--record', type=Path, metavar='BAG',
                         help='record every topic into this rosbag2 bag (a recorder node in its '
                              'own process; simulated-time stamps)')
+    parser.add_argument('--vision', choices=sorted(VISION_MODES), default='model',
+                        help='model: vision_node measures the pose with the cameras\' noise '
+                             'model (default); images: camera_node renders each camera\'s '
+                             'images and tracker_node finds the robot in them, as a real '
+                             'camera and its tracker would (README, "Images and the tracker")')
+    parser.add_argument('--record-images', action='store_true',
+                        help='with --record and --vision images: the images and camera infos '
+                             'too (about 80 MB per simulated second at the default sizes)')
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not start markers_node (the /markers it draws for RViz 2 and '
                              'Foxglove; the run is the same with or without it)')
@@ -127,13 +141,20 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
         check_timing(args)
     except argparse.ArgumentTypeError as error:
         raise UsageError(str(error)) from None
+    faults = fault_overrides(args)
+    if faults and args.vision != 'model':
+        raise UsageError(f'fault injection ({", ".join(sorted(faults))}) is vision_node\'s: '
+                         f'it needs --vision model, got --vision {args.vision}')
+    if args.record_images and (args.vision != 'images' or args.record is None):
+        raise UsageError('--record-images needs --record BAG and --vision images')
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
                         lockstep=not args.free_running,
                         open_loop_s=open_loop_s, params_file=args.params,
                         timeout_s=args.timeout, log_dir=args.log_dir,
                         echo=None if args.quiet else echo_to_stderr, record=args.record,
                         storage=args.storage, force=args.force,
-                        vision_overrides=fault_overrides(args),
+                        vision_overrides=faults, vision=args.vision,
+                        record_images=args.record_images,
                         controller_overrides=controller_overrides(args),
                         respawn=getattr(args, 'respawn', False), markers=args.markers,
                         view=view_from_args(args))

@@ -4,18 +4,24 @@ Webots' ``synchronization TRUE`` and CARLA's synchronous mode wait for every con
 step; this does the same with a bounded lead. Every node that takes part reports on
 ``/lockstep`` after each input it has fully handled (every output it causes already published):
 
-- ``processed_ns``: every sample stamped up to here is handled;
-- ``captures_ns``: the first and last capture stamp it published while doing so (a camera);
+- ``processed_ns``: every sample stamped up to here is handled (absent from a node that reads
+  no odometry: a tracker, waited for only through the frames it has still to handle);
+- ``captures_ns``: the first and last capture stamp it published while doing so (a camera, a
+  tracker);
 - ``capture_handled_ns``: the latest capture stamp it has handled (a controller);
+- ``frames_ns``: the first and last image stamp it published (a rendering camera), and
+  ``frame_handled_ns``: the latest image stamp up to which it has handled every camera's frame
+  (a tracker; a recorder that must keep every frame);
 - ``command_ns``: the stamp of the last command it published, and ``command_lead_ns``, how long
   after their capture its moves start (a controller).
 
 A plain "processed up to" stamp is not enough: a capture, a command and a report travel on
 different topics, and DDS orders messages per writer only. So the robot also waits until the
 captures a camera reported are handled by the controller, and until the commands a controller
-reported have arrived. With a lead of at most ``command_lead_s``, a command can then never
-arrive after its start stamp and no sample is ever dropped, whatever the machine's load: the
-run is a function of its inputs and the seed, not of the CPU.
+reported have arrived, and until the frames a camera reported are handled by their tracker
+(whose captures then count as a camera's). With a lead of at most ``command_lead_s``, a command
+can then never arrive after its start stamp and no sample is ever dropped, whatever the
+machine's load: the run is a function of its inputs and the seed, not of the CPU.
 """
 
 from __future__ import annotations
@@ -33,7 +39,8 @@ ACK_MESSAGE = 'lockstep'
 DEFAULT_MAX_LEAD_S = 0.04
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
-           'command_ns', 'command_lead_ns')
+           'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
+           'frame_handled_ns')
 
 
 class LockstepError(ValueError):
@@ -45,18 +52,20 @@ class Ack:
     """One node's report: see the module docstring for each field."""
 
     node: str
-    processed_ns: int
+    processed_ns: int | None
     captures_ns: tuple[int, int] | None = None
     capture_handled_ns: int | None = None
     command_ns: int | None = None
     command_lead_ns: int | None = None
+    frames_ns: tuple[int, int] | None = None
+    frame_handled_ns: int | None = None
 
     def to_values(self) -> list[tuple[str, str]]:
-        values = [('processed_ns', str(self.processed_ns))]
-        if self.captures_ns is not None:
-            values += [('capture_first_ns', str(self.captures_ns[0])),
-                       ('capture_last_ns', str(self.captures_ns[1]))]
-        for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns'):
+        values = [] if self.processed_ns is None else [('processed_ns', str(self.processed_ns))]
+        for kind, span in (('capture', self.captures_ns), ('frame', self.frames_ns)):
+            if span is not None:
+                values += [(f'{kind}_first_ns', str(span[0])), (f'{kind}_last_ns', str(span[1]))]
+        for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns'):
             value = getattr(self, name)
             if value is not None:
                 values.append((name, str(value)))
@@ -74,16 +83,19 @@ class Ack:
             except ValueError:
                 raise LockstepError(f'lockstep report of {node!r}: {key} must be a whole '
                                     f'number of nanoseconds, got {text!r}') from None
-        if 'processed_ns' not in fields:
-            raise LockstepError(f'lockstep report of {node!r} has no processed_ns')
-        first, last = fields.get('capture_first_ns'), fields.get('capture_last_ns')
-        if (first is None) != (last is None):
-            raise LockstepError(f'lockstep report of {node!r}: capture_first_ns and '
-                                f'capture_last_ns come together')
-        return cls(node, fields['processed_ns'],
-                   None if first is None or last is None else (first, last),
+        if 'processed_ns' not in fields and 'frame_handled_ns' not in fields:
+            raise LockstepError(f'lockstep report of {node!r} has neither processed_ns nor '
+                                f'frame_handled_ns')
+        spans: dict[str, tuple[int, int] | None] = {}
+        for kind in ('capture', 'frame'):
+            first, last = fields.get(f'{kind}_first_ns'), fields.get(f'{kind}_last_ns')
+            if (first is None) != (last is None):
+                raise LockstepError(f'lockstep report of {node!r}: {kind}_first_ns and '
+                                    f'{kind}_last_ns come together')
+            spans[kind] = None if first is None or last is None else (first, last)
+        return cls(node, fields.get('processed_ns'), spans['capture'],
                    fields.get('capture_handled_ns'), fields.get('command_ns'),
-                   fields.get('command_lead_ns'))
+                   fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'))
 
 
 class LockstepGate:
@@ -113,6 +125,8 @@ class LockstepGate:
         self._capture_handled: dict[str, int] = {}
         self._awaited_commands: dict[str, int] = {}
         self._pending_captures: list[tuple[int, int]] = []
+        self._frame_handled: dict[str, int] = {}
+        self._pending_frames: list[tuple[int, int]] = []
         self._received_commands: deque[int] = deque(maxlen=self.RECEIVED_COMMANDS_KEPT)
         self.reset(0)
 
@@ -131,18 +145,30 @@ class LockstepGate:
         self._capture_handled.clear()
         self._awaited_commands.clear()
         self._pending_captures.clear()
+        self._frame_handled.clear()
+        self._pending_frames.clear()
 
     def on_ack(self, ack: Ack) -> None:
-        if ack.node not in self._processed:
+        if ack.node not in self.nodes:
             return
-        self._processed[ack.node] = ack.processed_ns
+        if ack.processed_ns is not None:
+            self._processed[ack.node] = ack.processed_ns
+        else:
+            # It reads no odometry: its frames to handle hold time back, not its stamp.
+            self._processed.pop(ack.node, None)
         if ack.captures_ns is not None:
             self._pending_captures.append(ack.captures_ns)
             if not self._capture_handled:
                 # Nobody who handles captures has reported (yet): keep a bounded memory.
                 del self._pending_captures[:-self.RECEIVED_COMMANDS_KEPT]
+        if ack.frames_ns is not None:
+            self._pending_frames.append(ack.frames_ns)
+            if not self._frame_handled:
+                del self._pending_frames[:-self.RECEIVED_COMMANDS_KEPT]
         if ack.capture_handled_ns is not None:
             self._capture_handled[ack.node] = ack.capture_handled_ns
+        if ack.frame_handled_ns is not None:
+            self._frame_handled[ack.node] = ack.frame_handled_ns
         if ack.command_ns is not None:
             self._awaited_commands[ack.node] = ack.command_ns
         if ack.command_lead_ns is not None:
@@ -158,6 +184,9 @@ class LockstepGate:
                    if ns not in self._received_commands]
         if missing:
             return ', '.join(missing)
+        if self._frame_handled and self._pending_frames:
+            tracker = min(self._frame_handled, key=self._frame_handled.__getitem__)
+            return f'{tracker} to handle the frame at {self._pending_frames[0][0]} ns'
         slowest = min(self._processed, key=self._processed.__getitem__, default=None)
         return None if slowest is None else f'{slowest} at {self._processed[slowest]} ns'
 
@@ -167,11 +196,20 @@ class LockstepGate:
             return math.inf
         if any(ns not in self._received_commands for ns in self._awaited_commands.values()):
             return -math.inf   # a command is on its way: wait for it, whatever its stamp
-        bound = min(self._processed.values())
+        bound = min(self._processed.values(), default=math.inf)
+        if self._frame_handled:
+            handled = min(self._frame_handled.values())
+            self._pending_frames = [f for f in self._pending_frames if f[1] > handled]
+            if self._pending_frames:
+                # A frame not yet tracked may become a capture: stop short of its stamp, as
+                # for a capture not yet handled.
+                bound = min(bound, min(first for first, _ in self._pending_frames))
         if self._capture_handled:
             handled = min(self._capture_handled.values())
             self._pending_captures = [c for c in self._pending_captures if c[1] > handled]
             if self._pending_captures:
                 # The move a capture causes starts a lead after it: stop short of that.
                 bound = min(bound, min(first for first, _ in self._pending_captures))
+        if math.isinf(bound):
+            return -math.inf   # only trackers take part, and no camera: nothing to go by
         return bound + self.lead_ticks * self.period_ns

@@ -10,6 +10,10 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+# Camera images: a megabyte each, so a short history (in lockstep no more than the lead's worth
+# are ever unhandled). Real drivers often publish best effort (SensorDataQoS): tracker_node's
+# image_reliability parameter matches them.
+IMAGE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
 # Beside each capture, the same pose with its uncertainty (geometry_msgs/PoseWithCovarianceStamped,
 # same stamp): the captures stay PoseStamped, so a driver that cannot estimate its own

@@ -4,6 +4,7 @@ Subscribes /odom (the robot's true motion) and publishes, for each camera of ``c
 sensor_msgs/Image (mono8 or mono16) and its CameraInfo at ``frame_rate_hz`` of simulated time,
 whether or not the robot moves, each stamped with its exposure's start:
   /camera/<name>/image_raw, /camera/<name>/camera_info      (frame ``camera_<name>``)
+  /lockstep            its report after each odometry sample, naming the frames it published
 Frame k of camera c is rendered from the odometry sample that ends at or after its stamp, with
 noise seeded by (seed, c, k): the same run gives the same frames at any speed. What a frame
 shows is :func:`omni_micro_vision.imaging.render`'s; this node only moves numbers.
@@ -19,9 +20,10 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp
-from omni_micro_sim.node_runtime import run_node
-from omni_micro_sim.qos import CAPTURE_QOS, CAPTURE_TOPICS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
+from omni_micro_sim.lockstep import Ack
+from omni_micro_sim.node_runtime import LockstepReporter, run_node
+from omni_micro_sim.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 from omni_micro_vision.imaging import Sensor, render
@@ -56,10 +58,11 @@ class CameraNode(Node):
                 continue
             self.cameras.append((index, camera, sensor,
                                  self.create_publisher(Image, f'/camera/{name}/image_raw',
-                                                       CAPTURE_QOS),
+                                                       IMAGE_QOS),
                                  self.create_publisher(CameraInfo, f'/camera/{name}/camera_info',
-                                                       CAPTURE_QOS)))
+                                                       IMAGE_QOS)))
         self._next_frame = 0
+        self.lockstep = LockstepReporter(self)
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self.get_logger().info(f'streaming {", ".join(chosen)} at {self.rate_hz:g} Hz of '
@@ -78,11 +81,16 @@ class CameraNode(Node):
         # Every frame whose exposure starts by this sample, from it (at 30 Hz on a 50 Hz grid,
         # at most one). Frames long past (a node started late) are not made up.
         self._next_frame = max(self._next_frame, math.floor(now_s * self.rate_hz + 1e-9))
+        published = []
         while self._next_frame / self.rate_hz <= now_s + 1e-9:
-            self._publish_frame(self._next_frame, state)
+            published.append(self._publish_frame(self._next_frame, state))
             self._next_frame += 1
+        # Last: the frames are out before the robot may move on.
+        self.lockstep.report(Ack(self.get_name(), stamp_ns(msg.header.stamp),
+                                 frames_ns=(published[0], published[-1]) if published else None))
 
-    def _publish_frame(self, number: int, state: RobotState) -> None:
+    def _publish_frame(self, number: int, state: RobotState) -> int:
+        """Publish frame ``number`` of every camera; returns its stamp in nanoseconds."""
         sec, nanosec = split_stamp(number / self.rate_hz)
         for index, camera, sensor, image_pub, info_pub in self.cameras:
             pixels = render(camera, sensor, state,
@@ -96,6 +104,7 @@ class CameraNode(Node):
             info.header = image.header
             info_pub.publish(info)
             image_pub.publish(image)
+        return sec * 1_000_000_000 + nanosec
 
 
 def main(args: list[str] | None = None) -> None:

@@ -8,8 +8,11 @@ the ``platform`` frame:
   /camera/<name>/tracker_status          diagnostic_msgs/DiagnosticStatus: why a frame gave no
                                          pose (fiducial not found, cut by the edge, ambiguous) or
                                          why it was refused (encoding, size), on each change
+  /lockstep                              after each frame: up to which stamp every camera's
+                                         frames are handled, and the captures that caused
 A capture is published only while the robot is still, decided from the images alone: the
-fiducial's pose in the last ``still_frames`` frames agrees within ``still_tolerance_px`` pixels.
+fiducial's pose in the last ``still_frames`` frames agrees within ``still_tolerance_px`` pixels;
+and only from the finest camera that sees the robot (:mod:`omni_micro_vision.tracking`).
 Where the camera looks is a parameter (``<name>.center_m``, ``<name>.field_m``: the platform
 point under the image's centre and the field the image spans; the pixel size follows from the
 image's size). The image processing is :mod:`omni_micro_vision.imaging`'s.
@@ -17,22 +20,30 @@ image's size). The image processing is :mod:`omni_micro_vision.imaging`'s.
 
 from __future__ import annotations
 
-import math
-from collections import deque
-
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_sim.conventions import yaw_to_quaternion
-from omni_micro_sim.node_runtime import run_node
-from omni_micro_sim.qos import CAPTURE_COVARIANCE_TOPICS, CAPTURE_QOS, CAPTURE_TOPICS, latched
+from omni_micro_sim.conventions import stamp_ns, yaw_to_quaternion
+from omni_micro_sim.lockstep import Ack
+from omni_micro_sim.node_runtime import LockstepReporter, run_node
+from omni_micro_sim.qos import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_QOS,
+    CAPTURE_TOPICS,
+    IMAGE_QOS,
+    latched,
+)
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 from omni_micro_vision.imaging import track
+from omni_micro_vision.tracking import CameraArbiter, StillnessRule
 
 DTYPES = {'mono8': np.uint8, 'mono16': np.uint16}
+RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
+                 'best_effort': ReliabilityPolicy.BEST_EFFORT}
 
 
 def image_array(msg: Image, expected: tuple[int, int] | None) -> np.ndarray:
@@ -63,7 +74,7 @@ class TrackerNode(Node):
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         cameras = list(self.declare_parameter('cameras', ['macro', 'micro']).value)
         self.still_frames = int(self.declare_parameter('still_frames', 3).value)
-        self.still_px = float(self.declare_parameter('still_tolerance_px', 0.5).value)
+        self.still_px = float(self.declare_parameter('still_tolerance_px', 0.2).value)
         if self.still_frames < 2 or not self.still_px > 0:
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
@@ -71,6 +82,14 @@ class TrackerNode(Node):
         if unknown:
             raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
                                     f'{sorted(CAPTURE_TOPICS)}')
+        reliability = self.declare_parameter('image_reliability', 'reliable').value
+        if reliability not in RELIABILITIES:
+            raise CameraConfigError(f'image_reliability must be one of {sorted(RELIABILITIES)}, '
+                                    f'got {reliability!r}')
+        image_qos = QoSProfile(depth=IMAGE_QOS.depth, reliability=RELIABILITIES[reliability])
+        self.lockstep = LockstepReporter(self)
+        self.readers: list[_CameraReader] = []
+        fields: dict[str, float] = {}
         # Every camera's parameters are declared (one params file serves any choice of cameras);
         # only those in ``cameras`` are read.
         for name in CAPTURE_TOPICS:
@@ -85,10 +104,29 @@ class TrackerNode(Node):
             if name not in cameras:
                 continue
             reader = _CameraReader(self, name, center, field)
-            self.create_subscription(Image, image_topic, reader.on_image, CAPTURE_QOS)
-            self.create_subscription(CameraInfo, info_topic, reader.on_info, CAPTURE_QOS)
+            self.readers.append(reader)
+            fields[name] = min(float(field[0]), float(field[1]))
+            self.create_subscription(Image, image_topic, reader.on_image, image_qos)
+            self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
+        # The smaller field has the finer pixel (the resolution comes with the images).
+        self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
+            sorted(fields, key=fields.__getitem__))
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
+
+    def on_frame(self, reader: _CameraReader, stamp: int, found: bool,
+                 capture: _Capture | None) -> None:
+        """Publish what is due, then report: every camera's frames are handled up to the oldest
+        of their latest (a capture from a frame still on its way could come later)."""
+        reader.handled_ns = max(reader.handled_ns, stamp)
+        due = self.arbiter.on_frame(reader.name, stamp, found, capture)
+        for _, (owner, covariance, pose) in due:
+            # The uncertainty first, as vision_node: a reader of the bare capture has it by then.
+            owner.covariance_pub.publish(covariance)
+            owner.capture_pub.publish(pose)
+        self.lockstep.report(Ack(
+            self.get_name(), None, captures_ns=(due[0][0], due[-1][0]) if due else None,
+            frame_handled_ns=min(r.handled_ns for r in self.readers)))
 
 
 class _CameraReader:
@@ -101,7 +139,8 @@ class _CameraReader:
         self.center = (float(center[0]), float(center[1]))
         self.field = (float(field[0]), float(field[1]))
         self.size: tuple[int, int] | None = None
-        self.recent: deque[tuple[float, float, float]] = deque(maxlen=node.still_frames)
+        self.handled_ns = -1
+        self.stillness = StillnessRule(node.still_frames, 0.0)
         self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[name], CAPTURE_QOS)
         self.covariance_pub = node.create_publisher(
             PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[name], CAPTURE_QOS)
@@ -122,42 +161,44 @@ class _CameraReader:
         return CameraModel(self.name, self.center, self.field, (width, height))
 
     def on_image(self, msg: Image) -> None:
+        found, capture = self._see(msg)
+        self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture)
+
+    def _see(self, msg: Image) -> tuple[bool, _Capture | None]:
+        """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
         try:
             pixels = image_array(msg, self.size)
         except CameraConfigError as error:
             self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
             self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
-            self.recent.clear()
-            return
+            self.stillness.reset()
+            return False, None
         camera = self.camera(msg.width, msg.height)
         result = track(pixels, camera)
         if result.pose is None:
-            self.recent.clear()
+            self.stillness.reset()
             self._say(DiagnosticStatus.WARN, result.reason)
-            return
-        self.recent.append(result.pose)
-        pixel = min(camera.pixel_size_m)
-        if len(self.recent) < self.node.still_frames or any(
-                math.hypot(x - result.pose[0], y - result.pose[1]) > self.node.still_px * pixel
-                for x, y, _ in self.recent):
+            return False, None
+        x, y, phi = result.pose
+        self.stillness.tolerance_m = self.node.still_px * min(camera.pixel_size_m)
+        if not self.stillness.still(x, y):
             self._say(DiagnosticStatus.OK, 'moving')
-            return
+            return True, None
         self._say(DiagnosticStatus.OK, 'still: capturing')
-        self.publish(msg, camera, result.pose)
-
-    def publish(self, msg: Image, camera: CameraModel,
-                pose: tuple[float, float, float]) -> None:
         capture = PoseStamped()
         capture.header.stamp = msg.header.stamp
         capture.header.frame_id = self.node.frame_id
-        capture.pose.position.x, capture.pose.position.y = pose[0], pose[1]
-        capture.pose.orientation.z, capture.pose.orientation.w = yaw_to_quaternion(pose[2])
+        capture.pose.position.x, capture.pose.position.y = x, y
+        capture.pose.orientation.z, capture.pose.orientation.w = yaw_to_quaternion(phi)
         covariance = PoseWithCovarianceStamped()
         covariance.header = capture.header
         covariance.pose.pose = capture.pose
-        covariance.pose.covariance = camera.uncertainty(pose[2]).covariance()
-        self.capture_pub.publish(capture)
-        self.covariance_pub.publish(covariance)
+        covariance.pose.covariance = camera.uncertainty(phi).covariance()
+        return True, (self, covariance, capture)
+
+
+# A capture as the tracker holds it until the arbiter lets it go: its camera, then both messages.
+_Capture = tuple[_CameraReader, PoseWithCovarianceStamped, PoseStamped]
 
 
 def main(args: list[str] | None = None) -> None:
