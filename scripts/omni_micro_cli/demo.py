@@ -1,7 +1,8 @@
 """`omni-micro demo`: the paper's results reproduced, the closed loop through the ROS 2 graph.
 
 The open-loop figures (Figs. 6, 7, 8, 11) come from the slip core; Fig. 11's comparison of open
-loop (7 s) and vision feedback runs through the three node processes, as a user would run it.
+loop (7 s) and vision feedback runs through the three node processes, as a user would run it,
+and once more with rendered images and the tracker in place of the camera model.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from omni_micro_cli.view import add_view_arguments, view_from_args
 from omni_micro_sim import paper
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
+RUNS = ('open_loop', 'closed_loop', 'model', 'images')
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -33,10 +35,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         'demo', help="the paper's results reproduced: Fig. 11 through the node graph",
         description="Run the paper's Fig. 11 scenario, (0,0) -> (100,0) mm, through the ROS 2 "
                     "node graph: one open-loop move of 7 s, then vision feedback by the "
-                    "paper's rule, then by the model-based controller; print the deviations "
-                    "beside the paper's (13 mm and 0.0124 mm) and write the comparison figure, "
-                    "plus the open-loop figures of Figs. 6-8 from the core. Exit 0 when both "
-                    "closed loops reached the goal, 1 otherwise, 2 for a bad argument.")
+                    "paper's rule, then by the model-based controller, then by the paper's "
+                    "rule on rendered camera images (camera_node + tracker_node); print the "
+                    "deviations beside the paper's (13 mm and 0.0124 mm) and write the "
+                    "comparison figure, plus the open-loop figures of Figs. 6-8 from the core. "
+                    "Exit 0 when every closed loop reached the goal, 1 otherwise, 2 for a bad "
+                    "argument.")
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='where the figures and summary go (default out/demo)')
     add_timing_arguments(parser, default_rtf='max')
@@ -45,7 +49,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
     parser.add_argument('--record', type=Path, metavar='DIR',
                         help='record the runs as bags DIR/fig11_open_loop, '
-                             'DIR/fig11_closed_loop and DIR/fig11_model')
+                             'DIR/fig11_closed_loop, DIR/fig11_model and DIR/fig11_images '
+                             '(without the images themselves)')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
     parser.set_defaults(handler=run)
@@ -57,28 +62,27 @@ def _progress(message: str) -> None:
 
 def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
     if args.record is None:
-        return {'open_loop': None, 'closed_loop': None, 'model': None}
+        return dict.fromkeys(RUNS)
     args.record.mkdir(parents=True, exist_ok=True)
-    paths = {name: args.record / f'fig11_{name}'
-             for name in ('open_loop', 'closed_loop', 'model')}
+    paths = {name: args.record / f'fig11_{name}' for name in RUNS}
     for path in paths.values():
         check_output_path(path, args.force)   # refuse before anything runs
     return paths
 
 
 def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
-              bag: Path | None, mode: str = 'paper') -> GraphResult:
+              bag: Path | None, mode: str = 'paper', vision: str = 'model') -> GraphResult:
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
         lockstep=not args.free_running,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
         force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {},
-        view=view_from_args(args)))
+        view=view_from_args(args), vision=vision))
 
 
 def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
-                     model: GraphResult) -> str:
+                     model: GraphResult, images: GraphResult) -> str:
     return '\n'.join([
         '| Fig. 11, (0,0) -> (100,0) mm | paper | this graph |',
         '|---|---|---|',
@@ -91,6 +95,11 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
         f'| model-based controller: deviation | - | {model.deviation_m * 1e6:.2f} um |',
         f'| model-based controller: periods | - | {model.periods} |',
         f'| model-based controller: simulated time | - | {model.sim_time_s:.2f} s |',
+        f'| vision feedback on rendered images: deviation | - | '
+        f'{images.deviation_m * 1e6:.2f} um |',
+        f'| vision feedback on rendered images: periods | - | {images.periods} |',
+        f'| vision feedback on rendered images: simulated time | - | '
+        f'{images.sim_time_s:.2f} s |',
         ''])
 
 
@@ -116,7 +125,13 @@ def run(args: argparse.Namespace) -> int:
         model = graph_run(args, None, scratch / 'logs', bags['model'], mode='model')
         _progress(f'  {model.outcome}: deviation {model.deviation_m * 1e6:.2f} um '
                   f'after {model.periods} periods')
-        for name, result in (('closed loop', closed_loop), ('model-based loop', model)):
+        _progress('Fig. 11 with vision feedback on rendered images (camera_node + '
+                  'tracker_node)')
+        images = graph_run(args, None, scratch / 'logs', bags['images'], vision='images')
+        _progress(f'  {images.outcome}: deviation {images.deviation_m * 1e6:.2f} um '
+                  f'after {images.periods} periods')
+        for name, result in (('closed loop', closed_loop), ('model-based loop', model),
+                             ('loop on images', images)):
             if result.outcome != 'reached':
                 raise RunFailed(f'the {name} ended {result.outcome}: {result.reason}')
         used = np.array([c[1:3] for c in closed_loop.captures]).reshape(-1, 2)
@@ -126,10 +141,10 @@ def run(args: argparse.Namespace) -> int:
             np.array([r[1:] for r in closed_loop.route]).reshape(-1, 2), used,
             paper.FIG11_GOAL_M, zoom_half_width_m=20e-6,
             title='Fig. 11 through the node graph')
-        table = comparison_table(open_loop, closed_loop, model)
+        table = comparison_table(open_loop, closed_loop, model, images)
         (scratch / 'fig11_graph.md').write_text(table)
         summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json(),
-                     'model': model.as_json()}
+                     'model': model.as_json(), 'images': images.as_json()}
         for summary in summaries.values():
             # The logs move with the rest from the scratch folder into --out.
             summary['log_dir'] = str(args.out / Path(str(summary['log_dir'])).relative_to(scratch))

@@ -12,6 +12,7 @@ shows is :func:`omni_micro_vision.imaging.render`'s; this node only moves number
 
 from __future__ import annotations
 
+import array
 import math
 
 import numpy as np
@@ -97,7 +98,9 @@ class CameraNode(Node):
                             np.random.default_rng([self.seed, index, number]))
             image = Image(height=pixels.shape[0], width=pixels.shape[1],
                           encoding=sensor.encoding, is_bigendian=0,
-                          step=pixels.shape[1] * pixels.itemsize, data=pixels.tobytes())
+                          step=pixels.shape[1] * pixels.itemsize)
+            # An array.array is taken as it is; bytes or a list would be checked value by value.
+            image.data = array.array('B', pixels.tobytes())
             image.header.stamp.sec, image.header.stamp.nanosec = sec, nanosec
             image.header.frame_id = f'camera_{camera.name}'
             info = CameraInfo(height=image.height, width=image.width)

@@ -22,6 +22,7 @@ not found, is cut by the image's edge or is ambiguous gives no pose and says why
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -143,48 +144,168 @@ def _reflectance(xs: np.ndarray, ys: np.ndarray, pose: tuple[float, float, float
     return image
 
 
+# The frame is put together in square blocks: a block the robot's edge, a dot or their blur
+# cannot reach is a flat field (platform or chassis), copied from a pre-drawn noisy field;
+# only the others are computed from the scene.
+BLOCK_PX = 64
+# Pre-drawn flat fields are seeded by this and the level alone, and each frame takes a window
+# at a seeded offset into one twice its size: a frame stays a function of its own seed.
+_FLAT_FIELD_SEED = 20081016
+
+
+def _counts(electrons: np.ndarray, sensor: Sensor, normal: np.ndarray) -> np.ndarray:
+    """Shot noise (Poisson, as a Gaussian at these counts) and read noise, then quantisation."""
+    sigma = np.sqrt(electrons + np.float32(sensor.read_noise_e ** 2))
+    noisy = electrons + sigma * normal
+    counts = np.rint(noisy * np.float32(sensor.max_value / sensor.full_well_e))
+    dtype = np.uint8 if sensor.bit_depth == 8 else np.uint16
+    result: np.ndarray = np.clip(counts, 0, sensor.max_value).astype(dtype)
+    return result
+
+
+@functools.lru_cache(maxsize=8)
+def _flat_field(sensor: Sensor, level: float, pixels: int) -> np.ndarray:
+    """Noisy counts of a flat ``level``, ``2 * pixels`` long (a frame is a window into it)."""
+    rng = np.random.default_rng([_FLAT_FIELD_SEED, round(level * 1e6), pixels])
+    electrons = np.full(2 * pixels, level * sensor.full_well_e, dtype=np.float32)
+    return _counts(electrons, sensor, rng.standard_normal(2 * pixels, dtype=np.float32))
+
+
+def _distance_range(x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarray,
+                    cx: float, cy: float) -> tuple[np.ndarray, np.ndarray]:
+    """Least and greatest distance from (cx, cy) to the rectangles [x0, x1] x [y0, y1]."""
+    near_x = np.maximum(np.maximum(x0 - cx, cx - x1), 0.0)
+    near_y = np.maximum(np.maximum(y0 - cy, cy - y1), 0.0)
+    far_x = np.maximum(np.abs(x0 - cx), np.abs(x1 - cx))
+    far_y = np.maximum(np.abs(y0 - cy), np.abs(y1 - cy))
+    return np.hypot(near_x, near_y), np.hypot(far_x, far_y)
+
+
+def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotState,
+             exposure_s: float, steps: int) -> np.ndarray:
+    """The scene at ``xs`` x ``ys`` averaged over the exposure (float32), at ``steps`` instants.
+
+    A robot that turns by less than a quarter pixel is only translated: the scene is then
+    computed once, at mid-exposure, on a window wider by the travel, and smeared along it by
+    one convolution (what the instants' shifted copies add up to, bilinear between pixels)
+    instead of once per instant.
+    """
+    import cv2
+
+    px, py = camera.pixel_size_m
+    pixel_m = math.sqrt(px * py)
+    instants = [exposure_s * (step + 0.5) / steps for step in range(steps)]
+    turn_px = abs(motion.omega_rad_s) * exposure_s * CHASSIS_RADIUS_M / pixel_m
+    if steps == 1 or turn_px >= 0.25:
+        patch = sum(_reflectance(xs, ys, _pose_at(motion, t), pixel_m) for t in instants)
+        return (np.asarray(patch) / steps).astype(np.float32)
+    middle = 0.5 * exposure_s
+    # Each instant's shift from mid-exposure in pixels (rows grow downwards, against y).
+    shifts = [((t - middle) * motion.vx_m_s / px, -(t - middle) * motion.vy_m_s / py)
+              for t in instants]
+    margin = math.ceil(max(max(abs(u), abs(v)) for u, v in shifts)) + 1
+    wide_xs = np.concatenate([xs[0] - px * np.arange(margin, 0, -1), xs,
+                              xs[-1] + px * np.arange(1, margin + 1)])
+    wide_ys = np.concatenate([ys[0] + py * np.arange(margin, 0, -1), ys,
+                              ys[-1] - py * np.arange(1, margin + 1)])
+    scene = _reflectance(wide_xs, wide_ys, _pose_at(motion, middle), pixel_m).astype(np.float32)
+    # filter2D correlates: the value at a pixel is the scene an instant's shift behind it.
+    kernel = np.zeros((2 * margin + 1, 2 * margin + 1), np.float32)
+    for u, v in shifts:
+        column, row = margin - u, margin - v
+        c, r = math.floor(column), math.floor(row)
+        fc, fr = column - c, row - r
+        kernel[r, c] += (1 - fr) * (1 - fc) / steps
+        kernel[r, c + 1] += (1 - fr) * fc / steps
+        kernel[r + 1, c] += fr * (1 - fc) / steps
+        kernel[r + 1, c + 1] += fr * fc / steps
+    smeared = cv2.filter2D(scene, -1, kernel, borderType=cv2.BORDER_REPLICATE)
+    return np.asarray(smeared[margin:-margin, margin:-margin], np.float32)
+
+
 def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
            rng: np.random.Generator) -> np.ndarray:
     """One frame (rows x columns, uint8 or uint16) of ``camera`` seeing the robot, whose state
     (pose and velocity, platform frame) at the start of the exposure is ``motion``.
 
-    Only the region the robot (and its motion and blur) covers is computed from the scene; the
-    rest of the frame is the platform's level. Noise covers the whole frame.
+    Blocks of the frame that only the flat platform or the flat chassis reach (with the blur
+    and the motion over the exposure) are windows of pre-drawn noisy flat fields at an offset
+    drawn from ``rng``; the others are computed from the scene, blurred and given fresh noise
+    from ``rng``.
     """
     import cv2
 
     xs, ys = pixel_centres(camera)
+    columns, rows = xs.size, ys.size
     px, py = camera.pixel_size_m
     pixel_m = math.sqrt(px * py)
     start, end = _pose_at(motion, 0.0), _pose_at(motion, sensor.exposure_s)
-    travel_px = max(math.hypot(end[0] - start[0], end[1] - start[1]) / pixel_m,
-                    abs(end[2] - start[2]) * CHASSIS_RADIUS_M / pixel_m)
+    middle = _pose_at(motion, 0.5 * sensor.exposure_s)
+    shift_m = 0.5 * math.hypot(end[0] - start[0], end[1] - start[1])
+    turn_rad = 0.5 * abs(end[2] - start[2])
+    travel_px = 2 * max(shift_m, turn_rad * CHASSIS_RADIUS_M) / pixel_m
     steps = int(min(32, max(1, math.ceil(travel_px / 0.5))))
-    margin = CHASSIS_RADIUS_M + 4 * sensor.psf_sigma_px * pixel_m + 2 * pixel_m
-    region_x = np.nonzero((xs > min(start[0], end[0]) - margin)
-                          & (xs < max(start[0], end[0]) + margin))[0]
-    region_y = np.nonzero((ys > min(start[1], end[1]) - margin)
-                          & (ys < max(start[1], end[1]) + margin))[0]
-    signal = np.full((ys.size, xs.size), PLATFORM_LEVEL, dtype=np.float32)
-    if region_x.size and region_y.size:
-        window = (slice(region_y[0], region_y[-1] + 1), slice(region_x[0], region_x[-1] + 1))
-        wx, wy = xs[window[1]], ys[window[0]]
-        patch = np.zeros((wy.size, wx.size))
-        for step in range(steps):
-            t = sensor.exposure_s * (step + 0.5) / steps
-            patch += _reflectance(wx, wy, _pose_at(motion, t), pixel_m)
-        signal[window] = (patch / steps).astype(np.float32)
-    if sensor.psf_sigma_px > 0:
-        signal = np.asarray(cv2.GaussianBlur(signal, (0, 0), sensor.psf_sigma_px,
-                                             borderType=cv2.BORDER_REPLICATE), np.float32)
-    electrons = signal * np.float32(sensor.full_well_e)
-    # Shot noise (Poisson, as a Gaussian at these counts) and read noise, in one draw.
-    sigma = np.sqrt(electrons + np.float32(sensor.read_noise_e ** 2))
-    electrons += sigma * rng.standard_normal(electrons.shape, dtype=np.float32)
-    counts = np.rint(electrons * np.float32(sensor.max_value / sensor.full_well_e))
-    dtype = np.uint8 if sensor.bit_depth == 8 else np.uint16
-    result: np.ndarray = np.clip(counts, 0, sensor.max_value).astype(dtype)
-    return result
+    halo_px = math.ceil(4 * sensor.psf_sigma_px) + 1
+    # How far from the mid-exposure outline a pixel can still be touched: the edge ramp, the
+    # blur and half the motion.
+    reach_m = (halo_px + 1) * pixel_m + shift_m
+
+    offset = int(rng.integers(0, rows * columns))
+    window = slice(offset, offset + rows * columns)
+    frame = _flat_field(sensor, PLATFORM_LEVEL, rows * columns)[window].reshape(rows, columns)
+    frame = frame.copy()
+    flat_fields: dict[float, np.ndarray] = {}
+    x, y, phi = middle
+    dots = [(x + math.cos(phi) * dot.x_m - math.sin(phi) * dot.y_m,
+             y + math.sin(phi) * dot.x_m + math.cos(phi) * dot.y_m,
+             dot.radius_m, reach_m + turn_rad * math.hypot(dot.x_m, dot.y_m))
+            for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL) for dot in (fiducial.front,
+                                                                           fiducial.back)]
+    # Only the blocks the chassis (and its reach) may cover are looked at.
+    extent = CHASSIS_RADIUS_M + reach_m
+    first_row = max(0, int((camera.center_m[1] + camera.field_m[1] / 2 - (y + extent)) / py))
+    last_row = min(rows, int((camera.center_m[1] + camera.field_m[1] / 2 - (y - extent)) / py)
+                   + 1)
+    first_column = max(0, int((x - extent - (camera.center_m[0] - camera.field_m[0] / 2)) / px))
+    last_column = min(columns, int((x + extent - (camera.center_m[0] - camera.field_m[0] / 2))
+                                   / px) + 1)
+    tops = np.arange(first_row // BLOCK_PX * BLOCK_PX, last_row, BLOCK_PX)
+    lefts = np.arange(first_column // BLOCK_PX * BLOCK_PX, last_column, BLOCK_PX)
+    bottoms, rights = np.minimum(tops + BLOCK_PX, rows), np.minimum(lefts + BLOCK_PX, columns)
+    # Each block's span in metres, rows x columns of blocks.
+    y_low, y_high = ys[bottoms - 1][:, None], ys[tops][:, None]
+    x_low, x_high = xs[lefts][None, :], xs[rights - 1][None, :]
+    near, far = _distance_range(x_low, x_high, y_low, y_high, x, y)
+    inside = near <= CHASSIS_RADIUS_M + reach_m        # else the platform only
+    # An outline (the chassis's or a dot's) within reach: computed; else the block is wholly
+    # inside the chassis, or inside a dot (the macro dots fill micro blocks).
+    touched = far > CHASSIS_RADIUS_M - reach_m
+    in_dot = np.zeros_like(touched)
+    for cx, cy, radius, reach in dots:
+        near, far = _distance_range(x_low, x_high, y_low, y_high, cx, cy)
+        touched |= (near < radius + reach) & (far > radius - reach)
+        in_dot |= far <= radius - reach
+    for (i, j) in zip(*np.nonzero(inside), strict=True):
+        top, bottom, left, right = int(tops[i]), int(bottoms[i]), int(lefts[j]), int(rights[j])
+        if not touched[i, j]:
+            level = DOT_LEVEL if in_dot[i, j] else CHASSIS_LEVEL
+            if level not in flat_fields:
+                flat_fields[level] = _flat_field(sensor, level, rows * columns)[
+                    window].reshape(rows, columns)
+            frame[top:bottom, left:right] = flat_fields[level][top:bottom, left:right]
+            continue
+        # The block and a halo around it, so that the blur at its border is the scene's.
+        r0, r1 = max(0, top - halo_px), min(rows, bottom + halo_px)
+        c0, c1 = max(0, left - halo_px), min(columns, right + halo_px)
+        signal = _exposed(camera, xs[c0:c1], ys[r0:r1], motion, sensor.exposure_s, steps)
+        if sensor.psf_sigma_px > 0:
+            signal = np.asarray(cv2.GaussianBlur(signal, (0, 0), sensor.psf_sigma_px,
+                                                 borderType=cv2.BORDER_REPLICATE), np.float32)
+        inner = signal[top - r0:top - r0 + bottom - top, left - c0:left - c0 + right - left]
+        frame[top:bottom, left:right] = _counts(
+            inner * np.float32(sensor.full_well_e), sensor,
+            rng.standard_normal(inner.shape, dtype=np.float32))
+    return frame
 
 
 @dataclass(frozen=True)
@@ -223,24 +344,30 @@ def track(image: np.ndarray, camera: CameraModel) -> Track:
                                 f'shape {image.shape}')
     fiducial = fiducial_for(camera)
     px, py = camera.pixel_size_m
-    frame = image.astype(np.float32)
-    # The surround from every fourth pixel each way; the peak as the tenth brightest pixel (a
-    # partition, not a sort: a few ms on a megapixel).
-    background = float(np.median(frame[::4, ::4]))
-    peak = float(np.partition(frame.ravel(), -10)[-10])
-    if peak - background < 0.2 * float(np.iinfo(image.dtype).max) * (DOT_LEVEL - PLATFORM_LEVEL):
+    # The surround as the median level, the peak as the tenth brightest pixel: both from the
+    # histogram (one pass over the frame, no sort or float copy of a megapixel).
+    top = int(np.iinfo(image.dtype).max)
+    histogram = cv2.calcHist([image], [0], None, [top + 1], [0, top + 1]).ravel()
+    cumulative = np.cumsum(histogram)
+    background = float(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
+    peak = float(np.searchsorted(cumulative, cumulative[-1] - 10))
+    if peak - background < 0.2 * top * (DOT_LEVEL - PLATFORM_LEVEL):
         return Track(reason='no fiducial: nothing brighter than the platform')
     threshold = 0.5 * (background + peak)
-    binary = (frame > threshold).astype(np.uint8)
-    count, _, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    binary = np.asarray(cv2.compare(image, np.array([threshold]), cv2.CMP_GT))
+    # Blobs as outer contours (a few on a megapixel: far cheaper than labelling every pixel);
+    # a blob's area is its pixels above the threshold inside its bounding box.
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    boxes = [cv2.boundingRect(contour) for contour in contours]
     expected = {name: math.pi * dot.radius_m ** 2 / (px * py)
                 for name, dot in (('front', fiducial.front), ('back', fiducial.back))}
     found: dict[str, list[int]] = {'front': [], 'back': []}
     cut: dict[str, int] = {'front': 0, 'back': 0}
-    for label in range(1, count):
-        area = stats[label, cv2.CC_STAT_AREA]
-        left, top, width, height = (int(stats[label, k]) for k in (
-            cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+    largest = 1.6 * max(expected.values())
+    for label, (left, top, width, height) in enumerate(boxes):
+        if width * height * 0.5 > 4 * largest:
+            continue   # far larger than a dot, whatever it holds
+        area = cv2.countNonZero(binary[top:top + height, left:left + width])
         at_edge = left == 0 or top == 0 or left + width >= columns or top + height >= rows
         for name, size in expected.items():
             # A blob at the edge is only part of what it is: never taken, only counted.
@@ -260,13 +387,11 @@ def track(image: np.ndarray, camera: CameraModel) -> Track:
                             'back dot candidates')
     centres = {}
     for name in ('front', 'back'):
-        label = found[name][0]
-        left, top, width, height = (int(stats[label, k]) for k in (
-            cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT))
+        left, top, width, height = boxes[found[name][0]]
         pad = max(2, round(1.5 * min(width, height) / 4) + 2)
         y0, y1 = max(0, top - pad), min(rows, top + height + pad)
         x0, x1 = max(0, left - pad), min(columns, left + width + pad)
-        window = frame[y0:y1, x0:x1]
+        window = image[y0:y1, x0:x1].astype(np.float32)
         # Intensity-weighted centroid above the local surround (the chassis around the dot).
         surround = float(np.median(np.concatenate([window[0], window[-1], window[:, 0],
                                                    window[:, -1]])))

@@ -64,8 +64,12 @@ def image_array(msg: Image, expected: tuple[int, int] | None) -> np.ndarray:
     if msg.step < row_bytes or len(msg.data) != msg.step * msg.height:
         raise CameraConfigError(f'{len(msg.data)} bytes of data for {msg.height} rows of step '
                                 f'{msg.step} ({msg.width} pixels of {dtype.itemsize} bytes)')
-    rows = np.frombuffer(bytes(msg.data), dtype=np.uint8).reshape(msg.height, msg.step)
-    return rows[:, :row_bytes].copy().view(dtype).astype(DTYPES[msg.encoding])
+    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
+    pixels = rows[:, :row_bytes]
+    if msg.step != row_bytes:
+        pixels = pixels.copy()    # padded rows: the view needs contiguous rows
+    # A native little-endian mono8/mono16 frame is used as it is, with no copy.
+    return pixels.view(dtype).astype(DTYPES[msg.encoding], copy=False)
 
 
 class TrackerNode(Node):
