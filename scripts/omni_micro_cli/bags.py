@@ -216,6 +216,15 @@ def check_readable_bag(path: Path) -> None:
     raise UsageError(f'{str(path)!r} is not a bag: no metadata.yaml and no .mcap or .db3 file')
 
 
+def bag_topics(path: Path) -> list[str]:
+    """The topics a bag holds, without reading its messages."""
+    from rosbags.highlevel import AnyReader
+
+    check_readable_bag(path)
+    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+        return sorted({connection.topic for connection in reader.connections})
+
+
 def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -> BagMessages:
     from rosbags.highlevel import AnyReader
 

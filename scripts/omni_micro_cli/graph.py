@@ -91,12 +91,14 @@ def message_class(msgtype: str) -> type:
 
 
 def recorder_spec(bag: Path, storage: str, markers: bool = True,
-                  images: tuple[str, ...] = ()) -> NodeSpec:
+                  images: tuple[str, ...] = (), without: tuple[str, ...] = ()) -> NodeSpec:
     """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
-    takes part in the lockstep so that no frame is lost to a slow disk."""
+    takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
+    nobody in this graph publishes (it waits for a publisher of each before the clock starts)."""
     from omni_micro_cli.bags import GRAPH_TOPICS, MARKERS_TOPIC
 
-    topics = [topic for topic in GRAPH_TOPICS if markers or topic != MARKERS_TOPIC]
+    topics = [topic for topic in GRAPH_TOPICS
+              if (markers or topic != MARKERS_TOPIC) and topic not in without]
     topics += [f'/camera/{camera}/{stream}' for camera in images
                for stream in ('image_raw', 'camera_info')]
     return NodeSpec('omni_micro_cli', 'bag_recorder', command=(
@@ -446,7 +448,11 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         images = streaming_cameras(options) if options.record_images else ()
         if options.record_images and not images:
             raise UsageError('--record-images needs the rendered cameras (--vision images)')
-        specs.append(recorder_spec(options.record, options.storage, options.markers, images))
+        # /camera/status is vision_node's (the tracker says why per camera, not recorded).
+        unpublished = () if any(spec.executable == 'vision_node' for spec in specs) \
+            else ('/camera/status',)
+        specs.append(recorder_spec(options.record, options.storage, options.markers, images,
+                                   unpublished))
     if options.view is not None:
         specs.append(viewer_spec(*options.view, options.markers))
     return specs

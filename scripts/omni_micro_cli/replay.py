@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_cli.bags import GRAPH_TOPICS, read_bag
+from omni_micro_cli.bags import RECORDABLE_TOPICS, bag_topics, read_bag
 from omni_micro_cli.errors import RunFailed, UsageError
 
 
@@ -53,8 +53,7 @@ def header_stamp_ns(msg: object) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    data = read_bag(args.bag, decode=bool(args.sync))
-    available = sorted(data.raw)
+    available = bag_topics(args.bag)
     topics = args.topics or [t for t in available if t != '/clock']
     unknown = sorted(set(topics) - set(available))
     if unknown:
@@ -63,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
         if '/clock' not in available:
             raise UsageError('--clock: the bag has no /clock')
         topics.append('/clock')
+    # Only what is replayed is read: a bag with images holds a megabyte a frame.
+    data = read_bag(args.bag, topics=topics, decode=bool(args.sync))
     events = sorted((stamp, topic, index) for topic in topics
                     for index, stamp in enumerate(data.timestamps[topic]))
     if not events:
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     node = Node('bag_replay')
     publishers = {}
     for topic in topics:
-        spec = GRAPH_TOPICS.get(topic)
+        spec = RECORDABLE_TOPICS.get(topic)
         qos = QoSProfile(depth=spec.depth if spec else 1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec and spec.latched

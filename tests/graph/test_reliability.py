@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from bag_compare import recorded_until
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -189,26 +190,6 @@ def test_soak_fifty_goals_flat_memory_and_a_complete_bag(tmp_path, omni_micro):
     assert report['missing_from_bag'] == {}
     for name, memory in report['memory'].items():
         assert memory['growth_kb'] < 10_000, name
-
-
-def recorded_until(bag_path: Path, end_s: float) -> dict[str, list[bytes]]:
-    """Every topic's messages (raw bytes, in order) stamped up to ``end_s``: after the outcome
-    each recording runs on for as long as the shutdown takes."""
-    bag = read_bag(bag_path)
-    kept: dict[str, list[bytes]] = {}
-    for topic in bag.raw:
-        kept[topic] = []
-        for raw, msg in zip(bag.raw[topic], bag.messages[topic], strict=True):
-            stamp = msg.clock if topic == '/clock' else getattr(msg, 'header', None) and \
-                msg.header.stamp
-            if topic == '/markers':
-                # Stamped by its markers; compared decoded: the serializer leaves the alignment
-                # padding of a MarkerArray uninitialised, so equal arrays differ in those bytes.
-                stamp = msg.markers[-1].header.stamp
-                raw = repr(msg).encode()
-            if stamp is None or stamp.sec + stamp.nanosec * 1e-9 <= end_s:
-                kept[topic].append(raw)
-    return kept
 
 
 @pytest.fixture
