@@ -1,0 +1,69 @@
+"""The lockstep gate with rendered cameras: a frame not yet tracked holds time back as a capture
+not yet handled does, and a tracker (which reads no odometry) is waited for only through its
+frames. Reports round-trip through their DiagnosticStatus values."""
+
+import math
+
+import pytest
+
+from omni_micro_sim.lockstep import Ack, LockstepError, LockstepGate
+
+MS = 1_000_000
+TICK = 20 * MS
+LEAD = 40 * MS
+
+
+def gate() -> LockstepGate:
+    return LockstepGate(['camera_node', 'tracker_node', 'controller_node'], TICK, LEAD)
+
+
+def test_a_frame_not_yet_tracked_holds_time_at_its_stamp_plus_the_lead():
+    lockstep = gate()
+    # Before the tracker's first word it counts as caught up at 0, like any node.
+    assert lockstep.reachable_ns() == LEAD
+    lockstep.on_ack(Ack('controller_node', 200 * MS))
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=0))
+    lockstep.on_ack(Ack('camera_node', 40 * MS, frames_ns=(33 * MS, 33 * MS)))
+    # The camera is at 40 ms, but the frame of 33 ms is not tracked yet.
+    assert lockstep.reachable_ns() == 33 * MS + LEAD
+    assert 'tracker_node' in (lockstep.waiting_for() or '')
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=33 * MS))
+    assert lockstep.reachable_ns() == 40 * MS + LEAD
+
+
+def test_the_tracker_s_capture_then_waits_for_the_controller():
+    lockstep = gate()
+    lockstep.on_ack(Ack('controller_node', 200 * MS, capture_handled_ns=-1))
+    lockstep.on_ack(Ack('camera_node', 80 * MS, frames_ns=(67 * MS, 67 * MS)))
+    # Tracked, and it gave a capture: now the capture holds time, not the frame.
+    lockstep.on_ack(Ack('tracker_node', None, captures_ns=(67 * MS, 67 * MS),
+                        frame_handled_ns=67 * MS))
+    assert lockstep.reachable_ns() == 67 * MS + LEAD
+    lockstep.on_ack(Ack('controller_node', 200 * MS, capture_handled_ns=67 * MS))
+    assert lockstep.reachable_ns() == 80 * MS + LEAD
+
+
+def test_a_frame_is_handled_only_when_every_consumer_has_it():
+    """The recorder keeping every frame takes part as a second consumer."""
+    lockstep = LockstepGate(['camera_node', 'tracker_node', 'bag_recorder'], TICK, LEAD)
+    lockstep.on_ack(Ack('camera_node', 140 * MS, frames_ns=(133 * MS, 133 * MS)))
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=133 * MS))
+    lockstep.on_ack(Ack('bag_recorder', None, frame_handled_ns=100 * MS))
+    assert lockstep.reachable_ns() == 133 * MS + LEAD
+    lockstep.on_ack(Ack('bag_recorder', None, frame_handled_ns=133 * MS))
+    assert lockstep.reachable_ns() == 140 * MS + LEAD
+
+
+def test_with_only_trackers_there_is_nothing_to_go_by():
+    lockstep = LockstepGate(['tracker_node'], TICK, LEAD)
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=0))
+    assert lockstep.reachable_ns() == -math.inf
+
+
+def test_frame_fields_round_trip_and_malformed_reports_are_named():
+    ack = Ack('tracker_node', None, captures_ns=(1, 2), frames_ns=(3, 4), frame_handled_ns=5)
+    assert Ack.from_values('tracker_node', ack.to_values()) == ack
+    with pytest.raises(LockstepError, match='neither processed_ns nor frame_handled_ns'):
+        Ack.from_values('x', [('capture_first_ns', '1'), ('capture_last_ns', '2')])
+    with pytest.raises(LockstepError, match='frame_first_ns and frame_last_ns come together'):
+        Ack.from_values('x', [('processed_ns', '1'), ('frame_first_ns', '1')])
