@@ -10,6 +10,7 @@ from omni_micro_cli import (
     analyze,
     bench,
     bench_graph,
+    bench_images,
     bench_study,
     compare_controllers,
     demo,
@@ -28,8 +29,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
 COMMANDS = (demo, run, view, record, replay, analyze, identify, recover, soak, simulate, figures,
-            study, compare_controllers, bench, bench_graph,
-            bench_study)
+            study, compare_controllers, bench, bench_graph, bench_images, bench_study)
 
 
 def build_parser() -> argparse.ArgumentParser:
