@@ -23,13 +23,14 @@ from omni_micro_cli import (
     simulate,
     soak,
     study,
+    track,
     view,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 
-COMMANDS = (demo, run, view, record, replay, analyze, identify, recover, soak, simulate, figures,
-            study, compare_controllers, bench, bench_graph, bench_images, bench_study)
+COMMANDS = (demo, run, view, record, replay, track, analyze, identify, recover, soak, simulate,
+            figures, study, compare_controllers, bench, bench_graph, bench_images, bench_study)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -468,6 +468,13 @@ def node_parameters(package: str, node: str, options: GraphOptions,
                     overrides: dict[str, object]) -> dict[str, object]:
     """A node's parameters as it will have them: its package file, the user's --params file,
     then the orchestration's overrides (dotted names, as -p gives them)."""
+    values = params_from_files(package, node, options.params_file)
+    values.update(overrides)
+    return values
+
+
+def params_from_files(package: str, node: str, params_file: Path | None) -> dict[str, object]:
+    """A node's parameters from its package file, then ``params_file`` (dotted names)."""
     import yaml
 
     def flatten(tree: dict, prefix: str = '') -> dict[str, object]:
@@ -481,14 +488,13 @@ def node_parameters(package: str, node: str, options: GraphOptions,
 
     values: dict[str, object] = {}
     files = [package_params_file(package, node)]
-    if options.params_file is not None:
-        files.append(options.params_file)
+    if params_file is not None:
+        files.append(params_file)
     for path in files:
         content = yaml.safe_load(Path(path).read_text()) or {}
         for name in (node, f'/{node}', '/**'):
             section = content.get(name, {}).get('ros__parameters', {})
             values.update(flatten(section))
-    values.update(overrides)
     return values
 
 

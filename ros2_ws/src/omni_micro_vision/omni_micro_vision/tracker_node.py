@@ -4,7 +4,8 @@ Subscribes, per camera (``cameras``: macro, micro), a sensor_msgs/Image and its 
 (``<name>.image_topic``, ``<name>.info_topic``: remap them to a real driver's) and publishes, in
 the ``platform`` frame:
   /camera/<name>/pose                    geometry_msgs/PoseStamped captures, stamped with the frame
-  /camera/<name>/pose_with_covariance    the same, with the camera model's covariance
+  /camera/<name>/pose_with_covariance    the same, with the covariance of vision_node's camera
+                                         model (``<name>.noise_px``, ``<name>.quantisation_px``)
   /camera/<name>/tracker_status          diagnostic_msgs/DiagnosticStatus: why a frame gave no
                                          pose (fiducial not found, cut by the edge, ambiguous) or
                                          why it was refused (encoding, size), on each change
@@ -20,7 +21,8 @@ image's size). The image processing is :mod:`omni_micro_vision.imaging`'s.
 
 from __future__ import annotations
 
-import numpy as np
+import dataclasses
+
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rclpy.node import Node
@@ -38,38 +40,11 @@ from omni_micro_sim.qos import (
     latched,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import track
+from omni_micro_vision.imaging import fiducial_for, image_array, track
 from omni_micro_vision.tracking import CameraArbiter, StillnessRule
 
-DTYPES = {'mono8': np.uint8, 'mono16': np.uint16}
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
                  'best_effort': ReliabilityPolicy.BEST_EFFORT}
-
-
-def image_array(msg: Image, expected: tuple[int, int] | None) -> np.ndarray:
-    """The pixels of ``msg`` as a rows x columns array.
-
-    Raises
-    ------
-    CameraConfigError
-        Naming what is wrong: the encoding, the size against the CameraInfo, the data length.
-    """
-    if msg.encoding not in DTYPES:
-        raise CameraConfigError(f'encoding {msg.encoding!r} is not mono8 or mono16')
-    if expected is not None and (msg.width, msg.height) != expected:
-        raise CameraConfigError(f'image is {msg.width} x {msg.height}, its CameraInfo says '
-                                f'{expected[0]} x {expected[1]}')
-    dtype = np.dtype(DTYPES[msg.encoding]).newbyteorder('>' if msg.is_bigendian else '<')
-    row_bytes = msg.width * dtype.itemsize
-    if msg.step < row_bytes or len(msg.data) != msg.step * msg.height:
-        raise CameraConfigError(f'{len(msg.data)} bytes of data for {msg.height} rows of step '
-                                f'{msg.step} ({msg.width} pixels of {dtype.itemsize} bytes)')
-    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
-    pixels = rows[:, :row_bytes]
-    if msg.step != row_bytes:
-        pixels = pixels.copy()    # padded rows: the view needs contiguous rows
-    # A native little-endian mono8/mono16 frame is used as it is, with no copy.
-    return pixels.view(dtype).astype(DTYPES[msg.encoding], copy=False)
 
 
 class TrackerNode(Node):
@@ -104,12 +79,20 @@ class TrackerNode(Node):
                                                  f'/camera/{name}/image_raw').value
             info_topic = self.declare_parameter(f'{name}.info_topic',
                                                 f'/camera/{name}/camera_info').value
-            CameraModel(name, center, field)      # checks the pose parameters now
+            # The spread the published covariance states (vision_node's model): set them to
+            # what `omni-micro track` measures on a real camera's still frames.
+            noise = self.declare_parameter(f'{name}.noise_px', default.noise_px).value
+            quantisation = self.declare_parameter(f'{name}.quantisation_px',
+                                                  default.quantisation_px).value
+            # Checks the parameters now, whichever cameras are used.
+            model = CameraModel(name, center, field, default.resolution_px, noise, quantisation)
+            # The heading's spread follows from the baseline of the pair this camera tracks.
+            model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, name, center, field)
+            reader = _CameraReader(self, model)
             self.readers.append(reader)
-            fields[name] = min(float(field[0]), float(field[1]))
+            fields[name] = min(model.field_m)
             self.create_subscription(Image, image_topic, reader.on_image, image_qos)
             self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
         # The smaller field has the finer pixel (the resolution comes with the images).
@@ -136,20 +119,20 @@ class TrackerNode(Node):
 class _CameraReader:
     """One camera's frames: track, decide stillness, publish."""
 
-    def __init__(self, node: TrackerNode, name: str, center: list[float],
-                 field: list[float]) -> None:
+    def __init__(self, node: TrackerNode, model: CameraModel) -> None:
         self.node = node
-        self.name = name
-        self.center = (float(center[0]), float(center[1]))
-        self.field = (float(field[0]), float(field[1]))
+        self.name = model.name
+        self.model = model
         self.size: tuple[int, int] | None = None
         self.handled_ns = -1
         self.stillness = StillnessRule(node.still_frames, 0.0)
-        self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[name], CAPTURE_QOS)
+        self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[self.name],
+                                                 CAPTURE_QOS)
         self.covariance_pub = node.create_publisher(
-            PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[name], CAPTURE_QOS)
+            PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[self.name], CAPTURE_QOS)
         self.status_pub = node.create_publisher(DiagnosticStatus,
-                                                f'/camera/{name}/tracker_status', latched(1))
+                                                f'/camera/{self.name}/tracker_status',
+                                                latched(1))
         self._said: str | None = None
 
     def on_info(self, msg: CameraInfo) -> None:
@@ -162,7 +145,8 @@ class _CameraReader:
                                                      message=message))
 
     def camera(self, width: int, height: int) -> CameraModel:
-        return CameraModel(self.name, self.center, self.field, (width, height))
+        """The camera as this frame shows it: its resolution comes with the image."""
+        return dataclasses.replace(self.model, resolution_px=(width, height))
 
     def on_image(self, msg: Image) -> None:
         found, capture = self._see(msg)

@@ -1,0 +1,176 @@
+"""`omni-micro track BAG`: the tracker on recorded images, offline, before closing the loop.
+
+For a real camera: record a few seconds of its images (the robot still, then moved by hand or
+by a command), and run this with the params file you will give tracker_node. It says, frame by
+frame, whether the fiducial was found or why not, when the robot counts as still, and how much
+the pose scatters while it is: the spread to put in the params (``noise_px``) so that the
+covariance tracker_node publishes states what the camera really does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import io
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from omni_micro_cli.arguments import positive_int
+from omni_micro_cli.errors import UsageError
+from omni_micro_cli.outputs import atomic_text
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'track', help="run the tracker on a bag's recorded images (a real camera's, say)",
+        description="Read one camera's sensor_msgs/Image frames from a bag and run "
+                    "tracker_node's image processing on each, offline: found or why not, "
+                    'still or moving (the same rule as the node), and the spread of the pose '
+                    'over still frames beside the covariance tracker_node would publish. The '
+                    "camera's pose on the platform comes from tracker_node's params "
+                    '(its package defaults, then --params). Exit 0 when at least one frame '
+                    'showed the fiducial, 1 when none did, 2 for a bad argument.')
+    parser.add_argument('bag', type=Path, metavar='BAG', help='a bag holding the images')
+    parser.add_argument('--camera', choices=('macro', 'micro'), default='micro',
+                        help='whose params (pose, field, spread) apply (default micro)')
+    parser.add_argument('--image-topic', metavar='T',
+                        help="the images' topic in the bag (default: the camera's image_topic "
+                             'param, /camera/<camera>/image_raw)')
+    parser.add_argument('--params', type=Path, metavar='FILE',
+                        help='a tracker_node params file, as you will give the node')
+    parser.add_argument('--max-frames', type=positive_int, metavar='N',
+                        help='only the first N frames')
+    parser.add_argument('--csv', type=Path, metavar='FILE',
+                        help='write one row per frame: stamp, found, still, x, y, heading, '
+                             'reason')
+    parser.set_defaults(handler=run)
+
+
+def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
+    from omni_micro_cli.graph import check_params_file, params_from_files
+
+    if args.params is not None:
+        check_params_file(args.params)
+    values = params_from_files('omni_micro_vision', 'tracker_node', args.params)
+    topic = args.image_topic or str(values.get(f'{args.camera}.image_topic',
+                                               f'/camera/{args.camera}/image_raw'))
+    return values, topic
+
+
+def run(args: argparse.Namespace) -> int:
+    from rosbags.highlevel import AnyReader
+
+    from omni_micro_cli.bags import TYPESTORE, check_readable_bag
+    from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
+    from omni_micro_vision.imaging import fiducial_for, image_array, track
+    from omni_micro_vision.tracking import StillnessRule
+
+    check_readable_bag(args.bag)
+    values, topic = _tracker_settings(args)
+    default: CameraModel = getattr(DEFAULT_RIG, args.camera)
+    name = args.camera
+
+    def setting(key: str, fallback: object) -> Any:
+        """As YAML gave it: CameraModel checks it and names it if it is wrong."""
+        return values.get(key, fallback)
+
+    try:
+        model = CameraModel(name, setting(f'{name}.center_m', list(default.center_m)),
+                            setting(f'{name}.field_m', list(default.field_m)),
+                            default.resolution_px,
+                            setting(f'{name}.noise_px', default.noise_px),
+                            setting(f'{name}.quantisation_px', default.quantisation_px))
+        model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
+        frames_needed = int(setting('still_frames', 3))
+        tolerance_px = float(setting('still_tolerance_px', 0.2))
+    except (CameraConfigError, TypeError, ValueError) as error:
+        raise UsageError(f'tracker params: {error}') from None
+    rows: list[tuple[float, bool, bool, float, float, float, str]] = []
+    with AnyReader([args.bag], default_typestore=TYPESTORE) as reader:
+        connections = [c for c in reader.connections if c.topic == topic]
+        if not connections:
+            images = sorted({c.topic for c in reader.connections
+                             if c.msgtype == 'sensor_msgs/msg/Image'})
+            raise UsageError(f'{str(args.bag)!r} has no {topic}: its image topics are '
+                             f'{images or "none"} (choose one with --image-topic)')
+        stillness = StillnessRule(frames_needed, 0.0)
+        for _, _, raw in reader.messages(connections=connections):
+            msg: Any = reader.deserialize(raw, connections[0].msgtype)
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            try:
+                pixels = image_array(msg, None)
+            except CameraConfigError as error:
+                stillness.reset()
+                rows.append((stamp, False, False, math.nan, math.nan, math.nan,
+                             f'refused: {error}'))
+                continue
+            camera = dataclasses.replace(model, resolution_px=(msg.width, msg.height))
+            found = track(pixels, camera)
+            if found.pose is None:
+                stillness.reset()
+                rows.append((stamp, False, False, math.nan, math.nan, math.nan, found.reason))
+            else:
+                stillness.tolerance_m = tolerance_px * min(camera.pixel_size_m)
+                x, y, heading = found.pose
+                rows.append((stamp, True, stillness.still(x, y), x, y, heading, ''))
+            if args.max_frames and len(rows) >= args.max_frames:
+                break
+    return _report(args, rows, camera if rows else model)
+
+
+def _report(args: argparse.Namespace, rows: list, camera: object) -> int:
+    from omni_micro_vision.camera import CameraModel
+
+    assert isinstance(camera, CameraModel)
+    total = len(rows)
+    found = [row for row in rows if row[1]]
+    still = [row for row in rows if row[2]]
+    reasons: dict[str, int] = {}
+    for row in rows:
+        if not row[1]:
+            reasons[row[6]] = reasons.get(row[6], 0) + 1
+    print(f'{args.camera} camera, {total} frames: fiducial found in {len(found)}, still (a '
+          f'capture) in {len(still)}')
+    for reason, count in sorted(reasons.items(), key=lambda item: -item[1]):
+        print(f'  {count:5d} x {reason}')
+    if len(still) >= 2:
+        poses = np.array([row[3:6] for row in still])
+        # Scatter about each still stretch's own mean: a robot moved between stretches does
+        # not count as noise.
+        breaks = np.flatnonzero(np.diff([rows.index(row) for row in still]) > 1) + 1
+        residuals = np.concatenate([part - part.mean(axis=0)
+                                    for part in np.split(poses, breaks) if len(part) >= 2])
+        spread = residuals.std(axis=0) if len(residuals) >= 2 else np.full(3, math.nan)
+        stated = camera.uncertainty(float(np.median(poses[:, 2])))
+        print(f'spread over still frames: x {spread[0] * 1e6:.3f} um, y {spread[1] * 1e6:.3f} '
+              f'um, heading {spread[2] * 1e3:.3f} mrad; the covariance tracker_node publishes '
+              f'states x {stated.x_sigma_m * 1e6:.3f} um, y {stated.y_sigma_m * 1e6:.3f} um, '
+              f'heading {stated.heading_sigma_rad * 1e3:.3f} mrad')
+        # The stated position spread is mark_sigma / sqrt(2) pixels, mark_sigma^2 = noise^2 +
+        # quantisation^2 / 12: solve for noise, or for both when the grid alone says too much.
+        pixel = float(np.mean(camera.pixel_size_m))
+        mark_sigma = math.sqrt(2.0) * float(np.mean(spread[:2])) / pixel
+        quantisation = camera.quantisation_px
+        if mark_sigma ** 2 < quantisation ** 2 / 12.0:
+            quantisation = 0.0
+        noise = math.sqrt(mark_sigma ** 2 - quantisation ** 2 / 12.0)
+        print(f'to state what this camera does: {args.camera}.noise_px: {noise:.3g}, '
+              f'{args.camera}.quantisation_px: {quantisation:g} (now {camera.noise_px:g} and '
+              f'{camera.quantisation_px:g})')
+    if args.csv is not None:
+        table = io.StringIO()
+        writer = csv.writer(table)
+        writer.writerow(['stamp_s', 'found', 'still', 'x_m', 'y_m', 'heading_rad', 'reason'])
+        writer.writerows(rows)
+        atomic_text(args.csv, table.getvalue())
+        print(f'per-frame rows in {args.csv}')
+    if not found:
+        print('the fiducial was in no frame: check the camera params (center_m, field_m) and '
+              'the images', file=sys.stderr)
+        return 1
+    return 0
