@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
 
     from omni_micro_cli.bags import TYPESTORE, check_readable_bag
     from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-    from omni_micro_vision.imaging import fiducial_for, image_array, track
-    from omni_micro_vision.tracking import StillnessRule
+    from omni_micro_vision.imaging import checked_yaw, fiducial_for, image_array
+    from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
     check_readable_bag(args.bag)
     values, topic = _tracker_settings(args)
@@ -86,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
                             setting(f'{name}.noise_px', default.noise_px),
                             setting(f'{name}.quantisation_px', default.quantisation_px))
         model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
+        yaw = checked_yaw(f'{name}.yaw_rad', setting(f'{name}.yaw_rad', 0.0))
         frames_needed = int(setting('still_frames', 3))
         tolerance_px = float(setting('still_tolerance_px', 0.2))
     except (CameraConfigError, TypeError, ValueError) as error:
@@ -99,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f'{str(args.bag)!r} has no {topic}: its image topics are '
                              f'{images or "none"} (choose one with --image-topic)')
         stillness = StillnessRule(frames_needed, 0.0)
+        tracker = FrameTracker(yaw)   # as tracker_node reads the frames: the same poses
         for _, _, raw in reader.messages(connections=connections):
             msg: Any = reader.deserialize(raw, connections[0].msgtype)
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -106,11 +108,12 @@ def run(args: argparse.Namespace) -> int:
                 pixels = image_array(msg, None)
             except CameraConfigError as error:
                 stillness.reset()
+                tracker.reset()
                 rows.append((stamp, False, False, math.nan, math.nan, math.nan,
                              f'refused: {error}'))
                 continue
             camera = dataclasses.replace(model, resolution_px=(msg.width, msg.height))
-            found = track(pixels, camera)
+            found = tracker(pixels, camera)
             if found.pose is None:
                 stillness.reset()
                 rows.append((stamp, False, False, math.nan, math.nan, math.nan, found.reason))

@@ -9,7 +9,7 @@ import pytest
 
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError
-from omni_micro_vision.imaging import Sensor, render, track
+from omni_micro_vision.imaging import Sensor, checked_yaw, render, track
 
 SENSOR = Sensor()
 SAMPLES = 24
@@ -89,3 +89,39 @@ def test_a_corrupt_or_wrongly_sized_frame_is_refused_naming_the_problem():
         track(np.zeros((1024, 1280, 3), dtype=np.uint8), camera)
     with pytest.raises(CameraConfigError, match='bit_depth must be 8'):
         Sensor(bit_depth=12)
+
+
+@pytest.mark.parametrize('camera', [DEFAULT_RIG.macro, DEFAULT_RIG.micro], ids=['macro', 'micro'])
+def test_a_search_near_the_last_pose_finds_what_the_whole_frame_shows(camera):
+    """The window around the last pose is only a shortcut: the same pose (to a hundredth of the
+    tracker's spread), and a wrong guess falls back to the whole frame."""
+    x = camera.center_m[0] + 0.2 * camera.field_m[0]
+    y = camera.center_m[1] - 0.1 * camera.field_m[1]
+    frame = render(camera, SENSOR, RobotState(x, y, 1.0), np.random.default_rng(5))
+    whole = track(frame, camera)
+    assert whole.pose is not None
+    spread = camera.uncertainty(1.0).x_sigma_m
+    for guess in ((x + 0.05 * spread, y), (camera.center_m[0] - 0.4 * camera.field_m[0],
+                                           camera.center_m[1] + 0.4 * camera.field_m[1])):
+        near = track(frame, camera, near=guess)
+        assert near.pose is not None
+        assert math.hypot(near.pose[0] - whole.pose[0], near.pose[1] - whole.pose[1]) \
+            < 0.01 * spread
+
+
+def test_a_turned_camera_is_tracked_in_the_platform_frame_once_its_yaw_is_known():
+    """A mount 1 deg off square: read with its yaw, the pose is right to the tracker's spread;
+    read as if square, the micro camera is off by tens of um at 0.6 mm from its centre."""
+    camera = DEFAULT_RIG.micro
+    yaw = math.radians(1.0)
+    x, y, phi = camera.center_m[0] + 0.6e-3, camera.center_m[1] + 0.2e-3, 0.4
+    frame = render(camera, SENSOR, RobotState(x, y, phi), np.random.default_rng(9), yaw)
+    known = track(frame, camera, yaw_rad=yaw)
+    assert known.pose is not None
+    assert math.hypot(known.pose[0] - x, known.pose[1] - y) < 0.05e-6
+    assert abs(known.pose[2] - phi) < 1e-3
+    square = track(frame, camera)
+    assert square.pose is not None and math.hypot(square.pose[0] - x, square.pose[1] - y) > 5e-6
+    assert abs(square.pose[2] - (phi - yaw)) < 1e-3
+    with pytest.raises(CameraConfigError, match=r'micro.yaw_rad must be finite and within'):
+        checked_yaw('micro.yaw_rad', float('nan'))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import array
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -27,7 +28,19 @@ from omni_micro_sim.node_runtime import LockstepReporter, run_node
 from omni_micro_sim.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import Sensor, render
+from omni_micro_vision.imaging import Sensor, checked_yaw, render
+
+
+@dataclass(frozen=True)
+class _Stream:
+    """One camera's stream: what it sees with, and where its frames go."""
+
+    index: int            # in the noise seed: (seed, index, frame number)
+    camera: CameraModel
+    sensor: Sensor
+    yaw_rad: float
+    image_pub: Publisher
+    info_pub: Publisher
 
 
 class CameraNode(Node):
@@ -39,11 +52,13 @@ class CameraNode(Node):
             raise CameraConfigError(f'frame_rate_hz must be > 0, got {self.rate_hz}')
         chosen = list(self.declare_parameter('cameras', ['macro', 'micro']).value)
         unknown = sorted(set(chosen) - set(CAPTURE_TOPICS))
+        if not chosen:
+            raise CameraConfigError(f'cameras must name at least one of {sorted(CAPTURE_TOPICS)}')
         if unknown:
             raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
                                     f'{sorted(CAPTURE_TOPICS)}')
         defaults = Sensor()
-        self.cameras: list[tuple[int, CameraModel, Sensor, Publisher, Publisher]] = []
+        self.streams: list[_Stream] = []
         for index, name in enumerate(CAPTURE_TOPICS):
             default: CameraModel = getattr(DEFAULT_RIG, name)
             camera = CameraModel(
@@ -55,13 +70,14 @@ class CameraNode(Node):
                 field: self.declare_parameter(f'{name}.{field}', getattr(defaults, field)).value
                 for field in ('psf_sigma_px', 'full_well_e', 'read_noise_e', 'bit_depth',
                               'exposure_s')})
+            yaw = checked_yaw(f'{name}.yaw_rad',
+                              self.declare_parameter(f'{name}.yaw_rad', 0.0).value)
             if name not in chosen:
                 continue
-            self.cameras.append((index, camera, sensor,
-                                 self.create_publisher(Image, f'/camera/{name}/image_raw',
-                                                       IMAGE_QOS),
-                                 self.create_publisher(CameraInfo, f'/camera/{name}/camera_info',
-                                                       IMAGE_QOS)))
+            self.streams.append(_Stream(
+                index, camera, sensor, yaw,
+                self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
+                self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
         self._next_frame = 0
         self.lockstep = LockstepReporter(self)
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
@@ -93,9 +109,11 @@ class CameraNode(Node):
     def _publish_frame(self, number: int, state: RobotState) -> int:
         """Publish frame ``number`` of every camera; returns its stamp in nanoseconds."""
         sec, nanosec = split_stamp(number / self.rate_hz)
-        for index, camera, sensor, image_pub, info_pub in self.cameras:
+        for stream in self.streams:
+            camera, sensor = stream.camera, stream.sensor
             pixels = render(camera, sensor, state,
-                            np.random.default_rng([self.seed, index, number]))
+                            np.random.default_rng([self.seed, stream.index, number]),
+                            stream.yaw_rad)
             image = Image(height=pixels.shape[0], width=pixels.shape[1],
                           encoding=sensor.encoding, is_bigendian=0,
                           step=pixels.shape[1] * pixels.itemsize)
@@ -105,8 +123,8 @@ class CameraNode(Node):
             image.header.frame_id = f'camera_{camera.name}'
             info = CameraInfo(height=image.height, width=image.width)
             info.header = image.header
-            info_pub.publish(info)
-            image_pub.publish(image)
+            stream.info_pub.publish(info)
+            stream.image_pub.publish(image)
         return sec * 1_000_000_000 + nanosec
 
 

@@ -40,11 +40,12 @@ from omni_micro_sim.qos import (
     latched,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import fiducial_for, image_array, track
-from omni_micro_vision.tracking import CameraArbiter, StillnessRule
+from omni_micro_vision.imaging import checked_yaw, fiducial_for, image_array
+from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
                  'best_effort': ReliabilityPolicy.BEST_EFFORT}
+
 
 
 class TrackerNode(Node):
@@ -58,6 +59,8 @@ class TrackerNode(Node):
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
         unknown = sorted(set(cameras) - set(CAPTURE_TOPICS))
+        if not cameras:
+            raise CameraConfigError(f'cameras must name at least one of {sorted(CAPTURE_TOPICS)}')
         if unknown:
             raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
                                     f'{sorted(CAPTURE_TOPICS)}')
@@ -84,13 +87,16 @@ class TrackerNode(Node):
             noise = self.declare_parameter(f'{name}.noise_px', default.noise_px).value
             quantisation = self.declare_parameter(f'{name}.quantisation_px',
                                                   default.quantisation_px).value
+            # How the camera is turned about its centre (its image's x against the platform's).
+            yaw = checked_yaw(f'{name}.yaw_rad',
+                              self.declare_parameter(f'{name}.yaw_rad', 0.0).value)
             # Checks the parameters now, whichever cameras are used.
             model = CameraModel(name, center, field, default.resolution_px, noise, quantisation)
             # The heading's spread follows from the baseline of the pair this camera tracks.
             model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, model)
+            reader = _CameraReader(self, model, yaw)
             self.readers.append(reader)
             fields[name] = min(model.field_m)
             self.create_subscription(Image, image_topic, reader.on_image, image_qos)
@@ -119,13 +125,14 @@ class TrackerNode(Node):
 class _CameraReader:
     """One camera's frames: track, decide stillness, publish."""
 
-    def __init__(self, node: TrackerNode, model: CameraModel) -> None:
+    def __init__(self, node: TrackerNode, model: CameraModel, yaw_rad: float) -> None:
         self.node = node
         self.name = model.name
         self.model = model
         self.size: tuple[int, int] | None = None
         self.handled_ns = -1
         self.stillness = StillnessRule(node.still_frames, 0.0)
+        self.tracker = FrameTracker(yaw_rad)
         self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[self.name],
                                                  CAPTURE_QOS)
         self.covariance_pub = node.create_publisher(
@@ -160,9 +167,10 @@ class _CameraReader:
             self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
             self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
             self.stillness.reset()
+            self.tracker.reset()
             return False, None
         camera = self.camera(msg.width, msg.height)
-        result = track(pixels, camera)
+        result = self.tracker(pixels, camera)
         if result.pose is None:
             self.stillness.reset()
             self._say(DiagnosticStatus.WARN, result.reason)

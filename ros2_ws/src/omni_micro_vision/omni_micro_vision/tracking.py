@@ -1,6 +1,10 @@
 """From per-frame poses to captures: when the robot counts as still, and which camera speaks.
 
-No rclpy: ``tracker_node`` feeds these with what :func:`omni_micro_vision.imaging.track` finds.
+No rclpy: ``tracker_node`` (and ``omni-micro track``, offline) feed these with what
+:class:`FrameTracker` finds.
+
+**Frame after frame.** Each frame is searched first around the pose the last one gave, then
+whole: the same frames give the same poses whoever reads them, live or from a bag.
 
 **Still.** A camera's pose is a capture only once its last ``frames`` frames agree within
 ``tolerance_px`` of its pixel, decided from the images alone (never from odometry).
@@ -21,7 +25,29 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
+import numpy as np
+
+from omni_micro_vision.camera import CameraModel
+from omni_micro_vision.imaging import Track, track
+
 T = TypeVar('T')
+
+
+class FrameTracker:
+    """:func:`omni_micro_vision.imaging.track` on the frames of one camera (turned by
+    ``yaw_rad`` about its centre), in order."""
+
+    def __init__(self, yaw_rad: float = 0.0) -> None:
+        self.yaw_rad = yaw_rad
+        self._last: tuple[float, float] | None = None
+
+    def reset(self) -> None:
+        self._last = None
+
+    def __call__(self, image: np.ndarray, camera: CameraModel) -> Track:
+        result = track(image, camera, near=self._last, yaw_rad=self.yaw_rad)
+        self._last = None if result.pose is None else result.pose[:2]
+        return result
 
 
 @dataclass
