@@ -86,20 +86,27 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
                         images: list[np.ndarray] = images) -> object:
             return track(images[index], camera)
 
+        def track_near(index: int, camera: CameraModel = camera,
+                       images: list[np.ndarray] = images,
+                       near: tuple[float, float] = (x, y)) -> object:
+            return track(images[index], camera, near=near)
+
         def draw_noise(index: int, shape: tuple[int, ...] = shape) -> object:
             return np.random.default_rng(index).standard_normal(shape, dtype=np.float32)
 
         render_ms = _median_ms(draw_frame, frames)
         track_ms = _median_ms(track_frame, frames)
+        near_ms = _median_ms(track_near, frames)
         noise_ms = _median_ms(draw_noise, frames)
         found = track(images[0], camera).found
         rows.append({'camera': name, 'case': label, 'render_ms': round(render_ms, 2),
-                     'track_ms': round(track_ms, 2),
+                     'track_ms': round(track_ms, 2), 'track_near_last_pose_ms': round(near_ms, 2),
                      'noise_draw_ms': round(noise_ms, 2),
                      'render_vs_noise_draw': round(render_ms / noise_ms, 2), 'found': found})
         print(f'{name:5s} {label:17s} render {render_ms:6.2f} ms ({render_ms / noise_ms:4.2f} x '
-              f'one full-frame noise draw, {noise_ms:.2f} ms)  track {track_ms:5.2f} ms  '
-              f'fiducial {"found" if found else "absent"}', flush=True)
+              f'one full-frame noise draw, {noise_ms:.2f} ms)  track {track_ms:5.2f} ms, near '
+              f'the last pose {near_ms:5.2f} ms  fiducial {"found" if found else "absent"}',
+              flush=True)
     return rows
 
 
