@@ -28,7 +28,7 @@ from omni_micro_sim.node_runtime import LockstepReporter, run_node
 from omni_micro_sim.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import Sensor, checked_yaw, render
+from omni_micro_vision.imaging import Sensor, checked_cameras, checked_yaw, render
 
 
 @dataclass(frozen=True)
@@ -50,13 +50,8 @@ class CameraNode(Node):
         self.rate_hz = float(self.declare_parameter('frame_rate_hz', 30.0).value)
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise CameraConfigError(f'frame_rate_hz must be > 0, got {self.rate_hz}')
-        chosen = list(self.declare_parameter('cameras', ['macro', 'micro']).value)
-        unknown = sorted(set(chosen) - set(CAPTURE_TOPICS))
-        if not chosen:
-            raise CameraConfigError(f'cameras must name at least one of {sorted(CAPTURE_TOPICS)}')
-        if unknown:
-            raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
-                                    f'{sorted(CAPTURE_TOPICS)}')
+        chosen = checked_cameras(list(self.declare_parameter('cameras',
+                                                             ['macro', 'micro']).value))
         defaults = Sensor()
         self.streams: list[_Stream] = []
         for index, name in enumerate(CAPTURE_TOPICS):

@@ -1,6 +1,6 @@
 """Images of the robot as an overhead camera would take them, and the tracker that reads them.
 
-No rclpy: ``camera_node`` and ``tracker_node`` (to come) are to be thin adapters of these.
+No rclpy: ``camera_node`` and ``tracker_node`` are thin adapters of these.
 
 **The scene.** The platform is a matte grey; the robot's top is the 9 mm dark chassis with a
 printed fiducial: for the macro camera two white dots 4 mm apart on the robot's X axis (the
@@ -12,12 +12,14 @@ for the pair whose size its pixels resolve.
 1.56 um per pixel by default), a Gaussian point spread of ``psf_sigma_px``, photon shot noise
 and read noise in electrons, quantisation to ``bit_depth`` bits, and motion blur: the exposure
 integrates the robot's motion over ``exposure_s``. Noise comes from a generator seeded per
-frame, so a frame is a function of (seed, frame number) and the robot's motion only.
+frame, so a frame is a function of (seed, frame number) and the robot's motion only. A camera
+may be turned about its centre (``yaw_rad``).
 
-**The tracker.** Threshold halfway between the platform and the brightest dots, connected
-components, the two dots picked by their expected areas, each located by its intensity-weighted
-centroid (sub-pixel), and the pose from their midpoint and direction. A frame where the pair is
-not found, is cut by the image's edge or is ambiguous gives no pose and says why.
+**The tracker.** Threshold halfway between the surround and the brightest dots, outer
+contours, the two dots picked by their expected areas, each located by its intensity-weighted
+centroid (sub-pixel), and the pose from their midpoint and direction; first near the last pose
+when it is known. A frame where the pair is not found, is cut by the image's edge or is
+ambiguous gives no pose and says why.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from omni_micro_sim.simulator import RobotState
-from omni_micro_vision.camera import CameraConfigError, CameraModel
+from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 
 
 @dataclass(frozen=True)
@@ -222,6 +224,18 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
         kernel[r + 1, c + 1] += fr * fc / steps
     smeared = cv2.filter2D(scene, -1, kernel, borderType=cv2.BORDER_REPLICATE)
     return np.asarray(smeared[margin:-margin, margin:-margin], np.float32)
+
+
+def checked_cameras(names: list[str]) -> list[str]:
+    """The cameras a node is to use (its ``cameras`` parameter): at least one, each of the
+    rig's, else a CameraConfigError naming the value."""
+    known = sorted(vars(DEFAULT_RIG))
+    unknown = sorted(set(names) - set(known))
+    if not names:
+        raise CameraConfigError(f'cameras must name at least one of {known}')
+    if unknown:
+        raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of {known}')
+    return list(names)
 
 
 def checked_yaw(name: str, value: object) -> float:

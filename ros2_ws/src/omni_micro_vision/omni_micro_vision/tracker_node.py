@@ -40,7 +40,7 @@ from omni_micro_sim.qos import (
     latched,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import checked_yaw, fiducial_for, image_array
+from omni_micro_vision.imaging import checked_cameras, checked_yaw, fiducial_for, image_array
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
@@ -58,12 +58,7 @@ class TrackerNode(Node):
         if self.still_frames < 2 or not self.still_px > 0:
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
-        unknown = sorted(set(cameras) - set(CAPTURE_TOPICS))
-        if not cameras:
-            raise CameraConfigError(f'cameras must name at least one of {sorted(CAPTURE_TOPICS)}')
-        if unknown:
-            raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of '
-                                    f'{sorted(CAPTURE_TOPICS)}')
+        checked_cameras(cameras)
         reliability = self.declare_parameter('image_reliability', 'reliable').value
         if reliability not in RELIABILITIES:
             raise CameraConfigError(f'image_reliability must be one of {sorted(RELIABILITIES)}, '
