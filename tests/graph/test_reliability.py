@@ -170,6 +170,9 @@ def test_a_params_file_with_a_bad_value_is_refused_with_the_nodes_words(tmp_path
     (['--goal-mm', '100,0', '--rtf', 'inf'], "> 0 or 'max'"),
     (['--goal-mm', '100,0', '--rtf', 'max', '--free-running'], 'needs the lockstep'),
     (['--goal-mm', '100,0', '--open-loop', '-7'], '> 0'),
+    (['--goal-mm', '100,0', '--record-images'], 'needs --record BAG and --vision images'),
+    (['--goal-mm', '100,0', '--vision', 'images', '--drop-captures', '0.3'],
+     "is vision_node's: it needs --vision model"),
 ])
 def test_bad_flags_exit_2_and_start_nothing(args, message, tmp_path, omni_micro):
     result = omni_micro('run', *args, '--log-dir', str(tmp_path / 'logs'))

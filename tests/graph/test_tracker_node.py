@@ -84,6 +84,12 @@ def test_a_still_robot_is_captured_where_it_is_and_bad_frames_are_refused(
     images.publish(image)
     probe.spin_until(lambda: statuses and 'frame refused' in statuses[-1], 10.0, 'a refusal')
     assert 'bytes of data for 1024 rows' in statuses[-1]
+    # A colour frame (a driver left at rgb8): refused naming the encoding.
+    image, _ = frame_messages(np.zeros((1024, 1280), dtype=np.uint8), 9 / 30)
+    image.encoding = 'rgb8'
+    images.publish(image)
+    probe.spin_until(lambda: statuses and 'rgb8' in statuses[-1], 10.0, 'a refused encoding')
+    assert "encoding 'rgb8' is not mono8 or mono16" in statuses[-1]
     assert len(captures) == 2
     assert tracker.poll() is None
 
