@@ -67,3 +67,21 @@ def test_frame_fields_round_trip_and_malformed_reports_are_named():
         Ack.from_values('x', [('capture_first_ns', '1'), ('capture_last_ns', '2')])
     with pytest.raises(LockstepError, match='frame_first_ns and frame_last_ns come together'):
         Ack.from_values('x', [('processed_ns', '1'), ('frame_first_ns', '1')])
+
+
+def test_a_pending_frame_holds_the_robot_at_its_stamp_plus_the_move_lead_exactly():
+    """With moves starting 50 ms after their capture, a frame at 33.3 ms lets the robot reach
+    83.3 ms (the 80 ms tick: the camera can render the next frame, due at 66.7 ms, while the
+    tracker reads this one), never past the start of the move it may cause."""
+    lockstep = gate()
+    lockstep.on_ack(Ack('controller_node', 200 * MS, capture_handled_ns=-1,
+                        command_lead_ns=50 * MS))
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=0))
+    frame = 33_333_333
+    lockstep.on_ack(Ack('camera_node', 40 * MS, frames_ns=(frame, frame)))
+    lockstep.on_ack(Ack('camera_node', 60 * MS))
+    assert lockstep.reachable_ns() == frame + 50 * MS       # a whole-tick 40 ms: only 60 ms
+    assert lockstep.reachable_ns() // TICK * TICK == 80 * MS
+    # The processed stamps still go by whole ticks of the (capped) 40 ms lead.
+    lockstep.on_ack(Ack('tracker_node', None, frame_handled_ns=frame))
+    assert lockstep.reachable_ns() == 60 * MS + LEAD

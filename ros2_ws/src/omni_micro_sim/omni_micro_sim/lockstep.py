@@ -121,6 +121,10 @@ class LockstepGate:
         self.period_ns = period_ns
         self.max_lead_ns = max_lead_ns
         self._lead_ns = max_lead_ns
+        # How long after its capture a move starts (the controller says): a capture, or a frame
+        # that may become one, holds the robot exactly that far ahead of it, not a whole tick
+        # less, so that a camera can render the next frame while the last is being tracked.
+        self._move_lead_ns = max_lead_ns
         self._processed: dict[str, int] = {}
         self._capture_handled: dict[str, int] = {}
         self._awaited_commands: dict[str, int] = {}
@@ -173,6 +177,7 @@ class LockstepGate:
             self._awaited_commands[ack.node] = ack.command_ns
         if ack.command_lead_ns is not None:
             self._lead_ns = min(self.max_lead_ns, max(0, ack.command_lead_ns))
+            self._move_lead_ns = max(0, ack.command_lead_ns)
 
     def on_command(self, stamp_ns: int) -> None:
         """A command stamped ``stamp_ns`` reached the robot."""
@@ -196,20 +201,23 @@ class LockstepGate:
             return math.inf
         if any(ns not in self._received_commands for ns in self._awaited_commands.values()):
             return -math.inf   # a command is on its way: wait for it, whatever its stamp
-        bound = min(self._processed.values(), default=math.inf)
+        reachable = min(self._processed.values(), default=math.inf)
+        if not math.isinf(reachable):
+            reachable += self.lead_ticks * self.period_ns
         if self._frame_handled:
             handled = min(self._frame_handled.values())
             self._pending_frames = [f for f in self._pending_frames if f[1] > handled]
             if self._pending_frames:
-                # A frame not yet tracked may become a capture: stop short of its stamp, as
-                # for a capture not yet handled.
-                bound = min(bound, min(first for first, _ in self._pending_frames))
+                # A frame not yet tracked may become a capture: as for a capture.
+                reachable = min(reachable, min(first for first, _ in self._pending_frames)
+                                + self._move_lead_ns)
         if self._capture_handled:
             handled = min(self._capture_handled.values())
             self._pending_captures = [c for c in self._pending_captures if c[1] > handled]
             if self._pending_captures:
-                # The move a capture causes starts a lead after it: stop short of that.
-                bound = min(bound, min(first for first, _ in self._pending_captures))
-        if math.isinf(bound):
+                # The move a capture causes starts a lead after it: no further than that.
+                reachable = min(reachable, min(first for first, _ in self._pending_captures)
+                                + self._move_lead_ns)
+        if math.isinf(reachable):
             return -math.inf   # only trackers take part, and no camera: nothing to go by
-        return bound + self.lead_ticks * self.period_ns
+        return reachable
