@@ -115,7 +115,8 @@ def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
 
 MARKERS_NODE = NodeSpec('omni_micro_vision', 'markers_node')
 # What markers_node must draw as the other nodes see it: their parameters, passed on.
-MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'micro.center_m', 'micro.field_m')
+MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'macro.yaw_rad', 'micro.center_m',
+                       'micro.field_m', 'micro.yaw_rad')
 
 
 def install_prefixes() -> list[Path]:

@@ -105,3 +105,15 @@ def test_the_foxglove_layout_shows_topics_and_namespaces_that_exist():
             assert path['value'].split('.')[0] in VIEW_TOPICS
         if 'topicPath' in config:
             assert config['topicPath'] in VIEW_TOPICS
+
+
+def test_a_turned_camera_s_field_is_drawn_turned_about_its_centre():
+    yaw = math.radians(2.0)
+    scene = Scene(DEFAULT_RIG, camera_yaw_rad={'micro': yaw})
+    fields = {shape.id: shape for shape in scene.static_shapes(frozenset({'fields'}))
+              if shape.namespace == 'fields'}
+    (cx, cy), (w, h) = DEFAULT_RIG.micro.center_m, DEFAULT_RIG.micro.field_m
+    first = fields[1].points[0]      # the corner (-w/2, -h/2), turned by 2 deg
+    assert first == pytest.approx((cx - w / 2 * math.cos(yaw) + h / 2 * math.sin(yaw),
+                                   cy - w / 2 * math.sin(yaw) - h / 2 * math.cos(yaw)))
+    assert fields[0].points[0] == pytest.approx((0.05 - 0.075, -0.075))   # macro: square

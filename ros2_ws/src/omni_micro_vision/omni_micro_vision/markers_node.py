@@ -38,6 +38,7 @@ from omni_micro_sim.qos import (
 )
 from omni_micro_sim.wheel_trajectory import STEERING_JOINT
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel, CameraRig
+from omni_micro_vision.imaging import checked_yaw
 from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
 
 MARKER_TYPES = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER,
@@ -104,11 +105,14 @@ class MarkersNode(Node):
                 f'publish_every_ticks must be >= 1 and refresh_every_ticks a multiple of it, '
                 f'got {self.publish_every} and {self.refresh_every}')
         cameras = {}
+        yaws = {}
         for name in ('macro', 'micro'):
             default: CameraModel = getattr(DEFAULT_RIG, name)
             cameras[name] = CameraModel(
                 name, self.declare_parameter(f'{name}.center_m', list(default.center_m)).value,
                 self.declare_parameter(f'{name}.field_m', list(default.field_m)).value)
+            yaws[name] = checked_yaw(f'{name}.yaw_rad',
+                                     self.declare_parameter(f'{name}.yaw_rad', 0.0).value)
         nominal = RobotGeometry()
         offsets = self.declare_parameter('robot.wheel_offsets_rad',
                                          list(nominal.wheel_offsets_rad)).value
@@ -122,7 +126,7 @@ class MarkersNode(Node):
                                     f'{tolerance} and {slip_arrow}')
         self.scene = Scene(CameraRig(**cameras), RobotGeometry(
             wheel_offsets_rad=(float(offsets[0]), float(offsets[1]), float(offsets[2]))),
-                           tolerance_m=tolerance, slip_arrow_s=slip_arrow)
+                           tolerance_m=tolerance, slip_arrow_s=slip_arrow, camera_yaw_rad=yaws)
         self.handled = 0          # messages taken in (the drain at shutdown watches it)
         self._ticks = 0
         self._changed: set[str] = set()     # event groups to send with the next array

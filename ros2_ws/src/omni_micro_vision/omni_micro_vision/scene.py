@@ -110,6 +110,8 @@ class Scene:
     robot: RobotGeometry = field(default_factory=RobotGeometry)
     tolerance_m: float = 3.0e-6
     slip_arrow_s: float = 2.0            # arrow length (m) per slip speed (m/s)
+    # How each camera is turned about its centre (``yaw_rad`` of camera_node, tracker_node).
+    camera_yaw_rad: dict[str, float] = field(default_factory=dict)
     pose: tuple[float, float, float] | None = None
     steering_rad: float = 0.0
     goal_m: Point | None = None
@@ -261,12 +263,15 @@ class Scene:
         shapes = []
         for index, camera in enumerate((self.rig.macro, self.rig.micro)):
             (cx, cy), (w, h) = camera.center_m, camera.field_m
-            corners = tuple((cx + sx * w / 2, cy + sy * h / 2)
+            yaw = self.camera_yaw_rad.get(camera.name, 0.0)
+            cos, sin = math.cos(yaw), math.sin(yaw)
+            corners = tuple((cx + cos * sx * w / 2 - sin * sy * h / 2,
+                             cy + sin * sx * w / 2 + cos * sy * h / 2)
                             for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1)))
             width = MACRO_WIDTH_M if camera is self.rig.macro else MACRO_WIDTH_M * MICRO_SCALE
             shapes.append(Shape('fields', index, 'line_strip', corners,
                                 CAMERA_COLOURS.get(camera.name, GREY), width))
-            shapes.append(Shape('fields/labels', index, 'text', ((cx - w / 2, cy + h / 2),),
+            shapes.append(Shape('fields/labels', index, 'text', (corners[3],),
                                 CAMERA_COLOURS.get(camera.name, GREY),
                                 12 * width, f'{camera.name} camera'))
         return shapes
