@@ -51,7 +51,7 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                         help='model: vision_node measures the pose with the cameras\' noise '
                              'model (default); images: camera_node renders each camera\'s '
                              'images and tracker_node finds the robot in them, as a real '
-                             'camera and its tracker would (README, "Images and the tracker")')
+                             'camera and its tracker would (README, "Images and a tracker")')
     parser.add_argument('--record-images', action='store_true',
                         help='with --record and --vision images: the images and camera infos '
                              'too (about 80 MB per simulated second at the default sizes)')
@@ -85,7 +85,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'run', help='drive the robot to a goal through the ROS 2 node graph',
         description='Start dynamics_node, vision_node and controller_node as three processes '
-                    '(loopback only, private ROS_DOMAIN_ID), drive the robot from the origin '
+                    '(with --vision images, camera_node and tracker_node in place of '
+                    'vision_node; loopback only, private ROS_DOMAIN_ID), drive the robot from '
+                    'the origin '
                     'to the goal with vision feedback (or one open-loop move), print where it '
                     'really stopped, and shut the graph down. Exit 0 when the goal was reached '
                     '(or the open-loop move completed), 1 otherwise (a node died, the '
