@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import cProfile
 import difflib
+import faulthandler
 import itertools
 import json
 import os
@@ -310,6 +311,8 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     moving for ``DRAIN_IDLE_S`` (at most ``DRAIN_MAX_S``), so that its last words are the
     graph's last state.
     """
+    # A crash in the C layers (rmw, DDS) prints the Python stack it came from into the log.
+    faulthandler.enable(all_threads=True)
     argv = list(sys.argv if args is None else args)
     rclpy.init(args=args, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     shutdown = _Shutdown()
