@@ -71,9 +71,6 @@ omni_micro_export_env() {
     export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
     unset ROS_LOCALHOST_ONLY
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
-    # Loopback-only transports, 4 MB shared-memory segments for camera frames, fast repair
-    # (the file says why); a profile the user chose is kept.
-    export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$OMNI_MICRO_ROOT/ros2_ws/src/omni_micro_sim/config/fastdds.xml}"
     export AMENT_PREFIX_PATH="$OMNI_MICRO_VENV"
     export PYTHONPATH="$OMNI_MICRO_ROOT/scripts${PYTHONPATH:+:$PYTHONPATH}"
     export MPLBACKEND=Agg

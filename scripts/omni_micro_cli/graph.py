@@ -511,13 +511,26 @@ def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
     return argv
 
 
-def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+def node_environment(domain_id: int, log_dir: Path, images: bool = False) -> dict[str, str]:
+    """The environment of a graph's processes; with ``images`` (camera frames flowing) the
+    project's Fast DDS profile too, unless the user set one (config/fastdds.xml says why)."""
     env = dict(os.environ)
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
                RCUTILS_COLORIZED_OUTPUT='0')
     env.pop('ROS_LOCALHOST_ONLY', None)
+    if images and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(dds_profile())
     return env
+
+
+def dds_profile() -> Path:
+    """The Fast DDS profile for graphs that carry camera frames (installed with omni_micro_sim)."""
+    for prefix in install_prefixes():
+        path = prefix / 'share' / 'omni_micro_sim' / 'config' / 'fastdds.xml'
+        if path.is_file():
+            return path
+    raise RunFailed('config/fastdds.xml of omni_micro_sim is not installed')
 
 
 class Graph:
@@ -531,7 +544,7 @@ class Graph:
         self.domain_id = domain_id
         self.log_dir = log_dir
         self.shm_before = shared_memory_files()
-        env = node_environment(domain_id, log_dir)
+        env = node_environment(domain_id, log_dir, images=bool(streaming_cameras(options)))
         # Only this process holds the write end (os.pipe() fds are not inherited); the read end
         # goes to every child, which stops when it reads end-of-file.
         self._lifeline_read, self._lifeline_write = os.pipe()

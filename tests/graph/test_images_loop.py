@@ -13,7 +13,7 @@ from bag_compare import recorded_until
 from geometry_msgs.msg import PoseStamped
 
 from omni_micro_cli.bags import read_bag
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.graph import GraphOptions, GraphResult, dds_profile, run_graph
 from omni_micro_sim.conventions import stamp_ns
 from omni_micro_sim.qos import CAPTURE_QOS
 
@@ -21,6 +21,13 @@ IMAGE_TOPICS = ['/camera/macro/image_raw', '/camera/macro/camera_info',
                 '/camera/micro/image_raw', '/camera/micro/camera_info']
 FRAME_RATE_HZ = 30.0
 
+
+
+@pytest.fixture(autouse=True)
+def image_transport(monkeypatch):
+    """Nodes and commands started here carry camera frames: the profile a graph with images
+    gets (omni_micro_cli.graph.dds_profile)."""
+    monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
 def run_on_images(folder: Path, name: str) -> tuple[Path, GraphResult]:
     """A short run on the micro platform, images recorded, as fast as the lockstep allows."""

@@ -5,11 +5,13 @@ without the fiducial, and a corrupt frame refused with the node staying up."""
 import math
 
 import numpy as np
+import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image
 
+from omni_micro_cli.graph import dds_profile
 from omni_micro_sim.conventions import quaternion_to_yaw, yaw_to_quaternion
 from omni_micro_sim.qos import CAPTURE_QOS, DATA_QOS, latched
 from omni_micro_sim.simulator import RobotState
@@ -18,6 +20,13 @@ from omni_micro_vision.imaging import Sensor, render
 
 CAMERA = DEFAULT_RIG.macro
 
+
+
+@pytest.fixture(autouse=True)
+def image_transport(monkeypatch):
+    """Nodes and commands started here carry camera frames: the profile a graph with images
+    gets (omni_micro_cli.graph.dds_profile)."""
+    monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
 def frame_messages(pixels: np.ndarray, stamp_s: float) -> tuple[Image, CameraInfo]:
     image = Image(height=pixels.shape[0], width=pixels.shape[1], encoding='mono8',
