@@ -72,7 +72,7 @@ omni_micro_export_env() {
     unset ROS_LOCALHOST_ONLY
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     export AMENT_PREFIX_PATH="$OMNI_MICRO_VENV"
-    export PYTHONPATH="$OMNI_MICRO_ROOT/scripts${PYTHONPATH:+:$PYTHONPATH}"
+    export PYTHONPATH="$OMNI_MICRO_ROOT/ros2_ws/src/omni_micro_cli${PYTHONPATH:+:$PYTHONPATH}"
     export MPLBACKEND=Agg
     export PATH="$OMNI_MICRO_VENV/bin:$PATH"
     export OMNI_MICRO_ROOT OMNI_MICRO_VENV
