@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_cli.bags import check_output_path, check_readable_bag
+from omni_micro_tools.bags import check_output_path, check_readable_bag
 from omni_micro_cli.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -18,7 +18,7 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
     wrap_angle,
 )
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 
 GOAL = (0.1, 0.0)
 

@@ -17,7 +17,7 @@ from omni_micro_control.identification import (
     fit_parameters,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.simulator import RobotState, simulate_open_loop

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 
 
 def recorded_until(bag_path: Path, end_s: float) -> dict[str, list[bytes]]:

@@ -14,7 +14,7 @@ import yaml
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.bags import GRAPH_TOPICS, read_bag
+from omni_micro_tools.bags import GRAPH_TOPICS, read_bag
 from omni_micro_cli.graph import node_environment
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -205,8 +205,8 @@ def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, doma
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     from nav_msgs.msg import Odometry
 
-    from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-    from omni_micro_sim.node_runtime import LOCKSTEP_QOS
+    from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+    from omni_micro_common.node_runtime import LOCKSTEP_QOS
 
     bag, _ = recorded
     reports = probe.node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS)

@@ -15,7 +15,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_sim import paper
-from omni_micro_sim.conventions import split_stamp
+from omni_micro_common.conventions import split_stamp
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.simulator import simulate_open_loop
 from omni_micro_sim.wheel_trajectory import JOINT_NAMES, points_from_profile

@@ -12,10 +12,10 @@ import pytest
 from bag_compare import recorded_until
 from geometry_msgs.msg import PoseStamped
 
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 from omni_micro_cli.graph import GraphOptions, GraphResult, dds_profile, run_graph
-from omni_micro_sim.conventions import stamp_ns
-from omni_micro_sim.qos import CAPTURE_QOS
+from omni_micro_common.conventions import stamp_ns
+from omni_micro_common.qos import CAPTURE_QOS
 
 IMAGE_TOPICS = ['/camera/macro/image_raw', '/camera/macro/camera_info',
                 '/camera/micro/image_raw', '/camera/micro/camera_info']

@@ -15,11 +15,11 @@ from conftest import ROOT
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import DomainLease, GraphOptions, run_graph
-from omni_micro_sim.node_runtime import LOCKSTEP_QOS
-from omni_micro_sim.qos import DATA_QOS
+from omni_micro_common.node_runtime import LOCKSTEP_QOS
+from omni_micro_common.qos import DATA_QOS
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
             'controller_node': 'omni_micro_control'}

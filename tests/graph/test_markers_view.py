@@ -19,8 +19,8 @@ import websockets
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from websockets.typing import Subprotocol
 
-from omni_micro_cli.bags import read_bag
-from omni_micro_sim.conventions import quaternion_to_yaw
+from omni_micro_tools.bags import read_bag
+from omni_micro_common.conventions import quaternion_to_yaw
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import RobotGeometry
 

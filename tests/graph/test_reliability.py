@@ -16,7 +16,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 

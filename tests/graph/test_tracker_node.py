@@ -12,8 +12,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_cli.graph import dds_profile
-from omni_micro_sim.conventions import quaternion_to_yaw, yaw_to_quaternion
-from omni_micro_sim.qos import CAPTURE_QOS, DATA_QOS, latched
+from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, latched
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.imaging import Sensor, render

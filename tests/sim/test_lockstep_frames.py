@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from omni_micro_sim.lockstep import Ack, LockstepError, LockstepGate
+from omni_micro_common.lockstep import Ack, LockstepError, LockstepGate
 
 MS = 1_000_000
 TICK = 20 * MS

@@ -6,7 +6,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraConfigError,

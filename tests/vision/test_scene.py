@@ -80,7 +80,7 @@ def test_a_new_goal_clears_the_last_goals_captures_and_moves():
 
 
 def test_the_foxglove_layout_shows_topics_and_namespaces_that_exist():
-    from omni_micro_cli.viewer_node import VIEW_TOPICS
+    from omni_micro_tools.viewer_node import VIEW_TOPICS
 
     layout = json.loads((ROOT / 'foxglove' / 'omni-micro.json').read_text())
 

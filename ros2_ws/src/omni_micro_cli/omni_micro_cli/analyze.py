@@ -12,7 +12,7 @@ import numpy as np
 
 from omni_micro_cli import plots
 from omni_micro_cli.arguments import positive_int
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_control.feedback import OUTCOME_NAMES

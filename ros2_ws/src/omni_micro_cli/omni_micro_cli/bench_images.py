@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli.arguments import positive_int
-from omni_micro_cli.bags import IMAGE_TOPICS, read_bag
+from omni_micro_tools.bags import IMAGE_TOPICS, read_bag
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.machine_load import busy_cores
 from omni_micro_sim import paper

@@ -25,7 +25,7 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
-from omni_micro_sim.conventions import (
+from omni_micro_common.conventions import (
     CaptureUncertainty,
     body_twist,
     quaternion_to_yaw,

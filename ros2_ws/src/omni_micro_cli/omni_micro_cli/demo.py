@@ -17,7 +17,7 @@ import numpy as np
 
 from omni_micro_cli import figures, plots
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
-from omni_micro_cli.bags import check_output_path
+from omni_micro_tools.bags import check_output_path
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory

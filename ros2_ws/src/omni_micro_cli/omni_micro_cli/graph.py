@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_sim.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_common.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
@@ -95,7 +95,7 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
     """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
     takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
     nobody in this graph publishes (it waits for a publisher of each before the clock starts)."""
-    from omni_micro_cli.bags import GRAPH_TOPICS, MARKERS_TOPIC
+    from omni_micro_tools.bags import GRAPH_TOPICS, MARKERS_TOPIC
 
     topics = [topic for topic in GRAPH_TOPICS
               if (markers or topic != MARKERS_TOPIC) and topic not in without]
@@ -644,7 +644,7 @@ class Graph:
 
     def _recover_bag(self, bag: Path) -> None:
         """The recorder died: turn what it flushed into a readable bag at the same path."""
-        from omni_micro_cli.bags import recover
+        from omni_micro_tools.bags import recover
 
         torn = bag.with_name(bag.name + '.torn')
         shutil.rmtree(torn, ignore_errors=True)
@@ -701,7 +701,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     if options.params_file is not None:
         check_params_file(options.params_file)
     if options.record is not None:
-        from omni_micro_cli.bags import check_output_path
+        from omni_micro_tools.bags import check_output_path
 
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from omni_micro_cli.bags import read_bag
+from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text
 from omni_micro_control.feedback import Observation, mean_observation
@@ -37,7 +37,7 @@ from omni_micro_control.identification import (
     Stop,
     fit_parameters,
 )
-from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
+from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points

@@ -21,8 +21,8 @@ from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw
-from omni_micro_sim.qos import (
+from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
+from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,

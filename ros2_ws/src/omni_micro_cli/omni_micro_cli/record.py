@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.bags import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGES, check_output_path
+from omni_micro_tools.bags import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGES, check_output_path
 
 
 def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,8 +45,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.recorder_node import BagRecorder
-    from omni_micro_sim.node_runtime import run_node
+    from omni_micro_tools.recorder_node import BagRecorder
+    from omni_micro_common.node_runtime import run_node
 
     check_output_path(args.bag, args.force)
     topics = {name: RECORDABLE_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from omni_micro_cli.bags import STORAGES, check_output_path, recover
+from omni_micro_tools.bags import STORAGES, check_output_path, recover
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_cli.bags import RECORDABLE_TOPICS, bag_topics, read_bag
+from omni_micro_tools.bags import RECORDABLE_TOPICS, bag_topics, read_bag
 from omni_micro_cli.errors import RunFailed, UsageError
 
 
@@ -46,7 +46,7 @@ SYNC_WINDOW = 10
 
 
 def header_stamp_ns(msg: object) -> int | None:
-    from omni_micro_sim.conventions import stamp_ns
+    from omni_micro_common.conventions import stamp_ns
 
     header = getattr(msg, 'header', None)
     return None if header is None else stamp_ns(header.stamp)
@@ -76,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from omni_micro_cli.graph import message_class
-    from omni_micro_sim.lockstep import ACK_TOPIC, LockstepError
-    from omni_micro_sim.node_runtime import LOCKSTEP_QOS, decode_ack
+    from omni_micro_common.lockstep import ACK_TOPIC, LockstepError
+    from omni_micro_common.node_runtime import LOCKSTEP_QOS, decode_ack
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     rclpy.init(domain_id=args.domain_id)

@@ -65,7 +65,7 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
 def run(args: argparse.Namespace) -> int:
     from rosbags.highlevel import AnyReader
 
-    from omni_micro_cli.bags import TYPESTORE, check_readable_bag
+    from omni_micro_tools.bags import TYPESTORE, check_readable_bag
     from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
     from omni_micro_vision.imaging import checked_yaw, fiducial_for, image_array
     from omni_micro_vision.tracking import FrameTracker, StillnessRule

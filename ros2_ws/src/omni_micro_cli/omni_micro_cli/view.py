@@ -102,8 +102,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.viewer_node import Viewer, view_topics
-    from omni_micro_sim.node_runtime import run_node
+    from omni_micro_tools.viewer_node import Viewer, view_topics
+    from omni_micro_common.node_runtime import run_node
 
     warning = check_view_host(args.view_host)
     if warning:

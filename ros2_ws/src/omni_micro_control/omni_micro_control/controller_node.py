@@ -10,7 +10,7 @@ Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
   /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
                        (reached / gave_up / lost / completed / cancelled), latched
-  /lockstep            its report after each input (omni_micro_sim.lockstep)
+  /lockstep            its report after each input (omni_micro_common.lockstep)
 Timers follow /clock (use_sim_time); the decisions themselves are taken on capture stamps, see
 :mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves through the slip core and
 identifies the robot as it goes (:mod:`omni_micro_control.model_based`). On shutdown the robot
@@ -45,7 +45,7 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
-from omni_micro_sim.conventions import (
+from omni_micro_common.conventions import (
     CaptureUncertainty,
     join_stamp,
     quaternion_to_yaw,
@@ -53,11 +53,11 @@ from omni_micro_sim.conventions import (
     stamp_ns,
 )
 from omni_micro_sim.errors import CommandError, ParameterError
-from omni_micro_sim.lockstep import Ack
-from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.qos import (
+from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,

@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 
 
 class ControllerConfigError(ValueError):

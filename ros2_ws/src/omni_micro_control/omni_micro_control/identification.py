@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.simulator import RobotState, run_to_rest

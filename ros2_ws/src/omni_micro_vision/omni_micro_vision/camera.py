@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_sim.conventions import CaptureUncertainty
+from omni_micro_common.conventions import CaptureUncertainty
 
 
 class CameraConfigError(ValueError):

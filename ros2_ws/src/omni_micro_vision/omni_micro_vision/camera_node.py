@@ -22,10 +22,10 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_sim.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
-from omni_micro_sim.lockstep import Ack
-from omni_micro_sim.node_runtime import LockstepReporter, run_node
-from omni_micro_sim.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter, run_node
+from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.simulator import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 from omni_micro_vision.imaging import Sensor, checked_cameras, checked_yaw, render

@@ -27,9 +27,9 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from omni_micro_sim.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
-from omni_micro_sim.node_runtime import run_node
-from omni_micro_sim.qos import (
+from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
+from omni_micro_common.node_runtime import run_node
+from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,

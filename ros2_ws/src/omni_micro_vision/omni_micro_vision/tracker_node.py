@@ -29,10 +29,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_sim.conventions import stamp_ns, yaw_to_quaternion
-from omni_micro_sim.lockstep import Ack
-from omni_micro_sim.node_runtime import LockstepReporter, run_node
-from omni_micro_sim.qos import (
+from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter, run_node
+from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,

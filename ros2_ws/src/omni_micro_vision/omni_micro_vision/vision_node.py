@@ -8,7 +8,7 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
                        (geometry_msgs/PoseWithCovarianceStamped, from the camera model)
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
-  /lockstep            its report after each odometry sample (omni_micro_sim.lockstep)
+  /lockstep            its report after each odometry sample (omni_micro_common.lockstep)
 The stamp of a capture is its exposure time in simulated time. The camera model and the capture
 rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and out.
 """
@@ -23,16 +23,16 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from omni_micro_sim.conventions import (
+from omni_micro_common.conventions import (
     join_stamp,
     quaternion_to_yaw,
     split_stamp,
     stamp_ns,
     yaw_to_quaternion,
 )
-from omni_micro_sim.lockstep import Ack
-from omni_micro_sim.node_runtime import LockstepReporter, PublicationCounter, run_node
-from omni_micro_sim.qos import (
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,

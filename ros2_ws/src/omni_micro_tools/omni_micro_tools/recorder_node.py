@@ -13,11 +13,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.bags import IMAGE_TOPICS, TopicSpec, flush, open_writer
+from omni_micro_tools.bags import IMAGE_TOPICS, TopicSpec, flush, open_writer
 from omni_micro_cli.graph import message_class
-from omni_micro_sim.lockstep import Ack
-from omni_micro_sim.node_runtime import LockstepReporter
-from omni_micro_sim.qos import PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter
+from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
 
 # Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
 FLUSH_PERIOD_S = 0.5
@@ -44,7 +44,7 @@ class BagRecorder(Node):
             qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.RELIABLE,
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
                                          else DurabilityPolicy.VOLATILE))
-            # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_sim.qos).
+            # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_common.qos).
             quiet = PER_TICK_SUBSCRIPTION_EVENTS if spec.depth >= 1000 else None
             self.create_subscription(message_class(spec.msgtype), topic, self._writer_of(topic),
                                      qos, raw=True, event_callbacks=quiet)

@@ -43,15 +43,15 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from omni_micro_sim.conventions import (
+from omni_micro_common.conventions import (
     GRAPH_NODE_NAMES,
     LIFELINE_ENV,
     OPTIONAL_NODE_NAMES,
     PUBLISHED_MARKER,
 )
 from omni_micro_sim.errors import ParameterError
-from omni_micro_sim.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-from omni_micro_sim.qos import PER_TICK_PUBLISHER_EVENTS
+from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+from omni_micro_common.qos import PER_TICK_PUBLISHER_EVENTS
 
 NodeT = TypeVar('NodeT', bound=Node)
 
@@ -84,7 +84,7 @@ class PublicationCounter:
 
 
 class LockstepReporter:
-    """Publishes this node's lockstep reports (see :mod:`omni_micro_sim.lockstep`).
+    """Publishes this node's lockstep reports (see :mod:`omni_micro_common.lockstep`).
 
     Not counted among the node's publications: they are the graph's plumbing, not its data.
     """

@@ -67,7 +67,7 @@ GRAPH_TOPICS: dict[str, TopicSpec] = {
     MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
 }
 # The rendered cameras' streams (run --vision images): recorded only when asked
-# (--record-images), a megabyte a frame. Depth as omni_micro_sim.qos.IMAGE_QOS.
+# (--record-images), a megabyte a frame. Depth as omni_micro_common.qos.IMAGE_QOS.
 IMAGE_TOPICS: dict[str, TopicSpec] = {
     f'/camera/{camera}/{stream}': TopicSpec(f'sensor_msgs/msg/{kind}', 10)
     for camera in ('macro', 'micro')

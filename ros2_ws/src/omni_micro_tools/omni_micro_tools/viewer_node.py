@@ -15,7 +15,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.bags import GRAPH_TOPICS, TYPESTORE, TopicSpec
+from omni_micro_tools.bags import GRAPH_TOPICS, TYPESTORE, TopicSpec
 from omni_micro_cli.graph import message_class
 
 # Topics a viewer needs, in the order a layout reads them.
