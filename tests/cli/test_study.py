@@ -14,11 +14,12 @@ import pyarrow.parquet as pq
 import pytest
 
 from omni_micro_cli.cli import main
-from omni_micro_cli.study.execute import collect, execute, finished_rows, prepare_directory
-from omni_micro_cli.study.spec import StudyError, load_study, parse_study
+from omni_micro_cli.commands.study.execute import collect, execute, finished_rows, prepare_directory
+from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
 
 SCRIPTS = Path(__file__).resolve().parents[2] / 'scripts'
-EXAMPLE = SCRIPTS / 'omni_micro_cli' / 'study' / 'example.yaml'
+EXAMPLE = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_cli' / 'omni_micro_cli'
+           / 'commands' / 'study' / 'example.yaml')
 
 # Both modes, a grid and random draws: every path of the expansion in 16 runs of ~0.1 s.
 SMALL_STUDY = """

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from omni_micro_cli.closed_loop import run_closed_loop
+from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import ControllerConfigError, FeedbackConfig, Observation, Outcome
 from omni_micro_control.identification import (
     Chain,

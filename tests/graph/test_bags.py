@@ -15,7 +15,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from omni_micro_tools.bags import GRAPH_TOPICS, read_bag
-from omni_micro_cli.graph import node_environment
+from omni_micro_cli.orchestration.graph import node_environment
 
 ROOT = Path(__file__).resolve().parents[2]
 

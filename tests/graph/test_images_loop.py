@@ -13,7 +13,7 @@ from bag_compare import recorded_until
 from geometry_msgs.msg import PoseStamped
 
 from omni_micro_tools.bags import read_bag
-from omni_micro_cli.graph import GraphOptions, GraphResult, dds_profile, run_graph
+from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, dds_profile, run_graph
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.qos import CAPTURE_QOS
 
@@ -26,7 +26,7 @@ FRAME_RATE_HZ = 30.0
 @pytest.fixture(autouse=True)
 def image_transport(monkeypatch):
     """Nodes and commands started here carry camera frames: the profile a graph with images
-    gets (omni_micro_cli.graph.dds_profile)."""
+    gets (omni_micro_cli.orchestration.graph.dds_profile)."""
     monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
 def run_on_images(folder: Path, name: str) -> tuple[Path, GraphResult]:

@@ -17,7 +17,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.graph import DomainLease, GraphOptions, run_graph
+from omni_micro_cli.orchestration.graph import DomainLease, GraphOptions, run_graph
 from omni_micro_common.node_runtime import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
 

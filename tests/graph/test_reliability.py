@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
 
 GOAL = (0.1, 0.0)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from omni_micro_cli import (
+from omni_micro_cli.commands import (
     analyze,
     bench,
     bench_graph,

@@ -14,7 +14,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_tools.bags import IMAGE_TOPICS, TopicSpec, flush, open_writer
-from omni_micro_cli.graph import message_class
+from omni_micro_cli.orchestration.graph import message_class
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.node_runtime import LockstepReporter
 from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS

@@ -16,7 +16,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_tools.bags import GRAPH_TOPICS, TYPESTORE, TopicSpec
-from omni_micro_cli.graph import message_class
+from omni_micro_cli.orchestration.graph import message_class
 
 # Topics a viewer needs, in the order a layout reads them.
 VIEW_TOPICS = ('/markers', '/odom', '/camera/macro/pose', '/camera/micro/pose',

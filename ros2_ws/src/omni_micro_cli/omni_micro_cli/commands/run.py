@@ -17,16 +17,16 @@ from omni_micro_cli.arguments import (
     probability,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.graph import (
+from omni_micro_cli.orchestration.graph import (
     VISION_MODES,
     GraphOptions,
     GraphResult,
     check_params_file,
     run_graph,
 )
-from omni_micro_cli.platform_bounds import check_goal
-from omni_micro_cli.record import add_storage_arguments
-from omni_micro_cli.view import add_view_arguments, view_from_args
+from omni_micro_cli.orchestration.platform_bounds import check_goal
+from omni_micro_cli.commands.record import add_storage_arguments
+from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_control.feedback import MODES
 
 

@@ -11,10 +11,10 @@ from typing import Any
 
 from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.study import execute as execution
-from omni_micro_cli.study.report import write_figure, write_summary
-from omni_micro_cli.study.runs import run_row
-from omni_micro_cli.study.spec import StudyError, load_study, parse_study
+from omni_micro_cli.commands.study import execute as execution
+from omni_micro_cli.commands.study.report import write_figure, write_summary
+from omni_micro_cli.commands.study.runs import run_row
+from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
 
 EXAMPLE = Path(__file__).with_name('example.yaml')
 

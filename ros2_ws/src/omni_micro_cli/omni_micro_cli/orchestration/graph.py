@@ -696,7 +696,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_cli.monitor import GraphMonitor  # rclpy only where a graph runs
+    from omni_micro_cli.orchestration.monitor import GraphMonitor  # rclpy only where a graph runs
 
     if options.params_file is not None:
         check_params_file(options.params_file)

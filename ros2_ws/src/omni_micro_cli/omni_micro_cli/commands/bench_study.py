@@ -1,7 +1,7 @@
 """`omni-micro bench-study`: how fast studies run, against a plain loop measured in the same run.
 
 Three measurements of the example's closed-loop Monte Carlo (Fig. 11's goal, random xi2, xi3,
-the paper's rule), all through :func:`omni_micro_cli.study.execute.execute`:
+the paper's rule), all through :func:`omni_micro_cli.commands.study.execute.execute`:
 
 1. a plain loop in this process (no Dask) over ``--runs`` runs: the reference;
 2. the same runs on a LocalCluster of 1 worker, then of 2: throughput and its scaling, and the
@@ -21,8 +21,8 @@ from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.study.execute import Execution, execute, prepare_directory
-from omni_micro_cli.study.spec import Study, parse_study
+from omni_micro_cli.commands.study.execute import Execution, execute, prepare_directory
+from omni_micro_cli.commands.study.spec import Study, parse_study
 
 EXAMPLE = Path(__file__).with_name('study') / 'example.yaml'
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_cli.closed_loop import ClosedLoopResult, run_closed_loop
+from omni_micro_cli.twin import ClosedLoopResult, run_closed_loop
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_control.feedback import FeedbackConfig, Outcome
 from omni_micro_control.model_based import ModelBasedPlanner

@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from omni_micro_cli.graph import message_class
+    from omni_micro_cli.orchestration.graph import message_class
     from omni_micro_common.lockstep import ACK_TOPIC, LockstepError
     from omni_micro_common.node_runtime import LOCKSTEP_QOS, decode_ack
 

@@ -8,7 +8,7 @@ from typing import Any
 import yaml
 
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.graph import package_params_file
+from omni_micro_cli.orchestration.graph import package_params_file
 
 
 def controller_parameter(name: str, params_file: Path | None) -> Any:

@@ -87,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     _log(f'reference: LSODA rtol 1e-9, plain-Python rhs (up to {args.reference_timeout:g} s)...')
     environment = dict(os.environ, NUMBA_DISABLE_JIT='1')
     child = subprocess.run(
-        [sys.executable, '-c', 'from omni_micro_cli.bench import reference_main; reference_main()',
+        [sys.executable, '-c', 'from omni_micro_cli.commands.bench import reference_main; reference_main()',
          repr(result.rest_time_s)], env=environment, capture_output=True, text=True,
         timeout=args.reference_timeout, check=True)
     reference = json.loads(child.stdout.strip().splitlines()[-1])

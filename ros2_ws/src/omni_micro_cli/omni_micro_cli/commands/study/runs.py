@@ -10,7 +10,7 @@ import math
 import time
 from typing import Any
 
-from omni_micro_cli.closed_loop import run_closed_loop
+from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim import paper

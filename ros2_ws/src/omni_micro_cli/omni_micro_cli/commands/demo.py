@@ -15,15 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_micro_cli import figures, plots
+from omni_micro_cli import plots
+from omni_micro_cli.commands import figures
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
 from omni_micro_tools.bags import check_output_path
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
 from omni_micro_cli.outputs import staged_directory
-from omni_micro_cli.record import add_storage_arguments
-from omni_micro_cli.run import echo_to_stderr
-from omni_micro_cli.view import add_view_arguments, view_from_args
+from omni_micro_cli.commands.record import add_storage_arguments
+from omni_micro_cli.commands.run import echo_to_stderr
+from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_sim import paper
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s

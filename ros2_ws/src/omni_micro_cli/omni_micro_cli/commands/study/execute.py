@@ -24,8 +24,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from omni_micro_cli.study.runs import run_rows, warm_up
-from omni_micro_cli.study.spec import Study, StudyError, parse_study
+from omni_micro_cli.commands.study.runs import run_rows, warm_up
+from omni_micro_cli.commands.study.spec import Study, StudyError, parse_study
 
 STUDY_FILE = 'study.yaml'
 RUNS_FILE = 'runs.parquet'

@@ -13,9 +13,9 @@ import yaml
 
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.graph import GraphOptions, run_graph
-from omni_micro_cli.run import echo_to_stderr
-from omni_micro_cli.view import add_view_arguments, view_from_args
+from omni_micro_cli.orchestration.graph import GraphOptions, run_graph
+from omni_micro_cli.commands.run import echo_to_stderr
+from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_vision.camera import DEFAULT_RIG
 
 # Goals inside the micro camera's field (so each one can be reached to the 3 um tolerance),

@@ -24,8 +24,8 @@ import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_tools.bags import IMAGE_TOPICS, read_bag
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
-from omni_micro_cli.machine_load import busy_cores
+from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
 
 # Where the robot is for each per-frame case: (camera, label, x, y, heading, speed along x).

@@ -19,8 +19,8 @@ import tempfile
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.graph import GraphOptions, GraphResult, run_graph
-from omni_micro_cli.machine_load import busy_cores
+from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
 
 # (label, real-time factor, lockstep, cores kept busy by other programs)

@@ -52,7 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
-    from omni_micro_cli.graph import check_params_file, params_from_files
+    from omni_micro_cli.orchestration.graph import check_params_file, params_from_files
 
     if args.params is not None:
         check_params_file(args.params)
