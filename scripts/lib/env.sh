@@ -6,7 +6,9 @@
 
 OMNI_MICRO_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 OMNI_MICRO_VENV=${OMNI_MICRO_VENV:-$OMNI_MICRO_ROOT/.venv}
-OMNI_MICRO_PACKAGES=(omni_micro_sim omni_micro_vision omni_micro_control)
+# Every package of the workspace, installed into the venv as colcon would build them.
+OMNI_MICRO_PACKAGES=(omni_micro_common omni_micro_sim omni_micro_vision omni_micro_control
+                     omni_micro_tools omni_micro_cli)
 
 _omni_micro_log() { printf 'omni-micro: %s\n' "$*" >&2; }
 
@@ -25,7 +27,7 @@ _omni_micro_base_python() {
 }
 
 _omni_micro_sources_hash() {
-    # Sources of the three packages: a change reinstalls them (a normal install, because editable
+    # Sources of the workspace packages: a change reinstalls them (a normal install, because editable
     # installs drop data_files such as config/*.yaml and the ament index markers).
     (cd "$OMNI_MICRO_ROOT" && find ros2_ws/src -type f \
         -not -path '*/__pycache__/*' -not -path '*.egg-info*' -not -name '*.pyc' -print0 \
@@ -72,7 +74,6 @@ omni_micro_export_env() {
     unset ROS_LOCALHOST_ONLY
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     export AMENT_PREFIX_PATH="$OMNI_MICRO_VENV"
-    export PYTHONPATH="$OMNI_MICRO_ROOT/ros2_ws/src/omni_micro_cli${PYTHONPATH:+:$PYTHONPATH}"
     export MPLBACKEND=Agg
     export PATH="$OMNI_MICRO_VENV/bin:$PATH"
     export OMNI_MICRO_ROOT OMNI_MICRO_VENV

@@ -8,8 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_tools.bags import check_output_path, check_readable_bag
 from omni_micro_cli.errors import UsageError
+from omni_micro_cli.outputs import check_output_path
+from omni_micro_tools.bags import check_readable_bag
+from omni_micro_tools.errors import BagPathError
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -28,7 +30,7 @@ def test_an_existing_bag_is_still_refused_naming_it(tmp_path):
 
 
 def test_a_path_that_does_not_exist_says_so(tmp_path):
-    with pytest.raises(UsageError, match='does not exist') as error:
+    with pytest.raises(BagPathError, match='does not exist') as error:
         check_readable_bag(tmp_path / 'nope')
     assert 'bag-recover' not in str(error.value)
 
@@ -37,14 +39,14 @@ def test_only_a_torn_bag_is_sent_to_bag_recover(tmp_path):
     torn = tmp_path / 'torn'
     torn.mkdir()
     (torn / 'torn_0.mcap').write_bytes(b'\x89MCAP0\r\n')
-    with pytest.raises(UsageError, match=f'omni-micro bag-recover {torn}'):
+    with pytest.raises(BagPathError, match=f'omni-micro bag-recover {torn}'):
         check_readable_bag(torn)
     empty = tmp_path / 'empty'
     empty.mkdir()
-    with pytest.raises(UsageError, match='is not a bag') as error:
+    with pytest.raises(BagPathError, match='is not a bag') as error:
         check_readable_bag(empty)
     assert 'bag-recover' not in str(error.value)
-    with pytest.raises(UsageError, match='is a file'):
+    with pytest.raises(BagPathError, match='is a file'):
         check_readable_bag(torn / 'torn_0.mcap')
 
 

@@ -1,20 +1,15 @@
 """`omni-micro compare-controllers`: both modes on the same seeded cases, table and files."""
 
 import json
-import os
 import subprocess
 import sys
-from pathlib import Path
-
-SCRIPTS = Path(__file__).resolve().parents[2] / 'scripts'
 
 
 def test_both_modes_run_the_same_cases_and_the_model_needs_fewer_periods(tmp_path):
     out = tmp_path / 'compare'
     done = subprocess.run([sys.executable, '-m', 'omni_micro_cli', 'compare-controllers',
                            '--cases', '2', '--workers', '1', '--out', str(out)],
-                          capture_output=True, text=True,
-                          env=dict(os.environ, PYTHONPATH=str(SCRIPTS)))
+                          capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "| 2 cases, tolerance 0.5 um | paper's rule | model-based |" in done.stdout
     assert '2/2 cases' in done.stderr

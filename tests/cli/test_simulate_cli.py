@@ -1,7 +1,6 @@
 """The open-loop command line, run as a user runs it."""
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -13,8 +12,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def omni_micro(*args, check=False):
     return subprocess.run([sys.executable, '-m', 'omni_micro_cli', *args], cwd=ROOT,
-                          capture_output=True, text=True, check=check,
-                          env=dict(os.environ, PYTHONPATH=str(ROOT / 'scripts')))
+                          capture_output=True, text=True, check=check)
 
 
 def test_simulate_json_reports_fig8():

@@ -14,12 +14,16 @@ import pyarrow.parquet as pq
 import pytest
 
 from omni_micro_cli.cli import main
-from omni_micro_cli.commands.study.execute import collect, execute, finished_rows, prepare_directory
+from omni_micro_cli.commands.study.execute import (
+    collect,
+    execute,
+    finished_rows,
+    prepare_directory,
+)
 from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
 
-SCRIPTS = Path(__file__).resolve().parents[2] / 'scripts'
-EXAMPLE = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_cli' / 'omni_micro_cli'
-           / 'commands' / 'study' / 'example.yaml')
+EXAMPLE = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_cli'
+           / 'omni_micro_cli' / 'commands' / 'study' / 'example.yaml')
 
 # Both modes, a grid and random draws: every path of the expansion in 16 runs of ~0.1 s.
 SMALL_STUDY = """
@@ -43,7 +47,7 @@ metrics: [outcome, deviation_um, periods, sim_time_s, final_pose, identified]
 def _cli(*args: str, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, '-m', 'omni_micro_cli', 'study', *args],
                           capture_output=True, text=True, timeout=300,
-                          env=dict(os.environ, PYTHONPATH=str(SCRIPTS)), **kwargs)
+                          **kwargs)
 
 
 def _without_wall_time(rows: list[dict]) -> list[dict]:
@@ -121,8 +125,7 @@ def test_a_worker_killed_mid_study_costs_only_its_unfinished_runs(tmp_path):
         study = subprocess.Popen(
             [sys.executable, '-m', 'omni_micro_cli', 'study', str(tmp_path / 'study.yaml'),
              '--out', str(tmp_path / 'killed'), '--scheduler', cluster.scheduler_address],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            env=dict(os.environ, PYTHONPATH=str(SCRIPTS)))
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 60.0
         while not any(client.processing().values()):   # the study's runs are on the workers
             assert time.monotonic() < deadline and study.poll() is None, 'ended early'
@@ -146,7 +149,7 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
     study = subprocess.Popen(
         [sys.executable, '-m', 'omni_micro_cli', 'study', str(tmp_path / 'study.yaml'),
          '--out', str(out), '--workers', '2'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, start_new_session=True, env=dict(os.environ, PYTHONPATH=str(SCRIPTS)))
+        text=True, start_new_session=True)
     deadline = time.monotonic() + 120.0
     while not list((out / 'parts').glob('part-*.parquet')):
         assert time.monotonic() < deadline and study.poll() is None, 'ended early'
@@ -267,7 +270,7 @@ def test_an_existing_study_directory_is_never_overwritten(tmp_path, capsys):
 def test_example_prints_the_shipped_example_and_every_shipped_study_parses(capsys):
     assert main(['study', '--example']) == 0
     assert capsys.readouterr().out == EXAMPLE.read_text()
-    shipped = sorted((SCRIPTS.parent / 'studies').glob('*.yaml'))
+    shipped = sorted((Path(__file__).resolve().parents[2] / 'studies').glob('*.yaml'))
     assert len(shipped) == 3
     for path in shipped:
         assert load_study(path).run_count >= 100

@@ -5,6 +5,7 @@ import re
 
 import pytest
 
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import (
     MODEL_CAPTURES_PER_STOP,
     ControllerConfigError,
@@ -18,7 +19,6 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
     wrap_angle,
 )
-from omni_micro_common.conventions import CaptureUncertainty
 
 GOAL = (0.1, 0.0)
 

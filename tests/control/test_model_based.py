@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from omni_micro_cli.twin import run_closed_loop
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import ControllerConfigError, FeedbackConfig, Observation, Outcome
 from omni_micro_control.identification import (
     Chain,
@@ -17,10 +18,10 @@ from omni_micro_control.identification import (
     fit_parameters,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
-from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.simulator import RobotState, simulate_open_loop
+from omni_micro_sim.simulator import simulate_open_loop
+from omni_micro_sim.state import RobotState
 
 MICRO = CaptureUncertainty(0.115e-6, 0.144e-6, 6e-5)
 MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4.3e-3)

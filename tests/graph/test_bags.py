@@ -14,8 +14,8 @@ import yaml
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
+from omni_micro_cli.orchestration.processes import node_environment
 from omni_micro_tools.bags import GRAPH_TOPICS, read_bag
-from omni_micro_cli.orchestration.graph import node_environment
 
 ROOT = Path(__file__).resolve().parents[2]
 

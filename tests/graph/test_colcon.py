@@ -1,5 +1,6 @@
-"""`colcon build` of the workspace installs the nodes where `ros2 run` looks for them, and the
-loop closes with those executables and their installed params files."""
+"""`colcon build` of the workspace installs the nodes and the omni-micro command where `ros2 run`
+looks for them, and the loop closes (recorded) with those executables and their installed params
+files, started by the colcon-installed command."""
 
 import json
 import os
@@ -12,7 +13,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 NODES = {'omni_micro_sim': 'dynamics_node', 'omni_micro_vision': 'vision_node',
-         'omni_micro_control': 'controller_node'}
+         'omni_micro_control': 'controller_node', 'omni_micro_tools': 'bag_recorder'}
+COMMAND = ('omni_micro_cli', 'omni-micro')
 
 
 @pytest.fixture(scope='module')
@@ -42,21 +44,27 @@ def test_executables_and_params_are_where_ros2_run_looks(workspace):
                 f'{node}.yaml').is_file()
         assert (workspace / 'install' / package / 'share' / 'ament_index' / 'resource_index' /
                 'packages' / package).is_file()
+    package, command = COMMAND
+    executable = workspace / 'install' / package / 'lib' / package / command
+    assert executable.is_file() and os.access(executable, os.X_OK)
 
 
 def test_the_loop_closes_with_the_colcon_installed_nodes(workspace, tmp_path):
     env = sourced_environment(workspace)
-    env['PYTHONPATH'] = f'{ROOT / "scripts"}{os.pathsep}{env.get("PYTHONPATH", "")}'
     where = subprocess.run([sys.executable, '-c', 'import omni_micro_vision; '
                             'print(omni_micro_vision.__file__)'], env=env, capture_output=True,
                            text=True, check=True)
     assert str(workspace / 'install') in where.stdout
-    run = subprocess.run([sys.executable, '-m', 'omni_micro_cli', 'run', '--goal-mm', '100,0',
-                          '--rtf', '5', '--json', '--quiet', '--log-dir', str(tmp_path)],
+    package, command = COMMAND
+    omni_micro = workspace / 'install' / package / 'lib' / package / command
+    run = subprocess.run([str(omni_micro), 'run', '--goal-mm', '100,0', '--rtf', '5', '--json',
+                          '--quiet', '--log-dir', str(tmp_path), '--record',
+                          str(tmp_path / 'bag')],
                          env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
     summary = json.loads(run.stdout.strip().splitlines()[-1])
     assert summary['outcome'] == 'reached'
+    assert (tmp_path / 'bag' / 'metadata.yaml').is_file()
     for package, node in NODES.items():
         first_line = (Path(summary['log_dir']) / f'{node}.log').read_text().splitlines()[0]
         installed = workspace / 'install' / package

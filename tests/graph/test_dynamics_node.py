@@ -14,11 +14,11 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from omni_micro_common.conventions import JOINT_NAMES, split_stamp
 from omni_micro_sim import paper
-from omni_micro_common.conventions import split_stamp
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.simulator import simulate_open_loop
-from omni_micro_sim.wheel_trajectory import JOINT_NAMES, points_from_profile
+from omni_micro_sim.wheel_trajectory import points_from_profile
 
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -15,11 +15,13 @@ from conftest import ROOT
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
-from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.graph import DomainLease, GraphOptions, run_graph
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import run_graph
+from omni_micro_cli.orchestration.processes import DomainLease
 from omni_micro_common.node_runtime import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
+from omni_micro_tools.bags import read_bag
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
             'controller_node': 'omni_micro_control'}

@@ -19,8 +19,8 @@ import websockets
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from websockets.typing import Subprotocol
 
-from omni_micro_tools.bags import read_bag
 from omni_micro_common.conventions import quaternion_to_yaw
+from omni_micro_tools.bags import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import RobotGeometry
 
@@ -245,8 +245,8 @@ def test_a_slow_foxglove_client_watches_the_robot_approach_and_changes_nothing(
 
 
 def test_a_view_address_beyond_loopback_says_who_can_connect():
-    from omni_micro_cli.errors import UsageError
     from omni_micro_cli.commands.view import check_view_host
+    from omni_micro_cli.errors import UsageError
 
     assert check_view_host('127.0.0.1') is None
     assert 'any machine that can reach this one' in str(check_view_host('0.0.0.0'))

@@ -16,9 +16,10 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import GraphResult, run_graph
+from omni_micro_tools.bags import read_bag
 
 GOAL = (0.1, 0.0)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,

@@ -5,14 +5,14 @@ import math
 import numpy as np
 import pytest
 
+from omni_micro_common.conventions import JOINT_NAMES
 from omni_micro_sim import paper
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits
-from omni_micro_sim.profile import move_profile
+from omni_micro_sim.profile import WheelCommand, move_profile
 from omni_micro_sim.simulator import MotionStatus, simulate_open_loop
-from omni_micro_sim.stepper import GridSimulator, WheelCommand
+from omni_micro_sim.stepper import GridSimulator
 from omni_micro_sim.wheel_trajectory import (
-    JOINT_NAMES,
     TrajectoryPoint,
     command_from_points,
     points_from_profile,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError
 from omni_micro_vision.imaging import Sensor, checked_yaw, render, track
 

@@ -16,10 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import UsageError
-from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw
-from omni_micro_sim.wheel_trajectory import STEERING_JOINT
+from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
+from omni_micro_tools.bags import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
 

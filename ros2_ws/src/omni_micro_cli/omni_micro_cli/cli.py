@@ -1,69 +1,163 @@
-"""Entry point of ./scripts/omni-micro: one sub-command per user task."""
+"""The ``omni-micro`` console script: one sub-command per user task.
+
+The framework is kept apart from the commands, as pip's is: :data:`COMMANDS` maps each name to
+the module that implements it, and a module is imported only when its command runs (or its
+``--help`` is asked for). ``omni-micro --help`` therefore loads none of numba, scipy,
+matplotlib, pyarrow, dask, cv2, rosbags or rclpy.
+
+Every command ends the same way: exit 0 on success, 2 with one line naming a value it cannot
+use, 1 with one line saying why the work failed, 130 when interrupted. An exception nobody
+foresaw is one line too, with the file its traceback was written to (``--debug`` or
+``OMNI_MICRO_DEBUG=1`` print it instead).
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import os
 import signal
 import sys
+import tempfile
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
-from omni_micro_cli.commands import (
-    analyze,
-    bench,
-    bench_graph,
-    bench_images,
-    bench_study,
-    compare_controllers,
-    demo,
-    figures,
-    identify,
-    record,
-    recover,
-    replay,
-    run,
-    simulate,
-    soak,
-    study,
-    track,
-    view,
-)
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
+from omni_micro_common.errors import OmniMicroError
 
-COMMANDS = (demo, run, view, record, replay, track, analyze, identify, recover, soak, simulate,
-            figures, study, compare_controllers, bench, bench_graph, bench_images, bench_study)
+DEBUG_ENV = 'OMNI_MICRO_DEBUG'
 
 
-def build_parser() -> argparse.ArgumentParser:
+@dataclass(frozen=True)
+class Command:
+    module: str                     # defines add_parser(subparsers), which sets a handler
+    summary: str                    # the line in `omni-micro --help`
+    aliases: tuple[str, ...] = ()
+
+
+COMMANDS: dict[str, Command] = {
+    'demo': Command('demo', "the paper's results reproduced: Fig. 11 through the node graph"),
+    'run': Command('run', 'drive the robot to a goal through the ROS 2 node graph'),
+    'view': Command('view', 'serve a running graph to Foxglove (run --view starts this)'),
+    'record': Command('record', "record the graph's topics into a rosbag2 bag until Ctrl-C"),
+    'replay': Command('replay', "publish a bag's messages again, e.g. to feed a node"),
+    'track': Command('track', "run the tracker on a bag's recorded images (a real camera's, "
+                              'say)'),
+    'analyze': Command('analyze', 'figures and a summary of a recorded bag', ('analyse',)),
+    'identify': Command('identify', "the robot's wheel offsets (and friction) from a recorded "
+                                    'run'),
+    'bag-recover': Command('recover', 'make a readable bag from one whose recorder was killed'),
+    'soak': Command('soak', 'many goals in one graph run: memory growth and bag completeness'),
+    'simulate': Command('simulate', 'one open-loop move from rest at the origin (no ROS)'),
+    'figures': Command('figures', "reproduce the paper's open-loop figures and compare its "
+                                  'numbers'),
+    'study': Command('study.command', 'sweeps and Monte Carlo of the loop or of open-loop '
+                                      'moves, on Dask'),
+    'compare-controllers': Command('compare_controllers',
+                                   "the paper's rule against the model-based controller"),
+    'bench': Command('bench', 'benchmark the slip core (ratios against a reference in the '
+                              'same run)'),
+    'bench-graph': Command('bench_graph', 'real-time factor the node graph reaches on Fig. 11, '
+                                          'idle and busy'),
+    'bench-images': Command('bench_images', 'cost of the rendered cameras and the tracker, per '
+                                            'frame and in the loop'),
+    'bench-study': Command('bench_study', 'benchmark studies: plain loop vs 1 and 2 Dask '
+                                          'workers, 1000 runs'),
+}
+ALIASES = {alias: name for name, command in COMMANDS.items() for alias in command.aliases}
+
+
+class _CommandSubparsers:
+    """What a command module's ``add_parser`` is given: argparse's sub-parser action, with the
+    command's summary and aliases taken from :data:`COMMANDS` (one place for each)."""
+
+    def __init__(self, action: argparse._SubParsersAction) -> None:
+        self._action = action
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser:
+        command = COMMANDS[name]
+        return self._action.add_parser(name, help=command.summary,
+                                       aliases=list(command.aliases), **kwargs)
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser, with every command's own arguments, or only ``only``'s (the others are
+    listed with their summary, their modules not imported; ``''``: none imported)."""
     parser = argparse.ArgumentParser(
         prog='omni-micro',
         description='Simulation of the tri-wheeled omnidirectional microrobot of Jin, Chen and '
                     'Li (ICIRA 2008): slip dynamics, overhead cameras, vision-feedback control. '
                     'Lengths are in mm and angles in degrees on the command line; every ROS '
-                    'message is in SI units.')
+                    'message is in SI units.',
+        epilog='Exit codes: 0 done, 1 the work failed (one line says why), 2 a value it cannot '
+               'use (one line names it), 130 interrupted.')
+    parser.add_argument('--debug', action='store_true',
+                        help=f'print the traceback of an unexpected error (or set {DEBUG_ENV}=1)')
     subparsers = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
-    for command in COMMANDS:
-        command.add_parser(subparsers)
+    registrar = _CommandSubparsers(subparsers)
+    for name, command in COMMANDS.items():
+        if only is None or name == only:
+            module = importlib.import_module(f'omni_micro_cli.commands.{command.module}')
+            module.add_parser(registrar)
+        else:
+            subparsers.add_parser(name, help=command.summary, aliases=list(command.aliases),
+                                  add_help=False)
     return parser
+
+
+def command_named(argv: list[str]) -> str | None:
+    """The command the arguments ask for (aliases resolved), or None (none, or unknown)."""
+    for word in argv:
+        if word == '--':
+            return None
+        if not word.startswith('-'):
+            name = ALIASES.get(word, word)
+            return name if name in COMMANDS else None
+    return None
 
 
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _report_unexpected(command: str, error: BaseException) -> str:
+    """Write the traceback to a file and return where, for the one-line message."""
+    folder = Path(tempfile.gettempdir()) / f'omni-micro-{os.getuid()}'
+    folder.mkdir(exist_ok=True)
+    path = folder / f'{command}-{time.strftime("%Y%m%d-%H%M%S")}-{os.getpid()}.log'
+    path.write_text(''.join(traceback.format_exception(error)))
+    return str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     # SIGTERM (e.g. from `timeout` or CI) must unwind like Ctrl-C, so that a running graph is
     # shut down instead of orphaned.
     signal.signal(signal.SIGTERM, _interrupt)
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    arguments = sys.argv[1:] if argv is None else argv
+    # No command named (--help, or a typo): list the commands, import none of them.
+    args = build_parser(command_named(arguments) or '').parse_args(arguments)
+    debug = args.debug or os.environ.get(DEBUG_ENV, '') not in ('', '0')
     try:
         return int(args.handler(args))
-    except (UsageError, ParameterError, CommandError) as error:
-        print(f'omni-micro {args.command}: error: {error}', file=sys.stderr)
-        return 2
-    except (SimulationError, RunFailed) as error:
-        print(f'omni-micro {args.command}: failed: {error}', file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print(f'omni-micro {args.command}: interrupted', file=sys.stderr)
         return 130
+    except (UsageError, RunFailed, OmniMicroError) as error:
+        if debug:
+            traceback.print_exc()
+        # A value the command cannot use is a ValueError; anything else is a failure.
+        if isinstance(error, ValueError):
+            print(f'omni-micro {args.command}: error: {error}', file=sys.stderr)
+            return 2
+        print(f'omni-micro {args.command}: failed: {error}', file=sys.stderr)
+        return 1
+    except Exception as error:
+        if debug:
+            raise
+        where = _report_unexpected(args.command, error)
+        print(f'omni-micro {args.command}: failed unexpectedly: {type(error).__name__}: '
+              f'{error} (traceback in {where}; --debug prints it)', file=sys.stderr)
+        return 1

@@ -14,6 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from omni_micro_common.conventions import (
+    JOINT_NAMES,
+    CaptureUncertainty,
+    body_twist,
+    quaternion_to_yaw,
+    through_stamp,
+    yaw_to_quaternion,
+)
 from omni_micro_control.feedback import (
     FeedbackConfig,
     Finished,
@@ -25,20 +33,12 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
-from omni_micro_common.conventions import (
-    CaptureUncertainty,
-    body_twist,
-    quaternion_to_yaw,
-    through_stamp,
-    yaw_to_quaternion,
-)
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator
 from omni_micro_sim.wheel_trajectory import (
-    JOINT_NAMES,
     TrajectoryPoint,
     command_from_points,
     points_from_profile,

@@ -11,6 +11,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+# The joints of /joint_states and /wheel_trajectory (omni_micro_sim.wheel_trajectory says how a
+# command uses them): the common steering of the three wheels, and each wheel's spin.
+STEERING_JOINT = 'steering_joint'
+WHEEL_JOINTS = ('wheel_1_joint', 'wheel_2_joint', 'wheel_3_joint')
+JOINT_NAMES = (STEERING_JOINT, *WHEEL_JOINTS)
+
 
 def split_stamp(seconds: float) -> tuple[int, int]:
     """(sec, nanosec) of a time in seconds, rounded to the nanosecond."""
@@ -114,7 +120,8 @@ GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
 # Nodes a graph may have besides those three (a params file may have their sections too): the
 # markers, which only listen, the rendered cameras' images and the tracker that turns a
 # camera's images into captures.
-OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node')
+OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recorder',
+                       'omni_micro_viewer')
 
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

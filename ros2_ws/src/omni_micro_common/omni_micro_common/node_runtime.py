@@ -1,4 +1,4 @@
-"""How every omni-micro node process starts, spins and stops (shared by the three packages).
+"""How every omni-micro node process starts, spins and stops (shared by every package).
 
 ``run_node`` is the rclpy examples' main (spin; KeyboardInterrupt / ExternalShutdownException;
 destroy the node; ``try_shutdown``) with one difference. rclpy's own SIGINT handler shuts the
@@ -34,7 +34,6 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
-import yaml
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -49,8 +48,9 @@ from omni_micro_common.conventions import (
     OPTIONAL_NODE_NAMES,
     PUBLISHED_MARKER,
 )
-from omni_micro_sim.errors import ParameterError
+from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+from omni_micro_common.params import WILDCARD_SECTIONS, flatten, read_yaml
 from omni_micro_common.qos import PER_TICK_PUBLISHER_EVENTS
 
 NodeT = TypeVar('NodeT', bound=Node)
@@ -184,9 +184,6 @@ def lifeline_fd() -> int | None:
 
 
 # -- parameters a node was given ---------------------------------------------------------------
-# Sections a params file may have: a node of the graph (with or without its leading slash), or
-# every node ('/**').
-WILDCARD_SECTIONS = ('/**', '**')
 
 
 def params_files(argv: list[str]) -> list[str]:
@@ -196,17 +193,6 @@ def params_files(argv: list[str]) -> list[str]:
         if flag == '--params-file':
             files.append(value)
     return files
-
-
-def _flatten(values: dict[str, Any], prefix: str = '') -> dict[str, Any]:
-    flat: dict[str, Any] = {}
-    for key, value in values.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            flat.update(_flatten(value, f'{name}.'))
-        else:
-            flat[name] = value
-    return flat
 
 
 def _suggestion(word: str, choices: list[str]) -> str:
@@ -227,11 +213,7 @@ def check_given_parameters(node: Node, argv: list[str]) -> None:
     wildcard_keys: set[str] = set()
     origin: dict[str, str] = {}
     for path in params_files(argv):
-        try:
-            with open(path) as handle:
-                content = yaml.safe_load(handle) or {}
-        except (OSError, yaml.YAMLError) as error:
-            raise ParameterError(f'params file {path!r} cannot be read: {error}') from None
+        content = read_yaml(path) or {}
         if not isinstance(content, dict):
             raise ParameterError(f'params file {path!r} must map node names to '
                                  f'{{ros__parameters: ...}}, got {content!r:.100}')
@@ -245,7 +227,7 @@ def check_given_parameters(node: Node, argv: list[str]) -> None:
             if not isinstance(body, dict) or not isinstance(body.get('ros__parameters'), dict):
                 raise ParameterError(f'params file {path!r}: section {section!r} must hold '
                                      f'ros__parameters: {{...}}, got {body!r:.100}')
-            keys = _flatten(body['ros__parameters'])
+            keys = flatten(body['ros__parameters'])
             if section in WILDCARD_SECTIONS:
                 wildcard_keys.update(keys)
             elif bare == name:

@@ -33,6 +33,25 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from omni_micro_common.conventions import (
+    JOINT_NAMES,
+    WHEEL_JOINTS,
+    CaptureUncertainty,
+    join_stamp,
+    quaternion_to_yaw,
+    split_stamp,
+    stamp_ns,
+)
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_common.qos import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_QOS,
+    CAPTURE_TOPICS,
+    DATA_QOS,
+    PER_TICK_SUBSCRIPTION_EVENTS,
+    STATUS_QOS,
+)
 from omni_micro_control.feedback import (
     ControllerConfigError,
     FeedbackConfig,
@@ -45,27 +64,10 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
-from omni_micro_common.conventions import (
-    CaptureUncertainty,
-    join_stamp,
-    quaternion_to_yaw,
-    split_stamp,
-    stamp_ns,
-)
 from omni_micro_sim.errors import CommandError, ParameterError
-from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.profile import move_profile
-from omni_micro_common.qos import (
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_QOS,
-    CAPTURE_TOPICS,
-    DATA_QOS,
-    PER_TICK_SUBSCRIPTION_EVENTS,
-    STATUS_QOS,
-)
-from omni_micro_sim.wheel_trajectory import JOINT_NAMES, WHEEL_JOINTS, points_from_profile
+from omni_micro_sim.wheel_trajectory import points_from_profile
 
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,

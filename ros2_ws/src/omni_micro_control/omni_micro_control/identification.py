@@ -26,7 +26,7 @@ import numpy as np
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
-from omni_micro_sim.simulator import RobotState, run_to_rest
+from omni_micro_sim.state import RobotState
 
 # A 95 % interval is this many standard deviations either side.
 Z_95 = 1.959963984540054
@@ -152,6 +152,10 @@ def inverse(displacement: np.ndarray) -> np.ndarray:
 
 def displacement(robot: RobotParameters, move: RecordedMove) -> np.ndarray:
     """Where ``move`` takes the robot from rest at the origin heading 0: (x, y, phi)."""
+    # The slip core (numba) loads with the first prediction, not with the module: the paper's
+    # mode of controller_node imports this module and never predicts.
+    from omni_micro_sim.simulator import run_to_rest
+
     final, _ = run_to_rest(robot, move.steering_rad, move.profile, RobotState())
     return np.array([final.x_m, final.y_m, final.phi_rad])
 

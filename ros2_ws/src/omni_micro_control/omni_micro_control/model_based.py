@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import (
     ControllerConfigError,
     FeedbackConfig,
@@ -43,7 +44,6 @@ from omni_micro_control.identification import (
     displacement,
     fit_parameters,
 )
-from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile

@@ -13,10 +13,10 @@ Time is owned here and paced by a wall timer at ``real_time_factor`` (``.inf``: 
 graph allows; the node itself never uses sim time). While ``paused`` is true the clock stands
 still, which lets an orchestrator bring the whole graph up before time 0 moves.
 
-Lockstep (``lockstep_nodes``, see :mod:`omni_micro_common.lockstep`): simulated time goes no further
-than the reports on /lockstep of the named nodes allow, so a busy machine slows a run down but
-never changes it. An empty list (the default for a node started alone) runs free, as a real
-camera driver that does not report would need.
+Lockstep (``lockstep_nodes``, see :mod:`omni_micro_common.lockstep`): simulated time goes no
+further than the reports on /lockstep of the named nodes allow, so a busy machine slows a run
+down but never changes it. An empty list (the default for a node started alone) runs free, as
+a real camera driver that does not report would need.
 """
 
 from __future__ import annotations
@@ -35,15 +35,14 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from omni_micro_sim import paper
 from omni_micro_common.conventions import (
+    JOINT_NAMES,
     body_twist,
     join_stamp,
     split_stamp,
     stamp_ns,
     yaw_to_quaternion,
 )
-from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_common.lockstep import (
     ACK_TOPIC,
     DEFAULT_MAX_LEAD_S,
@@ -51,12 +50,13 @@ from omni_micro_common.lockstep import (
     LockstepGate,
 )
 from omni_micro_common.node_runtime import LOCKSTEP_QOS, PublicationCounter, decode_ack, run_node
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim import paper
+from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
+from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
+from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
-    JOINT_NAMES,
     TrajectoryPoint,
     command_from_points,
 )

@@ -1,16 +1,16 @@
-"""Errors raised by the slip core. Each names the offending value and what was expected."""
+"""Errors raised by the slip core. Each names the offending value and what was expected.
+
+A bad parameter or command is the same error in every package (:mod:`omni_micro_common.errors`),
+so that one ``except ParameterError`` catches it wherever it was raised.
+"""
+
+from omni_micro_common.errors import CommandError, OmniMicroError, ParameterError
+
+__all__ = ['CommandError', 'OmniMicroSimError', 'ParameterError', 'SimulationError']
 
 
-class OmniMicroSimError(Exception):
-    """Base class of every error raised by omni_micro_sim."""
-
-
-class ParameterError(OmniMicroSimError, ValueError):
-    """A robot or motor parameter is outside its physical range."""
-
-
-class CommandError(OmniMicroSimError, ValueError):
-    """A wheel command (speed profile, steering angle, move duration) is malformed."""
+class OmniMicroSimError(OmniMicroError):
+    """Base class of the errors only the slip core raises."""
 
 
 class SimulationError(OmniMicroSimError, RuntimeError):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_sim import kernels
+from omni_micro_sim import knots
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits
 
@@ -65,8 +65,10 @@ class WheelSpeedProfile:
     def speeds_at(self, time_s: float) -> np.ndarray:
         """Speeds of the three wheels at ``time_s`` after the start of the move."""
         speeds = np.empty(WHEEL_COUNT)
-        # The kernel the integrator uses: one definition of the interpolation, and no per-wheel
-        # Python loop in the closed loop's per-tick path.
+        # The kernel the integrator uses: no per-wheel Python loop in the closed loop's per-tick
+        # path. Imported here: building a command (rotation_until) must not load numba.
+        from omni_micro_sim import kernels
+
         kernels.speeds_at(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
                           self.knot_times_s.size, speeds)
         return speeds
@@ -81,7 +83,7 @@ class WheelSpeedProfile:
         The speeds are piecewise linear, so the trapezoid rule over the knots is exact.
         """
         rotation = np.empty(WHEEL_COUNT)
-        kernels.rotation_until(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
+        knots.rotation_until(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
                                self.knot_times_s.size, rotation)
         return rotation
 
@@ -134,3 +136,19 @@ def move_profile(duration_s: float, limits: MotorLimits | None = None) -> WheelS
         times = [0.0, up, up + peak / limits.deceleration_rad_s2]
         speeds = [0.0, peak, 0.0]
     return WheelSpeedProfile(np.array(times), np.array(speeds))
+
+
+@dataclass(frozen=True)
+class WheelCommand:
+    """A steering angle and wheel speed profile to start at ``start_s`` (simulated seconds).
+
+    ``profile=None`` is a stop: the wheels ramp down at the motors' deceleration.
+    """
+
+    start_s: float
+    steering_rad: float = 0.0
+    profile: WheelSpeedProfile | None = None
+
+    @property
+    def is_stop(self) -> bool:
+        return self.profile is None

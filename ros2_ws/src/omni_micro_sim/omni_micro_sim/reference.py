@@ -16,7 +16,8 @@ from omni_micro_sim import kernels
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
-from omni_micro_sim.simulator import RobotState, wheel_headings_rad
+from omni_micro_sim.simulator import wheel_headings_rad
+from omni_micro_sim.state import RobotState
 
 
 def solve_ivp_reference(params: RobotParameters, steering_rad: float,

@@ -17,9 +17,10 @@ from omni_micro_sim import kernels
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import KERNEL_INDEX, MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
+from omni_micro_sim.state import RobotState
 
 # RK4 step: with p = 1000 the fastest friction time constant is ~0.4 ms; 0.4 ms steps agree with
-# a solve_ivp reference at rtol 1e-10 to far better than 0.1 um (tests/sim/test_accuracy.py).
+# a solve_ivp reference at rtol 1e-10 to far better than 0.1 um (tests/sim/test_physics.py).
 DEFAULT_MAX_STEP_S = 4.0e-4
 # "At rest": translation and rim speed of the rotation below 1 nm/s.
 DEFAULT_REST_SPEED_M_S = 1.0e-9
@@ -33,41 +34,6 @@ class MotionStatus(enum.Enum):
     IDLE = 'idle'          # no command running and at rest
     MOVING = 'moving'      # executing a wheel speed profile
     SETTLING = 'settling'  # profile finished, the body still slides
-
-
-@dataclass(frozen=True)
-class RobotState:
-    """Pose and velocity in the inertial (platform) frame, SI units."""
-
-    x_m: float = 0.0
-    y_m: float = 0.0
-    phi_rad: float = 0.0
-    vx_m_s: float = 0.0
-    vy_m_s: float = 0.0
-    omega_rad_s: float = 0.0
-
-    def __post_init__(self) -> None:
-        values = (self.x_m, self.y_m, self.phi_rad, self.vx_m_s, self.vy_m_s, self.omega_rad_s)
-        # The simulator builds two states per tick from floats: check those in one pass.
-        if all(type(value) is float and math.isfinite(value) for value in values):
-            return
-        for name in ('x_m', 'y_m', 'phi_rad', 'vx_m_s', 'vy_m_s', 'omega_rad_s'):
-            try:
-                object.__setattr__(self, name, require_finite(name, getattr(self, name)))
-            except ValueError as error:
-                raise SimulationError(f'robot state: {error}') from None
-
-    def as_array(self) -> np.ndarray:
-        return np.array([self.x_m, self.y_m, self.phi_rad, self.vx_m_s, self.vy_m_s,
-                         self.omega_rad_s])
-
-    @classmethod
-    def from_array(cls, values: np.ndarray) -> RobotState:
-        return cls(*np.asarray(values, dtype=np.float64).tolist())
-
-    @property
-    def speed_m_s(self) -> float:
-        return math.hypot(self.vx_m_s, self.vy_m_s)
 
 
 @dataclass(frozen=True)

@@ -16,33 +16,17 @@ import numpy as np
 
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
-from omni_micro_sim.profile import WheelSpeedProfile
+from omni_micro_sim.profile import WheelCommand
 from omni_micro_sim.simulator import (
     ContactSlip,
     MotionStatus,
-    RobotState,
     SlipSimulator,
 )
+from omni_micro_sim.state import RobotState
 
 # 50 Hz of simulated time: fine enough for the 0.05 s moves, coarse enough that a Python graph
 # keeps up at a real-time factor of 10 on two cores.
 DEFAULT_PERIOD_S = 0.02
-
-
-@dataclass(frozen=True)
-class WheelCommand:
-    """A steering angle and wheel speed profile to start at ``start_s`` (simulated seconds).
-
-    ``profile=None`` is a stop: the wheels ramp down at the motors' deceleration.
-    """
-
-    start_s: float
-    steering_rad: float = 0.0
-    profile: WheelSpeedProfile | None = None
-
-    @property
-    def is_stop(self) -> bool:
-        return self.profile is None
 
 
 @dataclass(frozen=True)

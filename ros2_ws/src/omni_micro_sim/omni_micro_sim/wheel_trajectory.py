@@ -21,14 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_micro_common.conventions import JOINT_NAMES
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits
-from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile
-from omni_micro_sim.stepper import WheelCommand
-
-STEERING_JOINT = 'steering_joint'
-WHEEL_JOINTS = ('wheel_1_joint', 'wheel_2_joint', 'wheel_3_joint')
-JOINT_NAMES = (STEERING_JOINT, *WHEEL_JOINTS)
+from omni_micro_sim.profile import WHEEL_COUNT, WheelCommand, WheelSpeedProfile
 
 
 @dataclass(frozen=True)

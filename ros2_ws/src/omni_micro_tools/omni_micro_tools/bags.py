@@ -13,88 +13,27 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from rosbags.interfaces import (
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_tools.errors import BagDamagedError, BagPathError
+from omni_micro_tools.topics import (
+    GRAPH_TOPICS,
+    STORAGE_NAMES,
+    TopicSpec,
+)
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
+assert tuple(STORAGES) == STORAGE_NAMES
 BAG_VERSION: Final = 9
 
 
-@dataclass(frozen=True)
-class TopicSpec:
-    msgtype: str
-    depth: int
-    latched: bool = False
-
-    def qos(self) -> Qos:
-        """The QoS the graph's publisher offers, as metadata.yaml records it (zero durations:
-        rclpy's defaults, no deadline or lifespan)."""
-        zero = QosTime(0, 0)
-        durability = QosDurability.TRANSIENT_LOCAL if self.latched else QosDurability.VOLATILE
-        return Qos(QosHistory.KEEP_LAST, self.depth, QosReliability.RELIABLE, durability,
-                   zero, zero, QosLiveliness.AUTOMATIC, zero, False)
-
-
-# Every topic of the graph (README, "The node graph").
-# What markers_node draws (a run without --no-markers records it too).
-MARKERS_TOPIC = '/markers'
-GRAPH_TOPICS: dict[str, TopicSpec] = {
-    '/clock': TopicSpec('rosgraph_msgs/msg/Clock', 1000),
-    '/odom': TopicSpec('nav_msgs/msg/Odometry', 1000),
-    '/joint_states': TopicSpec('sensor_msgs/msg/JointState', 1000),
-    '/wheel_slip': TopicSpec('sensor_msgs/msg/JointState', 1000),
-    '/wheel_trajectory': TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
-    '/camera/macro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
-    '/camera/micro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
-    '/camera/macro/pose_with_covariance': TopicSpec(
-        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
-    '/camera/micro/pose_with_covariance': TopicSpec(
-        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
-    '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
-    '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
-    '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
-    MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
-}
-# The rendered cameras' streams (run --vision images): recorded only when asked
-# (--record-images), a megabyte a frame. Depth as omni_micro_common.qos.IMAGE_QOS.
-IMAGE_TOPICS: dict[str, TopicSpec] = {
-    f'/camera/{camera}/{stream}': TopicSpec(f'sensor_msgs/msg/{kind}', 10)
-    for camera in ('macro', 'micro')
-    for stream, kind in (('image_raw', 'Image'), ('camera_info', 'CameraInfo'))}
-RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
-
-
-def check_output_path(path: Path, force: bool) -> None:
-    """Refuse to overwrite, unless ``force`` and the path is a bag (never an arbitrary folder)."""
-    if not path.exists():
-        # Made here, as demo does: a newcomer's `--record out/bags/mine` should just work.
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return
-    if not force:
-        raise UsageError(f'{str(path)!r} exists already; give --force to replace it')
-    looks_like_bag = path.is_dir() and all(
-        child.name == 'metadata.yaml' or child.suffix in ('.mcap', '.db3')
-        for child in path.iterdir())
-    if not looks_like_bag:
-        raise UsageError(f'{str(path)!r} exists and is not a bag; not replacing it even with '
-                         f'--force')
-    shutil.rmtree(path)
 
 
 def open_writer(path: Path, storage: str, topics: dict[str, TopicSpec]) -> tuple[Writer, dict]:
     if storage not in STORAGES:
-        raise UsageError(f'unknown storage {storage!r}: expected one of {sorted(STORAGES)}')
+        raise BagPathError(f'unknown storage {storage!r}: expected one of {sorted(STORAGES)}')
     writer = Writer(path, version=BAG_VERSION, storage_plugin=STORAGES[storage])
     writer.open()
     connections = {topic: writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE,
@@ -158,7 +97,7 @@ def _recovered_topics(source: Path) -> Iterator[tuple[str, str, int, bytes]]:
         finally:
             connection.close()
     else:
-        raise UsageError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
+        raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
 
 
 def recover(source: Path, target: Path, storage: str = 'mcap') -> dict[str, int]:
@@ -167,7 +106,7 @@ def recover(source: Path, target: Path, storage: str = 'mcap') -> dict[str, int]
     Returns the message count per topic.
     """
     if not source.is_dir():
-        raise UsageError(f'{str(source)!r} is not a bag folder')
+        raise BagPathError(f'{str(source)!r} is not a bag folder')
     counts: dict[str, int] = {}
     writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
     writer.open()
@@ -187,7 +126,7 @@ def recover(source: Path, target: Path, storage: str = 'mcap') -> dict[str, int]
     writer.close()
     if not counts:
         shutil.rmtree(target, ignore_errors=True)
-        raise RunFailed(f'no complete message could be recovered from {str(source)!r}')
+        raise BagDamagedError(f'no complete message could be recovered from {str(source)!r}')
     return counts
 
 
@@ -202,18 +141,18 @@ class BagMessages:
 
 
 def check_readable_bag(path: Path) -> None:
-    """Raises UsageError saying why ``path`` is not a bag that can be read, and what to do."""
+    """Raises BagPathError saying why ``path`` is not a bag that can be read, and what to do."""
     if not path.exists():
-        raise UsageError(f'{str(path)!r} does not exist')
+        raise BagPathError(f'{str(path)!r} does not exist')
     if not path.is_dir():
-        raise UsageError(f'{str(path)!r} is a file: a rosbag2 bag is a folder with a '
-                         f'metadata.yaml (give the folder)')
+        raise BagPathError(f'{str(path)!r} is a file: a rosbag2 bag is a folder with a '
+                           f'metadata.yaml (give the folder)')
     if (path / 'metadata.yaml').is_file():
         return
     if any(child.suffix in ('.mcap', '.db3') for child in path.iterdir()):
-        raise UsageError(f'{str(path)!r} holds a bag file but no metadata.yaml: its recorder '
-                         f'was killed; recover it with: omni-micro bag-recover {path}')
-    raise UsageError(f'{str(path)!r} is not a bag: no metadata.yaml and no .mcap or .db3 file')
+        raise BagPathError(f'{str(path)!r} holds a bag file but no metadata.yaml: its recorder '
+                           f'was killed; recover it with: omni-micro bag-recover {path}')
+    raise BagPathError(f'{str(path)!r} is not a bag: no metadata.yaml and no .mcap or .db3 file')
 
 
 def bag_topics(path: Path) -> list[str]:

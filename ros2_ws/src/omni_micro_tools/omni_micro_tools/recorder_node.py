@@ -1,8 +1,20 @@
-"""The recorder's node: raw messages of the graph's topics into a rosbag2 bag (`record`)."""
+"""``bag_recorder``: raw messages of the graph's topics into a rosbag2 bag.
+
+It is what ``ros2 bag record --use-sim-time`` would be: raw (still serialized) messages, each
+stamped with the simulated time at which it arrived, into an mcap (default) or sqlite3 bag with
+metadata version 9. Every 0.5 s of wall time the data written so far is pushed to the file, so a
+SIGKILL loses at most that much (recover with ``omni-micro bag-recover``).
+
+Parameters (``config/bag_recorder.yaml``): ``bag`` (the folder to create; required, must not
+exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic of the graph but the
+images), ``lockstep_frames`` (report written frames on /lockstep, so that a graph in lockstep
+waits for the disk as for its tracker). ``omni-micro record`` and ``run --record`` start it.
+"""
 
 from __future__ import annotations
 
 import struct
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -13,11 +25,14 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_tools.bags import IMAGE_TOPICS, TopicSpec, flush, open_writer
-from omni_micro_cli.orchestration.graph import message_class
+from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter
+from omni_micro_common.messages import message_class
+from omni_micro_common.node_runtime import LockstepReporter, run_node
 from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_tools.bags import STORAGES, flush, open_writer
+from omni_micro_tools.errors import BagPathError
+from omni_micro_tools.topics import GRAPH_TOPICS, IMAGE_TOPICS, RECORDABLE_TOPICS
 
 # Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
 FLUSH_PERIOD_S = 0.5
@@ -26,10 +41,25 @@ FLUSH_PERIOD_S = 0.5
 class BagRecorder(Node):
     """Writes each message as it arrives, stamped with the simulated time of its arrival."""
 
-    def __init__(self, bag: Path, storage: str, topics: dict[str, TopicSpec],
-                 lockstep_frames: bool = False) -> None:
-        super().__init__('bag_recorder',
-                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+    def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
+        super().__init__('bag_recorder', parameter_overrides=[
+            Parameter('use_sim_time', value=True), *(parameter_overrides or [])])
+        bag = Path(self.declare_parameter('bag', '').value)
+        storage = self.declare_parameter('storage', 'mcap').value
+        names = list(self.declare_parameter('topics', list(GRAPH_TOPICS)).value)
+        lockstep_frames = bool(self.declare_parameter('lockstep_frames', False).value)
+        if str(bag) in ('', '.'):
+            raise ParameterError('bag must name the folder to record into, got none')
+        if storage not in STORAGES:
+            raise ParameterError(f'storage must be one of {sorted(STORAGES)}, got {storage!r}')
+        unknown = [name for name in names if name not in RECORDABLE_TOPICS]
+        if unknown or not names:
+            raise ParameterError(f'topics must be some of {sorted(RECORDABLE_TOPICS)}, '
+                                 f'got {names}')
+        if bag.exists():
+            raise ParameterError(f'bag {str(bag)!r} exists already: not recording over it')
+        topics = {name: RECORDABLE_TOPICS[name] for name in names}
+        self.bag = bag
         self.writer, self.connections = open_writer(bag, storage, topics)
         self.counts = dict.fromkeys(topics, 0)
         self._closed = False
@@ -95,3 +125,21 @@ class BagRecorder(Node):
         if not self._closed:
             self._closed = True
             self.writer.close()
+
+
+def report_and_close(recorder: BagRecorder) -> None:
+    recorder.close()
+    print(f'recorded {sum(recorder.counts.values())} messages into {recorder.bag}: '
+          + ', '.join(f'{topic} {count}' for topic, count in recorder.counts.items()),
+          file=sys.stderr)
+
+
+def main(args: list[str] | None = None) -> None:
+    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
+    # (metadata.yaml written) and ends the process.
+    run_node(BagRecorder, config_errors=(BagPathError,), on_shutdown=report_and_close,
+             args=args)
+
+
+if __name__ == '__main__':
+    main()

@@ -4,10 +4,15 @@ Each topic becomes a Foxglove channel with ``cdr`` encoding and its type's ``ros
 Foxglove decodes them as it does from foxglove_bridge. It only listens, best effort: a viewer
 never holds up a publisher, and the Foxglove SDK drops frames for a client that reads slowly.
 The server advertises no capability: clients cannot publish, call services or set parameters.
+
+Parameters (``config/viewer.yaml``): ``host`` (default 127.0.0.1: loopback only), ``port``
+(default 8765; 0 for any free one), ``markers`` (serve /markers; false for a graph without
+markers_node). ``omni-micro view`` and ``run --view`` start it.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -15,8 +20,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_tools.bags import GRAPH_TOPICS, TYPESTORE, TopicSpec
-from omni_micro_cli.orchestration.graph import message_class
+from omni_micro_common.errors import ParameterError
+from omni_micro_common.messages import message_class
+from omni_micro_common.node_runtime import run_node
+from omni_micro_tools.bags import TYPESTORE
+from omni_micro_tools.topics import GRAPH_TOPICS, TopicSpec
 
 # Topics a viewer needs, in the order a layout reads them.
 VIEW_TOPICS = ('/markers', '/odom', '/camera/macro/pose', '/camera/micro/pose',
@@ -35,11 +43,16 @@ def ros2msg_schema(msgtype: str) -> bytes:
 
 
 class Viewer(Node):
-    def __init__(self, host: str, port: int, topics: dict[str, TopicSpec]) -> None:
+    def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
         import foxglove
 
-        super().__init__('omni_micro_viewer',
-                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        super().__init__('omni_micro_viewer', parameter_overrides=[
+            Parameter('use_sim_time', value=True), *(parameter_overrides or [])])
+        host = str(self.declare_parameter('host', '127.0.0.1').value)
+        port = self.declare_parameter('port', 8765).value
+        topics = view_topics(bool(self.declare_parameter('markers', True).value))
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ParameterError(f'port must be a whole number in 0-65535, got {port!r}')
         self.server = foxglove.start_server(name='omni-micro', host=host, port=port,
                                             capabilities=[],
                                             message_backlog_size=BACKLOG_MESSAGES)
@@ -67,6 +80,20 @@ class Viewer(Node):
 
     def stop(self) -> None:
         self.server.stop()
+
+
+def stop_and_report(viewer: Viewer) -> None:
+    viewer.stop()
+    print(f'live view stopped after forwarding {sum(viewer.forwarded.values())} messages',
+          file=sys.stderr)
+
+
+def main(args: list[str] | None = None) -> None:
+    run_node(Viewer, config_errors=(), on_shutdown=stop_and_report, args=args)
+
+
+if __name__ == '__main__':
+    main()
 
 
 def view_topics(markers: bool = True) -> dict[str, TopicSpec]:

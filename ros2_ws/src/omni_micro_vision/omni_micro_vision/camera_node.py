@@ -26,7 +26,7 @@ from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_s
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.node_runtime import LockstepReporter, run_node
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 from omni_micro_vision.imaging import Sensor, checked_cameras, checked_yaw, render
 

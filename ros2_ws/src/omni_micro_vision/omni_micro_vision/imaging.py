@@ -31,7 +31,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
 
 

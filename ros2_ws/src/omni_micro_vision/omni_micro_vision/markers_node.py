@@ -27,7 +27,12 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
+from omni_micro_common.conventions import (
+    STEERING_JOINT,
+    CaptureUncertainty,
+    quaternion_to_yaw,
+    stamp_ns,
+)
 from omni_micro_common.node_runtime import run_node
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -36,7 +41,6 @@ from omni_micro_common.qos import (
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
 )
-from omni_micro_sim.wheel_trajectory import STEERING_JOINT
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel, CameraRig
 from omni_micro_vision.imaging import checked_yaw
 from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of

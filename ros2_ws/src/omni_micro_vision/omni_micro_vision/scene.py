@@ -14,7 +14,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from omni_micro_sim.wheel_trajectory import STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_common.conventions import STEERING_JOINT, WHEEL_JOINTS
 from omni_micro_vision.camera import CameraRig
 
 Colour = tuple[float, float, float, float]

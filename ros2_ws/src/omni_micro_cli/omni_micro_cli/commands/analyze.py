@@ -12,15 +12,15 @@ import numpy as np
 
 from omni_micro_cli import plots
 from omni_micro_cli.arguments import positive_int
-from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_control.feedback import OUTCOME_NAMES
+from omni_micro_tools.bags import read_bag
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'analyze', aliases=['analyse'], help='figures and a summary of a recorded bag',
+        'analyze',
         description='From a bag alone: the route against the ideal straight route (Figs. 8(c), '
                     '11) with the capture points, each wheel\'s longitudinal and transverse slip '
                     'against time (Fig. 8(a)(b)), the distance left after each period, and a '

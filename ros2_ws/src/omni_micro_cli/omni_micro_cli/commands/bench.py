@@ -25,7 +25,7 @@ from omni_micro_sim.simulator import simulate_open_loop_batch
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'bench', help='benchmark the slip core (ratios against a reference in the same run)',
+        'bench',
         description='Time the slip core on the 7 s open-loop move of Fig. 11 against '
                     "solve_ivp(method='LSODA', rtol=1e-9) with a plain-Python right-hand side, "
                     'and a batch of open-loop moves (a fine Fig. 7 sweep). Prints figures; '
@@ -87,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     _log(f'reference: LSODA rtol 1e-9, plain-Python rhs (up to {args.reference_timeout:g} s)...')
     environment = dict(os.environ, NUMBA_DISABLE_JIT='1')
     child = subprocess.run(
-        [sys.executable, '-c', 'from omni_micro_cli.commands.bench import reference_main; reference_main()',
+        [sys.executable, '-c',
+         'from omni_micro_cli.commands.bench import reference_main; reference_main()',
          repr(result.rest_time_s)], env=environment, capture_output=True, text=True,
         timeout=args.reference_timeout, check=True)
     reference = json.loads(child.stdout.strip().splitlines()[-1])

@@ -19,7 +19,8 @@ import tempfile
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
 
@@ -33,7 +34,7 @@ CASES = (('lockstep --rtf max, idle', math.inf, True, 0),
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'bench-graph', help="real-time factor the node graph reaches on Fig. 11, idle and busy",
+        'bench-graph',
         description='Run the Fig. 11 closed loop, recorded, through the node graph in lockstep '
                     'at --rtf max (idle, one and two cores kept busy by other programs) and '
                     'free-running at --rtf 20, and print the real-time factor each reached, '

@@ -23,10 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli.arguments import positive_int
-from omni_micro_tools.bags import IMAGE_TOPICS, read_bag
-from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
+from omni_micro_tools.bags import read_bag
+from omni_micro_tools.topics import IMAGE_TOPICS
 
 # Where the robot is for each per-frame case: (camera, label, x, y, heading, speed along x).
 FRAME_CASES = (('macro', 'robot still', 0.05, 0.01, 0.3, 0.0),
@@ -38,8 +40,7 @@ FRAME_CASES = (('macro', 'robot still', 0.05, 0.01, 0.3, 0.0),
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'bench-images', help='cost of the rendered cameras and the tracker, per frame and in '
-                             'the loop',
+        'bench-images',
         description='Time render and track per frame for each camera at the default sizes '
                     '(1280 x 1024, mono8), then run Fig. 11 through the node graph with '
                     '--vision images and --vision model (lockstep, --rtf max; idle, and images '
@@ -65,7 +66,7 @@ def _median_ms(action: Callable[[int], object], count: int) -> float:
 
 
 def frame_costs(frames: int) -> list[dict[str, object]]:
-    from omni_micro_sim.simulator import RobotState
+    from omni_micro_sim.state import RobotState
     from omni_micro_vision.camera import DEFAULT_RIG, CameraModel
     from omni_micro_vision.imaging import Sensor, render, track
 

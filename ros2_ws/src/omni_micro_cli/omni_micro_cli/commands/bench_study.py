@@ -20,16 +20,16 @@ import tempfile
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.errors import UsageError
 from omni_micro_cli.commands.study.execute import Execution, execute, prepare_directory
 from omni_micro_cli.commands.study.spec import Study, parse_study
+from omni_micro_cli.errors import UsageError
 
 EXAMPLE = Path(__file__).with_name('study') / 'example.yaml'
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'bench-study', help='benchmark studies: plain loop vs 1 and 2 Dask workers, 1000 runs',
+        'bench-study',
         description=__doc__.split('\n\n', 1)[1].replace('\n', ' '))
     parser.add_argument('--runs', type=non_negative_int, default=200, metavar='N',
                         help='runs of the loop and scaling measurements (default 200)')

@@ -22,12 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_cli.twin import ClosedLoopResult, run_closed_loop
 from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.twin import ClosedLoopResult, run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig, Outcome
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim.parameters import RobotParameters
-from omni_micro_sim.simulator import RobotState
+from omni_micro_sim.state import RobotState
 
 OFFSET_RANGE_DEG = 5.0
 MICRO_GOAL_HALF_WIDTH_M = 0.8e-3     # goals well inside the 2 mm micro field
@@ -35,7 +35,7 @@ MICRO_GOAL_HALF_WIDTH_M = 0.8e-3     # goals well inside the 2 mm micro field
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'compare-controllers', help="the paper's rule against the model-based controller",
+        'compare-controllers',
         description=__doc__.split('\n\n', 1)[1].replace('\n', ' ') + ' Writes a table, a '
                     'figure and one JSON row per case; prints the table. Exit 0 when done.')
     parser.add_argument('--cases', type=non_negative_int, default=100, metavar='N',

@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli import plots
-from omni_micro_cli.commands import figures
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
-from omni_micro_tools.bags import check_output_path
-from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.graph import GraphOptions, GraphResult, run_graph
-from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.commands import figures
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import GraphResult, run_graph
+from omni_micro_cli.outputs import check_output_path, staged_directory
 from omni_micro_sim import paper
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
@@ -33,7 +33,7 @@ RUNS = ('open_loop', 'closed_loop', 'model', 'images')
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'demo', help="the paper's results reproduced: Fig. 11 through the node graph",
+        'demo',
         description="Run the paper's Fig. 11 scenario, (0,0) -> (100,0) mm, through the ROS 2 "
                     "node graph: one open-loop move of 7 s, then vision feedback by the "
                     "paper's rule, then by the model-based controller, then by the paper's "

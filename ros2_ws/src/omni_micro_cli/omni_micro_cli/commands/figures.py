@@ -21,7 +21,7 @@ TRACE_INTERVAL_S = 1e-3
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'figures', help="reproduce the paper's open-loop figures and compare its numbers",
+        'figures',
         description="Reproduce Figs. 6, 7, 8(a)(b)(c) and the open-loop route of Fig. 11 as PNG "
                     "files and write comparison.md (the paper's numbers beside ours) and "
                     "figures.json into DIR.")

@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from omni_micro_tools.bags import read_bag
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text
+from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_control.feedback import Observation, mean_observation
 from omni_micro_control.identification import (
     OFFSETS,
@@ -37,10 +37,10 @@ from omni_micro_control.identification import (
     Stop,
     fit_parameters,
 )
-from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points
+from omni_micro_tools.bags import read_bag
 
 CAMERAS = ('macro', 'micro')
 DEFAULT_FIT = ('xi2', 'xi3', 'mu_longitudinal', 'mu_transverse', 'cantilever_offset_m')
@@ -57,7 +57,7 @@ def parameter_names(text: str) -> tuple[str, ...]:
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'identify', help="the robot's wheel offsets (and friction) from a recorded run",
+        'identify',
         description="Least-squares fit of the robot's unknown parameters to a recorded run: "
                     'the moves on /wheel_trajectory and the stationary captures on the '
                     'camera topics, nothing else. Prints each parameter with its 95 %% '

@@ -1,24 +1,20 @@
-"""`omni-micro record`: a recorder node writing the graph's topics into a rosbag2 bag.
+"""`omni-micro record`: omni_micro_tools' bag_recorder node, from the command line.
 
-It is what `ros2 bag record --use-sim-time` would be: raw (still serialized) messages, each
-stamped with the simulated time at which it arrived, into an mcap (default) or sqlite3 bag with
-metadata version 9. Every 0.5 s of wall time the data written so far is pushed to the file, so a
-SIGKILL loses at most that much (recover with `omni-micro bag-recover`). The orchestration
-starts this as its own process with `run --record BAG`.
+``run --record BAG`` starts the same node as a process of the graph.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_tools.bags import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGES, check_output_path
+from omni_micro_cli.outputs import check_output_path
+from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGE_NAMES
 
 
 def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap',
+    parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
                         help="bag storage (default mcap, Jazzy's default)")
     parser.add_argument('--force', action='store_true',
                         help='replace an existing bag at the output path')
@@ -26,7 +22,7 @@ def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'record', help="record the graph's topics into a rosbag2 bag until Ctrl-C",
+        'record',
         description='Record every topic of the omni-micro graph (or --topics) from the DDS '
                     'domain ROS_DOMAIN_ID (or --domain-id) into a rosbag2 bag, timestamps in '
                     'simulated time. `run --record BAG` does this for you.')
@@ -45,21 +41,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_tools.recorder_node import BagRecorder
+    from rclpy.parameter import Parameter
+
     from omni_micro_common.node_runtime import run_node
+    from omni_micro_tools.recorder_node import BagRecorder, report_and_close
 
     check_output_path(args.bag, args.force)
-    topics = {name: RECORDABLE_TOPICS[name] for name in (args.topics or GRAPH_TOPICS)}
-
-    def finish(recorder: BagRecorder) -> None:
-        recorder.close()
-        print(f'recorded {sum(recorder.counts.values())} messages into {args.bag}: '
-              + ', '.join(f'{topic} {count}' for topic, count in recorder.counts.items()),
-              file=sys.stderr)
-
-    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
-    # (metadata.yaml written) through finish(), and ends the process.
-    run_node(lambda: BagRecorder(args.bag, args.storage, topics, args.lockstep_frames),
-             config_errors=(),
-             on_shutdown=finish, domain_id=args.domain_id)
+    overrides = [Parameter('bag', value=str(args.bag)), Parameter('storage', value=args.storage),
+                 Parameter('topics', value=list(args.topics or GRAPH_TOPICS)),
+                 Parameter('lockstep_frames', value=bool(args.lockstep_frames))]
+    run_node(lambda: BagRecorder(overrides), config_errors=(), on_shutdown=report_and_close,
+             domain_id=args.domain_id)
     return 0

@@ -6,12 +6,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from omni_micro_tools.bags import STORAGES, check_output_path, recover
+from omni_micro_cli.outputs import check_output_path
+from omni_micro_tools.bags import recover
+from omni_micro_tools.topics import STORAGE_NAMES
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'bag-recover', help='make a readable bag from one whose recorder was killed',
+        'bag-recover',
         description='A recorder killed with SIGKILL leaves a bag without metadata.yaml (and an '
                     'mcap file without its footer), which readers refuse. This copies every '
                     'complete message into a new bag (default BAG-recovered); the recorder '
@@ -20,7 +22,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='the folder of a bag whose recorder was killed (an .mcap or .db3 '
                              'file and no metadata.yaml)')
     parser.add_argument('--out', type=Path, metavar='DIR', help='default: BAG-recovered')
-    parser.add_argument('--storage', choices=sorted(STORAGES), default='mcap',
+    parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
                         help='storage of the recovered bag (default mcap)')
     parser.add_argument('--force', action='store_true', help='replace an existing --out bag')
     parser.set_defaults(handler=run)

@@ -9,13 +9,14 @@ import time
 from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_tools.bags import RECORDABLE_TOPICS, bag_topics, read_bag
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_tools.bags import bag_topics, read_bag
+from omni_micro_tools.topics import RECORDABLE_TOPICS
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'replay', help="publish a bag's messages again, e.g. to feed a node",
+        'replay',
         description='Publish the messages of a bag on their topics with their original '
                     'spacing divided by --rate, into the DDS domain ROS_DOMAIN_ID (or '
                     '--domain-id), loopback only. /clock is replayed only with --clock, so '
@@ -75,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from omni_micro_cli.orchestration.graph import message_class
     from omni_micro_common.lockstep import ACK_TOPIC, LockstepError
+    from omni_micro_common.messages import message_class
     from omni_micro_common.node_runtime import LOCKSTEP_QOS, decode_ack
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

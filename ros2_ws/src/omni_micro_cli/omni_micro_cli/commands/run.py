@@ -16,17 +16,13 @@ from omni_micro_cli.arguments import (
     positive_float,
     probability,
 )
-from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.graph import (
-    VISION_MODES,
-    GraphOptions,
-    GraphResult,
-    check_params_file,
-    run_graph,
-)
-from omni_micro_cli.orchestration.platform_bounds import check_goal
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.orchestration.composition import VISION_MODES, GraphOptions
+from omni_micro_cli.orchestration.graph import GraphResult, run_graph
+from omni_micro_cli.orchestration.parameters import check_params_file
+from omni_micro_cli.orchestration.platform_bounds import check_goal
 from omni_micro_control.feedback import MODES
 
 
@@ -83,7 +79,7 @@ def controller_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'run', help='drive the robot to a goal through the ROS 2 node graph',
+        'run',
         description='Start dynamics_node, vision_node and controller_node as three processes '
                     '(with --vision images, camera_node and tracker_node in place of '
                     'vision_node; loopback only, private ROS_DOMAIN_ID), drive the robot from '

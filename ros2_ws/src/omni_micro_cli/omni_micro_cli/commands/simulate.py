@@ -8,12 +8,12 @@ import math
 import time
 
 from omni_micro_cli.arguments import finite_float, float_list, positive_float
-from omni_micro_sim import RobotParameters, simulate_open_loop
+from omni_micro_sim.parameters import RobotParameters
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'simulate', help='one open-loop move from rest at the origin (no ROS)',
+        'simulate',
         description='Run one open-loop move of the paper\'s section 3.5 from rest at the origin '
                     'with phi = 0: ramp to 8.7 rad/s at 50 rad/s^2, hold, ramp down, so that '
                     'the wheels turn by 8.7 rad/s times DURATION; then wait until the robot is '
@@ -39,6 +39,8 @@ def run(args: argparse.Namespace) -> int:
                            math.radians(args.xi_deg[2])),
         wheel1_active=not args.passive_wheel1)
     started = time.perf_counter()
+    from omni_micro_sim.simulator import simulate_open_loop  # numba: only when a move runs
+
     result = simulate_open_loop(params, math.radians(args.theta_deg), args.duration)
     elapsed = time.perf_counter() - started
     final = result.final_state

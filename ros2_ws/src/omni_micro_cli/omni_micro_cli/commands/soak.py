@@ -12,10 +12,11 @@ import numpy as np
 import yaml
 
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
-from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.graph import GraphOptions, run_graph
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import run_graph
 from omni_micro_vision.camera import DEFAULT_RIG
 
 # Goals inside the micro camera's field (so each one can be reached to the 3 um tolerance),
@@ -25,7 +26,7 @@ MARGIN_M = 0.2e-3
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'soak', help='many goals in one graph run: memory growth and bag completeness',
+        'soak',
         description='Start the graph once with the robot on the micro work platform, send '
                     '--goals random goals (seeded) one after the other, record everything, and '
                     "report every process's memory growth and whether the bag holds exactly "

@@ -27,7 +27,7 @@ from omni_micro_cli.outputs import atomic_text
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'track', help="run the tracker on a bag's recorded images (a real camera's, say)",
+        'track',
         description="Read one camera's sensor_msgs/Image frames from a bag and run "
                     "tracker_node's image processing on each, offline: found or why not, "
                     'still or moving (the same rule as the node), and the spread of the pose '
@@ -52,7 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
-    from omni_micro_cli.orchestration.graph import check_params_file, params_from_files
+    from omni_micro_cli.orchestration.parameters import check_params_file, params_from_files
 
     if args.params is not None:
         check_params_file(args.params)

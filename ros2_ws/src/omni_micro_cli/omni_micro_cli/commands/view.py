@@ -89,7 +89,7 @@ def free_port(host: str, port: int) -> int:
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'view', help='serve a running graph to Foxglove (run --view starts this)',
+        'view',
         description='Subscribe to a running graph\'s topics (ROS_DOMAIN_ID or --domain-id) and '
                     'serve them over the Foxglove WebSocket protocol, CDR-encoded with ros2msg '
                     'schemas. Only listens; clients cannot publish. Ctrl-C stops it.')
@@ -102,18 +102,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_tools.viewer_node import Viewer, view_topics
+    from rclpy.parameter import Parameter
+
     from omni_micro_common.node_runtime import run_node
+    from omni_micro_tools.viewer_node import Viewer, stop_and_report
 
     warning = check_view_host(args.view_host)
     if warning:
         print(warning, file=sys.stderr)
-
-    def finish(viewer: Viewer) -> None:
-        viewer.stop()
-        print('live view stopped after forwarding '
-              f'{sum(viewer.forwarded.values())} messages', file=sys.stderr)
-
-    run_node(lambda: Viewer(args.view_host, args.view_port, view_topics(args.markers)),
-             config_errors=(), on_shutdown=finish, domain_id=args.domain_id)
+    overrides = [Parameter('host', value=args.view_host), Parameter('port', value=args.view_port),
+                 Parameter('markers', value=bool(args.markers))]
+    run_node(lambda: Viewer(overrides), config_errors=(), on_shutdown=stop_and_report,
+             domain_id=args.domain_id)
     return 0

@@ -15,344 +15,41 @@ any process of this one is still in it.
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import json
 import math
 import os
-import random
 import shutil
-import signal
-import subprocess
-import sys
-import tempfile
-import threading
 import time
-from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TextIO
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_common.conventions import GRAPH_NODE_NAMES, LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_cli.orchestration.composition import (
+    GraphOptions,
+    NodeSpec,
+    all_specs,
+    node_overrides,
+    streaming_cameras,
+)
+from omni_micro_cli.orchestration.parameters import (
+    check_params_file,
+    format_parameter,
+    package_params_file,
+    resolve_executable,
+)
+from omni_micro_cli.orchestration.processes import (
+    DomainLease,
+    NodeProcess,
+    clean_shared_memory,
+    node_environment,
+    shared_memory_files,
+    stop_together,
+)
+from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
 SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
-# Nodes that report to the dynamics in lockstep (a stand-in started by command does not).
-LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node')
-# What stands for the cameras: vision_node's measurement model, or rendered images and the
-# tracker that turns them into captures (what a real camera and its tracker would do).
-VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
-                'images': (('omni_micro_vision', 'camera_node'),
-                           ('omni_micro_vision', 'tracker_node'))}
-# Fast DDS: domain ids above 232 do not fit its port scheme.
-DOMAIN_RANGE = range(1, 232)
-
-
-@dataclass(frozen=True)
-class NodeSpec:
-    """One node process: its package, executable and parameter overrides."""
-
-    package: str
-    executable: str
-    overrides: dict[str, object] = field(default_factory=dict)
-    # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
-    command: tuple[str, ...] | None = None
-    respawn: bool = False
-    # A command that reports on /lockstep all the same (the recorder keeping every frame).
-    lockstep: bool = False
-
-    @property
-    def name(self) -> str:
-        return self.executable
-
-    @property
-    def reports_lockstep(self) -> bool:
-        return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
-
-
-def default_nodes(vision: str = 'model') -> list[NodeSpec]:
-    if vision not in VISION_MODES:
-        raise UsageError(f'vision must be one of {sorted(VISION_MODES)}, got {vision!r}')
-    dynamics, _, controller = GRAPH_NODE_NAMES
-    return [NodeSpec('omni_micro_sim', dynamics),
-            *(NodeSpec(package, name) for package, name in VISION_MODES[vision]),
-            NodeSpec('omni_micro_control', controller)]
-
-
-def message_class(msgtype: str) -> type:
-    """The rclpy message class of 'pkg/msg/Name' (rosidl_runtime_py is not installable here)."""
-    import importlib
-
-    package, _, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{package}.msg'), name)
-
-
-def recorder_spec(bag: Path, storage: str, markers: bool = True,
-                  images: tuple[str, ...] = (), without: tuple[str, ...] = ()) -> NodeSpec:
-    """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
-    takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
-    nobody in this graph publishes (it waits for a publisher of each before the clock starts)."""
-    from omni_micro_tools.bags import GRAPH_TOPICS, MARKERS_TOPIC
-
-    topics = [topic for topic in GRAPH_TOPICS
-              if (markers or topic != MARKERS_TOPIC) and topic not in without]
-    topics += [f'/camera/{camera}/{stream}' for camera in images
-               for stream in ('image_raw', 'camera_info')]
-    return NodeSpec('omni_micro_cli', 'bag_recorder', command=(
-        sys.executable, '-m', 'omni_micro_cli', 'record', str(bag), '--storage', storage,
-        '--topics', *topics, *(('--lockstep-frames',) if images else ())),
-        lockstep=bool(images))
-
-
-def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
-    return NodeSpec('omni_micro_cli', 'viewer', command=(
-        sys.executable, '-m', 'omni_micro_cli', 'view', '--view-host', host, '--view-port',
-        str(port), *(() if markers else ('--no-markers',))))
-
-
-MARKERS_NODE = NodeSpec('omni_micro_vision', 'markers_node')
-# What markers_node must draw as the other nodes see it: their parameters, passed on.
-MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'macro.yaw_rad', 'micro.center_m',
-                       'micro.field_m', 'micro.yaw_rad')
-
-
-def install_prefixes() -> list[Path]:
-    prefixes = os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep)
-    return [Path(p) for p in prefixes if p]
-
-
-def resolve_executable(package: str, executable: str) -> Path:
-    """Where ``ros2 run package executable`` would find it: <prefix>/lib/<package>/<exe>, or the
-    venv's bin/ where pip puts console scripts."""
-    for prefix in install_prefixes():
-        for candidate in (prefix / 'lib' / package / executable, prefix / 'bin' / executable):
-            if candidate.is_file() and os.access(candidate, os.X_OK):
-                return candidate
-    raise RunFailed(f'{package}/{executable} is not installed under '
-                    f'{[str(p) for p in install_prefixes()]} (run ./scripts/test once to install)')
-
-
-def package_params_file(package: str, executable: str) -> Path:
-    for prefix in install_prefixes():
-        path = prefix / 'share' / package / 'config' / f'{executable}.yaml'
-        if path.is_file():
-            return path
-    raise RunFailed(f'params file config/{executable}.yaml of {package} is not installed')
-
-
-def format_parameter(value: object) -> str:
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        return ('.inf' if value > 0 else '-.inf') if math.isinf(value) else repr(value)
-    if isinstance(value, (list, tuple)):
-        return '[' + ','.join(format_parameter(v) for v in value) + ']'
-    return str(value)
-
-
-def check_params_file(path: Path) -> None:
-    """Refuse a params file that would make a node die at start-up: say what is wrong with it."""
-    import yaml
-
-    if not path.is_file():
-        raise UsageError(f'params file {str(path)!r} does not exist')
-    try:
-        content = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as error:
-        raise UsageError(f'params file {str(path)!r} does not parse as YAML: {error}') from None
-    if not isinstance(content, dict) or not all(
-            isinstance(section, dict) and 'ros__parameters' in section
-            for section in content.values()):
-        raise UsageError(
-            f'params file {str(path)!r} must map node names to {{ros__parameters: {{...}}}}, '
-            f'got {content!r:.200}')
-
-
-class DomainLease:
-    """A ROS_DOMAIN_ID no other omni-micro run on this machine holds (an flock per id)."""
-
-    def __init__(self, requested: int | None = None) -> None:
-        self.requested = requested
-        self.domain_id: int | None = None
-        self._file: TextIO | None = None
-
-    def __enter__(self) -> int:
-        folder = Path(tempfile.gettempdir()) / f'omni-micro-domains-{os.getuid()}'
-        folder.mkdir(exist_ok=True)
-        candidates = ([self.requested] if self.requested is not None
-                      else random.sample(list(DOMAIN_RANGE), len(DOMAIN_RANGE)))
-        for candidate in candidates:
-            handle = open(folder / f'{candidate}.lock', 'w')
-            try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                handle.close()
-                continue
-            self._file, self.domain_id = handle, candidate
-            return candidate
-        raise RunFailed(f'no free ROS_DOMAIN_ID among {candidates[:5]}...')
-
-    @property
-    def fileno(self) -> int:
-        """The locked file: a child that inherits it holds the lease until it exits too."""
-        assert self._file is not None, 'the lease is not held'
-        return self._file.fileno()
-
-    def __exit__(self, *exc: object) -> None:
-        if self._file is not None:
-            self._file.close()
-
-
-class NodeProcess:
-    """A node's OS process, with its output kept in a log file and echoed with a prefix."""
-
-    def __init__(self, spec: NodeSpec, argv: list[str], env: dict[str, str], log_path: Path,
-                 echo: Callable[[str], None] | None, inherited_fds: tuple[int, ...] = ()) -> None:
-        self.spec = spec
-        self.inherited_fds = inherited_fds
-        self.argv = argv
-        self.env = env
-        self.log_path = log_path
-        self.echo = echo
-        self.process: subprocess.Popen[str] | None = None
-        self.tail: deque[str] = deque(maxlen=20)
-        self.starts = 0
-        self._pump: threading.Thread | None = None
-        self._ready = threading.Event()
-
-    @property
-    def name(self) -> str:
-        return self.spec.name
-
-    def start(self) -> None:
-        self.starts += 1
-        self._ready.clear()
-        # Handed to the thread that copies the process's output; it closes it at the end.
-        log = open(self.log_path, 'a')  # noqa: SIM115
-        log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
-        log.flush()
-        self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True, bufsize=1,
-                                        start_new_session=True, pass_fds=self.inherited_fds)
-        self._pump = threading.Thread(target=self._copy_output, args=(self.process, log),
-                                      daemon=True)
-        self._pump.start()
-
-    def _copy_output(self, process: subprocess.Popen[str], log: TextIO) -> None:
-        assert process.stdout is not None
-        with log:
-            for line in process.stdout:
-                log.write(line)
-                log.flush()
-                self.tail.append(line.rstrip())
-                if ' ready' in line:   # every node logs "<what> ready: ..." when set up
-                    self._ready.set()
-                if self.echo is not None:
-                    self.echo(f'[{self.name}] {line.rstrip()}')
-
-    def wait_ready(self, timeout_s: float) -> bool:
-        """Wait until the current start of the node has logged that it is ready."""
-        return self._ready.wait(timeout_s)
-
-    def exit_code(self) -> int | None:
-        return None if self.process is None else self.process.poll()
-
-    def join_output(self) -> None:
-        """Wait (briefly) until the dead process's last lines are in the log and the tail."""
-        if self._pump is not None:
-            self._pump.join(timeout=2.0)
-
-    def signal(self, sig: int) -> None:
-        if self.process is not None and self.process.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self.process.send_signal(sig)
-
-    def wait(self, timeout_s: float) -> bool:
-        """True once the process has exited (within ``timeout_s``)."""
-        if self.process is None:
-            return True
-        try:
-            self.process.wait(max(timeout_s, 0.0))
-        except subprocess.TimeoutExpired:
-            return False
-        return True
-
-
-def stop_together(processes: list[NodeProcess], grace_s: float = 5.0) -> dict[str, int | None]:
-    """SIGINT to all at once, then SIGTERM, then SIGKILL to whoever is left after each grace
-    period; returns their exit codes. Every node stops on its first signal within a second, so
-    the later steps are for a node that hangs."""
-    for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
-        alive = [p for p in processes if p.exit_code() is None]
-        if not alive:
-            break
-        for process in alive:
-            process.signal(sig)
-        deadline = time.monotonic() + wait_s
-        for process in alive:
-            process.wait(deadline - time.monotonic())
-    for process in processes:
-        process.join_output()
-    return {process.name: process.exit_code() for process in processes}
-
-
-SHM = Path('/dev/shm')
-
-
-def shared_memory_files() -> set[str]:
-    return {path.name for path in SHM.glob('*fastrtps*')} if SHM.is_dir() else set()
-
-
-def clean_shared_memory(before: set[str]) -> None:
-    """Remove Fast DDS shared-memory files this run left behind.
-
-    `fastdds shm clean` removes segments and ports whose owner died (a SIGKILL leaves them).
-    It leaves port files with no `_el` lock file: nobody listens on those any more, yet they
-    stay in /dev/shm. Those are removed too, but only ones that appeared during this run.
-    """
-    tool = shutil.which('fastdds', path=str(Path(sys.prefix) / 'bin'))
-    if tool:
-        subprocess.run([tool, 'shm', 'clean'], stdout=subprocess.DEVNULL,
-                       stderr=subprocess.DEVNULL, timeout=30, check=False)
-    for name in shared_memory_files() - before:
-        if name.startswith('fastrtps_port') and not name.endswith('_el') \
-                and not (SHM / f'{name}_el').exists():
-            for leftover in (SHM / name, SHM / f'sem.{name}_mutex'):
-                leftover.unlink(missing_ok=True)
-
-
-@dataclass
-class GraphOptions:
-    goal_m: tuple[float, float]
-    seed: int = 0
-    real_time_factor: float = 1.0         # math.inf: as fast as the lockstep allows
-    lockstep: bool = True                 # False: the dynamics runs free at the factor
-    open_loop_s: float | None = None
-    params_file: Path | None = None
-    timeout_s: float = 600.0
-    log_dir: Path = Path('out/runs')
-    echo: Callable[[str], None] | None = None
-    nodes: list[NodeSpec] | None = None
-    domain_id: int | None = None
-    follow_route: bool = False
-    record: Path | None = None
-    storage: str = 'mcap'
-    force: bool = False
-    # More goals after the first, each sent once the previous one is reached (the soak).
-    more_goals_m: list[tuple[float, float]] = field(default_factory=list)
-    respawn: bool = False                 # restart a crashed vision or controller node
-    vision_overrides: dict[str, object] = field(default_factory=dict)
-    controller_overrides: dict[str, object] = field(default_factory=dict)
-    dynamics_overrides: dict[str, object] = field(default_factory=dict)
-    # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
-    on_running: Callable[[Graph], None] | None = None
-    markers: bool = True                  # markers_node draws the run on /markers
-    view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
-    vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
-    record_images: bool = False           # the recorder keeps the images too
 
 
 @dataclass
@@ -394,111 +91,6 @@ class GraphResult:
         }
 
 
-def _node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
-    overrides: dict[str, object] = {}
-    if spec.executable == 'dynamics_node':
-        # Time 0 waits until the orchestration has seen every node listening.
-        overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
-        taking_part = [other.name for other in all_specs(options) if other.reports_lockstep]
-        overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
-        overrides.update(options.dynamics_overrides)
-    elif spec.executable in ('vision_node', 'camera_node'):
-        overrides.update(seed=int(options.seed))
-        overrides.update(options.vision_overrides)
-    elif spec.executable == 'markers_node':
-        # The fields as the camera in use has them (camera_node has vision_node's names).
-        vision = node_parameters('omni_micro_vision', _camera_node(options), options,
-                                 options.vision_overrides)
-        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options,
-                                   options.dynamics_overrides)
-        controller = node_parameters('omni_micro_control', 'controller_node', options,
-                                     options.controller_overrides)
-        overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
-        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller)):
-            if name in source:
-                overrides[name] = source[name]
-    elif spec.executable == 'controller_node':
-        if options.open_loop_s is not None:
-            overrides.update(open_loop_duration_s=float(options.open_loop_s))
-        overrides.update(options.controller_overrides)
-    overrides.update(spec.overrides)
-    return overrides
-
-
-def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
-    """The nodes closing the loop: those given, else the default set for ``options.vision``."""
-    return list(options.nodes or default_nodes(options.vision))
-
-
-def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
-    """The cameras whose images camera_node streams in this graph (none without it)."""
-    if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
-        return ()
-    values = node_parameters('omni_micro_vision', 'camera_node', options,
-                             options.vision_overrides)
-    cameras = values.get('cameras', ['macro', 'micro'])
-    return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
-
-
-def all_specs(options: GraphOptions) -> list[NodeSpec]:
-    """Every process of the graph: the loop, then who listens (markers, recorder, viewer)."""
-    specs = graph_nodes(options)
-    if options.markers:
-        specs.append(MARKERS_NODE)
-    if options.record is not None:
-        images = streaming_cameras(options) if options.record_images else ()
-        if options.record_images and not images:
-            raise UsageError('--record-images needs the rendered cameras (--vision images)')
-        # /camera/status is vision_node's (the tracker says why per camera, not recorded).
-        unpublished = () if any(spec.executable == 'vision_node' for spec in specs) \
-            else ('/camera/status',)
-        specs.append(recorder_spec(options.record, options.storage, options.markers, images,
-                                   unpublished))
-    if options.view is not None:
-        specs.append(viewer_spec(*options.view, options.markers))
-    return specs
-
-
-def _camera_node(options: GraphOptions) -> str:
-    names = {spec.executable for spec in graph_nodes(options)}
-    return 'camera_node' if 'camera_node' in names and 'vision_node' not in names \
-        else 'vision_node'
-
-
-def node_parameters(package: str, node: str, options: GraphOptions,
-                    overrides: dict[str, object]) -> dict[str, object]:
-    """A node's parameters as it will have them: its package file, the user's --params file,
-    then the orchestration's overrides (dotted names, as -p gives them)."""
-    values = params_from_files(package, node, options.params_file)
-    values.update(overrides)
-    return values
-
-
-def params_from_files(package: str, node: str, params_file: Path | None) -> dict[str, object]:
-    """A node's parameters from its package file, then ``params_file`` (dotted names)."""
-    import yaml
-
-    def flatten(tree: dict, prefix: str = '') -> dict[str, object]:
-        flat: dict[str, object] = {}
-        for key, value in tree.items():
-            if isinstance(value, dict):
-                flat.update(flatten(value, f'{prefix}{key}.'))
-            else:
-                flat[f'{prefix}{key}'] = value
-        return flat
-
-    values: dict[str, object] = {}
-    files = [package_params_file(package, node)]
-    if params_file is not None:
-        files.append(params_file)
-    for path in files:
-        content = yaml.safe_load(Path(path).read_text()) or {}
-        for name in (node, f'/{node}', '/**'):
-            section = content.get(name, {}).get('ros__parameters', {})
-            values.update(flatten(section))
-    return values
-
-
 def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
     if spec.command is not None:
         return list(spec.command)
@@ -506,31 +98,9 @@ def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
             '--params-file', str(package_params_file(spec.package, spec.executable))]
     if options.params_file is not None:
         argv += ['--params-file', str(options.params_file)]
-    for name, value in _node_overrides(spec, options).items():
+    for name, value in node_overrides(spec, options).items():
         argv += ['-p', f'{name}:={format_parameter(value)}']
     return argv
-
-
-def node_environment(domain_id: int, log_dir: Path, images: bool = False) -> dict[str, str]:
-    """The environment of a graph's processes; with ``images`` (camera frames flowing) the
-    project's Fast DDS profile too, unless the user set one (config/fastdds.xml says why)."""
-    env = dict(os.environ)
-    env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
-               RCUTILS_COLORIZED_OUTPUT='0')
-    env.pop('ROS_LOCALHOST_ONLY', None)
-    if images and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
-        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(dds_profile())
-    return env
-
-
-def dds_profile() -> Path:
-    """The Fast DDS profile for graphs that carry camera frames (installed with omni_micro_sim)."""
-    for prefix in install_prefixes():
-        path = prefix / 'share' / 'omni_micro_sim' / 'config' / 'fastdds.xml'
-        if path.is_file():
-            return path
-    raise RunFailed('config/fastdds.xml of omni_micro_sim is not installed')
 
 
 class Graph:
@@ -701,7 +271,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     if options.params_file is not None:
         check_params_file(options.params_file)
     if options.record is not None:
-        from omni_micro_tools.bags import check_output_path
+        from omni_micro_cli.outputs import check_output_path
 
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)

@@ -20,7 +20,6 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -29,6 +28,7 @@ from omni_micro_common.qos import (
     DATA_QOS,
     STATUS_QOS,
 )
+from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 
 
 class Supervisor(Protocol):

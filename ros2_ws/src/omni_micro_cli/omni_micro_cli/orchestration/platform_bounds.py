@@ -5,28 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.orchestration.graph import package_params_file
+from omni_micro_cli.orchestration.parameters import params_from_files
 
 
 def controller_parameter(name: str, params_file: Path | None) -> Any:
     """A controller_node parameter as the node will see it: package file, then --params."""
-    value: Any = None
-    files = [package_params_file('omni_micro_control', 'controller_node')]
-    if params_file is not None:
-        files.append(params_file)
-    for path in files:
-        content = yaml.safe_load(path.read_text()) or {}
-        for node in ('controller_node', '/**'):
-            params = (content.get(node) or {}).get('ros__parameters') or {}
-            node_value: Any = params
-            for part in name.split('.'):
-                node_value = node_value.get(part) if isinstance(node_value, dict) else None
-            if node_value is not None:
-                value = node_value
-    return value
+    return params_from_files('omni_micro_control', 'controller_node', params_file).get(name)
 
 
 def check_goal(goal_m: tuple[float, float], params_file: Path | None) -> None:

@@ -10,18 +10,18 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.errors import UsageError
 from omni_micro_cli.commands.study import execute as execution
 from omni_micro_cli.commands.study.report import write_figure, write_summary
 from omni_micro_cli.commands.study.runs import run_row
 from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
+from omni_micro_cli.errors import UsageError
 
 EXAMPLE = Path(__file__).with_name('example.yaml')
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        'study', help='sweeps and Monte Carlo of the loop or of open-loop moves, on Dask',
+        'study',
         description='Run every run of a study file through the in-process twin of the graph '
                     '(closed loop) or the slip core (open loop), on a Dask LocalCluster or an '
                     'existing scheduler. Writes DIR/runs.parquet (one row per run: inputs, '

@@ -15,7 +15,8 @@ from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import RobotParameters
-from omni_micro_sim.simulator import RobotState, simulate_open_loop
+from omni_micro_sim.simulator import simulate_open_loop
+from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig
 
 # Failed runs are rows too (a study keeps going): their outcome says so, the error says why.

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[4]
+ROOT = Path(__file__).resolve().parents[2]
 # Timings on a shared 2-core machine: a fresh figure within half to twice the README's passes.
 TIMING_FACTOR = 2.0
 

@@ -1,0 +1,186 @@
+"""What a run starts: the graph's nodes, each with its package, executable and overrides.
+
+The loop (dynamics, the cameras' stand-in, the controller), then who only listens (markers,
+the recorder, the live view); what each node is told beyond its package's params file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from omni_micro_cli.errors import UsageError
+from omni_micro_cli.orchestration.parameters import node_parameters
+from omni_micro_common.conventions import GRAPH_NODE_NAMES
+
+if TYPE_CHECKING:
+    from omni_micro_cli.orchestration.graph import Graph
+
+# Nodes that report to the dynamics in lockstep (a stand-in started by command does not).
+LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node')
+# What stands for the cameras: vision_node's measurement model, or rendered images and the
+# tracker that turns them into captures (what a real camera and its tracker would do).
+VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
+                'images': (('omni_micro_vision', 'camera_node'),
+                           ('omni_micro_vision', 'tracker_node'))}
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node process: its package, executable and parameter overrides."""
+
+    package: str
+    executable: str
+    overrides: dict[str, object] = field(default_factory=dict)
+    # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
+    command: tuple[str, ...] | None = None
+    respawn: bool = False
+    # A command that reports on /lockstep all the same (the recorder keeping every frame).
+    lockstep: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.executable
+
+    @property
+    def reports_lockstep(self) -> bool:
+        return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
+
+
+def default_nodes(vision: str = 'model') -> list[NodeSpec]:
+    if vision not in VISION_MODES:
+        raise UsageError(f'vision must be one of {sorted(VISION_MODES)}, got {vision!r}')
+    dynamics, _, controller = GRAPH_NODE_NAMES
+    return [NodeSpec('omni_micro_sim', dynamics),
+            *(NodeSpec(package, name) for package, name in VISION_MODES[vision]),
+            NodeSpec('omni_micro_control', controller)]
+
+
+def recorder_spec(bag: Path, storage: str, markers: bool = True,
+                  images: tuple[str, ...] = (), without: tuple[str, ...] = ()) -> NodeSpec:
+    """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
+    takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
+    nobody in this graph publishes (it waits for a publisher of each before the clock starts)."""
+    from omni_micro_tools.topics import GRAPH_TOPICS, MARKERS_TOPIC
+
+    topics = [topic for topic in GRAPH_TOPICS
+              if (markers or topic != MARKERS_TOPIC) and topic not in without]
+    topics += [f'/camera/{camera}/{stream}' for camera in images
+               for stream in ('image_raw', 'camera_info')]
+    return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
+        'bag': str(bag), 'storage': storage, 'topics': topics,
+        'lockstep_frames': bool(images)}, lockstep=bool(images))
+
+
+def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
+    return NodeSpec('omni_micro_tools', 'viewer',
+                    overrides={'host': host, 'port': int(port), 'markers': bool(markers)})
+
+
+MARKERS_NODE = NodeSpec('omni_micro_vision', 'markers_node')
+# What markers_node must draw as the other nodes see it: their parameters, passed on.
+MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'macro.yaw_rad', 'micro.center_m',
+                       'micro.field_m', 'micro.yaw_rad')
+
+
+@dataclass
+class GraphOptions:
+    goal_m: tuple[float, float]
+    seed: int = 0
+    real_time_factor: float = 1.0         # math.inf: as fast as the lockstep allows
+    lockstep: bool = True                 # False: the dynamics runs free at the factor
+    open_loop_s: float | None = None
+    params_file: Path | None = None
+    timeout_s: float = 600.0
+    log_dir: Path = Path('out/runs')
+    echo: Callable[[str], None] | None = None
+    nodes: list[NodeSpec] | None = None
+    domain_id: int | None = None
+    follow_route: bool = False
+    record: Path | None = None
+    storage: str = 'mcap'
+    force: bool = False
+    # More goals after the first, each sent once the previous one is reached (the soak).
+    more_goals_m: list[tuple[float, float]] = field(default_factory=list)
+    respawn: bool = False                 # restart a crashed vision or controller node
+    vision_overrides: dict[str, object] = field(default_factory=dict)
+    controller_overrides: dict[str, object] = field(default_factory=dict)
+    dynamics_overrides: dict[str, object] = field(default_factory=dict)
+    # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
+    on_running: Callable[[Graph], None] | None = None
+    markers: bool = True                  # markers_node draws the run on /markers
+    view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
+    vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
+    record_images: bool = False           # the recorder keeps the images too
+
+
+def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if spec.executable == 'dynamics_node':
+        # Time 0 waits until the orchestration has seen every node listening.
+        overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
+        taking_part = [other.name for other in all_specs(options) if other.reports_lockstep]
+        overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
+        overrides.update(options.dynamics_overrides)
+    elif spec.executable in ('vision_node', 'camera_node'):
+        overrides.update(seed=int(options.seed))
+        overrides.update(options.vision_overrides)
+    elif spec.executable == 'markers_node':
+        # The fields as the camera in use has them (camera_node has vision_node's names).
+        vision = node_parameters('omni_micro_vision', _camera_node(options),
+                                 options.params_file, options.vision_overrides)
+        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options.params_file,
+                                   options.dynamics_overrides)
+        controller = node_parameters('omni_micro_control', 'controller_node',
+                                     options.params_file, options.controller_overrides)
+        overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
+        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller)):
+            if name in source:
+                overrides[name] = source[name]
+    elif spec.executable == 'controller_node':
+        if options.open_loop_s is not None:
+            overrides.update(open_loop_duration_s=float(options.open_loop_s))
+        overrides.update(options.controller_overrides)
+    overrides.update(spec.overrides)
+    return overrides
+
+
+def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
+    """The nodes closing the loop: those given, else the default set for ``options.vision``."""
+    return list(options.nodes or default_nodes(options.vision))
+
+
+def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
+    """The cameras whose images camera_node streams in this graph (none without it)."""
+    if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
+        return ()
+    values = node_parameters('omni_micro_vision', 'camera_node', options.params_file,
+                             options.vision_overrides)
+    cameras = values.get('cameras', ['macro', 'micro'])
+    return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
+
+
+def all_specs(options: GraphOptions) -> list[NodeSpec]:
+    """Every process of the graph: the loop, then who listens (markers, recorder, viewer)."""
+    specs = graph_nodes(options)
+    if options.markers:
+        specs.append(MARKERS_NODE)
+    if options.record is not None:
+        images = streaming_cameras(options) if options.record_images else ()
+        if options.record_images and not images:
+            raise UsageError('--record-images needs the rendered cameras (--vision images)')
+        # /camera/status is vision_node's (the tracker says why per camera, not recorded).
+        unpublished = () if any(spec.executable == 'vision_node' for spec in specs) \
+            else ('/camera/status',)
+        specs.append(recorder_spec(options.record, options.storage, options.markers, images,
+                                   unpublished))
+    if options.view is not None:
+        specs.append(viewer_spec(*options.view, options.markers))
+    return specs
+
+
+def _camera_node(options: GraphOptions) -> str:
+    names = {spec.executable for spec in graph_nodes(options)}
+    return 'camera_node' if 'camera_node' in names and 'vision_node' not in names \
+        else 'vision_node'

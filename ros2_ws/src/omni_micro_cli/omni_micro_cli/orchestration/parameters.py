@@ -1,0 +1,83 @@
+"""Where the installed nodes and their params files are, and what each node will be given."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from pathlib import Path
+
+from omni_micro_cli.errors import RunFailed
+from omni_micro_common import params
+
+
+def install_prefixes() -> list[Path]:
+    prefixes = os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep)
+    return [Path(p) for p in prefixes if p]
+
+
+def resolve_executable(package: str, executable: str) -> Path:
+    """Where ``ros2 run package executable`` would find it: <prefix>/lib/<package>/<exe>, or the
+    venv's bin/ where pip puts console scripts."""
+    for prefix in install_prefixes():
+        for candidate in (prefix / 'lib' / package / executable, prefix / 'bin' / executable):
+            if candidate.is_file() and os.access(candidate, os.X_OK):
+                return candidate
+    raise RunFailed(f'{package}/{executable} is not installed under '
+                    f'{[str(p) for p in install_prefixes()]} (run ./scripts/test once to install)')
+
+
+def package_params_file(package: str, executable: str) -> Path:
+    for prefix in install_prefixes():
+        path = prefix / 'share' / package / 'config' / f'{executable}.yaml'
+        if path.is_file():
+            return path
+    raise RunFailed(f'params file config/{executable}.yaml of {package} is not installed')
+
+
+def format_parameter(value: object) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return ('.inf' if value > 0 else '-.inf') if math.isinf(value) else repr(value)
+    if isinstance(value, (list, tuple)):
+        return '[' + ','.join(format_parameter(v) for v in value) + ']'
+    return str(value)
+
+
+def check_params_file(path: Path) -> None:
+    """Refuse a params file that would make a node die at start-up: say what is wrong with it.
+
+    Raises
+    ------
+    omni_micro_common.errors.ParamsFileError
+        Naming the file and what is wrong with it.
+    """
+    params.load_params_file(path)
+
+
+def dds_profile() -> Path:
+    """The Fast DDS profile for graphs that carry camera frames (installed with
+    omni_micro_common)."""
+    for prefix in install_prefixes():
+        path = prefix / 'share' / 'omni_micro_common' / 'config' / 'fastdds.xml'
+        if path.is_file():
+            return path
+    raise RunFailed('config/fastdds.xml of omni_micro_common is not installed')
+
+
+def node_parameters(package: str, node: str, params_file: Path | None,
+                    overrides: dict[str, object]) -> dict[str, object]:
+    """A node's parameters as it will have them: its package file, the user's --params file,
+    then the orchestration's overrides (dotted names, as -p gives them)."""
+    values = params_from_files(package, node, params_file)
+    values.update(overrides)
+    return values
+
+
+def params_from_files(package: str, node: str, params_file: Path | None) -> dict[str, object]:
+    """A node's parameters from its package file, then ``params_file`` (dotted names)."""
+    files = [package_params_file(package, node)]
+    if params_file is not None:
+        files.append(params_file)
+    return params.node_parameters(files, node)

@@ -1,0 +1,197 @@
+"""The operating-system side of a run: a private DDS domain, node processes with their logs,
+stopping them, and Fast DDS shared-memory leftovers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.orchestration.parameters import dds_profile
+
+if TYPE_CHECKING:
+    from omni_micro_cli.orchestration.composition import NodeSpec
+
+# Fast DDS: domain ids above 232 do not fit its port scheme.
+DOMAIN_RANGE = range(1, 232)
+
+
+
+class DomainLease:
+    """A ROS_DOMAIN_ID no other omni-micro run on this machine holds (an flock per id)."""
+
+    def __init__(self, requested: int | None = None) -> None:
+        self.requested = requested
+        self.domain_id: int | None = None
+        self._file: TextIO | None = None
+
+    def __enter__(self) -> int:
+        folder = Path(tempfile.gettempdir()) / f'omni-micro-domains-{os.getuid()}'
+        folder.mkdir(exist_ok=True)
+        candidates = ([self.requested] if self.requested is not None
+                      else random.sample(list(DOMAIN_RANGE), len(DOMAIN_RANGE)))
+        for candidate in candidates:
+            handle = open(folder / f'{candidate}.lock', 'w')
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                handle.close()
+                continue
+            self._file, self.domain_id = handle, candidate
+            return candidate
+        raise RunFailed(f'no free ROS_DOMAIN_ID among {candidates[:5]}...')
+
+    @property
+    def fileno(self) -> int:
+        """The locked file: a child that inherits it holds the lease until it exits too."""
+        assert self._file is not None, 'the lease is not held'
+        return self._file.fileno()
+
+    def __exit__(self, *exc: object) -> None:
+        if self._file is not None:
+            self._file.close()
+
+
+class NodeProcess:
+    """A node's OS process, with its output kept in a log file and echoed with a prefix."""
+
+    def __init__(self, spec: NodeSpec, argv: list[str], env: dict[str, str], log_path: Path,
+                 echo: Callable[[str], None] | None, inherited_fds: tuple[int, ...] = ()) -> None:
+        self.spec = spec
+        self.inherited_fds = inherited_fds
+        self.argv = argv
+        self.env = env
+        self.log_path = log_path
+        self.echo = echo
+        self.process: subprocess.Popen[str] | None = None
+        self.tail: deque[str] = deque(maxlen=20)
+        self.starts = 0
+        self._pump: threading.Thread | None = None
+        self._ready = threading.Event()
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def start(self) -> None:
+        self.starts += 1
+        self._ready.clear()
+        # Handed to the thread that copies the process's output; it closes it at the end.
+        log = open(self.log_path, 'a')  # noqa: SIM115
+        log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
+        log.flush()
+        self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True, bufsize=1,
+                                        start_new_session=True, pass_fds=self.inherited_fds)
+        self._pump = threading.Thread(target=self._copy_output, args=(self.process, log),
+                                      daemon=True)
+        self._pump.start()
+
+    def _copy_output(self, process: subprocess.Popen[str], log: TextIO) -> None:
+        assert process.stdout is not None
+        with log:
+            for line in process.stdout:
+                log.write(line)
+                log.flush()
+                self.tail.append(line.rstrip())
+                if ' ready' in line:   # every node logs "<what> ready: ..." when set up
+                    self._ready.set()
+                if self.echo is not None:
+                    self.echo(f'[{self.name}] {line.rstrip()}')
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Wait until the current start of the node has logged that it is ready."""
+        return self._ready.wait(timeout_s)
+
+    def exit_code(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def join_output(self) -> None:
+        """Wait (briefly) until the dead process's last lines are in the log and the tail."""
+        if self._pump is not None:
+            self._pump.join(timeout=2.0)
+
+    def signal(self, sig: int) -> None:
+        if self.process is not None and self.process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.process.send_signal(sig)
+
+    def wait(self, timeout_s: float) -> bool:
+        """True once the process has exited (within ``timeout_s``)."""
+        if self.process is None:
+            return True
+        try:
+            self.process.wait(max(timeout_s, 0.0))
+        except subprocess.TimeoutExpired:
+            return False
+        return True
+
+
+def stop_together(processes: list[NodeProcess], grace_s: float = 5.0) -> dict[str, int | None]:
+    """SIGINT to all at once, then SIGTERM, then SIGKILL to whoever is left after each grace
+    period; returns their exit codes. Every node stops on its first signal within a second, so
+    the later steps are for a node that hangs."""
+    for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
+        alive = [p for p in processes if p.exit_code() is None]
+        if not alive:
+            break
+        for process in alive:
+            process.signal(sig)
+        deadline = time.monotonic() + wait_s
+        for process in alive:
+            process.wait(deadline - time.monotonic())
+    for process in processes:
+        process.join_output()
+    return {process.name: process.exit_code() for process in processes}
+
+
+SHM = Path('/dev/shm')
+
+
+def shared_memory_files() -> set[str]:
+    return {path.name for path in SHM.glob('*fastrtps*')} if SHM.is_dir() else set()
+
+
+def clean_shared_memory(before: set[str]) -> None:
+    """Remove Fast DDS shared-memory files this run left behind.
+
+    `fastdds shm clean` removes segments and ports whose owner died (a SIGKILL leaves them).
+    It leaves port files with no `_el` lock file: nobody listens on those any more, yet they
+    stay in /dev/shm. Those are removed too, but only ones that appeared during this run.
+    """
+    tool = shutil.which('fastdds', path=str(Path(sys.prefix) / 'bin'))
+    if tool:
+        subprocess.run([tool, 'shm', 'clean'], stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=30, check=False)
+    for name in shared_memory_files() - before:
+        if name.startswith('fastrtps_port') and not name.endswith('_el') \
+                and not (SHM / f'{name}_el').exists():
+            for leftover in (SHM / name, SHM / f'sem.{name}_mutex'):
+                leftover.unlink(missing_ok=True)
+
+
+def node_environment(domain_id: int, log_dir: Path, images: bool = False) -> dict[str, str]:
+    """The environment of a graph's processes; with ``images`` (camera frames flowing) the
+    project's Fast DDS profile too, unless the user set one (config/fastdds.xml says why)."""
+    env = dict(os.environ)
+    env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
+               RCUTILS_COLORIZED_OUTPUT='0')
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    if images and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(dds_profile())
+    return env

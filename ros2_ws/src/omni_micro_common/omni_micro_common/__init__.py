@@ -1,0 +1,10 @@
+"""The contracts every omni-micro node shares, and nothing heavier.
+
+:mod:`conventions` (stamps, quaternions, node and joint names, capture uncertainty),
+:mod:`qos` (topic names and QoS), :mod:`lockstep` (the gate and its reports),
+:mod:`node_runtime` (how a node process starts, spins and stops), :mod:`params` (the one reader
+of params files), :mod:`messages` (message classes by type name), :mod:`errors`.
+
+A camera driver, a tracker or a recorder that follows these contracts depends on this package
+alone: it imports no physics (no numba, no scipy).
+"""

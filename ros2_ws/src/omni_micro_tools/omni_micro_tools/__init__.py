@@ -1,0 +1,7 @@
+"""Nodes that watch the graph without taking part in its logic, and their bag I/O.
+
+:mod:`recorder_node` (``bag_recorder``: the graph's topics into a rosbag2 bag, what
+``ros2 bag record`` would do), :mod:`viewer_node` (``viewer``: the topics over the Foxglove
+WebSocket protocol), :mod:`bags` (what is recorded, writing, recovering and reading bags through
+the rosbags library). The command line starts them; so does ``ros2 run omni_micro_tools ...``.
+"""

@@ -1,0 +1,69 @@
+"""What the graph's bags hold: each topic's type and the QoS its publisher offers.
+
+Plain data (no rosbags import), so that a command can name the topics and storages in its
+``--help`` without loading the bag library.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rosbags.interfaces import Qos
+
+# rosbag2 storage plugins the recorder can write (mcap is Jazzy's default).
+STORAGE_NAMES = ('mcap', 'sqlite3')
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    msgtype: str
+    depth: int
+    latched: bool = False
+
+    def qos(self) -> Qos:
+        """The QoS the graph's publisher offers, as metadata.yaml records it (zero durations:
+        rclpy's defaults, no deadline or lifespan)."""
+        from rosbags.interfaces import (
+            Qos,
+            QosDurability,
+            QosHistory,
+            QosLiveliness,
+            QosReliability,
+            QosTime,
+        )
+
+        zero = QosTime(0, 0)
+        durability = QosDurability.TRANSIENT_LOCAL if self.latched else QosDurability.VOLATILE
+        return Qos(QosHistory.KEEP_LAST, self.depth, QosReliability.RELIABLE, durability,
+                   zero, zero, QosLiveliness.AUTOMATIC, zero, False)
+
+
+# Every topic of the graph (README, "The node graph").
+# What markers_node draws (a run without --no-markers records it too).
+MARKERS_TOPIC = '/markers'
+GRAPH_TOPICS: dict[str, TopicSpec] = {
+    '/clock': TopicSpec('rosgraph_msgs/msg/Clock', 1000),
+    '/odom': TopicSpec('nav_msgs/msg/Odometry', 1000),
+    '/joint_states': TopicSpec('sensor_msgs/msg/JointState', 1000),
+    '/wheel_slip': TopicSpec('sensor_msgs/msg/JointState', 1000),
+    '/wheel_trajectory': TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
+    '/camera/macro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
+    '/camera/micro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
+    '/camera/macro/pose_with_covariance': TopicSpec(
+        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
+    '/camera/micro/pose_with_covariance': TopicSpec(
+        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
+    '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
+    '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
+    '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
+    MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
+}
+# The rendered cameras' streams (run --vision images): recorded only when asked
+# (--record-images), a megabyte a frame. Depth as omni_micro_common.qos.IMAGE_QOS.
+IMAGE_TOPICS: dict[str, TopicSpec] = {
+    f'/camera/{camera}/{stream}': TopicSpec(f'sensor_msgs/msg/{kind}', 10)
+    for camera in ('macro', 'micro')
+    for stream, kind in (('image_raw', 'Image'), ('camera_info', 'CameraInfo'))}
+RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
