@@ -136,6 +136,10 @@ def main(argv: list[str] | None = None) -> int:
     # SIGTERM (e.g. from `timeout` or CI) must unwind like Ctrl-C, so that a running graph is
     # shut down instead of orphaned.
     signal.signal(signal.SIGTERM, _interrupt)
+    # DDS stays on loopback however the command is started (the installed script needs no
+    # wrapper): the orchestrator's own node must discover as its children do.
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
     arguments = sys.argv[1:] if argv is None else argv
     # No command named (--help, or a typo): list the commands, import none of them.
     args = build_parser(command_named(arguments) or '').parse_args(arguments)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Duration
@@ -89,8 +90,10 @@ def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -
 
 
 class ControllerNode(Node):
-    def __init__(self) -> None:
-        super().__init__('controller_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('controller_node', **node_options)
         # The fields' own defaults, not a FeedbackConfig()'s: captures_per_stop 0 means "the
         # mode's own", which an instance has already resolved.
         config = FeedbackConfig(**{

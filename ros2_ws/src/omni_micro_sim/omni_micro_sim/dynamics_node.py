@@ -85,8 +85,10 @@ def _robot_defaults() -> dict[str, object]:
 
 
 class DynamicsNode(Node):
-    def __init__(self) -> None:
-        super().__init__('dynamics_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('dynamics_node', **node_options)
         robot_values = {name: self.declare_parameter(f'robot.{name}', default,
                                                      _READ_ONLY).value
                         for name, default in _robot_defaults().items()}

@@ -18,6 +18,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock, ClockType
@@ -41,9 +42,10 @@ FLUSH_PERIOD_S = 0.5
 class BagRecorder(Node):
     """Writes each message as it arrives, stamped with the simulated time of its arrival."""
 
-    def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
-        super().__init__('bag_recorder', parameter_overrides=[
-            Parameter('use_sim_time', value=True), *(parameter_overrides or [])])
+    def __init__(self, **node_options: Any) -> None:
+        node_options['parameter_overrides'] = [
+            Parameter('use_sim_time', value=True), *node_options.get('parameter_overrides', [])]
+        super().__init__('bag_recorder', **node_options)
         bag = Path(self.declare_parameter('bag', '').value)
         storage = self.declare_parameter('storage', 'mcap').value
         names = list(self.declare_parameter('topics', list(GRAPH_TOPICS)).value)

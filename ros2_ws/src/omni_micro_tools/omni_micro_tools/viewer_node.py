@@ -43,11 +43,12 @@ def ros2msg_schema(msgtype: str) -> bytes:
 
 
 class Viewer(Node):
-    def __init__(self, parameter_overrides: list[Parameter] | None = None) -> None:
+    def __init__(self, **node_options: Any) -> None:
         import foxglove
 
-        super().__init__('omni_micro_viewer', parameter_overrides=[
-            Parameter('use_sim_time', value=True), *(parameter_overrides or [])])
+        node_options['parameter_overrides'] = [
+            Parameter('use_sim_time', value=True), *node_options.get('parameter_overrides', [])]
+        super().__init__('omni_micro_viewer', **node_options)
         host = str(self.declare_parameter('host', '127.0.0.1').value)
         port = self.declare_parameter('port', 8765).value
         topics = view_topics(bool(self.declare_parameter('markers', True).value))

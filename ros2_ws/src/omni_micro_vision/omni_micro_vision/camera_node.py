@@ -15,6 +15,7 @@ from __future__ import annotations
 import array
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -44,8 +45,10 @@ class _Stream:
 
 
 class CameraNode(Node):
-    def __init__(self) -> None:
-        super().__init__('camera_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('camera_node', **node_options)
         self.seed = int(self.declare_parameter('seed', 0).value)
         self.rate_hz = float(self.declare_parameter('frame_rate_hz', 30.0).value)
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):

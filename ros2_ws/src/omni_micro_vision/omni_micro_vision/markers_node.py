@@ -15,7 +15,7 @@ from __future__ import annotations
 import heapq
 import math
 from collections.abc import Callable
-from typing import Literal
+from typing import Any, Literal
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -98,8 +98,10 @@ def header_stamp_ns(data: bytes) -> int:
 
 
 class MarkersNode(Node):
-    def __init__(self) -> None:
-        super().__init__('markers_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('markers_node', **node_options)
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         self.publish_every = int(self.declare_parameter('publish_every_ticks', 5).value)
         self.refresh_every = int(self.declare_parameter('refresh_every_ticks', 50).value)

@@ -22,6 +22,7 @@ image's size). The image processing is :mod:`omni_micro_vision.imaging`'s.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
@@ -49,8 +50,10 @@ RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
 
 
 class TrackerNode(Node):
-    def __init__(self) -> None:
-        super().__init__('tracker_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('tracker_node', **node_options)
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         cameras = list(self.declare_parameter('cameras', ['macro', 'micro']).value)
         self.still_frames = int(self.declare_parameter('still_frames', 3).value)

@@ -16,6 +16,7 @@ rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
@@ -57,8 +58,10 @@ CAMERA_STATUS_QOS = latched(1)
 
 
 class VisionNode(Node):
-    def __init__(self) -> None:
-        super().__init__('vision_node')
+    def __init__(self, **node_options: Any) -> None:
+        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
+        # build the node in-process with them.
+        super().__init__('vision_node', **node_options)
         rule_defaults = CaptureRule()
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         seed = self.declare_parameter('seed', 0).value

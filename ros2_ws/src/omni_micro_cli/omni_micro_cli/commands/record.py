@@ -50,6 +50,6 @@ def run(args: argparse.Namespace) -> int:
     overrides = [Parameter('bag', value=str(args.bag)), Parameter('storage', value=args.storage),
                  Parameter('topics', value=list(args.topics or GRAPH_TOPICS)),
                  Parameter('lockstep_frames', value=bool(args.lockstep_frames))]
-    run_node(lambda: BagRecorder(overrides), config_errors=(), on_shutdown=report_and_close,
-             domain_id=args.domain_id)
+    run_node(lambda: BagRecorder(parameter_overrides=overrides), config_errors=(),
+             on_shutdown=report_and_close, domain_id=args.domain_id)
     return 0

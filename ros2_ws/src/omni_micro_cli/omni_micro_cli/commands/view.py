@@ -112,6 +112,6 @@ def run(args: argparse.Namespace) -> int:
         print(warning, file=sys.stderr)
     overrides = [Parameter('host', value=args.view_host), Parameter('port', value=args.view_port),
                  Parameter('markers', value=bool(args.markers))]
-    run_node(lambda: Viewer(overrides), config_errors=(), on_shutdown=stop_and_report,
-             domain_id=args.domain_id)
+    run_node(lambda: Viewer(parameter_overrides=overrides), config_errors=(),
+             on_shutdown=stop_and_report, domain_id=args.domain_id)
     return 0

@@ -22,6 +22,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_sim import paper
+from omni_micro_sim.parameters import RobotParameters
+from omni_micro_vision.camera import DEFAULT_RIG
+
 SCENARIOS = ('closed_loop', 'open_loop')
 MODES = ('paper', 'model')
 CLOSED_LOOP = 'closed_loop'
@@ -45,47 +50,64 @@ class Parameter:
     whole: bool = False
 
 
+# Each default is the value of the dataclass that owns the number (the robot, the cameras, the
+# controller, the paper's Fig. 11), in the user's units: one definition of each.
+_ROBOT = RobotParameters()
+_FEEDBACK = FeedbackConfig()
+_MACRO, _MICRO = DEFAULT_RIG.macro, DEFAULT_RIG.micro
+_MM, _UM = 1e3, 1e6
+
 # The inputs a study can fix, sweep or draw. Ranges are the ones the physics, camera and
 # controller models accept (a run outside them would fail, not answer).
 PARAMETERS: dict[str, Parameter] = {
     # the robot (section 3)
-    'xi1_deg': Parameter(0.0, 'deg', 'assembly offset of wheel 1', -45.0, 45.0),
-    'xi2_deg': Parameter(0.0, 'deg', 'assembly offset of wheel 2', -45.0, 45.0),
-    'xi3_deg': Parameter(0.0, 'deg', 'assembly offset of wheel 3', -45.0, 45.0),
-    'mu_longitudinal': Parameter(0.21, '', 'friction coefficient along the wheels', 0.0, 2.0),
-    'mu_transverse': Parameter(0.21, '', 'friction coefficient across the wheels', 0.0, 2.0),
-    'cantilever_offset_mm': Parameter(1.0, 'mm', "wheel 1's cantilever offset d1", 0.0, 5.0),
-    'mass_g': Parameter(2.8, 'g', "the robot's mass", 0.1, 100.0),
+    **{f'xi{k + 1}_deg': Parameter(math.degrees(_ROBOT.wheel_offsets_rad[k]), 'deg',
+                                   f'assembly offset of wheel {k + 1}', -45.0, 45.0)
+       for k in range(3)},
+    'mu_longitudinal': Parameter(_ROBOT.mu_longitudinal, '',
+                                 'friction coefficient along the wheels', 0.0, 2.0),
+    'mu_transverse': Parameter(_ROBOT.mu_transverse, '', 'friction coefficient across the wheels',
+                               0.0, 2.0),
+    'cantilever_offset_mm': Parameter(_ROBOT.cantilever_offset_m * _MM, 'mm',
+                                      "wheel 1's cantilever offset d1", 0.0, 5.0),
+    'mass_g': Parameter(_ROBOT.mass_kg * 1e3, 'g', "the robot's mass", 0.1, 100.0),
     # the move
     'start_x_mm': Parameter(0.0, 'mm', 'start position x', -1000.0, 1000.0),
     'start_y_mm': Parameter(0.0, 'mm', 'start position y', -1000.0, 1000.0),
     'start_heading_deg': Parameter(0.0, 'deg', 'start heading', -360.0, 360.0),
-    'goal_x_mm': Parameter(100.0, 'mm', 'goal x (open loop: where the move aims)',
-                           -1000.0, 1000.0),
-    'goal_y_mm': Parameter(0.0, 'mm', 'goal y', -1000.0, 1000.0),
+    'goal_x_mm': Parameter(paper.FIG11_GOAL_M[0] * _MM, 'mm',
+                           'goal x (open loop: where the move aims)', -1000.0, 1000.0),
+    'goal_y_mm': Parameter(paper.FIG11_GOAL_M[1] * _MM, 'mm', 'goal y', -1000.0, 1000.0),
     # the cameras (closed loop)
-    'macro_pixel_um': Parameter(117.1875, 'um', "macro camera's pixel along x (15 cm field)",
-                                1.0, 5000.0, (CLOSED_LOOP,)),
-    'micro_pixel_um': Parameter(1.5625, 'um', "micro camera's pixel along x (2 mm field)",
-                                0.05, 200.0, (CLOSED_LOOP,)),
-    'macro_noise_px': Parameter(0.1, 'px', "macro tracker's noise per mark", 0.0, 20.0,
+    'macro_pixel_um': Parameter(_MACRO.pixel_size_m[0] * _UM, 'um',
+                                "macro camera's pixel along x (15 cm field)", 1.0, 5000.0,
                                 (CLOSED_LOOP,)),
-    'micro_noise_px': Parameter(0.1, 'px', "micro tracker's noise per mark", 0.0, 20.0,
+    'micro_pixel_um': Parameter(_MICRO.pixel_size_m[0] * _UM, 'um',
+                                "micro camera's pixel along x (2 mm field)", 0.05, 200.0,
                                 (CLOSED_LOOP,)),
+    'macro_noise_px': Parameter(_MACRO.noise_px, 'px', "macro tracker's noise per mark", 0.0,
+                                20.0, (CLOSED_LOOP,)),
+    'micro_noise_px': Parameter(_MICRO.noise_px, 'px', "micro tracker's noise per mark", 0.0,
+                                20.0, (CLOSED_LOOP,)),
     # the controller (section 4.1, closed loop)
-    'timer1_far_s': Parameter(0.2, 's', 'timer1 beyond the comparator distance', 0.005, 10.0,
+    'timer1_far_s': Parameter(_FEEDBACK.far_period_s, 's', 'timer1 beyond the comparator '
+                              'distance', 0.005, 10.0, (CLOSED_LOOP,)),
+    'timer1_near_s': Parameter(_FEEDBACK.near_period_s, 's', 'timer1 within the comparator '
+                               'distance', 0.005, 10.0, (CLOSED_LOOP,)),
+    'timer2_s': Parameter(_FEEDBACK.settle_wait_s, 's', 'timer2: settling wait after each stop',
+                          0.0, 10.0, (CLOSED_LOOP,)),
+    'comparator_mm': Parameter(_FEEDBACK.comparator_distance_m * _MM, 'mm',
+                               "the distance comparator's threshold", 0.001, 1000.0,
+                               (CLOSED_LOOP,)),
+    'tolerance_um': Parameter(_FEEDBACK.tolerance_m * _UM, 'um', 'the goal tolerance', 0.01, 1e6,
                               (CLOSED_LOOP,)),
-    'timer1_near_s': Parameter(0.05, 's', 'timer1 within the comparator distance', 0.005, 10.0,
-                               (CLOSED_LOOP,)),
-    'timer2_s': Parameter(0.1, 's', 'timer2: settling wait after each stop', 0.0, 10.0,
-                          (CLOSED_LOOP,)),
-    'comparator_mm': Parameter(2.0, 'mm', "the distance comparator's threshold", 0.001, 1000.0,
-                               (CLOSED_LOOP,)),
-    'tolerance_um': Parameter(3.0, 'um', 'the goal tolerance', 0.01, 1e6, (CLOSED_LOOP,)),
-    'max_periods': Parameter(100, '', 'periods before giving up', 1, 10_000, (CLOSED_LOOP,),
-                             whole=True),
-    'captures_per_stop': Parameter(0, '', "captures averaged per stop (0: the mode's own)", 0,
-                                   100, (CLOSED_LOOP,), whole=True),
+    'max_periods': Parameter(_FEEDBACK.max_periods, '', 'periods before giving up', 1, 10_000,
+                             (CLOSED_LOOP,), whole=True),
+    # The field's own default (0: the mode's own), not an instance's resolved count.
+    'captures_per_stop': Parameter(FeedbackConfig.__dataclass_fields__['captures_per_stop']
+                                   .default, '',  # type: ignore[arg-type]
+                                   "captures averaged per stop (0: the mode's own)", 0, 100,
+                                   (CLOSED_LOOP,), whole=True),
 }
 
 # What a run can report, per scenario; each name expands to the columns in brackets.
