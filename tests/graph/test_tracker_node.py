@@ -16,7 +16,7 @@ from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, latched
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
-from omni_micro_vision.imaging import Sensor, render
+from omni_micro_vision.rendering import Sensor, render
 
 CAMERA = DEFAULT_RIG.macro
 

@@ -1,4 +1,4 @@
-"""Images of the robot and the tracker that reads them (omni_micro_vision.imaging): accuracy
+"""Images of the robot and the tracker that reads them (omni_micro_vision.rendering): accuracy
 against the true pose beside the analytic camera model, the reasons a frame gives no pose, and
 frames that are a function of their seed."""
 
@@ -9,7 +9,7 @@ import pytest
 
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError
-from omni_micro_vision.imaging import Sensor, checked_yaw, render, track
+from omni_micro_vision.rendering import Sensor, checked_yaw, render, track
 
 SENSOR = Sensor()
 SAMPLES = 24

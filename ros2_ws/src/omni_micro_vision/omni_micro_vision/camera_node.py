@@ -7,7 +7,7 @@ whether or not the robot moves, each stamped with its exposure's start:
   /lockstep            its report after each odometry sample, naming the frames it published
 Frame k of camera c is rendered from the odometry sample that ends at or after its stamp, with
 noise seeded by (seed, c, k): the same run gives the same frames at any speed. What a frame
-shows is :func:`omni_micro_vision.imaging.render`'s; this node only moves numbers.
+shows is :func:`omni_micro_vision.rendering.render`'s; this node only moves numbers.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from omni_micro_common.node_runtime import LockstepReporter, run_node
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import Sensor, checked_cameras, checked_yaw, render
+from omni_micro_vision.rendering import Sensor, checked_cameras, checked_yaw, render
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ fiducial's pose in the last ``still_frames`` frames agrees within ``still_tolera
 and only from the finest camera that sees the robot (:mod:`omni_micro_vision.tracking`).
 Where the camera looks is a parameter (``<name>.center_m``, ``<name>.field_m``: the platform
 point under the image's centre and the field the image spans; the pixel size follows from the
-image's size). The image processing is :mod:`omni_micro_vision.imaging`'s.
+image's size). The image processing is :mod:`omni_micro_vision.rendering`'s.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from omni_micro_common.qos import (
     latched,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.imaging import checked_cameras, checked_yaw, fiducial_for, image_array
+from omni_micro_vision.rendering import checked_cameras, checked_yaw, fiducial_for, image_array
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,

@@ -28,13 +28,13 @@ from typing import Generic, TypeVar
 import numpy as np
 
 from omni_micro_vision.camera import CameraModel
-from omni_micro_vision.imaging import Track, track
+from omni_micro_vision.rendering import Track, track
 
 T = TypeVar('T')
 
 
 class FrameTracker:
-    """:func:`omni_micro_vision.imaging.track` on the frames of one camera (turned by
+    """:func:`omni_micro_vision.rendering.track` on the frames of one camera (turned by
     ``yaw_rad`` about its centre), in order."""
 
     def __init__(self, yaw_rad: float = 0.0) -> None:

@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
 
     from omni_micro_tools.bags import TYPESTORE, check_readable_bag
     from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-    from omni_micro_vision.imaging import checked_yaw, fiducial_for, image_array
+    from omni_micro_vision.rendering import checked_yaw, fiducial_for, image_array
     from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
     check_readable_bag(args.bag)
