@@ -20,7 +20,8 @@ from omni_micro_cli.commands.study.execute import (
     finished_rows,
     prepare_directory,
 )
-from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
+from omni_micro_cli.commands.study.spec import load_study, parse_study
+from omni_micro_cli.errors import StudyError
 
 EXAMPLE = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_cli'
            / 'omni_micro_cli' / 'commands' / 'study' / 'example.yaml')

@@ -6,9 +6,9 @@ import re
 import pytest
 
 from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
     MODEL_CAPTURES_PER_STOP,
-    ControllerConfigError,
     FeedbackConfig,
     Finished,
     Move,

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from omni_micro_common.lockstep import Ack, LockstepError, LockstepGate
+from omni_micro_common.errors import LockstepError
+from omni_micro_common.lockstep import Ack, LockstepGate
 
 MS = 1_000_000
 TICK = 20 * MS

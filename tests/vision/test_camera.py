@@ -9,7 +9,6 @@ import pytest
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
-    CameraConfigError,
     CameraModel,
     Capture,
     CaptureRule,
@@ -17,6 +16,7 @@ from omni_micro_vision.camera import (
     StationaryCamera,
     capture_rng,
 )
+from omni_micro_vision.errors import CameraConfigError
 
 
 def test_pixel_size_is_field_over_resolution():

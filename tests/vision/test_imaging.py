@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError
-from omni_micro_vision.rendering import Sensor, checked_yaw, render, track
+from omni_micro_vision.camera import DEFAULT_RIG, checked_yaw
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.rendering import Sensor, render
+from omni_micro_vision.tracking import track
 
 SENSOR = Sensor()
 SAMPLES = 24

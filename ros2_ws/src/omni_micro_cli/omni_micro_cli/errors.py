@@ -7,3 +7,8 @@ class UsageError(ValueError):
 
 class RunFailed(RuntimeError):  # noqa: N818 - an outcome, named as the CLI reports it
     """A run did not reach its goal, or a node failed; the message names what failed."""
+
+
+class StudyError(UsageError):
+    """A study file is malformed or asks for something out of range; the message names the key
+    and the value."""

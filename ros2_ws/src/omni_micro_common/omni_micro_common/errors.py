@@ -15,3 +15,7 @@ class CommandError(OmniMicroError, ValueError):
 
 class ParamsFileError(ParameterError):
     """A params file cannot be read, is not YAML, or is not shaped as ROS 2 expects."""
+
+
+class LockstepError(OmniMicroError, ValueError):
+    """A lockstep report or setting is malformed; the message names the value."""

@@ -31,6 +31,8 @@ from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+from omni_micro_common.errors import LockstepError
+
 # Reports travel here as diagnostic_msgs/DiagnosticStatus: name = the node, values = the fields.
 ACK_TOPIC = '/lockstep'
 ACK_MESSAGE = 'lockstep'
@@ -41,10 +43,6 @@ DEFAULT_MAX_LEAD_S = 0.04
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
            'frame_handled_ns')
-
-
-class LockstepError(ValueError):
-    """A lockstep report or setting is malformed; the message names the value."""
 
 
 @dataclass(frozen=True)

@@ -53,8 +53,8 @@ from omni_micro_common.qos import (
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
+from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
-    ControllerConfigError,
     FeedbackConfig,
     Finished,
     Move,

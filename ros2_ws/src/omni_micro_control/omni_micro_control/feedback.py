@@ -27,10 +27,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from omni_micro_common.conventions import CaptureUncertainty
-
-
-class ControllerConfigError(ValueError):
-    """A controller parameter is out of range; the message names it."""
+from omni_micro_control.errors import ControllerConfigError
 
 
 class Outcome(enum.Enum):

@@ -24,16 +24,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.errors import IdentificationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.state import RobotState
 
 # A 95 % interval is this many standard deviations either side.
 Z_95 = 1.959963984540054
-
-
-class IdentificationError(ValueError):
-    """The data cannot give the parameters asked for; the message says why."""
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.errors import ControllerConfigError, IdentificationError
 from omni_micro_control.feedback import (
-    ControllerConfigError,
     FeedbackConfig,
     MovePlan,
     Observation,
@@ -36,7 +36,6 @@ from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
     Chain,
-    IdentificationError,
     Prior,
     RecordedMove,
     Stop,

@@ -43,12 +43,8 @@ from omni_micro_common.conventions import (
     stamp_ns,
     yaw_to_quaternion,
 )
-from omni_micro_common.lockstep import (
-    ACK_TOPIC,
-    DEFAULT_MAX_LEAD_S,
-    LockstepError,
-    LockstepGate,
-)
+from omni_micro_common.errors import LockstepError
+from omni_micro_common.lockstep import ACK_TOPIC, DEFAULT_MAX_LEAD_S, LockstepGate
 from omni_micro_common.node_runtime import LOCKSTEP_QOS, PublicationCounter, decode_ack, run_node
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim import paper

@@ -20,10 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
-
-
-class CameraConfigError(ValueError):
-    """A camera or capture parameter is out of range; the message names it."""
+from omni_micro_vision.errors import CameraConfigError
 
 
 def _finite(name: str, value: float, *, positive: bool = False,
@@ -328,3 +325,45 @@ class FaultInjector:
                  if not self._applies(c) or c.stamp_s + delay <= now_s + 1e-9]
         self._held = [c for c in self._held if c not in ready]
         return ready
+
+
+# -- a camera as a node is configured: which ones, and how each is turned ------------------
+def checked_cameras(names: list[str]) -> list[str]:
+    """The cameras a node is to use (its ``cameras`` parameter): at least one, each of the
+    rig's, else a CameraConfigError naming the value."""
+    known = sorted(vars(DEFAULT_RIG))
+    unknown = sorted(set(names) - set(known))
+    if not names:
+        raise CameraConfigError(f'cameras must name at least one of {known}')
+    if unknown:
+        raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of {known}')
+    return list(names)
+
+
+def checked_yaw(name: str, value: object) -> float:
+    """A camera's turn about its centre: finite radians within +-pi/4, else a
+    CameraConfigError naming ``name``."""
+    try:
+        angle = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise CameraConfigError(f'{name} must be a number of radians, got {value!r}') from None
+    if not math.isfinite(angle) or abs(angle) > math.pi / 4:
+        raise CameraConfigError(f"{name} must be finite and within +-pi/4 rad (the image's x "
+                                f"roughly along the platform's), got {value!r}")
+    return angle
+
+
+def camera_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
+                 phi_rad: float) -> tuple[float, float, float]:
+    """A platform pose as seen in the frame of a camera turned by ``yaw_rad`` about its
+    centre (its image's x axis is the platform's x turned by yaw)."""
+    cos, sin = math.cos(yaw_rad), math.sin(yaw_rad)
+    dx, dy = x_m - camera.center_m[0], y_m - camera.center_m[1]
+    return (camera.center_m[0] + cos * dx + sin * dy, camera.center_m[1] - sin * dx + cos * dy,
+            phi_rad - yaw_rad)
+
+
+def platform_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
+                   phi_rad: float) -> tuple[float, float, float]:
+    """The inverse of :func:`camera_frame`."""
+    return camera_frame(camera, -yaw_rad, x_m, y_m, phi_rad)

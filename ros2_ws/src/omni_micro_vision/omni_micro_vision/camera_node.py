@@ -28,8 +28,9 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.node_runtime import LockstepReporter, run_node
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.rendering import Sensor, checked_cameras, checked_yaw, render
+from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.rendering import Sensor, render
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,8 @@ from omni_micro_common.qos import (
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
 )
-from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel, CameraRig
-from omni_micro_vision.rendering import checked_yaw
+from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checked_yaw
+from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
 
 MARKER_TYPES = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER,

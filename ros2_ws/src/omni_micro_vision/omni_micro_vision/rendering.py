@@ -1,6 +1,7 @@
-"""Images of the robot as an overhead camera would take them, and the tracker that reads them.
+"""Images of the robot as an overhead camera would take them.
 
-No rclpy: ``camera_node`` and ``tracker_node`` are thin adapters of these.
+No rclpy: ``camera_node`` is a thin adapter of :func:`render`. The printed pattern is
+:mod:`omni_micro_vision.fiducial`; what reads it back is :mod:`omni_micro_vision.tracking`.
 
 **The scene.** The platform is a matte grey; the robot's top is the 9 mm dark chassis with a
 printed fiducial: for the macro camera two white dots 4 mm apart on the robot's X axis (the
@@ -14,12 +15,6 @@ and read noise in electrons, quantisation to ``bit_depth`` bits, and motion blur
 integrates the robot's motion over ``exposure_s``. Noise comes from a generator seeded per
 frame, so a frame is a function of (seed, frame number) and the robot's motion only. A camera
 may be turned about its centre (``yaw_rad``).
-
-**The tracker.** Threshold halfway between the surround and the brightest dots, outer
-contours, the two dots picked by their expected areas, each located by its intensity-weighted
-centroid (sub-pixel), and the pose from their midpoint and direction; first near the last pose
-when it is known. A frame where the pair is not found, is cut by the image's edge or is
-ambiguous gives no pose and says why.
 """
 
 from __future__ import annotations
@@ -27,42 +22,20 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, Protocol
 
 import numpy as np
 
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-
-
-@dataclass(frozen=True)
-class Dot:
-    """A printed dot on the robot's top: centre in the robot frame (m) and radius (m)."""
-
-    x_m: float
-    y_m: float
-    radius_m: float
-
-
-@dataclass(frozen=True)
-class Fiducial:
-    """A pair of dots on the robot's X axis: ``front`` larger than ``back``."""
-
-    front: Dot
-    back: Dot
-
-    @property
-    def baseline_m(self) -> float:
-        return math.hypot(self.front.x_m - self.back.x_m, self.front.y_m - self.back.y_m)
-
-
-MACRO_FIDUCIAL = Fiducial(Dot(2.0e-3, 0.0, 0.9e-3), Dot(-2.0e-3, 0.0, 0.5e-3))
-MICRO_FIDUCIAL = Fiducial(Dot(0.3e-3, 0.0, 0.06e-3), Dot(-0.3e-3, 0.0, 0.035e-3))
-CHASSIS_RADIUS_M = 4.5e-3
-# Reflectances: what fraction of the full well a pixel collects in one exposure.
-PLATFORM_LEVEL = 0.35
-CHASSIS_LEVEL = 0.12
-DOT_LEVEL = 0.9
+from omni_micro_vision.camera import CameraModel, camera_frame
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.fiducial import (
+    CHASSIS_LEVEL,
+    CHASSIS_RADIUS_M,
+    DOT_LEVEL,
+    MACRO_FIDUCIAL,
+    MICRO_FIDUCIAL,
+    PLATFORM_LEVEL,
+)
 
 
 @dataclass(frozen=True)
@@ -226,47 +199,6 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
     return np.asarray(smeared[margin:-margin, margin:-margin], np.float32)
 
 
-def checked_cameras(names: list[str]) -> list[str]:
-    """The cameras a node is to use (its ``cameras`` parameter): at least one, each of the
-    rig's, else a CameraConfigError naming the value."""
-    known = sorted(vars(DEFAULT_RIG))
-    unknown = sorted(set(names) - set(known))
-    if not names:
-        raise CameraConfigError(f'cameras must name at least one of {known}')
-    if unknown:
-        raise CameraConfigError(f'cameras: {unknown[0]!r} is not one of {known}')
-    return list(names)
-
-
-def checked_yaw(name: str, value: object) -> float:
-    """A camera's turn about its centre: finite radians within +-pi/4, else a
-    CameraConfigError naming ``name``."""
-    try:
-        angle = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise CameraConfigError(f'{name} must be a number of radians, got {value!r}') from None
-    if not math.isfinite(angle) or abs(angle) > math.pi / 4:
-        raise CameraConfigError(f"{name} must be finite and within +-pi/4 rad (the image's x "
-                                f"roughly along the platform's), got {value!r}")
-    return angle
-
-
-def camera_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
-                 phi_rad: float) -> tuple[float, float, float]:
-    """A platform pose as seen in the frame of a camera turned by ``yaw_rad`` about its
-    centre (its image's x axis is the platform's x turned by yaw)."""
-    cos, sin = math.cos(yaw_rad), math.sin(yaw_rad)
-    dx, dy = x_m - camera.center_m[0], y_m - camera.center_m[1]
-    return (camera.center_m[0] + cos * dx + sin * dy, camera.center_m[1] - sin * dx + cos * dy,
-            phi_rad - yaw_rad)
-
-
-def platform_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
-                   phi_rad: float) -> tuple[float, float, float]:
-    """The inverse of :func:`camera_frame`."""
-    return camera_frame(camera, -yaw_rad, x_m, y_m, phi_rad)
-
-
 def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
            rng: np.random.Generator, yaw_rad: float = 0.0) -> np.ndarray:
     """One frame (rows x columns, uint8 or uint16) of ``camera`` seeing the robot, whose state
@@ -359,195 +291,3 @@ def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
     return frame
 
 
-@dataclass(frozen=True)
-class Track:
-    """The tracker's answer for one frame: a pose (x, y, heading in the platform frame), or
-    why there is none."""
-
-    pose: tuple[float, float, float] | None = None
-    reason: str = ''
-
-    @property
-    def found(self) -> bool:
-        return self.pose is not None
-
-
-def fiducial_for(camera: CameraModel) -> Fiducial:
-    """The pair a camera tracks: the macro pair when it spans at most half the field (the
-    macro camera: 5.8 mm of 150), else the micro pair (the micro camera's 2 mm field)."""
-    span = MACRO_FIDUCIAL.baseline_m + 2 * MACRO_FIDUCIAL.front.radius_m
-    return MACRO_FIDUCIAL if span <= 0.5 * min(camera.field_m) else MICRO_FIDUCIAL
-
-
-# Where the last pose is known, the fiducial is first looked for around it, a quarter of the
-# pair's baseline beyond the pair (1 mm for the macro pair: a robot at 14 mm/s goes 0.47 mm
-# between frames at 30 Hz; a faster one is found in the whole frame).
-SEARCH_MARGIN_BASELINES = 0.25
-
-
-def track(image: np.ndarray, camera: CameraModel, near: tuple[float, float] | None = None,
-          yaw_rad: float = 0.0) -> Track:
-    """The robot's pose (platform frame) in ``image`` of ``camera`` turned by ``yaw_rad`` about
-    its centre, from its fiducial.
-
-    ``near``: where the robot was in the last frame (platform x, y). The fiducial is then first
-    looked for in a window around it, and in the whole frame only if it is not found there
-    whole (a quarter of the micro camera's frame, 67 x 54 of the macro camera's 1280 x 1024
-    pixels: most of the tracker's time per frame was the whole frame's histogram).
-
-    Raises
-    ------
-    CameraConfigError
-        If ``image`` is not a 2-D array of the camera's resolution (a corrupt frame).
-    """
-    columns, rows = (int(v) for v in camera.resolution_px)
-    if image.ndim != 2 or image.shape != (rows, columns):
-        raise CameraConfigError(f'{camera.name}: expected a {columns} x {rows} mono image, got '
-                                f'shape {image.shape}')
-    fiducial = fiducial_for(camera)
-    found = _track_in_camera_frame(
-        image, camera, fiducial,
-        None if near is None else camera_frame(camera, yaw_rad, near[0], near[1], 0.0)[:2])
-    if found.pose is None or not yaw_rad:
-        return found
-    return Track(platform_frame(camera, yaw_rad, *found.pose))
-
-
-def _track_in_camera_frame(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
-                           near: tuple[float, float] | None) -> Track:
-    columns, rows = (int(v) for v in camera.resolution_px)
-    if near is not None:
-        px, py = camera.pixel_size_m
-        reach = ((0.5 + SEARCH_MARGIN_BASELINES) * fiducial.baseline_m
-                 + fiducial.front.radius_m)
-        column = (near[0] - (camera.center_m[0] - camera.field_m[0] / 2)) / px
-        row = (camera.center_m[1] + camera.field_m[1] / 2 - near[1]) / py
-        region = (max(0, int(row - reach / py)), min(rows, int(row + reach / py) + 1),
-                  max(0, int(column - reach / px)), min(columns, int(column + reach / px) + 1))
-        if region[1] - region[0] > 8 and region[3] - region[2] > 8:
-            found = _locate(image, camera, fiducial, region)
-            if found.found:
-                return found
-    return _locate(image, camera, fiducial, (0, rows, 0, columns))
-
-
-def _locate(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
-            region: tuple[int, int, int, int]) -> Track:
-    """The fiducial in ``region`` (first row, end row, first column, end column) of ``image``;
-    a blob touching the region's border is cut (by the field's edge when the region is the
-    whole frame)."""
-    import cv2
-
-    columns, rows = (int(v) for v in camera.resolution_px)
-    r0, r1, c0, c1 = region
-    part = image[r0:r1, c0:c1]
-    px, py = camera.pixel_size_m
-    # The surround as the median level, the peak as the tenth brightest pixel: both from the
-    # histogram (one pass over the frame, no sort or float copy of a megapixel).
-    full_scale = int(np.iinfo(image.dtype).max)
-    histogram = cv2.calcHist([part], [0], None, [full_scale + 1], [0, full_scale + 1]).ravel()
-    cumulative = np.cumsum(histogram)
-    background = float(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
-    peak = float(np.searchsorted(cumulative, cumulative[-1] - 10))
-    if peak - background < 0.2 * full_scale * (DOT_LEVEL - PLATFORM_LEVEL):
-        return Track(reason='no fiducial: nothing brighter than the platform')
-    threshold = 0.5 * (background + peak)
-    binary = np.asarray(cv2.compare(part, np.array([threshold]), cv2.CMP_GT))
-    # Blobs as outer contours (a few on a megapixel: far cheaper than labelling every pixel);
-    # a blob's area is its pixels above the threshold inside its bounding box.
-    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    # In frame pixels: the region's offset added.
-    boxes = [(left + c0, top + r0, width, height) for left, top, width, height in
-             (cv2.boundingRect(contour) for contour in contours)]
-    expected = {name: math.pi * dot.radius_m ** 2 / (px * py)
-                for name, dot in (('front', fiducial.front), ('back', fiducial.back))}
-    found: dict[str, list[int]] = {'front': [], 'back': []}
-    cut: dict[str, int] = {'front': 0, 'back': 0}
-    largest = 1.6 * max(expected.values())
-    for label, (left, top, width, height) in enumerate(boxes):
-        if width * height * 0.5 > 4 * largest:
-            continue   # far larger than a dot, whatever it holds
-        area = cv2.countNonZero(binary[top - r0:top - r0 + height, left - c0:left - c0 + width])
-        at_edge = left == c0 or top == r0 or left + width >= c1 or top + height >= r1
-        for name, size in expected.items():
-            # A blob at the edge is only part of what it is: never taken, only counted.
-            if at_edge and area <= 1.6 * size:
-                cut[name] += 1
-            elif 0.5 * size <= area <= 1.6 * size:
-                found[name].append(label)
-    missing = [name for name in ('front', 'back') if not found[name]]
-    if missing and any(cut[name] for name in missing):
-        return Track(reason=f'fiducial cut by the edge of the {camera.name} field')
-    if missing:
-        sizes = ', '.join(f'{expected[name]:.0f} px' for name in missing)
-        return Track(reason=f'fiducial not found: no {" or ".join(missing)} dot of the '
-                            f'expected size ({sizes})')
-    if len(found['front']) > 1 or len(found['back']) > 1:
-        return Track(reason=f'ambiguous: {len(found["front"])} front and {len(found["back"])} '
-                            'back dot candidates')
-    centres = {}
-    for name in ('front', 'back'):
-        left, top, width, height = boxes[found[name][0]]
-        pad = max(2, round(1.5 * min(width, height) / 4) + 2)
-        y0, y1 = max(0, top - pad), min(rows, top + height + pad)
-        x0, x1 = max(0, left - pad), min(columns, left + width + pad)
-        window = image[y0:y1, x0:x1].astype(np.float32)
-        # Intensity-weighted centroid above the local surround (the chassis around the dot).
-        surround = float(np.median(np.concatenate([window[0], window[-1], window[:, 0],
-                                                   window[:, -1]])))
-        weights = np.clip(window - surround, 0.0, None)
-        total = float(weights.sum())
-        if total <= 0.0:
-            return Track(reason=f'{name} dot has no contrast')
-        rows_index, columns_index = np.mgrid[y0:y1, x0:x1]
-        u = float((weights * columns_index).sum() / total) + 0.5
-        v = float((weights * rows_index).sum() / total) + 0.5
-        centres[name] = (camera.center_m[0] - camera.field_m[0] / 2 + u * px,
-                         camera.center_m[1] + camera.field_m[1] / 2 - v * py)
-    (fx, fy), (bx, by) = centres['front'], centres['back']
-    # The dots sit symmetrically about the centre on the robot's X axis.
-    offset = 0.5 * (fiducial.front.x_m + fiducial.back.x_m)
-    heading = math.atan2(fy - by, fx - bx)
-    return Track((0.5 * (fx + bx) - offset * math.cos(heading),
-                  0.5 * (fy + by) - offset * math.sin(heading), heading))
-
-
-class ImageLike(Protocol):
-    """What a sensor_msgs/Image carries, whoever decoded it (rclpy, or rosbags from a bag)."""
-
-    encoding: str
-    width: int
-    height: int
-    step: int
-    is_bigendian: int
-    data: Any
-
-
-DTYPES = {'mono8': np.uint8, 'mono16': np.uint16}
-
-
-def image_array(msg: ImageLike, expected: tuple[int, int] | None) -> np.ndarray:
-    """The pixels of ``msg`` (a sensor_msgs/Image, from rclpy or read from a bag) as a rows x
-    columns array; a native little-endian frame without row padding is not copied.
-
-    Raises
-    ------
-    CameraConfigError
-        Naming what is wrong: the encoding, the size against the CameraInfo, the data length.
-    """
-    if msg.encoding not in DTYPES:
-        raise CameraConfigError(f'encoding {msg.encoding!r} is not mono8 or mono16')
-    if expected is not None and (msg.width, msg.height) != expected:
-        raise CameraConfigError(f'image is {msg.width} x {msg.height}, its CameraInfo says '
-                                f'{expected[0]} x {expected[1]}')
-    dtype = np.dtype(DTYPES[msg.encoding]).newbyteorder('>' if msg.is_bigendian else '<')
-    row_bytes = msg.width * dtype.itemsize
-    if msg.step < row_bytes or len(msg.data) != msg.step * msg.height:
-        raise CameraConfigError(f'{len(msg.data)} bytes of data for {msg.height} rows of step '
-                                f'{msg.step} ({msg.width} pixels of {dtype.itemsize} bytes)')
-    rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
-    pixels = rows[:, :row_bytes]
-    if msg.step != row_bytes:
-        pixels = pixels.copy()    # padded rows: the view needs contiguous rows
-    # A native little-endian mono8/mono16 frame is used as it is, with no copy.
-    return pixels.view(dtype).astype(DTYPES[msg.encoding], copy=False)

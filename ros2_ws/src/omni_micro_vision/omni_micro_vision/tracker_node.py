@@ -40,8 +40,10 @@ from omni_micro_common.qos import (
     IMAGE_QOS,
     latched,
 )
-from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-from omni_micro_vision.rendering import checked_cameras, checked_yaw, fiducial_for, image_array
+from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.fiducial import fiducial_for
+from omni_micro_vision.image_messages import image_array
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,

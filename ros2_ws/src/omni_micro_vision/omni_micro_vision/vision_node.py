@@ -43,7 +43,6 @@ from omni_micro_common.qos import (
 )
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
-    CameraConfigError,
     CameraFaults,
     CameraModel,
     CameraRig,
@@ -52,6 +51,7 @@ from omni_micro_vision.camera import (
     FaultInjector,
     StationaryCamera,
 )
+from omni_micro_vision.errors import CameraConfigError
 
 # Latched: a subscriber that comes later still learns which camera is in use.
 CAMERA_STATUS_QOS = latched(1)

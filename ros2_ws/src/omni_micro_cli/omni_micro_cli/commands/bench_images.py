@@ -68,7 +68,8 @@ def _median_ms(action: Callable[[int], object], count: int) -> float:
 def frame_costs(frames: int) -> list[dict[str, object]]:
     from omni_micro_sim.state import RobotState
     from omni_micro_vision.camera import DEFAULT_RIG, CameraModel
-    from omni_micro_vision.rendering import Sensor, render, track
+    from omni_micro_vision.rendering import Sensor, render
+    from omni_micro_vision.tracking import track
 
     sensor = Sensor()
     rows = []

@@ -26,13 +26,13 @@ import yaml
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
+from omni_micro_control.errors import IdentificationError
 from omni_micro_control.feedback import Observation, mean_observation
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
     Chain,
     Fit,
-    IdentificationError,
     RecordedMove,
     Stop,
     fit_parameters,

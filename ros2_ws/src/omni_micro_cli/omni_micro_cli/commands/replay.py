@@ -76,7 +76,8 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.node import Node
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    from omni_micro_common.lockstep import ACK_TOPIC, LockstepError
+    from omni_micro_common.errors import LockstepError
+    from omni_micro_common.lockstep import ACK_TOPIC
     from omni_micro_common.messages import message_class
     from omni_micro_common.node_runtime import LOCKSTEP_QOS, decode_ack
 

@@ -66,8 +66,10 @@ def run(args: argparse.Namespace) -> int:
     from rosbags.highlevel import AnyReader
 
     from omni_micro_tools.bags import TYPESTORE, check_readable_bag
-    from omni_micro_vision.camera import DEFAULT_RIG, CameraConfigError, CameraModel
-    from omni_micro_vision.rendering import checked_yaw, fiducial_for, image_array
+    from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
+    from omni_micro_vision.errors import CameraConfigError
+    from omni_micro_vision.fiducial import fiducial_for
+    from omni_micro_vision.image_messages import image_array
     from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
     check_readable_bag(args.bag)

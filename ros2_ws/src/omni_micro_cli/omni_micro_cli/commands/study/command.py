@@ -13,8 +13,8 @@ from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.commands.study import execute as execution
 from omni_micro_cli.commands.study.report import write_figure, write_summary
 from omni_micro_cli.commands.study.runs import run_row
-from omni_micro_cli.commands.study.spec import StudyError, load_study, parse_study
-from omni_micro_cli.errors import UsageError
+from omni_micro_cli.commands.study.spec import load_study, parse_study
+from omni_micro_cli.errors import StudyError, UsageError
 
 EXAMPLE = Path(__file__).with_name('example.yaml')
 

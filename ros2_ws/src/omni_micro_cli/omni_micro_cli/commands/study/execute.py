@@ -25,7 +25,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from omni_micro_cli.commands.study.runs import run_rows, warm_up
-from omni_micro_cli.commands.study.spec import Study, StudyError, parse_study
+from omni_micro_cli.commands.study.spec import Study, parse_study
+from omni_micro_cli.errors import StudyError
 
 STUDY_FILE = 'study.yaml'
 RUNS_FILE = 'runs.parquet'

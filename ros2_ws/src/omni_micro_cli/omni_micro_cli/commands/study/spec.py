@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from omni_micro_cli.errors import StudyError
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import RobotParameters
@@ -30,11 +31,6 @@ from omni_micro_vision.camera import DEFAULT_RIG
 SCENARIOS = ('closed_loop', 'open_loop')
 MODES = ('paper', 'model')
 CLOSED_LOOP = 'closed_loop'
-
-
-class StudyError(ValueError):
-    """A study file is malformed or asks for something out of range; the message names the key
-    and the value."""
 
 
 @dataclass(frozen=True)

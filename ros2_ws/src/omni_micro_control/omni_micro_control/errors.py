@@ -1,0 +1,11 @@
+"""Errors of the controller and of identification; each names the value or says why."""
+
+from omni_micro_common.errors import OmniMicroError
+
+
+class ControllerConfigError(OmniMicroError, ValueError):
+    """A controller parameter is out of range; the message names it."""
+
+
+class IdentificationError(OmniMicroError, ValueError):
+    """The data cannot give the parameters asked for; the message says why."""

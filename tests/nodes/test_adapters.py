@@ -1,0 +1,222 @@
+"""Every node adapter in-process: parameters checked at start and at run time, messages turned
+into the plain modules' types and back, refusals that name the value."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import CameraInfo, Image
+
+from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
+from omni_micro_common.errors import ParameterError
+from omni_micro_control.controller_node import ControllerNode
+from omni_micro_control.errors import ControllerConfigError
+from omni_micro_sim.dynamics_node import DynamicsNode
+from omni_micro_sim.state import RobotState
+from omni_micro_tools.bags import read_bag
+from omni_micro_tools.recorder_node import BagRecorder
+from omni_micro_tools.viewer_node import Viewer
+from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.camera_node import CameraNode
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.markers_node import MarkersNode
+from omni_micro_vision.rendering import Sensor, render
+from omni_micro_vision.tracker_node import TrackerNode
+from omni_micro_vision.vision_node import VisionNode
+
+
+def overrides(**values: object) -> list[Parameter]:
+    return [Parameter(name.replace('__', '.'), value=value) for name, value in values.items()]
+
+
+# -- dynamics_node ------------------------------------------------------------------------------
+def test_dynamics_node_refuses_a_bad_factor_at_start_and_at_run_time(context):
+    with pytest.raises(ParameterError, match='real_time_factor'):
+        DynamicsNode(context=context, parameter_overrides=overrides(real_time_factor=0.0))
+    node = DynamicsNode(context=context, parameter_overrides=overrides(real_time_factor=2.0))
+    try:
+        refused = node.set_parameters([Parameter('real_time_factor', value=-1.0)])[0]
+        assert not refused.successful and '-1.0' in refused.reason
+        assert node.real_time_factor == 2.0
+        # .inf (as fast as the lockstep allows) needs nodes to wait for.
+        refused = node.set_parameters([Parameter('real_time_factor', value=math.inf)])[0]
+        assert not refused.successful and 'lockstep_nodes' in refused.reason
+        assert node.set_parameters([Parameter('real_time_factor', value=5.0)])[0].successful
+        assert node.real_time_factor == 5.0
+    finally:
+        node.destroy_node()
+
+
+def test_dynamics_node_refuses_a_malformed_initial_pose(context):
+    with pytest.raises(ParameterError, match='initial_pose'):
+        DynamicsNode(context=context, parameter_overrides=overrides(initial_pose=[0.0, 1.0]))
+
+
+# -- vision_node --------------------------------------------------------------------------------
+def test_vision_node_lets_only_faults_change_while_it_runs(context):
+    node = VisionNode(context=context)
+    try:
+        refused = node.set_parameters([Parameter('seed', value=3)])[0]
+        assert not refused.successful and 'seed is fixed' in refused.reason
+    finally:
+        node.destroy_node()
+
+
+# -- controller_node ----------------------------------------------------------------------------
+def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):
+    node = ControllerNode(context=context)
+    try:
+        assert node.set_parameters([Parameter('near_period_s', value=0.2)])[0].successful
+        assert node.controller.config.near_period_s == 0.2
+        refused = node.set_parameters([Parameter('mode', value='model')])[0]
+        assert not refused.successful and 'mode' in refused.reason
+        refused = node.set_parameters([Parameter('near_period_s', value=-1.0)])[0]
+        assert not refused.successful and node.controller.config.near_period_s == 0.2
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize(('name', 'value', 'error'), [
+    ('capture_uncertainty', 'guess', ParameterError),
+    ('goal_m', [0.01, 0.0, 0.0], ParameterError),
+    ('tolerance_m', -1e-6, ControllerConfigError),
+])
+def test_controller_node_refuses_bad_parameters_naming_them(context, name, value, error):
+    with pytest.raises(error, match=name):
+        ControllerNode(context=context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_controller_node_rejects_a_goal_in_another_frame_and_says_so(context, spy):
+    node = ControllerNode(context=context)
+    try:
+        statuses = spy(node.status_pub)
+        goal = PoseStamped()
+        goal.header.frame_id = 'map'
+        goal.pose.position.x = 0.01
+        node._on_goal(goal)
+        status = statuses.messages[-1]
+        assert status.level == DiagnosticStatus.WARN and status.message == 'goal rejected'
+        assert "'map'" in {value.key: value.value for value in status.values}['reason']
+    finally:
+        node.destroy_node()
+
+
+# -- camera_node and tracker_node ---------------------------------------------------------------
+def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(context, spy):
+    node = CameraNode(context=context, parameter_overrides=overrides(cameras=['macro']))
+    try:
+        images = spy(node.streams[0].image_pub)
+        infos = spy(node.streams[0].info_pub)
+        odometry = Odometry()
+        odometry.pose.pose.position.x, odometry.pose.pose.position.y = 0.05, 0.0
+        odometry.pose.pose.orientation.z, odometry.pose.pose.orientation.w = yaw_to_quaternion(
+            0.0)
+        for nanosec in (0, 20_000_000, 40_000_000):   # the 50 Hz grid: frames 0 and 1 (1/30 s)
+            odometry.header.stamp.nanosec = nanosec
+            node._on_odometry(odometry)
+        assert [m.header.stamp.nanosec for m in images.messages] == [0, round(1e9 / 30)]
+        frame = images.messages[0]
+        assert (frame.width, frame.height, frame.encoding) == (1280, 1024, 'mono8')
+        assert len(frame.data) == 1280 * 1024 and len(infos.messages) == 2
+    finally:
+        node.destroy_node()
+
+
+def test_camera_node_refuses_a_frame_rate_of_zero(context):
+    with pytest.raises(CameraConfigError, match='frame_rate_hz'):
+        CameraNode(context=context, parameter_overrides=overrides(frame_rate_hz=0.0))
+
+
+def frame(pixels: np.ndarray, stamp_ns: int) -> tuple[Image, CameraInfo]:
+    image = Image(height=pixels.shape[0], width=pixels.shape[1], encoding='mono8',
+                  is_bigendian=0, step=pixels.shape[1], data=pixels.tobytes())
+    image.header.stamp.sec, image.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    info = CameraInfo(height=pixels.shape[0], width=pixels.shape[1])
+    info.header = image.header
+    return image, info
+
+
+def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(context, spy):
+    node = TrackerNode(context=context, parameter_overrides=overrides(cameras=['macro']))
+    try:
+        reader = node.readers[0]
+        captures, covariances = spy(reader.capture_pub), spy(reader.covariance_pub)
+        statuses = spy(reader.status_pub)
+        truth = RobotState(0.05, 0.01, 0.4)
+        for index in range(4):
+            pixels = render(DEFAULT_RIG.macro, Sensor(), truth, np.random.default_rng([5, index]))
+            image, info = frame(pixels, index * 33_333_333)
+            reader.on_info(info)
+            reader.on_image(image)
+        # Three frames agree from the third on: a capture each, stamped with its frame.
+        assert [c.header.stamp.nanosec for c in captures.messages] == [66_666_666, 99_999_999]
+        for capture in captures.messages:
+            position = capture.pose.position
+            assert math.hypot(position.x - truth.x_m, position.y - truth.y_m) < 20e-6
+            assert abs(quaternion_to_yaw(capture.pose.orientation.z,
+                                         capture.pose.orientation.w) - truth.phi_rad) < 0.01
+        assert len(covariances.messages) == 2 and covariances.messages[0].pose.covariance[0] > 0
+        image, _ = frame(np.zeros((1024, 1280), dtype=np.uint8), 5 * 33_333_333)
+        image.encoding = 'rgb8'
+        reader.on_image(image)
+        assert "encoding 'rgb8' is not mono8 or mono16" in statuses.messages[-1].message
+        assert len(captures.messages) == 2
+    finally:
+        node.destroy_node()
+
+
+def test_tracker_node_refuses_an_unknown_camera_naming_it(context):
+    with pytest.raises(CameraConfigError, match="'tele'"):
+        TrackerNode(context=context, parameter_overrides=overrides(cameras=['macro', 'tele']))
+
+
+# -- markers_node -------------------------------------------------------------------------------
+def test_markers_node_refuses_a_turned_field_that_is_not_a_number(context):
+    with pytest.raises(CameraConfigError, match=r'macro\.yaw_rad'):
+        MarkersNode(context=context, parameter_overrides=overrides(macro__yaw_rad=math.nan))
+
+
+# -- bag_recorder and viewer (omni_micro_tools) -------------------------------------------------
+def test_bag_recorder_writes_what_it_receives_into_a_readable_bag(context, tmp_path):
+    bag = tmp_path / 'bag'
+    node = BagRecorder(context=context, parameter_overrides=overrides(
+        bag=str(bag), topics=['/odom']))
+    odometry = Odometry()
+    odometry.header.stamp.sec = 3
+    odometry.pose.pose.position.x = 0.0123
+    node._writer_of('/odom')(serialize_message(odometry))
+    node.close()
+    node.destroy_node()
+    (odom,) = read_bag(bag).messages['/odom']
+    assert odom.pose.pose.position.x == 0.0123 and odom.header.stamp.sec == 3
+
+
+@pytest.mark.parametrize(('values', 'named'), [
+    ({}, 'bag must name'),
+    ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
+    ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
+])
+def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, named):
+    if 'bag' in values:
+        values = {**values, 'bag': str(tmp_path / values['bag'])}
+    with pytest.raises(ParameterError, match=named):
+        BagRecorder(context=context, parameter_overrides=overrides(**values))
+    assert not (tmp_path / 'x').exists()
+
+
+def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):
+    (tmp_path / 'mine').mkdir()
+    with pytest.raises(ParameterError, match='exists already'):
+        BagRecorder(context=context, parameter_overrides=overrides(bag=str(tmp_path / 'mine')))
+
+
+def test_viewer_refuses_a_port_out_of_range(context):
+    with pytest.raises(ParameterError, match='70000'):
+        Viewer(context=context, parameter_overrides=overrides(port=70000))
