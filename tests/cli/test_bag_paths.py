@@ -50,6 +50,7 @@ def test_only_a_torn_bag_is_sent_to_bag_recover(tmp_path):
         check_readable_bag(torn / 'torn_0.mcap')
 
 
+@pytest.mark.slow   # starts omni-micro as a process
 @pytest.mark.parametrize('command', ['analyze', 'analyse', 'replay'])
 def test_analyze_and_replay_of_a_missing_bag_exit_2(command, tmp_path):
     args = [str(ROOT / 'scripts' / 'omni-micro'), command, str(tmp_path / 'nope')]

@@ -4,6 +4,11 @@ import json
 import subprocess
 import sys
 
+import pytest
+
+# Each test starts omni-micro as a process: the slow tier.
+pytestmark = pytest.mark.slow
+
 
 def test_both_modes_run_the_same_cases_and_the_model_needs_fewer_periods(tmp_path):
     out = tmp_path / 'compare'

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 
+# Each test starts omni-micro as a process: the slow tier.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[2]
 
 

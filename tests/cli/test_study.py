@@ -23,6 +23,9 @@ from omni_micro_cli.commands.study.execute import (
 from omni_micro_cli.commands.study.spec import load_study, parse_study
 from omni_micro_cli.errors import StudyError
 
+# Each test starts omni-micro as a process: the slow tier.
+pytestmark = pytest.mark.slow
+
 EXAMPLE = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_cli'
            / 'omni_micro_cli' / 'commands' / 'study' / 'example.yaml')
 

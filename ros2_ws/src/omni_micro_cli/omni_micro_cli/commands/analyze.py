@@ -10,12 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_micro_cli import plots
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
 from omni_micro_control.feedback import OUTCOME_NAMES
-from omni_micro_tools.bags import read_bag
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -48,6 +46,8 @@ def _stamp(msg) -> float:
 
 def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The run's numbers and the arrays the figures need."""
+    from omni_micro_tools.bags import read_bag
+
     data = read_bag(bag)
     odometry = data.messages.get('/odom', [])
     if not odometry:
@@ -113,6 +113,8 @@ def summary_markdown(summary: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_cli import plots
+
     summary, arrays = summarize(args.bag)
     route, goal = arrays['route'], arrays['goal']
     with staged_directory(args.out) as scratch:

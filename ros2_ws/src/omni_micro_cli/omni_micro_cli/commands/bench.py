@@ -14,13 +14,17 @@ import os
 import subprocess
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from omni_micro_cli.arguments import positive_float
 from omni_micro_cli.errors import UsageError
-from omni_micro_sim import RobotParameters, move_profile, paper, simulate_open_loop
-from omni_micro_sim.simulator import simulate_open_loop_batch
+from omni_micro_sim import paper
+
+if TYPE_CHECKING:
+    from omni_micro_sim.parameters import RobotParameters
+
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -42,12 +46,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _fig11() -> tuple[RobotParameters, float, float]:
+
     scenario = paper.FIG11_OPEN_LOOP
     return scenario.robot(), math.radians(scenario.steering_deg), scenario.duration_s
 
 
 def reference_main() -> None:
     """Child process: the LSODA reference, kernels running as plain Python (median of 3)."""
+    from omni_micro_sim import move_profile
     from omni_micro_sim.reference import solve_ivp_reference
     params, steering, duration = _fig11()
     end_time = float(sys.argv[1])
@@ -67,6 +73,9 @@ def _log(message: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_sim import simulate_open_loop
+    from omni_micro_sim.simulator import simulate_open_loop_batch
+
     if args.batch < 1 or args.repeats < 1:
         raise UsageError(f'--batch and --repeats must be >= 1, got {args.batch}, {args.repeats}')
     params, steering, duration = _fig11()

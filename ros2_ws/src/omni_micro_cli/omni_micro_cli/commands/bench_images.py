@@ -19,16 +19,19 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
-from omni_micro_tools.bags import read_bag
 from omni_micro_tools.topics import IMAGE_TOPICS
+
+if TYPE_CHECKING:
+    from omni_micro_cli.orchestration.graph import GraphResult
+
 
 # Where the robot is for each per-frame case: (camera, label, x, y, heading, speed along x).
 FRAME_CASES = (('macro', 'robot still', 0.05, 0.01, 0.3, 0.0),
@@ -113,6 +116,8 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
 
 
 def _fig11(vision: str, busy: int, scratch: Path) -> GraphResult:
+    from omni_micro_cli.orchestration.graph import run_graph
+
     with busy_cores(busy):
         return run_graph(GraphOptions(
             goal_m=paper.FIG11_GOAL_M, real_time_factor=math.inf, log_dir=scratch / 'logs',
@@ -120,6 +125,9 @@ def _fig11(vision: str, busy: int, scratch: Path) -> GraphResult:
 
 
 def loop_costs(scratch: Path) -> dict[str, object]:
+    from omni_micro_cli.orchestration.graph import run_graph
+    from omni_micro_tools.bags import read_bag
+
     rows = []
     for label, vision, busy in (('model, idle (reference)', 'model', 0),
                                 ('images, idle', 'images', 0),

@@ -18,11 +18,15 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.commands.study.execute import Execution, execute, prepare_directory
-from omni_micro_cli.commands.study.spec import Study, parse_study
 from omni_micro_cli.errors import UsageError
+
+if TYPE_CHECKING:
+    from omni_micro_cli.commands.study.execute import Execution
+    from omni_micro_cli.commands.study.spec import Study
+
 
 EXAMPLE = Path(__file__).with_name('study') / 'example.yaml'
 
@@ -40,6 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def monte_carlo(runs: int) -> Study:
+    from omni_micro_cli.commands.study.spec import parse_study
+
     text = EXAMPLE.read_text().replace('draws: 24', f'draws: {runs}').replace(
         'seeds_per_point: 2', 'seeds_per_point: 1')
     study = parse_study(text, 'bench')
@@ -48,6 +54,8 @@ def monte_carlo(runs: int) -> Study:
 
 
 def timed(study: Study, **how: object) -> Execution:
+    from omni_micro_cli.commands.study.execute import execute, prepare_directory
+
     with tempfile.TemporaryDirectory(prefix='omni-micro-bench-study-') as scratch:
         out = Path(scratch) / 'study'
         prepare_directory(study, out)

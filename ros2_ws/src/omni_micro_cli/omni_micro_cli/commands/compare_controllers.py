@@ -18,16 +18,19 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
 from omni_micro_cli.outputs import staged_directory
-from omni_micro_cli.twin import ClosedLoopResult, run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig, Outcome
-from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.state import RobotState
+
+if TYPE_CHECKING:
+    from omni_micro_cli.twin import ClosedLoopResult
+
 
 OFFSET_RANGE_DEG = 5.0
 MICRO_GOAL_HALF_WIDTH_M = 0.8e-3     # goals well inside the 2 mm micro field
@@ -78,6 +81,8 @@ def make_cases(count: int, seed: int) -> list[Case]:
 
 
 def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
+    from omni_micro_cli.twin import run_closed_loop
+
     robot = RobotParameters(wheel_offsets_rad=(0.0, math.radians(case.xi2_deg),
                                                math.radians(case.xi3_deg)))
     return run_closed_loop(case.goal_m, robot=robot, seed=case.seed,
@@ -87,6 +92,8 @@ def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
 
 def run_case(case: Case, tolerance_m: float) -> dict[str, object]:
     """Both modes on one case; the row of the results."""
+    from omni_micro_control.model_based import ModelBasedPlanner
+
     row: dict[str, object] = {**asdict(case)}
     for mode in ('paper', 'model'):
         began = time.perf_counter()

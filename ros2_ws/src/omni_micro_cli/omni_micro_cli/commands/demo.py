@@ -12,20 +12,22 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli import plots
 from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
-from omni_micro_cli.commands import figures
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.outputs import check_output_path, staged_directory
 from omni_micro_sim import paper
+
+if TYPE_CHECKING:
+    from omni_micro_cli.orchestration.graph import GraphResult
+
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
 RUNS = ('open_loop', 'closed_loop', 'model', 'images')
@@ -73,6 +75,8 @@ def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
 
 def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
               bag: Path | None, mode: str = 'paper', vision: str = 'model') -> GraphResult:
+    from omni_micro_cli.orchestration.graph import run_graph
+
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,
         lockstep=not args.free_running,
@@ -84,6 +88,7 @@ def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Pat
 
 def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
                      model: GraphResult, images: GraphResult) -> str:
+
     return '\n'.join([
         '| Fig. 11, (0,0) -> (100,0) mm | paper | this graph |',
         '|---|---|---|',
@@ -105,6 +110,9 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_cli import plots
+    from omni_micro_cli.commands import figures
+
     try:
         check_timing(args)
     except argparse.ArgumentTypeError as error:

@@ -11,10 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_micro_cli import plots
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import staged_directory
-from omni_micro_sim import RobotParameters, paper, simulate_open_loop, simulate_open_loop_batch
+from omni_micro_sim import paper
 
 TRACE_INTERVAL_S = 1e-3
 
@@ -39,6 +38,7 @@ def _progress(message: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+
     for name in ('angle_step_deg', 'offset_step_deg'):
         value = getattr(args, name)
         if not math.isfinite(value) or not 0.0 < value <= 30.0:
@@ -58,6 +58,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float) -> dict[str, float]:
+    from omni_micro_cli import plots
+    from omni_micro_sim import RobotParameters, simulate_open_loop, simulate_open_loop_batch
+
     base = RobotParameters()
     numbers: dict[str, float] = {}
 
@@ -129,6 +132,7 @@ def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float) -> d
 
 
 def comparison_table(numbers: dict[str, float]) -> str:
+
     rows = [
         ('Fig. 8: drift after 28.71 mm in 2 s (xi = 0, 3, 2 deg)',
          f'{paper.FIG8_PUBLISHED_DRIFT_MM} mm', f'{numbers["fig8_drift_mm"]:.4f} mm'),

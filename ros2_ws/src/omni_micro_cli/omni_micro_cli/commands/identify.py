@@ -40,7 +40,6 @@ from omni_micro_control.identification import (
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points
-from omni_micro_tools.bags import read_bag
 
 CAMERAS = ('macro', 'micro')
 DEFAULT_FIT = ('xi2', 'xi3', 'mu_longitudinal', 'mu_transverse', 'cantilever_offset_m')
@@ -114,6 +113,8 @@ def read_run(bag: Path) -> RecordedRun:
     A move's stop is every capture after its start and before the next move's start; a move
     with no capture after it (the run ended, or the robot left every field) ends a chain.
     """
+    from omni_micro_tools.bags import read_bag
+
     topics = ['/wheel_trajectory'] + [f'/camera/{c}/pose' for c in CAMERAS] + \
         [f'/camera/{c}/pose_with_covariance' for c in CAMERAS]
     data = read_bag(bag, topics)

@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 
 from omni_micro_cli.outputs import check_output_path
-from omni_micro_tools.bags import recover
 from omni_micro_tools.topics import STORAGE_NAMES
 
 
@@ -29,6 +28,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_tools.bags import recover
+
     target = args.out or args.bag.with_name(args.bag.name + '-recovered')
     check_output_path(target, args.force)
     counts = recover(args.bag, target, args.storage)

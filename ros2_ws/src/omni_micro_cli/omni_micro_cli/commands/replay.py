@@ -10,7 +10,6 @@ from pathlib import Path
 
 from omni_micro_cli.arguments import non_negative_int, positive_float
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_tools.bags import bag_topics, read_bag
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 
 
@@ -54,6 +53,8 @@ def header_stamp_ns(msg: object) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_tools.bags import bag_topics, read_bag
+
     available = bag_topics(args.bag)
     topics = args.topics or [t for t in available if t != '/clock']
     unknown = sorted(set(topics) - set(available))

@@ -10,10 +10,6 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.commands.study import execute as execution
-from omni_micro_cli.commands.study.report import write_figure, write_summary
-from omni_micro_cli.commands.study.runs import run_row
-from omni_micro_cli.commands.study.spec import load_study, parse_study
 from omni_micro_cli.errors import StudyError, UsageError
 
 EXAMPLE = Path(__file__).with_name('example.yaml')
@@ -72,6 +68,10 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_cli.commands.study import execute as execution
+    from omni_micro_cli.commands.study.report import write_figure, write_summary
+    from omni_micro_cli.commands.study.spec import load_study, parse_study
+
     _check(args)
     if args.example:
         print(EXAMPLE.read_text(), end='')
@@ -118,6 +118,9 @@ def run(args: argparse.Namespace) -> int:
 
 def rerun(out: Path, row_text: str) -> int:
     """Run row ``row_text`` of the study in ``out`` again and compare its metrics."""
+    from omni_micro_cli.commands.study import execute as execution
+    from omni_micro_cli.commands.study.runs import run_row
+
     study = execution.load_directory(out)
     try:
         index = int(row_text)

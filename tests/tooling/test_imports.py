@@ -1,0 +1,79 @@
+"""What each entry point loads: the help of the command line loads no heavy library, the nodes a
+real camera set-up runs load no physics, and the shared contracts load nothing but ROS and YAML.
+
+Checked in a fresh interpreter each (an import, unlike a time, does not flake)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from omni_micro_cli.cli import COMMANDS
+
+HEAVY = ('numba', 'llvmlite', 'scipy', 'matplotlib', 'pyarrow', 'dask', 'distributed', 'cv2',
+         'rosbags', 'rclpy')
+PHYSICS = ('numba', 'llvmlite', 'scipy')
+
+
+def loaded_after(code: str, watched: tuple[str, ...]) -> list[str]:
+    probe = (f'import sys, json\n{code}\n'
+             f'print(json.dumps(sorted(m for m in {watched!r} if m in sys.modules)))')
+    done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return list(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+@pytest.mark.parametrize('argv', [['--help'], ['no-such-command'], ['analyse', '--help'],
+                                  *([name, '--help'] for name in COMMANDS)])
+def test_help_loads_no_heavy_library(argv):
+    code = ('import contextlib, io\nfrom omni_micro_cli.cli import main\n'
+            'with contextlib.redirect_stdout(io.StringIO()), '
+            'contextlib.redirect_stderr(io.StringIO()):\n'
+            f'    try:\n        main({argv!r})\n    except SystemExit:\n        pass')
+    assert loaded_after(code, HEAVY) == []
+
+
+@pytest.mark.parametrize(('module', 'node', 'overrides'), [
+    ('omni_micro_vision.tracker_node', 'TrackerNode', {}),
+    ('omni_micro_vision.vision_node', 'VisionNode', {}),
+    ('omni_micro_vision.markers_node', 'MarkersNode', {}),
+    ('omni_micro_control.controller_node', 'ControllerNode', {'mode': 'paper'}),
+])
+def test_nodes_of_a_camera_set_up_start_without_the_physics(module, node, overrides):
+    code = node_start(module, node, overrides)
+    assert loaded_after(code, PHYSICS) == []
+
+
+def test_the_recorder_starts_without_the_physics(tmp_path):
+    code = node_start('omni_micro_tools.recorder_node', 'BagRecorder',
+                      {'bag': str(tmp_path / 'bag')})
+    assert loaded_after(code, PHYSICS) == []
+
+
+def node_start(module: str, node: str, overrides: dict[str, object]) -> str:
+    return (f'import rclpy\nfrom rclpy.parameter import Parameter\nfrom {module} import {node}\n'
+            'rclpy.init()\n'
+            f'built = {node}(parameter_overrides=[Parameter(k, value=v) for k, v in '
+            f'{overrides!r}.items()])\n'
+            'built.destroy_node()\nrclpy.shutdown()')
+
+
+def test_the_model_mode_loads_the_slip_core_when_it_first_predicts():
+    """The control is real: the same probe sees numba once a prediction is made."""
+    code = ('from omni_micro_control.identification import RecordedMove, displacement\n'
+            'from omni_micro_sim.parameters import RobotParameters\n'
+            'from omni_micro_sim.profile import move_profile\n'
+            'displacement(RobotParameters(), RecordedMove(0.0, move_profile(0.1)))')
+    assert 'numba' in loaded_after(code, PHYSICS)
+
+
+def test_the_shared_contracts_load_no_sibling_package():
+    code = ('import omni_micro_common.conventions, omni_micro_common.qos, '
+            'omni_micro_common.lockstep, omni_micro_common.node_runtime, '
+            'omni_micro_common.params, omni_micro_common.messages')
+    assert loaded_after(code, ('omni_micro_sim', 'omni_micro_vision', 'omni_micro_control',
+                               'omni_micro_tools', 'omni_micro_cli', *PHYSICS, 'numpy')) == []
