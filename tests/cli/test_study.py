@@ -145,6 +145,44 @@ def test_a_worker_killed_mid_study_costs_only_its_unfinished_runs(tmp_path):
     assert _without_wall_time(rows) == expected
 
 
+def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
+    """What a cluster launcher starts: the environment's own `dask scheduler` and `dask worker`,
+    from another directory, with no PYTHONPATH and only the environment's bin/ on PATH."""
+    bin_dir = Path(sys.executable).parent
+    env = {key: value for key, value in os.environ.items() if key != 'PYTHONPATH'}
+    env['PATH'] = str(bin_dir)
+    started: list[subprocess.Popen] = []
+    try:
+        scheduler = subprocess.Popen(
+            [str(bin_dir / 'dask'), 'scheduler', '--host', '127.0.0.1', '--port', '0',
+             '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path, env=env,
+            stderr=subprocess.PIPE, text=True, start_new_session=True)
+        started.append(scheduler)
+        assert scheduler.stderr is not None
+        address = ''
+        for line in scheduler.stderr:
+            if 'Scheduler at:' in line:
+                address = line.split('Scheduler at:')[1].strip()
+                break
+        assert address.startswith('tcp://127.0.0.1:'), address
+        started.append(subprocess.Popen(
+            [str(bin_dir / 'dask'), 'worker', address, '--nworkers', '2', '--nthreads', '1',
+             '--host', '127.0.0.1', '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path,
+            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True))
+        out = tmp_path / 'remote'
+        done = _cli('--scheduler', address, '--out', str(out), '-', input=SMALL_STUDY)
+        assert done.returncode == 0, done.stderr[-3000:]
+        rows = pq.read_table(out / 'runs.parquet').to_pylist()
+        assert _without_wall_time(rows) == small_serial
+        assert all(row['error'] is None for row in rows)
+    finally:
+        for process in reversed(started):
+            os.killpg(process.pid, signal.SIGTERM)
+        for process in started:
+            process.wait(timeout=30)
+
+
 def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_path):
     text = SMALL_STUDY.replace('draws: 2', 'draws: 30').replace('[paper, model]', '[paper]')
     out = tmp_path / 'interrupted'
