@@ -64,6 +64,8 @@ COMMANDS: dict[str, Command] = {
                                           'idle and busy'),
     'bench-images': Command('bench_images', 'cost of the rendered cameras and the tracker, per '
                                             'frame and in the loop'),
+    'bench-startup': Command('bench_startup', 'start-up time of the command line against the '
+                                              'bare interpreter'),
     'bench-study': Command('bench_study', 'benchmark studies: plain loop vs 1 and 2 Dask '
                                           'workers, 1000 runs'),
 }
