@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_common.errors import OmniMicroError
 
 DEBUG_ENV = 'OMNI_MICRO_DEBUG'
@@ -151,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f'omni-micro {args.command}: interrupted', file=sys.stderr)
         return 130
-    except (UsageError, RunFailed, OmniMicroError) as error:
+    except OmniMicroError as error:
         if debug:
             traceback.print_exc()
         # A value the command cannot use is a ValueError; anything else is a failure.

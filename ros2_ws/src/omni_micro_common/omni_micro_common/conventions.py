@@ -124,4 +124,11 @@ OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recor
                        'omni_micro_viewer')
 
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
+# What each node that takes part in the lockstep reads from the robot. The robot's clock moves
+# only once its own publishers have matched these readers: a sample sent before would be lost to
+# that node (reliable, volatile), which would then never report it, and time would stand still.
+# (Seeing the reader in the ROS graph from another process is not enough: discovery between two
+# peers completes at its own pace, slower on a busy machine.)
+LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
+    'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',)}
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

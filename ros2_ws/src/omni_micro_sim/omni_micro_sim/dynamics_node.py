@@ -30,6 +30,8 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.clock import Clock as RclpyClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -37,6 +39,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.conventions import (
     JOINT_NAMES,
+    LOCKSTEP_INPUTS,
     body_twist,
     join_stamp,
     split_stamp,
@@ -78,6 +81,10 @@ def stamp_seconds(stamp: Time) -> float:
 def _robot_defaults() -> dict[str, object]:
     # The same robot as config/dynamics_node.yaml, so a run without the file behaves alike.
     return robot_parameter_values(paper.FIG11_OPEN_LOOP.robot())
+
+
+# Wall seconds of simulated time standing still (unpaused) before the node says what it waits for.
+STALL_REPORT_S = 5.0
 
 
 class DynamicsNode(Node):
@@ -134,6 +141,10 @@ class DynamicsNode(Node):
         self.odom_pub = per_tick(Odometry, '/odom')
         self.joint_pub = per_tick(JointState, '/joint_states')
         self.slip_pub = per_tick(JointState, '/wheel_slip')
+        self._publishers_of = {pub.topic_name: pub for pub in (
+            self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub)}
+        # Time starts (and resumes) only once the lockstep nodes' readers are matched.
+        self._readers_pending = True
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         if self.lockstep.enabled:
@@ -142,6 +153,11 @@ class DynamicsNode(Node):
         self._wall_origin = time.monotonic()
         self._tick_origin = 0
         self._timer = self.create_timer(self._timer_period(), self._on_timer)
+        # A graph whose time stands still says why, on the wall clock (simulated time is what
+        # stands still): which node, report or command the lockstep waits for.
+        self._stalled_since: tuple[int, float] = (self.grid.tick, time.monotonic())
+        self.create_timer(STALL_REPORT_S, self._report_stall,
+                          clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f'robot ready: grid {period * 1e3:g} ms, real-time factor '
             f'{self.real_time_factor:g}, '
@@ -180,6 +196,7 @@ class DynamicsNode(Node):
             self.real_time_factor = changes['rtf']
         if 'paused' in changes:
             if self.paused and not changes['paused']:
+                self._readers_pending = True
                 # A node may have been replaced while time stood still: a new process knows
                 # nothing of its predecessor's reports, so everyone starts level from here.
                 self.lockstep.reset(self.grid.tick * self._period_ns)
@@ -206,6 +223,23 @@ class DynamicsNode(Node):
     def _on_timer(self) -> None:
         self._advance()
 
+    def _report_stall(self) -> None:
+        tick, since = self._stalled_since
+        if self.paused or tick != self.grid.tick:
+            self._stalled_since = (self.grid.tick, time.monotonic())
+            return
+        if time.monotonic() - since >= STALL_REPORT_S and self.lockstep.enabled:
+            self.get_logger().warning(
+                f'simulated time has stood at {self.grid.time_s:.3f} s for '
+                f'{time.monotonic() - since:.0f} s: the lockstep waits for '
+                f'{self._waiting_for()}')
+
+    def _waiting_for(self) -> str:
+        unmatched = self._unmatched_readers() if self._readers_pending else []
+        if unmatched:
+            return 'matching ' + ', '.join(unmatched)
+        return self.lockstep.waiting_for() or 'nothing (the wall clock paces it)'
+
     def _on_ack(self, msg: DiagnosticStatus) -> None:
         try:
             ack = decode_ack(msg)
@@ -223,9 +257,28 @@ class DynamicsNode(Node):
         elapsed = (time.monotonic() - self._wall_origin) * self.real_time_factor
         return self._tick_origin + int(elapsed / self.grid.period_s)
 
+    def _unmatched_readers(self) -> list[str]:
+        """The lockstep nodes' readers of this node's topics that its publishers have not
+        matched yet (see omni_micro_common.conventions.LOCKSTEP_INPUTS)."""
+        missing = []
+        for node in self.lockstep.nodes:
+            for topic in LOCKSTEP_INPUTS.get(node, ()):
+                readers = self.get_subscriptions_info_by_topic(topic)
+                if not any(info.node_name == node for info in readers) or \
+                        self._publishers_of[topic].get_subscription_count() < len(readers):
+                    missing.append(f"{node}'s reader of {topic}")
+        return missing
+
     def _advance(self) -> None:
         if self.paused:
             return   # the clock was published when it stopped; repeats would only vary bags
+        if self._readers_pending:
+            if self._unmatched_readers():
+                return
+            self._readers_pending = False
+            # Pacing starts from here: the wait for readers is not simulated time.
+            self._wall_origin = time.monotonic()
+            self._tick_origin = self.grid.tick
         due = self._due_tick()
         if self.lockstep.enabled:
             reachable = self.lockstep.reachable_ns()   # whole ns, as the nodes' stamps

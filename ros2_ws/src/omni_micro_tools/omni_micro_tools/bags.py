@@ -6,16 +6,20 @@ anything, how a bag whose recorder was killed is recovered, and how a bag is rea
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import sqlite3
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
+from mcap.exceptions import McapError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from omni_micro_common.errors import OmniMicroError
 from omni_micro_tools.errors import BagDamagedError, BagPathError
 from omni_micro_tools.topics import (
     GRAPH_TOPICS,
@@ -62,72 +66,140 @@ def flush(writer: Writer) -> None:
         storage.conn.commit()
 
 
-def _recovered_topics(source: Path) -> Iterator[tuple[str, str, int, bytes]]:
-    """(topic, msgtype, timestamp, data) of every complete message in a bag without metadata."""
-    mcaps = sorted(source.glob('*.mcap'))
-    databases = sorted(source.glob('*.db3'))
-    if mcaps:
-        from mcap.records import Channel, Message, Schema
-        from mcap.stream_reader import StreamReader
+# A damaged file can announce records of any length; nothing the recorder writes is this big.
+RECORD_SIZE_LIMIT = 1 << 30
+# What reading a damaged mcap file raises: the library's own errors, and what its parsers hit
+# on bytes that are not what they should be.
+_MCAP_DAMAGE = (McapError, struct.error, ValueError, EOFError, UnicodeDecodeError, KeyError)
 
-        schemas: dict[int, str] = {}
-        channels: dict[int, tuple[str, str]] = {}
-        with open(mcaps[0], 'rb') as stream:
-            reader = StreamReader(stream, skip_magic=False)
-            try:
-                for record in reader.records:
-                    if isinstance(record, Schema):
-                        schemas[record.id] = record.name
-                    elif isinstance(record, Channel):
-                        channels[record.id] = (record.topic, schemas[record.schema_id])
-                    elif isinstance(record, Message):
-                        topic, msgtype = channels[record.channel_id]
-                        yield topic, msgtype, record.log_time, record.data
-            except Exception:
-                return
-    elif databases:
-        connection = sqlite3.connect(f'file:{databases[0]}?mode=ro', uri=True)
+
+@dataclass
+class Recovery:
+    """What ``recover`` kept and what it could not."""
+
+    counts: dict[str, int]          # messages kept, per topic
+    dropped: int = 0                # messages of damaged chunks, or that did not decode
+    damaged_chunks: int = 0
+    cut_short: bool = False         # the file ends inside a record (a kill, a copy cut short)
+
+    @property
+    def kept(self) -> int:
+        return sum(self.counts.values())
+
+
+def _mcap_messages(path: Path, report: Recovery) -> Iterator[tuple[str, str, int, bytes]]:
+    """Every message of every intact chunk of an mcap file, footer or not: a chunk that does
+    not parse is skipped (its messages counted from the indexes after it), and reading stops
+    where the file's framing does."""
+    from mcap.records import Channel, Chunk, Message, MessageIndex, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+
+    def from_records(records: list[Any]) -> list[tuple[str, str, int, bytes]]:
+        messages = []
+        for record in records:
+            if isinstance(record, Schema):
+                schemas[record.id] = record.name
+            elif isinstance(record, Channel):
+                channels[record.id] = (record.topic, schemas[record.schema_id])
+            elif isinstance(record, Message):
+                topic, msgtype = channels[record.channel_id]
+                messages.append((topic, msgtype, record.log_time, record.data))
+        return messages
+
+    # A chunk's messages wait for the indexes that follow it: a record whose length was damaged
+    # can swallow the records after it, and only the indexes tell how many there were.
+    pending: list[tuple[str, str, int, bytes]] = []
+    indexed = 0
+
+    def settle() -> list[tuple[str, str, int, bytes]]:
+        nonlocal pending, indexed
+        if indexed > len(pending):
+            report.damaged_chunks += 1
+            report.dropped += indexed - len(pending)
+        done, pending, indexed = pending, [], 0
+        return done
+
+    with open(path, 'rb') as stream:
+        reader = StreamReader(stream, skip_magic=False, emit_chunks=True,
+                              record_size_limit=RECORD_SIZE_LIMIT)
         try:
-            topics = {row[0]: (row[1], row[2]) for row in
-                      connection.execute('SELECT id, name, type FROM topics')}
-            for topic_id, timestamp, data in connection.execute(
-                    'SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
-                topic, msgtype = topics[topic_id]
-                yield topic, msgtype, timestamp, bytes(data)
-        finally:
-            connection.close()
-    else:
-        raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
+            for record in reader.records:
+                if isinstance(record, MessageIndex):
+                    indexed += len(record.records)
+                    continue
+                yield from settle()
+                if isinstance(record, Chunk):
+                    try:
+                        pending = from_records(breakup_chunk(record, validate_crc=True))
+                    except _MCAP_DAMAGE:
+                        pending = []   # its indexes, next, say how many it held
+                else:
+                    yield from from_records([record])
+        except _MCAP_DAMAGE:
+            report.cut_short = True
+        yield from settle()
 
 
-def recover(source: Path, target: Path, storage: str = 'mcap') -> dict[str, int]:
-    """Write every complete message of a bag whose recorder died into a new, readable bag.
+def _sqlite_messages(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
+    connection = sqlite3.connect(f'file:{path}?mode=ro', uri=True)
+    try:
+        topics = {row[0]: (row[1], row[2]) for row in
+                  connection.execute('SELECT id, name, type FROM topics')}
+        for topic_id, timestamp, data in connection.execute(
+                'SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
+            topic, msgtype = topics[topic_id]
+            yield topic, msgtype, timestamp, bytes(data)
+    finally:
+        connection.close()
 
-    Returns the message count per topic.
+
+def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
+    """Write every intact message of a bag whose recorder died, or whose file was cut short or
+    damaged, into a new readable bag; a message that does not decode as its type is dropped
+    (the recorder writes no checksums, so this is how damaged bytes are found).
+
+    Raises
+    ------
+    BagPathError
+        ``source`` is not a folder holding an .mcap or .db3 file.
+    BagDamagedError
+        Not one message could be recovered.
     """
     if not source.is_dir():
         raise BagPathError(f'{str(source)!r} is not a bag folder')
-    counts: dict[str, int] = {}
+    mcaps, databases = sorted(source.glob('*.mcap')), sorted(source.glob('*.db3'))
+    if not mcaps and not databases:
+        raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
+    report = Recovery({})
+    messages = _mcap_messages(mcaps[0], report) if mcaps else _sqlite_messages(databases[0])
     writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
     writer.open()
     connections = {}
     try:
-        for topic, msgtype, timestamp, data in _recovered_topics(source):
+        for topic, msgtype, timestamp, data in messages:
+            try:
+                TYPESTORE.deserialize_cdr(data, msgtype)
+            except Exception:
+                report.dropped += 1
+                continue
             if topic not in connections:
                 spec = GRAPH_TOPICS.get(topic, TopicSpec(msgtype, 1000))
                 connections[topic] = writer.add_connection(
                     topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
             writer.write(connections[topic], timestamp, data)
-            counts[topic] = counts.get(topic, 0) + 1
+            report.counts[topic] = report.counts.get(topic, 0) + 1
     except BaseException:
         writer.close()
         shutil.rmtree(target, ignore_errors=True)
         raise
     writer.close()
-    if not counts:
+    if not report.counts:
         shutil.rmtree(target, ignore_errors=True)
         raise BagDamagedError(f'no complete message could be recovered from {str(source)!r}')
-    return counts
+    return report
 
 
 @dataclass
@@ -155,21 +227,53 @@ def check_readable_bag(path: Path) -> None:
     raise BagPathError(f'{str(path)!r} is not a bag: no metadata.yaml and no .mcap or .db3 file')
 
 
-def bag_topics(path: Path) -> list[str]:
-    """The topics a bag holds, without reading its messages."""
-    from rosbags.highlevel import AnyReader
+@contextlib.contextmanager
+def reading(path: Path) -> Iterator[Any]:
+    """An AnyReader over the bag at ``path``, whatever is wrong with it said in one line that
+    names the bag (BagPathError: not a bag; BagDamagedError: a bag that cannot be read whole)."""
+    import yaml
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.rosbag2 import ReaderError
 
     check_readable_bag(path)
-    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+    try:
+        with AnyReader([path], default_typestore=TYPESTORE) as reader:
+            yield reader
+    except OmniMicroError:
+        raise   # the caller's own, said already
+    except (AnyReaderError, ReaderError, *_MCAP_DAMAGE, yaml.YAMLError, OSError) as error:
+        reason = (str(error).strip().splitlines() or [type(error).__name__])[0].rstrip('.')
+        if isinstance(error, yaml.YAMLError | UnicodeDecodeError):
+            raise BagDamagedError(f'bag {str(path)!r}: its metadata.yaml is not readable YAML '
+                                  f'({reason})') from None
+        hint = ''
+        if 'magic' in reason.lower() or 'end of file' in reason.lower() \
+                or isinstance(error, EOFError):
+            hint = ('; the file looks cut short (a killed recorder, a copy cut off): '
+                    f'omni-micro bag-recover {path} keeps every intact message')
+        else:
+            hint = (f'; omni-micro bag-recover {path} keeps every message that still decodes')
+        raise BagDamagedError(f'bag {str(path)!r} is damaged: {reason}{hint}') from None
+
+
+def bag_topics(path: Path) -> list[str]:
+    """The topics a bag holds, without reading its messages."""
+    with reading(path) as reader:
         return sorted({connection.topic for connection in reader.connections})
 
 
 def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -> BagMessages:
-    from rosbags.highlevel import AnyReader
+    """A bag's messages (all, or those of ``topics``), each decoded unless ``decode`` is False.
 
-    check_readable_bag(path)
+    Raises
+    ------
+    BagPathError
+        ``path`` is not a bag (missing, a file, no metadata.yaml: it names bag-recover then).
+    BagDamagedError
+        The bag cannot be read whole; the message says why and how to recover it.
+    """
     result = BagMessages({}, {}, {}, {})
-    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+    with reading(path) as reader:
         connections = [c for c in reader.connections if topics is None or c.topic in topics]
         for connection in connections:
             result.msgtypes[connection.topic] = connection.msgtype

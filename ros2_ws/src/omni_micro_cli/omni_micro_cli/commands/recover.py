@@ -14,12 +14,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bag-recover',
         description='A recorder killed with SIGKILL leaves a bag without metadata.yaml (and an '
-                    'mcap file without its footer), which readers refuse. This copies every '
-                    'complete message into a new bag (default BAG-recovered); the recorder '
-                    'pushes its data to the file every 0.5 s, so at most that much is lost.')
+                    'mcap file without its footer), which readers refuse; a copy cut short or a '
+                    'bad disk leaves a file with damaged parts. This copies every intact '
+                    'message into a new bag (default BAG-recovered), skipping damaged chunks '
+                    'and messages that do not decode, and says how many it dropped. The '
+                    'recorder pushes its data to the file every 0.5 s, so a kill loses at most '
+                    'that much.')
     parser.add_argument('bag', type=Path, metavar='BAG',
-                        help='the folder of a bag whose recorder was killed (an .mcap or .db3 '
-                             'file and no metadata.yaml)')
+                        help='the folder of a damaged bag, or of one whose recorder was killed '
+                             '(an .mcap or .db3 file, with or without metadata.yaml)')
     parser.add_argument('--out', type=Path, metavar='DIR', help='default: BAG-recovered')
     parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
                         help='storage of the recovered bag (default mcap)')
@@ -32,8 +35,13 @@ def run(args: argparse.Namespace) -> int:
 
     target = args.out or args.bag.with_name(args.bag.name + '-recovered')
     check_output_path(target, args.force)
-    counts = recover(args.bag, target, args.storage)
-    print(f'recovered {sum(counts.values())} messages into {target}: '
-          + ', '.join(f'{topic} {count}' for topic, count in sorted(counts.items())),
+    report = recover(args.bag, target, args.storage)
+    print(f'recovered {report.kept} messages into {target}: '
+          + ', '.join(f'{topic} {count}' for topic, count in sorted(report.counts.items())),
           file=sys.stderr)
+    if report.dropped or report.damaged_chunks or report.cut_short:
+        print(f'dropped {report.dropped} messages ({report.damaged_chunks} damaged chunks, '
+              'and messages that did not decode)'
+              + ('; the file ends mid-record (cut short): what followed is lost'
+                 if report.cut_short else ''), file=sys.stderr)
     return 0

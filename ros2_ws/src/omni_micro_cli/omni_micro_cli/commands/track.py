@@ -63,9 +63,7 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
 
 
 def run(args: argparse.Namespace) -> int:
-    from rosbags.highlevel import AnyReader
-
-    from omni_micro_tools.bags import TYPESTORE, check_readable_bag
+    from omni_micro_tools.bags import check_readable_bag, reading
     from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
     from omni_micro_vision.errors import CameraConfigError
     from omni_micro_vision.fiducial import fiducial_for
@@ -94,13 +92,16 @@ def run(args: argparse.Namespace) -> int:
     except (CameraConfigError, TypeError, ValueError) as error:
         raise UsageError(f'tracker params: {error}') from None
     rows: list[tuple[float, bool, bool, float, float, float, str]] = []
-    with AnyReader([args.bag], default_typestore=TYPESTORE) as reader:
+    with reading(args.bag) as reader:
         connections = [c for c in reader.connections if c.topic == topic]
+        images = sorted({c.topic for c in reader.connections
+                         if c.msgtype == 'sensor_msgs/msg/Image'})
+        choose = f'its image topics are {images or "none"} (choose one with --image-topic)'
         if not connections:
-            images = sorted({c.topic for c in reader.connections
-                             if c.msgtype == 'sensor_msgs/msg/Image'})
-            raise UsageError(f'{str(args.bag)!r} has no {topic}: its image topics are '
-                             f'{images or "none"} (choose one with --image-topic)')
+            raise UsageError(f'{str(args.bag)!r} has no {topic}: {choose}')
+        if connections[0].msgtype != 'sensor_msgs/msg/Image':
+            raise UsageError(f'{topic} in {str(args.bag)!r} carries {connections[0].msgtype}, '
+                             f'not sensor_msgs/msg/Image: {choose}')
         stillness = StillnessRule(frames_needed, 0.0)
         tracker = FrameTracker(yaw)   # as tracker_node reads the frames: the same poses
         for _, _, raw in reader.messages(connections=connections):

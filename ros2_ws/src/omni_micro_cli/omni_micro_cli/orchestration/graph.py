@@ -220,7 +220,7 @@ class Graph:
         shutil.rmtree(torn, ignore_errors=True)
         bag.rename(torn)
         try:
-            counts = recover(torn, bag)
+            report = recover(torn, bag)
         except Exception as error:
             torn.rename(bag)
             if self.options.echo:
@@ -229,7 +229,7 @@ class Graph:
         shutil.rmtree(torn)
         if self.options.echo:
             self.options.echo(f'[orchestration] the recorder died; recovered '
-                              f'{sum(counts.values())} messages into {bag}')
+                              f'{report.kept} messages into {bag}')
 
     def published(self) -> dict[str, int]:
         """What the nodes say they published (their last log line), summed per topic."""
