@@ -203,6 +203,8 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
     kept = len(finished_rows(parsed, out))
     assert 0 < kept < parsed.run_count
     assert f'{kept} of {parsed.run_count} runs kept in {out}/' in stderr
+    # The workers stop with the cluster, quietly: one line, no worker's traceback.
+    assert 'Traceback' not in stderr and 'KeyboardInterrupt' not in stderr, stderr[-3000:]
     with pytest.raises(ProcessLookupError):   # nothing of the study's process group is left
         for _ in range(50):
             os.killpg(study.pid, 0)

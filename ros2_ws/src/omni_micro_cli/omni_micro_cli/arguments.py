@@ -24,15 +24,57 @@ def positive_float(text: str) -> float:
     return value
 
 
+# Factors of simulated time against the wall clock (--rtf, replay --rate): beyond these a run
+# would take years or its timers' periods would underflow, and no study needs them.
+FACTOR_RANGE = (1e-3, 1e4)
+
+
+def number_in(low: float, high: float) -> Callable[[str], float]:
+    """A parser for a finite number in [low, high], refused naming the bounds."""
+
+    def parse(text: str) -> float:
+        value = finite_float(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f'expected a number in [{low:g}, {high:g}], '
+                                             f'got {text!r}')
+        return value
+
+    return parse
+
+
+def whole_number_in(low: int, high: int, what: str = '') -> Callable[[str], int]:
+    """A parser for a whole number in [low, high] (``what`` says what the bounds are)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'expected a whole number, got {text!r}') from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(
+                f'expected a whole number in [{low}, {high}]{what}, got {text!r}')
+        return value
+
+    return parse
+
+
+# ROS 2 domain ids: Fast DDS's port scheme has room for 0-232 on one machine.
+domain_id = whole_number_in(0, 232, ' (a ROS domain id)')
+# A TCP port (0: any free one).
+port_number = whole_number_in(0, 65535, ' (a TCP port; 0: any free one)')
+
+
 def real_time_factor(text: str) -> float:
-    """A real-time factor > 0, or 'max' (math.inf): as fast as the lockstep allows."""
+    """A real-time factor in FACTOR_RANGE, or 'max' (math.inf): as fast as the lockstep
+    allows."""
     if text.strip().lower() == 'max':
         return math.inf
+    low, high = FACTOR_RANGE
     try:
-        return positive_float(text)
+        return number_in(low, high)(text)
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(
-            f"expected a number > 0 or 'max', got {text!r}") from None
+            f"expected a number in [{low:g}, {high:g}] or 'max', got {text!r}") from None
 
 
 def add_timing_arguments(parser: argparse.ArgumentParser, default_rtf: str) -> None:
@@ -81,8 +123,11 @@ def non_negative_int(text: str) -> int:
 
 
 def positive_int(text: str) -> int:
-    value = non_negative_int(text)
-    if value == 0:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a whole number, got {text!r}') from None
+    if value < 1:
         raise argparse.ArgumentTypeError(f'expected a whole number >= 1, got {text!r}')
     return value
 

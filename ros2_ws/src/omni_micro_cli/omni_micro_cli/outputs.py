@@ -1,15 +1,54 @@
-"""Writing outputs so that a failure leaves nothing half-written."""
+"""Outputs: checked before anything runs, and written so that a failure leaves nothing
+half-written."""
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from omni_micro_cli.errors import UsageError
+
+
+def output_problem(path: Path, kind: str) -> str | None:
+    """What stops ``path`` from being written as a ``kind`` ('folder' or 'file'), or None.
+
+    Nothing is created: the nearest existing folder on the way must be a folder we may write.
+    """
+    if path.exists():
+        if kind == 'folder' and not path.is_dir():
+            return 'exists and is a file (expected a folder)'
+        if kind == 'file' and path.is_dir():
+            return 'is a folder (expected a file)'
+    ancestor = path if kind == 'folder' and path.is_dir() else path.parent
+    while not ancestor.exists() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        return f'is under {str(ancestor)!r}, which is a file'
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        return f'cannot be written: {str(ancestor)!r} is not writable (read-only or no permission)'
+    return None
+
+
+def _output(kind: str) -> Callable[[str], Path]:
+    def parse(text: str) -> Path:
+        path = Path(text)
+        problem = output_problem(path, kind)
+        if problem:
+            raise argparse.ArgumentTypeError(f'{text!r} {problem}')
+        return path
+    parse.__name__ = f'output_{kind}'
+    return parse
+
+
+# argparse types of every output path: a path that cannot be written is refused, naming it and
+# the problem, before anything runs (exit 2).
+output_folder = _output('folder')
+output_file = _output('file')
 
 
 @contextlib.contextmanager

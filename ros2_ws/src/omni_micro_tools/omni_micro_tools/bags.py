@@ -192,10 +192,15 @@ def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
             writer.write(connections[topic], timestamp, data)
             report.counts[topic] = report.counts.get(topic, 0) + 1
     except BaseException:
-        writer.close()
+        with contextlib.suppress(OSError):   # a full disk fails the close too
+            writer.close()
         shutil.rmtree(target, ignore_errors=True)
         raise
-    writer.close()
+    try:
+        writer.close()
+    except OSError:
+        shutil.rmtree(target, ignore_errors=True)
+        raise
     if not report.counts:
         shutil.rmtree(target, ignore_errors=True)
         raise BagDamagedError(f'no complete message could be recovered from {str(source)!r}')

@@ -13,6 +13,7 @@ waits for the disk as for its tracker). ``omni-micro record`` and ``run --record
 
 from __future__ import annotations
 
+import contextlib
 import struct
 import sys
 import time
@@ -20,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -65,6 +66,8 @@ class BagRecorder(Node):
         self.writer, self.connections = open_writer(bag, storage, topics)
         self.counts = dict.fromkeys(topics, 0)
         self._closed = False
+        # Why writing stopped (a full disk, a removed drive): the bag keeps what was written.
+        self.write_failure: str | None = None
         # With lockstep_frames, the latest frame written per image topic (see _report_frame).
         self._frames_written: dict[str, int] = {}
         self.lockstep: LockstepReporter | None = None
@@ -95,7 +98,13 @@ class BagRecorder(Node):
         connection = self.connections[topic]
 
         def on_message(data: bytes) -> None:
-            self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+            if self.write_failure is not None:
+                return
+            try:
+                self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+            except OSError as error:
+                self._writing_failed(error)
+                return
             self.counts[topic] += 1
             if topic in self._frames_written:
                 self._report_frame(topic, data)
@@ -111,9 +120,21 @@ class BagRecorder(Node):
         self.lockstep.report(Ack(self.get_name(), None,
                                  frame_handled_ns=min(self._frames_written.values())))
 
+    def _writing_failed(self, error: OSError) -> None:
+        """Stop writing and say why, once: on /bag_recorder/status (the orchestrator stops the
+        run) and in the log. What was written stays in the bag, without metadata.yaml."""
+        self.write_failure = f'cannot write {str(self.bag)!r}: {error.strerror or error}'
+        self.get_logger().error(f'{self.write_failure}; recording stopped')
+        self.status_pub.publish(DiagnosticStatus(
+            level=DiagnosticStatus.ERROR, name='bag_recorder', message='write failed',
+            values=[KeyValue(key='reason', value=self.write_failure)]))
+
     def _on_wall_timer(self) -> None:
-        if time.monotonic() - self._last_flush >= FLUSH_PERIOD_S:
-            flush(self.writer)
+        if self.write_failure is None and time.monotonic() - self._last_flush >= FLUSH_PERIOD_S:
+            try:
+                flush(self.writer)
+            except OSError as error:
+                self._writing_failed(error)
             self._last_flush = time.monotonic()
         # "recording" once every recorded topic has a matched publisher, so that whoever starts
         # the graph's clock knows nothing will be missed from the beginning.
@@ -123,14 +144,28 @@ class BagRecorder(Node):
             self._announced = True
 
     def close(self) -> None:
-        """Write metadata.yaml: the bag is complete (once; later calls do nothing)."""
-        if not self._closed:
-            self._closed = True
+        """Write metadata.yaml: the bag is complete (once; later calls do nothing). After a
+        write failure the bag stays as written (bag-recover reads it)."""
+        if self._closed:
+            return
+        self._closed = True
+        if self.write_failure is not None:
+            with contextlib.suppress(OSError):
+                self.writer.close()
+            return
+        try:
             self.writer.close()
+        except OSError as error:
+            self._writing_failed(error)
 
 
 def report_and_close(recorder: BagRecorder) -> None:
     recorder.close()
+    if recorder.write_failure is not None:
+        print(f'{recorder.write_failure}; {sum(recorder.counts.values())} messages taken '
+              'before it: what reached the disk can be recovered with omni-micro bag-recover '
+              f'{recorder.bag} --out DIR', file=sys.stderr)
+        return
     print(f'recorded {sum(recorder.counts.values())} messages into {recorder.bag}: '
           + ', '.join(f'{topic} {count}' for topic, count in recorder.counts.items()),
           file=sys.stderr)

@@ -10,10 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from omni_micro_cli.arguments import positive_int
+from omni_micro_cli.arguments import positive_int, whole_number_in
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_control.feedback import OUTCOME_NAMES
+
+# An animation's frames are held in memory until written (~1.4 MB each at 1000 x 450 px).
+MAX_FRAMES = 2000
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -24,7 +27,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'against time (Fig. 8(a)(b)), the distance left after each period, and a '
                     'summary (final deviation, periods, duration, outcome) as JSON and markdown.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='a bag recorded with --record')
-    parser.add_argument('--out', type=Path, required=True, metavar='DIR',
+    parser.add_argument('--out', type=output_folder, required=True, metavar='DIR',
                         help='folder for the figures and summary (made if missing; files of '
                              'the same names are replaced, each whole, other files are kept)')
     parser.add_argument('--animate', choices=('gif', 'mp4'), nargs='?', const='gif',
@@ -32,9 +35,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='also render the run as DIR/run.gif (or .mp4, needs ffmpeg) and '
                              'its last frame as DIR/run_last_frame.png: the route forming, '
                              'captures landing, a micro-field inset, simulated time shown')
-    parser.add_argument('--frames', type=positive_int, default=100, metavar='N',
+    parser.add_argument('--frames', type=whole_number_in(1, MAX_FRAMES), default=100,
+                        metavar='N',
                         help='frames of the animation, evenly spaced in simulated time '
-                             '(default 100)')
+                             f'(default 100, at most {MAX_FRAMES}: the writer holds them)')
     parser.add_argument('--fps', type=positive_int, default=10, metavar='F',
                         help='frames per second of the animation (default 10)')
     parser.set_defaults(handler=run)

@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli.arguments import positive_float
-from omni_micro_cli.errors import UsageError
+from omni_micro_cli.arguments import positive_float, whole_number_in
+from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:
@@ -34,9 +34,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "solve_ivp(method='LSODA', rtol=1e-9) with a plain-Python right-hand side, "
                     'and a batch of open-loop moves (a fine Fig. 7 sweep). Prints figures; '
                     'targets: >= 50x faster than the reference, 1000 moves in < 10 s.')
-    parser.add_argument('--batch', type=int, default=1000, metavar='N',
+    parser.add_argument('--batch',
+                        type=whole_number_in(1, 1_000_000), default=1000, metavar='N',
                         help='moves in the batch (default 1000)')
-    parser.add_argument('--repeats', type=int, default=30, metavar='N',
+    parser.add_argument('--repeats',
+                        type=whole_number_in(1, 10_000), default=30, metavar='N',
                         help='timed repeats of the single run; the median is reported '
                              '(default 30)')
     parser.add_argument('--reference-timeout', type=positive_float, default=600.0, metavar='S',
@@ -95,11 +97,18 @@ def run(args: argparse.Namespace) -> int:
 
     _log(f'reference: LSODA rtol 1e-9, plain-Python rhs (up to {args.reference_timeout:g} s)...')
     environment = dict(os.environ, NUMBA_DISABLE_JIT='1')
-    child = subprocess.run(
-        [sys.executable, '-c',
-         'from omni_micro_cli.commands.bench import reference_main; reference_main()',
-         repr(result.rest_time_s)], env=environment, capture_output=True, text=True,
-        timeout=args.reference_timeout, check=True)
+    try:
+        child = subprocess.run(
+            [sys.executable, '-c',
+             'from omni_micro_cli.commands.bench import reference_main; reference_main()',
+             repr(result.rest_time_s)], env=environment, capture_output=True, text=True,
+            timeout=args.reference_timeout, check=True)
+    except subprocess.TimeoutExpired:
+        raise RunFailed(f'the reference did not finish within --reference-timeout '
+                        f'{args.reference_timeout:g} s (it takes tens of seconds here; give '
+                        'more)') from None
+    except subprocess.CalledProcessError as error:
+        raise RunFailed(f'the reference failed: {error.stderr.strip()[-300:]}') from None
     reference = json.loads(child.stdout.strip().splitlines()[-1])
     _log(f'reference: {reference["seconds"]:.2f} s, {reference["rhs_calls"]} rhs calls')
     difference_m = math.hypot(result.final_state.x_m - reference['x_m'],

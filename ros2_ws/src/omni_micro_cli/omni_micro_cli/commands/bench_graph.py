@@ -22,6 +22,7 @@ from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.orchestration.composition import GraphOptions
 from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.machine_load import busy_cores
+from omni_micro_cli.outputs import output_folder
 from omni_micro_sim import paper
 
 # (label, real-time factor, lockstep, cores kept busy by other programs)
@@ -40,7 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'free-running at --rtf 20, and print the real-time factor each reached, '
                     'its outcome and final pose. Target: >= 30x in lockstep on an idle 2-core '
                     'machine.')
-    parser.add_argument('--profile', type=Path, metavar='DIR',
+    parser.add_argument('--profile', type=output_folder, metavar='DIR',
                         help='then one more idle lockstep run with each node under cProfile '
                              '(slower, so not in the table): print where its time goes and keep '
                              'the .prof files in DIR')

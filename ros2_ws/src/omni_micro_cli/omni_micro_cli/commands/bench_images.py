@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli.arguments import positive_int
+from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.orchestration.composition import GraphOptions
 from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
@@ -50,7 +50,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'with one core busy), and record a short run with its images for their '
                     'size per simulated second. Target: rtf >= 5 with images on this 2-core '
                     'machine.')
-    parser.add_argument('--frames', type=positive_int, default=50, metavar='N',
+    parser.add_argument('--frames',
+                        type=whole_number_in(1, 10_000), default=50, metavar='N',
                         help='frames timed per case (default 50)')
     parser.add_argument('--no-graph', dest='graph', action='store_false',
                         help='only the per-frame timings')

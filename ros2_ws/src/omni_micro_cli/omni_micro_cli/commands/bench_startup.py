@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from omni_micro_cli.arguments import positive_int
+from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import RunFailed
 
 CASES = (('omni-micro --help', ['--help']),
@@ -31,7 +31,8 @@ TARGETS_S = {'omni-micro --help': 0.3, 'omni-micro simulate (1 s move)': 0.7}
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bench-startup', description=__doc__.split('\n\n', 1)[1].replace('\n', ' '))
-    parser.add_argument('--repeats', type=positive_int, default=7, metavar='N',
+    parser.add_argument('--repeats',
+                        type=whole_number_in(1, 1000), default=7, metavar='N',
                         help='fresh processes per case; the median counts (default 7)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     parser.set_defaults(handler=run)

@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from omni_micro_cli.arguments import non_negative_int
+from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import UsageError
 
 if TYPE_CHECKING:
@@ -35,9 +35,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bench-study',
         description=__doc__.split('\n\n', 1)[1].replace('\n', ' '))
-    parser.add_argument('--runs', type=non_negative_int, default=200, metavar='N',
+    parser.add_argument('--runs',
+                        type=whole_number_in(0, 1_000_000), default=200, metavar='N',
                         help='runs of the loop and scaling measurements (default 200)')
-    parser.add_argument('--big', type=non_negative_int, default=1000, metavar='N',
+    parser.add_argument('--big',
+                        type=whole_number_in(0, 10_000_000), default=1000, metavar='N',
                         help='runs of the timed whole study (default 1000; 0 skips it)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     parser.set_defaults(handler=run)

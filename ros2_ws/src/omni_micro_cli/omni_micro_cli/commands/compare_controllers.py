@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli.arguments import non_negative_int, positive_float
-from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.arguments import non_negative_int, positive_float, whole_number_in
+from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_control.feedback import FeedbackConfig, Outcome
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.state import RobotState
@@ -41,15 +41,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         'compare-controllers',
         description=__doc__.split('\n\n', 1)[1].replace('\n', ' ') + ' Writes a table, a '
                     'figure and one JSON row per case; prints the table. Exit 0 when done.')
-    parser.add_argument('--cases', type=non_negative_int, default=100, metavar='N',
+    parser.add_argument('--cases',
+                        type=whole_number_in(0, 1_000_000), default=100, metavar='N',
                         help='number of seeded cases (default 100)')
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='seed of the cases (robots, starts, goals, camera noise)')
     parser.add_argument('--tolerance-um', type=positive_float, default=0.5, metavar='UM',
                         help='tolerance of both modes (default 0.5 um)')
-    parser.add_argument('--workers', type=non_negative_int, default=0, metavar='N',
+    parser.add_argument('--workers',
+                        type=whole_number_in(0, 256), default=0, metavar='N',
                         help='processes (default: one per core)')
-    parser.add_argument('--out', type=Path, default=Path('out/compare-controllers'),
+    parser.add_argument('--out', type=output_folder, default='out/compare-controllers',
                         metavar='DIR', help='where the table, figure and rows go')
     parser.set_defaults(handler=run)
 

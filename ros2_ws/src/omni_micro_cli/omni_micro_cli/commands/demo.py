@@ -22,7 +22,7 @@ from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.outputs import check_output_path, staged_directory
+from omni_micro_cli.outputs import check_output_path, output_folder, staged_directory
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:
@@ -44,13 +44,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "comparison figure, plus the open-loop figures of Figs. 6-8 from the core. "
                     "Exit 0 when every closed loop reached the goal, 1 otherwise, 2 for a bad "
                     "argument.")
-    parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
+    parser.add_argument('--out', type=output_folder, default='out/demo', metavar='DIR',
                         help='where the figures and summary go (default out/demo)')
     add_timing_arguments(parser, default_rtf='max')
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
-    parser.add_argument('--record', type=Path, metavar='DIR',
+    parser.add_argument('--record', type=output_folder, metavar='DIR',
                         help='record the runs as bags DIR/fig11_open_loop, '
                              'DIR/fig11_closed_loop, DIR/fig11_model and DIR/fig11_images '
                              '(without the images themselves)')

@@ -12,10 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import staged_directory
+from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_sim import paper
 
 TRACE_INTERVAL_S = 1e-3
+
+
+# Fig. 6's full turn at this step is 36,001 moves: the finest grid anyone plots.
+MIN_STEP_DEG = 0.01
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -24,7 +28,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Reproduce Figs. 6, 7, 8(a)(b)(c) and the open-loop route of Fig. 11 as PNG "
                     "files and write comparison.md (the paper's numbers beside ours) and "
                     "figures.json into DIR.")
-    parser.add_argument('--out', type=Path, required=True, metavar='DIR',
+    parser.add_argument('--out', type=output_folder, required=True, metavar='DIR',
                         help='output directory (created; files of the same name are replaced)')
     parser.add_argument('--angle-step-deg', type=float, default=1.0, metavar='DEG',
                         help='direction-angle resolution of Fig. 6 (default 1)')
@@ -41,18 +45,19 @@ def run(args: argparse.Namespace) -> int:
 
     for name in ('angle_step_deg', 'offset_step_deg'):
         value = getattr(args, name)
-        if not math.isfinite(value) or not 0.0 < value <= 30.0:
+        if not math.isfinite(value) or not MIN_STEP_DEG <= value <= 30.0:
             raise UsageError(
-                f'--{name.replace("_", "-")} must be in (0, 30] degrees, got {value!r}')
+                f'--{name.replace("_", "-")} must be in [{MIN_STEP_DEG:g}, 30] degrees (Fig. 6 '
+                f'at {MIN_STEP_DEG:g} deg is already 36,001 moves), got {value!r}')
     started = time.perf_counter()
     with staged_directory(args.out) as scratch:
         numbers = write_figures(scratch, args.angle_step_deg, args.offset_step_deg)
+        written = sorted(path.name for path in scratch.iterdir())   # not the user's own files
     _progress(f'done in {time.perf_counter() - started:.1f} s: {args.out}')
     print(f'fig. 8 drift: {numbers["fig8_drift_mm"]:.4f} mm '
           f'(paper {paper.FIG8_PUBLISHED_DRIFT_MM} mm)')
     print(f'fig. 11 open-loop deviation: {numbers["fig11_open_loop_deviation_mm"]:.3f} mm '
           f'(paper {paper.FIG11_PUBLISHED_OPEN_LOOP_DEVIATION_MM:g} mm)')
-    written = sorted(p.name for p in args.out.iterdir() if not p.name.startswith('.'))
     print(f'wrote {", ".join(written)}')
     return 0
 

@@ -24,7 +24,7 @@ import numpy as np
 import yaml
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import atomic_text
+from omni_micro_cli.outputs import atomic_text, output_file
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_control.errors import IdentificationError
 from omni_micro_control.feedback import Observation, mean_observation
@@ -51,6 +51,10 @@ def parameter_names(text: str) -> tuple[str, ...]:
     if unknown or not names:
         raise argparse.ArgumentTypeError(
             f'{text!r}: expected a comma-separated list of {", ".join(PARAMETERS)}')
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(f'{text!r}: {", ".join(repeated)} named twice (each '
+                                         'parameter is fitted once)')
     return names
 
 
@@ -71,7 +75,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='print a final JSON line: wheel_offsets_deg, wheel_offsets_ci_deg '
                              '(95 %% half-widths) and every other fitted parameter under its '
                              'ROS parameter name')
-    parser.add_argument('--write-params', type=Path, metavar='FILE',
+    parser.add_argument('--write-params', type=output_file, metavar='FILE',
                         help='write a params YAML with the identified values for dynamics_node '
                              '(robot.*) and for the model controller (model.robot.*)')
     parser.set_defaults(handler=run)

@@ -6,10 +6,9 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.outputs import check_output_path
+from omni_micro_cli.arguments import domain_id
+from omni_micro_cli.outputs import check_output_path, output_folder
 from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGE_NAMES
 
 
@@ -26,7 +25,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description='Record every topic of the omni-micro graph (or --topics) from the DDS '
                     'domain ROS_DOMAIN_ID (or --domain-id) into a rosbag2 bag, timestamps in '
                     'simulated time. `run --record BAG` does this for you.')
-    parser.add_argument('bag', type=Path, metavar='BAG', help='output bag folder (must not exist)')
+    parser.add_argument('bag', type=output_folder, metavar='BAG',
+                        help='output bag folder (must not exist)')
     parser.add_argument('--topics', nargs='+', metavar='T', choices=sorted(RECORDABLE_TOPICS),
                         help='only these topics (default: all of the graph but the images; '
                              'the images: /camera/<macro|micro>/<image_raw|camera_info>)')
@@ -34,7 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='report on /lockstep which image frames are written, so that a '
                              'graph in lockstep waits for the recorder as for its tracker and '
                              'no frame is lost however slow the disk')
-    parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
+    parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help='DDS domain to record from (default: $ROS_DOMAIN_ID or 0)')
     add_storage_arguments(parser)
     parser.set_defaults(handler=run)

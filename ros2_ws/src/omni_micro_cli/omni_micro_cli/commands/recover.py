@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from omni_micro_cli.outputs import check_output_path
+from omni_micro_cli.outputs import check_output_path, output_folder
 from omni_micro_tools.topics import STORAGE_NAMES
 
 
@@ -23,7 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('bag', type=Path, metavar='BAG',
                         help='the folder of a damaged bag, or of one whose recorder was killed '
                              '(an .mcap or .db3 file, with or without metadata.yaml)')
-    parser.add_argument('--out', type=Path, metavar='DIR', help='default: BAG-recovered')
+    parser.add_argument('--out', type=output_folder, metavar='DIR', help='default: BAG-recovered')
     parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
                         help='storage of the recovered bag (default mcap)')
     parser.add_argument('--force', action='store_true', help='replace an existing --out bag')

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from omni_micro_cli.arguments import non_negative_int, positive_float
+from omni_micro_cli.arguments import FACTOR_RANGE, domain_id, number_in, positive_float
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 
@@ -22,8 +22,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'that nodes with use_sim_time follow the bag. Example: replay /odom into a '
                     'vision_node to get the captures again.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='the folder of a recorded bag')
-    parser.add_argument('--rate', type=positive_float, default=1.0, metavar='R',
-                        help='speed-up of the original spacing (default 1)')
+    parser.add_argument('--rate', type=number_in(*FACTOR_RANGE), default=1.0, metavar='R',
+                        help='speed-up of the original spacing (default 1; 0.001 to 10000)')
     parser.add_argument('--topics', nargs='+', metavar='T',
                         help='only these topics (default: every topic but /clock)')
     parser.add_argument('--clock', action='store_true', help='also publish the recorded /clock')
@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'that they have handled each message before sending more than '
                              f'{SYNC_WINDOW} ahead: a node that cannot keep up then loses '
                              'nothing (the original spacing is kept when they are faster)')
-    parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
+    parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help='DDS domain (default: $ROS_DOMAIN_ID or 0)')
     parser.set_defaults(handler=run)
 

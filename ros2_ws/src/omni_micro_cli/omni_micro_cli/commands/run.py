@@ -23,6 +23,7 @@ from omni_micro_cli.orchestration.composition import VISION_MODES, GraphOptions
 from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.parameters import check_params_file
 from omni_micro_cli.orchestration.platform_bounds import check_goal
+from omni_micro_cli.outputs import output_folder
 from omni_micro_control.feedback import MODES
 
 
@@ -36,11 +37,11 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'at any --rtf and any load')
     parser.add_argument('--timeout', type=positive_float, default=600.0, metavar='S',
                         help='give up after this many wall seconds (default 600)')
-    parser.add_argument('--log-dir', type=Path, default=Path('out/runs'), metavar='DIR',
+    parser.add_argument('--log-dir', type=output_folder, default='out/runs', metavar='DIR',
                         help='node logs go to a new folder under DIR (default out/runs)')
     parser.add_argument('--quiet', action='store_true',
                         help="do not echo the nodes' logs (they are still kept)")
-    parser.add_argument('--record', type=Path, metavar='BAG',
+    parser.add_argument('--record', type=output_folder, metavar='BAG',
                         help='record every topic into this rosbag2 bag (a recorder node in its '
                              'own process; simulated-time stamps)')
     parser.add_argument('--vision', choices=sorted(VISION_MODES), default='model',

@@ -11,12 +11,18 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
+from omni_micro_cli.arguments import (
+    add_timing_arguments,
+    check_timing,
+    non_negative_int,
+    whole_number_in,
+)
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.composition import GraphOptions
 from omni_micro_cli.orchestration.graph import run_graph
+from omni_micro_cli.outputs import output_folder
 from omni_micro_vision.camera import DEFAULT_RIG
 
 # Goals inside the micro camera's field (so each one can be reached to the 3 um tolerance),
@@ -32,12 +38,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "report every process's memory growth and whether the bag holds exactly "
                     'the messages the nodes say they published. Exit 0 when every goal was '
                     'reached and no message is missing, 1 otherwise, 2 for a bad argument.')
-    parser.add_argument('--goals', type=non_negative_int, default=50, metavar='N',
+    parser.add_argument('--goals',
+                        type=whole_number_in(0, 100_000), default=50, metavar='N',
                         help='how many random goals, one after the other (default 50)')
     add_timing_arguments(parser, default_rtf='max')
     parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N',
                         help='seed of the goals and of the camera noise (default 1)')
-    parser.add_argument('--out', type=Path, default=Path('out/soak'), metavar='DIR',
+    parser.add_argument('--out', type=output_folder, default='out/soak', metavar='DIR',
                         help='the bag, logs and report go into a new folder here')
     parser.add_argument('--json', action='store_true', help='print the report as a JSON line')
     parser.add_argument('--quiet', action='store_true',

@@ -22,7 +22,7 @@ import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import atomic_text
+from omni_micro_cli.outputs import atomic_text, output_file
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -45,7 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='a tracker_node params file, as you will give the node')
     parser.add_argument('--max-frames', type=positive_int, metavar='N',
                         help='only the first N frames')
-    parser.add_argument('--csv', type=Path, metavar='FILE',
+    parser.add_argument('--csv', type=output_file, metavar='FILE',
                         help='write one row per frame: stamp, found, still, x, y, heading, '
                              'reason')
     parser.set_defaults(handler=run)

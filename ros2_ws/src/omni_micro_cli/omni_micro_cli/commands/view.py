@@ -7,7 +7,7 @@ import ipaddress
 import socket
 import sys
 
-from omni_micro_cli.arguments import non_negative_int
+from omni_micro_cli.arguments import domain_id, port_number
 from omni_micro_cli.errors import UsageError
 
 DEFAULT_HOST = '127.0.0.1'
@@ -21,7 +21,7 @@ def add_view_arguments(parser: argparse.ArgumentParser, flag: bool) -> None:
                             help='watch the run live in Foxglove: serves the graph\'s topics '
                                  f'on ws://{DEFAULT_HOST}:{DEFAULT_PORT} (Foxglove: Open '
                                  'connection > Foxglove WebSocket); changes nothing in the run')
-    parser.add_argument('--view-port', type=non_negative_int, default=DEFAULT_PORT, metavar='N',
+    parser.add_argument('--view-port', type=port_number, default=DEFAULT_PORT, metavar='N',
                         help=f'port of the live view (default {DEFAULT_PORT}; 0: any free one)')
     parser.add_argument('--view-host', default=DEFAULT_HOST, metavar='ADDRESS',
                         help=f'address the live view listens on (default {DEFAULT_HOST}: '
@@ -94,7 +94,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'serve them over the Foxglove WebSocket protocol, CDR-encoded with ros2msg '
                     'schemas. Only listens; clients cannot publish. Ctrl-C stops it.')
     add_view_arguments(parser, flag=False)
-    parser.add_argument('--domain-id', type=non_negative_int, metavar='N',
+    parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help='ROS domain of the graph (default: ROS_DOMAIN_ID)')
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not serve /markers (a graph without markers_node)')

@@ -46,6 +46,7 @@ from omni_micro_cli.orchestration.processes import (
     stop_together,
 )
 from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_common.errors import OmniMicroError
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
@@ -213,7 +214,8 @@ class Graph:
         return codes
 
     def _recover_bag(self, bag: Path) -> None:
-        """The recorder died: turn what it flushed into a readable bag at the same path."""
+        """The recorder died (or could not finish the bag): turn what it flushed into a readable
+        bag at the same path; if that fails too (a full disk), the bag stays as it was."""
         from omni_micro_tools.bags import recover
 
         torn = bag.with_name(bag.name + '.torn')
@@ -221,10 +223,12 @@ class Graph:
         bag.rename(torn)
         try:
             report = recover(torn, bag)
-        except Exception as error:
+        except (OmniMicroError, OSError) as error:
+            shutil.rmtree(bag, ignore_errors=True)
             torn.rename(bag)
             if self.options.echo:
-                self.options.echo(f'[orchestration] could not recover {bag}: {error}')
+                self.options.echo(f'[orchestration] could not recover {bag}: {error}; it stays '
+                                  'as the recorder left it')
             return
         shutil.rmtree(torn)
         if self.options.echo:

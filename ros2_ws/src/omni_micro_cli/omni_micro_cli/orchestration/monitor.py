@@ -78,6 +78,7 @@ class GraphMonitor:
         self.camera_statuses: list[str] = []
         self.node.create_subscription(DiagnosticStatus, '/camera/status',
                                       self._on_camera_status, STATUS_QOS)
+        self.recorder_failure: str | None = None
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
@@ -107,6 +108,17 @@ class GraphMonitor:
 
     def _on_recorder_status(self, msg: DiagnosticStatus) -> None:
         self.recorder_ready = self.recorder_ready or msg.message == 'recording'
+        if msg.level == DiagnosticStatus.ERROR:
+            self.recorder_failure = {item.key: item.value for item in msg.values}.get(
+                'reason', msg.message)
+
+    def check_recorder(self) -> None:
+        """A recorder that cannot write (a full disk) stops the run: a run without its bag is
+        not what was asked for."""
+        if self.recorder_failure is not None:
+            raise RunFailed(f'bag_recorder {self.recorder_failure}; the run was stopped and the '
+                            'bag keeps what was written (omni-micro bag-recover BAG --out DIR, '
+                            'on a disk with room, makes it readable)')
 
     def _on_status(self, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
@@ -278,6 +290,7 @@ class GraphMonitor:
         while True:
             # A dead node is the cause, whatever the controller concluded since.
             restarted = graph.check_alive()
+            self.check_recorder()
             if restarted:
                 self._bring_back(graph, restarted, goal, recording)
             for status in self.statuses[self.goal_sent_at:]:

@@ -9,8 +9,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import non_negative_int
+from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import StudyError, UsageError
+from omni_micro_cli.outputs import output_folder
 
 EXAMPLE = Path(__file__).with_name('example.yaml')
 
@@ -27,7 +28,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('study', nargs='?', type=Path, metavar='STUDY.yaml',
                         help='the study file, or - for standard input (see --example and the '
                              'README for the schema)')
-    parser.add_argument('--out', type=Path, metavar='DIR',
+    parser.add_argument('--out', type=output_folder, metavar='DIR',
                         help='a new directory for the results (required with STUDY.yaml)')
     what = parser.add_mutually_exclusive_group()
     what.add_argument('--example', action='store_true',
@@ -36,7 +37,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                       help='finish an interrupted study without redoing its finished runs')
     what.add_argument('--rerun', nargs=2, metavar=('DIR', 'ROW'),
                       help="run one row of a study again, alone, and compare with its result")
-    parser.add_argument('--workers', type=non_negative_int, default=0, metavar='N',
+    parser.add_argument('--workers',
+                        type=whole_number_in(0, 256), default=0, metavar='N',
                         help='worker processes of the local Dask cluster (default: one per '
                              'core)')
     parser.add_argument('--scheduler', metavar='tcp://HOST:PORT',
@@ -84,8 +86,9 @@ def run(args: argparse.Namespace) -> int:
             study = execution.load_directory(out)
         else:
             out = args.out
-            study = (parse_study(sys.stdin.read(), 'stdin') if str(args.study) == '-'
+            study = (parse_study(_stdin_text(), 'stdin') if str(args.study) == '-'
                      else load_study(args.study))
+            created = not out.exists()
             execution.prepare_directory(study, out)
     except StudyError as error:
         raise UsageError(str(error)) from None
@@ -102,8 +105,13 @@ def run(args: argparse.Namespace) -> int:
               f'./scripts/omni-micro study --resume {out} finishes it', file=sys.stderr)
         return 130
     except StudyError as error:
+        if args.resume is None and not execution.finished_rows(study, out):
+            execution.forget_directory(out, created)   # nothing ran: nothing is left
         raise UsageError(str(error)) from None
-    table = execution.collect(study, out)
+    try:
+        table = execution.collect(study, out)
+    except StudyError as error:
+        raise UsageError(str(error)) from None
     rows = table.to_pylist()
     text = write_summary(study, rows, out)
     drawn = write_figure(study, rows, out / 'figure.png')
@@ -114,6 +122,14 @@ def run(args: argparse.Namespace) -> int:
           f'{resumed}; rows, summary{" and figure" if drawn else ""} in {out}/',
           file=sys.stderr)
     return 0
+
+
+def _stdin_text() -> str:
+    try:
+        return sys.stdin.read()
+    except UnicodeDecodeError as error:
+        raise StudyError(f'stdin: not UTF-8 text (byte {error.start}); a study file is YAML') \
+            from None
 
 
 def rerun(out: Path, row_text: str) -> int:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import sys
 import tempfile
 import time
@@ -25,7 +26,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from omni_micro_cli.commands.study.runs import run_rows, warm_up
-from omni_micro_cli.commands.study.spec import Study, parse_study
+from omni_micro_cli.commands.study.spec import Study, load_study
 from omni_micro_cli.errors import StudyError
 
 STUDY_FILE = 'study.yaml'
@@ -93,13 +94,25 @@ class Checkpoint:
         self.pending = []
 
 
+def _read_rows(path: Path, study: Study | None = None) -> list[dict[str, Any]]:
+    """A parquet file's rows; a file that is not one (damaged, emptied, another schema) is a
+    StudyError naming it."""
+    try:
+        return list(pq.read_table(path, schema=None if study is None else schema(study))
+                    .to_pylist())
+    except (pa.ArrowException, OSError, ValueError) as error:
+        reason = (str(error).strip().splitlines() or [type(error).__name__])[0]
+        raise StudyError(f'{path}: not a readable table of rows ({reason}); move it away and '
+                         'the runs it held run again with --resume') from None
+
+
 def finished_rows(study: Study, out: Path) -> list[dict[str, Any]]:
     """The rows kept so far (from runs.parquet, or the parts of an unfinished study)."""
     if (out / RUNS_FILE).exists():
-        return pq.read_table(out / RUNS_FILE).to_pylist()
+        return _read_rows(out / RUNS_FILE)
     rows: dict[int, dict[str, Any]] = {}
     for part in sorted((out / PARTS_DIR).glob('part-*.parquet')):
-        for row in pq.read_table(part, schema=schema(study)).to_pylist():
+        for row in _read_rows(part, study):
             rows.setdefault(row['run'], row)
     return list(rows.values())
 
@@ -108,7 +121,18 @@ def load_directory(out: Path) -> Study:
     """The study a results directory was made for."""
     if not (out / STUDY_FILE).exists():
         raise StudyError(f'{out}: not a study directory (no {STUDY_FILE})')
-    return parse_study((out / STUDY_FILE).read_text(), str(out / STUDY_FILE))
+    return load_study(out / STUDY_FILE)
+
+
+def forget_directory(out: Path, created: bool) -> None:
+    """Undo ``prepare_directory`` for a study that ran nothing: no study.yaml is left behind
+    (and the folder itself goes if it was made for the study)."""
+    (out / STUDY_FILE).unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        (out / PARTS_DIR).rmdir()
+    if created:
+        with contextlib.suppress(OSError):
+            out.rmdir()
 
 
 def prepare_directory(study: Study, out: Path) -> None:
@@ -152,9 +176,17 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         return
     # One single-threaded worker process per core: the runs are pure Python and numba, which
     # threads would serialise on the GIL. Loopback only, no dashboard.
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      host='127.0.0.1', dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+    # Ctrl-C is for this process, which stops the cluster: started with SIGINT ignored, the
+    # worker processes inherit that (Python keeps an inherited SIG_IGN), so a terminal's Ctrl-C
+    # to the whole group does not end each of them with a KeyboardInterrupt traceback.
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               host='127.0.0.1', dashboard_address=None,
+                               silence_logs=logging.ERROR)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    with cluster, Client(cluster) as client:
         yield client
 
 

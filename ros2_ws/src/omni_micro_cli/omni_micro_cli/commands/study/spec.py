@@ -415,7 +415,10 @@ def _check_runs(study: Study) -> None:
 
 def load_study(path: Path) -> Study:
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_text(encoding='utf-8')
+    except UnicodeDecodeError as error:
+        raise StudyError(f'{path}: not UTF-8 text (byte {error.start}); a study file is YAML') \
+            from None
     except OSError as error:
         raise StudyError(f'{path}: cannot read the study file ({error.strerror})') from None
     return parse_study(text, str(path))

@@ -1,0 +1,144 @@
+"""Round 2 of hostile inputs: what still ended in a traceback, runaway memory or a half-written
+file. Each case exits 2 with one line naming the value (or 1 saying why the work failed) and
+leaves nothing behind. In-process: nothing here starts a graph."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from omni_micro_cli.cli import main
+
+
+def exit_code_and_error(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    try:
+        code = main(argv)
+    except SystemExit as stop:   # argparse's refusals
+        code = int(stop.code or 0)
+    err = capsys.readouterr().err.strip()
+    return code, err
+
+
+def assert_one_line_naming(err: str, *named: str) -> None:
+    last = err.splitlines()[-1]
+    assert 'Traceback' not in err, err
+    for text in named:
+        assert text in last, last
+
+
+@pytest.mark.parametrize(('argv', 'named'), [
+    (['analyze', 'x', '--out', 'y', '--animate', 'gif', '--frames', '1000000000'],
+     ['--frames', '1000000000', '[1, 2000]']),
+    (['figures', '--out', 'OUT', '--offset-step-deg', '1e-9'], ['--offset-step-deg', '1e-09']),
+    (['run', '--goal-mm', '1,0', '--view', '--view-port', '70000'], ['70000', '65535']),
+    (['demo', '--view', '--view-port', '70000'], ['70000', '65535']),
+    (['soak', '--view', '--view-port', '70000'], ['70000', '65535']),
+    (['run', '--goal-mm', '1,0', '--rtf', '1e-300'], ['--rtf', '1e-300', '0.001']),
+    (['replay', 'x', '--rate', '1e-300'], ['--rate', '1e-300']),
+    (['replay', 'x', '--domain-id', '999'], ['999', '232']),
+    (['identify', 'x', '--fit', 'xi2,xi2'], ['xi2 named twice']),
+    (['track', 'x', '--max-frames', '-1'], ["'-1'", '>= 1']),
+    (['track', 'x', '--max-frames', '0'], ["'0'", '>= 1']),
+    (['analyze', 'x', '--out', 'y', '--frames', '-1'], ["'-1'", '[1, 2000]']),
+    (['compare-controllers', '--cases', '99999999999'], ['--cases']),
+])
+def test_a_value_out_of_bounds_is_refused_naming_it(argv, named, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, err = exit_code_and_error([a.replace('OUT', str(tmp_path / 'o')) for a in argv],
+                                    capsys)
+    assert code == 2
+    assert_one_line_naming(err, *named)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(('argv', 'named'), [
+    (['run', '--goal-mm', '1,0', '--record', 'FILE/bag'], ['is under', 'which is a file']),
+    (['run', '--goal-mm', '1,0', '--log-dir', 'FILE'], ['exists and is a file']),
+    (['soak', '--out', 'FILE'], ['exists and is a file']),
+    (['study', 'S', '--out', 'FILE/x'], ['is under']),
+    (['analyze', 'x', '--out', 'FILE'], ['exists and is a file']),
+    (['figures', '--out', 'FILE/x'], ['is under']),
+    (['compare-controllers', '--out', 'FILE'], ['exists and is a file']),
+    (['identify', 'x', '--write-params', 'DIR'], ['is a folder (expected a file)']),
+    (['track', 'x', '--csv', 'DIR'], ['is a folder (expected a file)']),
+    (['record', 'FILE/bag'], ['is under']),
+])
+def test_an_output_path_that_cannot_be_written_is_refused_before_anything_runs(
+        argv, named, tmp_path, capsys):
+    (tmp_path / 'file').write_text('mine')
+    (tmp_path / 'dir').mkdir()
+    (tmp_path / 's.yaml').write_text('name: s\n')
+    swap = {'FILE': str(tmp_path / 'file'), 'DIR': str(tmp_path / 'dir'),
+            'S': str(tmp_path / 's.yaml')}
+    code, err = exit_code_and_error(
+        [next((a.replace(k, v) for k, v in swap.items() if a.startswith(k)), a)
+         for a in argv], capsys)
+    assert code == 2
+    assert_one_line_naming(err, *named)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['dir', 'file', 's.yaml']
+    assert (tmp_path / 'file').read_text() == 'mine' and not any((tmp_path / 'dir').iterdir())
+
+
+NOT_UTF8 = b'controller_node:\n  ros__parameters:\n    tolerance_m: 3.0e-6  # \xb5m\n'
+
+
+def test_params_and_study_files_that_are_not_utf8_are_named(tmp_path, capsys):
+    params = tmp_path / 'latin1.yaml'
+    params.write_bytes(NOT_UTF8)
+    for argv in (['run', '--goal-mm', '100,0', '--params', str(params),
+                  '--log-dir', str(tmp_path / 'logs')],
+                 ['study', str(params), '--out', str(tmp_path / 'study')]):
+        code, err = exit_code_and_error(argv, capsys)
+        assert code == 2
+        assert_one_line_naming(err, str(params), 'not UTF-8')
+    assert not (tmp_path / 'study').exists() and not (tmp_path / 'logs').exists()
+
+
+def test_a_damaged_runs_file_is_named_under_resume_and_rerun(tmp_path, capsys):
+    from omni_micro_cli.commands.study.execute import RUNS_FILE, prepare_directory
+    from omni_micro_cli.commands.study.spec import parse_study
+
+    out = tmp_path / 'study'
+    prepare_directory(parse_study('name: s\nscenario: open_loop\n', 's'), out)
+    (out / RUNS_FILE).write_bytes(b'PAR1 this is not a table')
+    for argv in (['study', '--resume', str(out)], ['study', '--rerun', str(out), '0']):
+        code, err = exit_code_and_error(argv, capsys)
+        assert code == 2
+        assert_one_line_naming(err, str(out / RUNS_FILE), 'not a readable table')
+
+
+def test_figures_into_a_folder_of_the_users_lists_only_what_it_wrote(tmp_path, capsys):
+    out = tmp_path / 'figs'
+    out.mkdir()
+    (out / 'notes.txt').write_text('mine')
+    code = main(['figures', '--out', str(out), '--angle-step-deg', '30',
+                 '--offset-step-deg', '10'])
+    wrote = capsys.readouterr().out.strip().splitlines()[-1]
+    assert code == 0 and wrote.startswith('wrote ') and 'notes.txt' not in wrote
+    assert (out / 'notes.txt').read_text() == 'mine'
+
+
+def test_a_reference_that_times_out_is_one_line(capsys):
+    code, err = exit_code_and_error(['bench', '--repeats', '1', '--batch', '2',
+                                     '--reference-timeout', '0.001'], capsys)
+    assert code == 1
+    assert_one_line_naming(err, 'did not finish within --reference-timeout 0.001 s')
+
+
+def test_an_unexpected_error_is_one_line_with_the_traceback_in_a_file(monkeypatch, capsys):
+    from omni_micro_cli.commands import simulate
+
+    def broken(args: object) -> int:
+        raise ZeroDivisionError('the unforeseen')
+
+    monkeypatch.setattr(simulate, 'run', broken)
+    code, err = exit_code_and_error(['simulate', '--theta-deg', '0', '--duration', '1'], capsys)
+    assert code == 1
+    assert len(err.splitlines()) == 1
+    assert 'failed unexpectedly: ZeroDivisionError: the unforeseen' in err
+    log = Path(err.split('traceback in ')[1].split(';')[0])
+    assert 'Traceback' in log.read_text() and 'ZeroDivisionError' in log.read_text()
+    log.unlink()
+    with pytest.raises(ZeroDivisionError):   # asked for: the traceback itself
+        main(['--debug', 'simulate', '--theta-deg', '0', '--duration', '1'])
