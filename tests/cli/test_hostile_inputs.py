@@ -142,3 +142,19 @@ def test_an_unexpected_error_is_one_line_with_the_traceback_in_a_file(monkeypatc
     log.unlink()
     with pytest.raises(ZeroDivisionError):   # asked for: the traceback itself
         main(['--debug', 'simulate', '--theta-deg', '0', '--duration', '1'])
+
+
+def test_track_on_a_topic_that_is_not_an_image_names_its_type(tmp_path, capsys):
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+
+    from omni_micro_tools.bags import open_writer
+    from omni_micro_tools.topics import GRAPH_TOPICS
+
+    bag = tmp_path / 'bag'
+    writer, connections = open_writer(bag, 'mcap', {'/odom': GRAPH_TOPICS['/odom']})
+    writer.write(connections['/odom'], 1, serialize_message(Odometry()))
+    writer.close()
+    code, err = exit_code_and_error(['track', str(bag), '--image-topic', '/odom'], capsys)
+    assert code == 2
+    assert_one_line_naming(err, '/odom', 'nav_msgs/msg/Odometry', 'not sensor_msgs/msg/Image')

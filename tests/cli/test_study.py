@@ -145,6 +145,15 @@ def test_a_worker_killed_mid_study_costs_only_its_unfinished_runs(tmp_path):
     assert _without_wall_time(rows) == expected
 
 
+def test_an_unreachable_scheduler_exits_2_and_leaves_nothing(tmp_path):
+    out = tmp_path / 'study'
+    done = _cli('--scheduler', 'tcp://127.0.0.1:9', '--out', str(out), '-', input=SMALL_STUDY)
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert 'cannot connect' in done.stderr.strip().splitlines()[-1]
+    assert 'Traceback' not in done.stderr
+    assert not out.exists()
+
+
 def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
     """What a cluster launcher starts: the environment's own `dask scheduler` and `dask worker`,
     from another directory, with no PYTHONPATH and only the environment's bin/ on PATH."""
