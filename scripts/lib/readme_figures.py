@@ -1,4 +1,5 @@
-"""The README's benchmark tables against a fresh run (./scripts/check-readme-figures)."""
+"""The benchmark tables of the README and the docs site against a fresh run
+(./scripts/check-readme-figures)."""
 
 from __future__ import annotations
 
@@ -26,13 +27,15 @@ def readme_range(readme: str, row_start: str) -> tuple[float, float]:
 
 
 def command_json(*args: str) -> dict[str, Any]:
-    result = subprocess.run([sys.executable, '-m', 'omni_micro_cli', *args, '--json'],
+    result = subprocess.run([str(Path(sys.executable).parent / 'omni-micro'), *args, '--json'],
                             capture_output=True, text=True, check=True, cwd=ROOT)
     return dict(json.loads(result.stdout.strip().splitlines()[-1]))
 
 
 def main() -> int:
-    readme = (ROOT / 'README.md').read_text()
+    # The tables live where the text about them does: the README or a page of docs/.
+    readme = '\n'.join(path.read_text() for path in [ROOT / 'README.md',
+                                                       *sorted((ROOT / 'docs').glob('*.md'))])
     bench = command_json('bench')
     checks = [  # README row, fresh figure, in the README's unit
         ('reference: `solve_ivp', float(bench['reference_lsoda_s']) * 1e3),

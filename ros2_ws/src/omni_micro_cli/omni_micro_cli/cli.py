@@ -40,6 +40,8 @@ class Command:
 COMMANDS: dict[str, Command] = {
     'demo': Command('demo', "the paper's results reproduced: Fig. 11 through the node graph"),
     'run': Command('run', 'drive the robot to a goal through the ROS 2 node graph'),
+    'graph': Command('graph', 'the node graph as a picture (SVG/PNG) or JSON, read from a '
+                              'running graph'),
     'view': Command('view', 'serve a running graph to Foxglove (run --view starts this)'),
     'record': Command('record', "record the graph's topics into a rosbag2 bag until Ctrl-C"),
     'replay': Command('replay', "publish a bag's messages again, e.g. to feed a node"),

@@ -72,12 +72,21 @@ def staged_directory(target: Path) -> Iterator[Path]:
 
 def atomic_text(target: Path, text: str) -> None:
     """Write ``text`` to ``target`` whole or not at all (a temporary file, then a rename)."""
+    atomic_bytes(target, text.encode())
+
+
+def atomic_bytes(target: Path, data: bytes) -> None:
+    """Write ``data`` to ``target`` whole or not at all (a temporary file, then a rename)."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f'.{target.name}.partial-', dir=target.parent)
     try:
-        with os.fdopen(handle, 'w') as stream:
-            stream.write(text)
+        with os.fdopen(handle, 'wb') as stream:
+            stream.write(data)
+        # mkstemp makes the file private (0600): give it the mode a plain open() would.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)
         os.replace(temporary, target)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

@@ -51,6 +51,8 @@ class Supervisor(Protocol):
 READY_SUBSCRIBERS: list[tuple[str, ...]] = [
     ('/wheel_trajectory',), ('/joint_states',), ('/odom',),
     *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera]) for camera in CAPTURE_TOPICS)]
+# The orchestrator's own node (it publishes goals and reads statuses; not part of the graph).
+ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
 
@@ -62,7 +64,7 @@ class GraphMonitor:
     def __init__(self, domain_id: int, follow_route: bool = False) -> None:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = Node('omni_micro_orchestration', context=self.context)
+        self.node = Node(ORCHESTRATOR_NODE, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.latest_odometry: tuple[float, float, float, float] | None = None

@@ -1,0 +1,71 @@
+"""`omni-micro graph`: the picture names every topic a run actually carries, with its type, who
+publishes and who subscribes, for the plain graph and the one on images."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from omni_micro_tools.bags import read_bag
+
+
+def graph_json(omni_micro, *flags: str) -> list[dict]:
+    done = omni_micro('graph', '--json', *flags)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return list(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def test_the_picture_names_every_topic_a_recorded_run_carries(omni_micro, tmp_path):
+    bag = tmp_path / 'bag'
+    run = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--quiet', '--record',
+                     str(bag), '--log-dir', str(tmp_path / 'logs'))
+    assert run.returncode == 0, run.stderr[-3000:]
+    carried = read_bag(bag, decode=False)
+    described = {topic['topic']: topic for topic in graph_json(omni_micro, '--record')}
+    for name, msgtype in carried.msgtypes.items():
+        if carried.raw[name]:
+            assert name in described, f'{name} is carried by a run but not in the picture'
+            assert described[name]['msgtype'] == msgtype
+            assert described[name]['publishers'], f'{name}: no publisher drawn'
+    assert {'dynamics_node'} == {p['node'] for p in described['/odom']['publishers']}
+    assert 'vision_node' in {s['node'] for s in described['/odom']['subscribers']}
+    assert 'dynamics_node' in {s['node'] for s in described['/lockstep']['subscribers']}
+    assert 'bag_recorder' in {s['node'] for s in described['/odom']['subscribers']}
+
+
+def test_the_picture_the_readme_shows_is_the_graph_of_today(omni_micro):
+    """docs/figures/graph.svg (README, the docs) names every topic and node a plain run's graph
+    has: regenerate it with `omni-micro graph --out docs/figures/graph.svg` when this fails."""
+    shown = (Path(__file__).resolve().parents[2] / 'docs' / 'figures' / 'graph.svg').read_text()
+    for topic in graph_json(omni_micro):
+        assert f'>{topic["topic"]}' in shown, f'{topic["topic"]} is not in the picture'
+        for endpoint in (*topic['publishers'], *topic['subscribers']):
+            if endpoint['node'] != 'omni_micro_orchestration':
+                assert endpoint['node'] in shown, endpoint['node']
+
+
+def test_the_picture_of_the_graph_on_images_has_the_camera_streams(omni_micro, tmp_path):
+    described = {t['topic']: t for t in graph_json(omni_micro, '--vision', 'images',
+                                                   '--no-markers')}
+    assert described['/camera/macro/image_raw']['msgtype'] == 'sensor_msgs/msg/Image'
+    assert {p['node'] for p in described['/camera/micro/image_raw']['publishers']} == {
+        'camera_node'}
+    assert 'tracker_node' in {s['node'] for s in described['/camera/micro/image_raw'][
+        'subscribers']}
+    assert '/markers' not in described
+
+
+@pytest.mark.parametrize('suffix', ['.svg', '.png'])
+def test_the_picture_is_written_whole(omni_micro, tmp_path, suffix):
+    out = tmp_path / f'graph{suffix}'
+    done = omni_micro('graph', '--out', str(out))
+    assert done.returncode == 0, done.stderr[-3000:]
+    data = out.read_bytes()
+    assert out.stat().st_mode & 0o044, 'written private (0600): others cannot read it'
+    assert len(data) > 20_000
+    if suffix == '.svg':
+        text = data.decode()
+        assert '<svg' in text and 'dynamics_node' in text and '/wheel_trajectory' in text
+    assert [p.name for p in Path(tmp_path).iterdir()] == [out.name]
