@@ -1,4 +1,5 @@
-"""The node graph's closed loop in one process, from the same core, camera model and controller.
+"""The twin: the node graph's closed loop in one process, from the same core, camera model
+and controller logic as the nodes.
 
 Each grid period does what the three nodes do with one sample: the dynamics advances and
 publishes, the camera sees the odometry, the controller sees the wheel state and the captures.

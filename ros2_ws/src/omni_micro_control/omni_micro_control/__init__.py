@@ -1,1 +1,7 @@
-"""Vision-feedback controller of section 4 (the node graph, issue 3, is not built yet)."""
+"""The vision-feedback controller of section 4 and the model-based mode.
+
+Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, the distance
+comparator, the outcome), :mod:`model_based` (plans through the slip model, learns the robot)
+and :mod:`identification` (the least-squares fit it and ``omni-micro identify`` use). Its node:
+``controller_node``.
+"""
