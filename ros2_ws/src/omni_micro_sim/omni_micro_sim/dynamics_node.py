@@ -33,6 +33,7 @@ from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParameters
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -263,7 +264,10 @@ class DynamicsNode(Node):
         missing = []
         for node in self.lockstep.nodes:
             for topic in LOCKSTEP_INPUTS.get(node, ()):
-                readers = self.get_subscriptions_info_by_topic(topic)
+                # Only readers a volatile writer can match (a transient-local one, say a user's
+                # tool, never matches it and must not hold the clock).
+                readers = [info for info in self.get_subscriptions_info_by_topic(topic)
+                           if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
                 if not any(info.node_name == node for info in readers) or \
                         self._publishers_of[topic].get_subscription_count() < len(readers):
                     missing.append(f"{node}'s reader of {topic}")
