@@ -90,7 +90,7 @@ def test_open_loop_option_makes_a_single_move(tmp_path):
 @pytest.mark.parametrize('args, message', [
     (['--goal-mm', '100'], 'expected 2 comma-separated'),
     (['--goal-mm', 'nan,0'], 'finite'),
-    (['--goal-mm', '1,0', '--rtf', '-2'], '> 0'),
+    (['--goal-mm', '1,0', '--rtf', '-2'], 'in [0.001, 10000]'),
     (['--goal-mm', '1,0', '--params', 'no/such/file.yaml'], 'does not exist'),
 ])
 def test_bad_run_arguments_exit_2_naming_the_value(args, message, tmp_path, omni_micro):

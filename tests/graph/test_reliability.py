@@ -168,7 +168,7 @@ def test_a_params_file_with_a_bad_value_is_refused_with_the_nodes_words(tmp_path
     (['--goal-mm', '100,0', '--drop-captures', '1.5'], 'probability'),
     (['--goal-mm', '100,0', '--late-captures', '-1'], '>= 0'),
     (['--goal-mm', '100,0', '--fault-camera', 'telescope'], 'invalid choice'),
-    (['--goal-mm', '100,0', '--rtf', 'inf'], "> 0 or 'max'"),
+    (['--goal-mm', '100,0', '--rtf', 'inf'], "in [0.001, 10000] or 'max'"),
     (['--goal-mm', '100,0', '--rtf', 'max', '--free-running'], 'needs the lockstep'),
     (['--goal-mm', '100,0', '--open-loop', '-7'], '> 0'),
     (['--goal-mm', '100,0', '--record-images'], 'needs --record BAG and --vision images'),
