@@ -20,7 +20,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
+from omni_micro_common.conventions import LOCKSTEP_INPUTS, join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -216,9 +216,11 @@ class GraphMonitor:
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
     # controller reads captures with their covariance, or bare ones).
+    # What they read from the robot is the lockstep contract's (LOCKSTEP_INPUTS).
     INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
-        'vision_node': (('/odom',),),
-        'controller_node': (('/joint_states',), ('/goal_pose',),
+        'vision_node': tuple((topic,) for topic in LOCKSTEP_INPUTS['vision_node']),
+        'controller_node': (*((topic,) for topic in LOCKSTEP_INPUTS['controller_node']),
+                            ('/goal_pose',),
                             ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
 
     def _endpoints(self, name: str) -> set[bytes]:
