@@ -57,7 +57,7 @@ def test_kernel_matches_literal_equations(seed, wheel1_active):
     out = np.empty(6)
     kernel_params = params.as_kernel_array()
     geometry = kernels.wheel_geometry(wheel_headings_rad(params, steering), kernel_params)
-    kernels.state_derivative(state, speeds, geometry, kernel_params, out, np.empty((4, 3)))
+    kernels.state_derivative(state, speeds, 0.0, geometry, kernel_params, out, np.empty((4, 3)))
     np.testing.assert_allclose(out, literal_equations(params, state, speeds, steering),
                                rtol=1e-10, atol=1e-12)
 
@@ -71,7 +71,7 @@ def test_friction_always_opposes_slip():
                                 rng.uniform(-3, 3, 1)])
         slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
         angles = wheel_headings_rad(params, rng.uniform(-3, 3))
-        kernels.contact_terms(state, rng.uniform(-9, 9, 3),
+        kernels.contact_terms(state, rng.uniform(-9, 9, 3), 0.0,
                               kernels.wheel_geometry(angles, kernel_params), kernel_params,
                               slip_l, slip_t, fx, fy)
         for k in range(3):
@@ -121,8 +121,9 @@ def test_passive_wheel1_transmits_no_longitudinal_force():
     slip_l, slip_t, fx, fy = (np.empty(3) for _ in range(4))
     angles = wheel_headings_rad(params, 0.4)
     kernel_params = params.as_kernel_array()
-    kernels.contact_terms(state, np.full(3, 8.7), kernels.wheel_geometry(angles, kernel_params),
-                          kernel_params, slip_l, slip_t, fx, fy)
+    kernels.contact_terms(state, np.full(3, 8.7), 0.0,
+                          kernels.wheel_geometry(angles, kernel_params), kernel_params,
+                          slip_l, slip_t, fx, fy)
     heading = angles[0] + state[2]
     assert fx[0] * math.cos(heading) + fy[0] * math.sin(heading) == pytest.approx(0.0, abs=1e-18)
     assert abs(fx[0]) + abs(fy[0]) > 0.0   # transverse friction remains

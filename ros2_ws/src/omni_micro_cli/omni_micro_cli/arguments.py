@@ -143,3 +143,14 @@ def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:
         return tuple(finite_float(part) for part in parts)
 
     return parse
+
+
+STEERING_CHOICES = ('ideal', 'realistic')
+
+
+def add_steering_argument(parser: argparse.ArgumentParser, default: str = 'ideal') -> None:
+    """--steering, the same for every command that drives the robot."""
+    parser.add_argument('--steering', choices=STEERING_CHOICES, default=default,
+                        help='the steering motion: ideal (the paper: exact and instantaneous) '
+                             'or realistic (motor limits, gear backlash, pivot friction; '
+                             f'docs/model.md, "Steering dynamics"; default {default})')

@@ -1,8 +1,12 @@
-"""Eqs. 1-13 of the paper as numba kernels: slip, friction, cantilever torque, rigid-body motion.
+"""Eqs. 1-13 of the paper as numba kernels: slip, friction, cantilever torque, rigid-body motion;
+and the steering motion the paper leaves to future work (eqs. S1-S4 of docs/model.md).
 
 State vector (inertial frame, SI): ``[x, y, phi, vx, vy, omega]``. Wheel k (k = 0, 1, 2 here for
 the paper's wheels 1, 2, 3) sits at body angle ``wheel1_angle + k*120 deg`` at distance L and rolls
-along the body-frame heading ``wheel_angles[k]`` = theta + xi_k.
+along the body-frame heading psi(t) + xi_k, where psi(t) is the wheels' common steering angle.
+psi(t) is given as steering knots, rows ``[t_start, angle, rate, acceleration]`` (quadratic in
+time from each row's start; the last row holds): one row for the paper's instantaneous steering,
+several for a steering motion (:mod:`omni_micro_sim.steering` plans them).
 
 These functions are the one definition of the physics. Their ``.py_func`` attributes are the same
 code in plain Python, which the benchmark uses as the pure-Python right-hand side.
@@ -35,6 +39,11 @@ _D1 = KERNEL_INDEX['signed_cantilever_offset_m']
 _I = KERNEL_INDEX['moment_of_inertia_kg_m2']
 _BETA1 = KERNEL_INDEX['wheel1_angle_rad']
 _DRIVE1 = KERNEL_INDEX['wheel1_drive']
+_COM_X = KERNEL_INDEX['center_of_mass_x_m']
+_COM_Y = KERNEL_INDEX['center_of_mass_y_m']
+_A = KERNEL_INDEX['contact_radius_m']
+_PIVOT = KERNEL_INDEX['pivot_coefficient']
+STEER_KNOT_SIZE = 4
 _TWO_OVER_PI = 2.0 / math.pi
 _WHEEL_SPACING = 2.0 * math.pi / 3.0
 
@@ -47,30 +56,61 @@ def friction_coefficient(mu: float, steepness: float, slip_speed: float) -> floa
 
 @numba.njit(cache=True)
 def wheel_geometry(wheel_angles: Array, params: Array) -> Array:
-    """Body-frame cos/sin of each wheel's position angle and rolling direction, a (4, 3) array.
+    """Body-frame cos/sin of each wheel's position angle and rolling direction, and each wheel's
+    normal force: a (5, 3) array.
 
-    They stay fixed during a command, so the right-hand side only rotates them by phi.
+    They stay fixed while the wheels do not steer, so the right-hand side only rotates them by
+    phi. The normal forces are m*g/3 each (eq. 11) with the centre of mass at the centre, else
+    from statics (eq. S4): N_k = m*g*(1/3 + 2/3 * (c . u_k)/L), u_k the unit vector to wheel k.
     """
-    geometry = np.empty((4, 3))
+    geometry = np.empty((5, 3))
+    weight = params[_M] * params[_G]
+    centred = params[_COM_X] == 0.0 and params[_COM_Y] == 0.0
     for k in range(3):
         position_angle = params[_BETA1] + k * _WHEEL_SPACING
         geometry[0, k] = math.cos(position_angle)
         geometry[1, k] = math.sin(position_angle)
         geometry[2, k] = math.cos(wheel_angles[k])
         geometry[3, k] = math.sin(wheel_angles[k])
+        if centred:
+            geometry[4, k] = weight / 3.0
+        else:
+            along = params[_COM_X] * geometry[0, k] + params[_COM_Y] * geometry[1, k]
+            geometry[4, k] = weight * (1.0 / 3.0 + 2.0 / 3.0 * along / params[_L])
     return geometry
 
 
 @numba.njit(cache=True)
-def contact_terms(state: Array, wheel_speeds: Array, geometry: Array, params: Array,
-                  slip_long: Array, slip_trans: Array, force_x: Array,
+def pivot_torque(normal_load: float, spin_rad_s: float, slip_speed: float,
+                 rolling_speed: float, params: Array) -> float:
+    """Eq. S2: the ground's pivot (spin) friction moment on one wheel's contact patch (N m).
+
+    Full slip gives pivot_coefficient * mu_T * a * N against the spin; below it, the same
+    regularised law as eq. 10 on the patch's combined speed, of which the spin's share
+    (a*spin) sets the moment: sliding and rolling both take the moment down.
+    """
+    radius = params[_A]
+    spin_speed = radius * spin_rad_s
+    combined = math.sqrt(spin_speed * spin_speed + slip_speed * slip_speed
+                         + rolling_speed * rolling_speed)
+    if combined == 0.0:
+        return 0.0
+    full = params[_PIVOT] * radius * normal_load
+    return float(-full * friction_coefficient(params[_MU_T], params[_P], combined)
+                 * spin_speed / combined)
+
+
+@numba.njit(cache=True)
+def contact_terms(state: Array, wheel_speeds: Array, steer_rate: float, geometry: Array,
+                  params: Array, slip_long: Array, slip_trans: Array, force_x: Array,
                   force_y: Array) -> float:
     """Slip velocities (eqs. 3-9) and friction forces (eq. 11) of the three contacts.
 
-    ``geometry`` comes from :func:`wheel_geometry`. Fills ``slip_long``/``slip_trans`` (m/s,
-    along W_k and T_k) and the inertial friction force components ``force_x``/``force_y`` (N).
-    Returns the torque about the centre of mass (N m), including the cantilever torque of wheel 1
-    (eq. 12), i.e. the right-hand side of eq. 13.
+    ``geometry`` comes from :func:`wheel_geometry`; ``steer_rate`` is d(psi)/dt (rad/s).
+    Fills ``slip_long``/``slip_trans`` (m/s, along W_k and T_k) and the inertial friction force
+    components ``force_x``/``force_y`` (N). Returns the torque about the centre of mass (N m),
+    including the cantilever torque of wheel 1 (eq. 12) and, with a contact radius, the pivot
+    moments (eq. S2), i.e. the right-hand side of eq. 13.
     """
     cos_phi = math.cos(state[2])
     sin_phi = math.sin(state[2])
@@ -80,9 +120,10 @@ def contact_terms(state: Array, wheel_speeds: Array, geometry: Array, params: Ar
     length = params[_L]
     radius = params[_R]
     steepness = params[_P]
-    normal_load = params[_M] * params[_G] / 3.0
+    pivots = params[_A] > 0.0
     torque = 0.0
     for k in range(3):
+        normal_load = geometry[4, k]
         # Eqs. 6-7: body-frame vectors rotated into the inertial frame.
         lever_x = length * (geometry[0, k] * cos_phi - geometry[1, k] * sin_phi)
         lever_y = length * (geometry[1, k] * cos_phi + geometry[0, k] * sin_phi)
@@ -97,8 +138,10 @@ def contact_terms(state: Array, wheel_speeds: Array, geometry: Array, params: Ar
         v_trans = contact_x * t_x + contact_y * t_y
         f_long = -normal_load * friction_coefficient(params[_MU_L], steepness, v_long)
         f_trans = -normal_load * friction_coefficient(params[_MU_T], steepness, v_trans)
+        rolling_speed = abs(radius * wheel_speeds[k])
         if k == 0 and params[_DRIVE1] == 0.0:
             # A passive wheel rolls freely: no longitudinal slip, no longitudinal force.
+            rolling_speed = abs(v_long + radius * wheel_speeds[k])
             v_long = 0.0
             f_long = 0.0
         slip_long[k] = v_long
@@ -112,17 +155,21 @@ def contact_terms(state: Array, wheel_speeds: Array, geometry: Array, params: Ar
             # Eq. 12: T_a = d1 x F1, d1 along wheel 1's axle (it steers with the wheel).
             d1 = params[_D1]
             torque += d1 * t_x * fy - d1 * t_y * fx
+        if pivots:
+            # The patch turns with the chassis and with the steering.
+            torque += pivot_torque(normal_load, omega + steer_rate, math.hypot(v_long, v_trans),
+                                   rolling_speed, params)
     return torque
 
 
 @numba.njit(cache=True)
-def state_derivative(state: Array, wheel_speeds: Array, geometry: Array, params: Array,
-                     out: Array, scratch: Array) -> None:
+def state_derivative(state: Array, wheel_speeds: Array, steer_rate: float, geometry: Array,
+                     params: Array, out: Array, scratch: Array) -> None:
     """Eq. 13: fills ``out`` with d(state)/dt. ``scratch`` is a (4, 3) work array."""
     force_x = scratch[2]
     force_y = scratch[3]
-    torque = contact_terms(state, wheel_speeds, geometry, params, scratch[0], scratch[1],
-                           force_x, force_y)
+    torque = contact_terms(state, wheel_speeds, steer_rate, geometry, params, scratch[0],
+                           scratch[1], force_x, force_y)
     mass = params[_M]
     out[0] = state[3]
     out[1] = state[4]
@@ -134,6 +181,7 @@ def state_derivative(state: Array, wheel_speeds: Array, geometry: Array, params:
 
 # One definition of the interpolation, compiled here for the integrator.
 speeds_at = numba.njit(cache=True)(knots.speeds_at)
+steering_at = numba.njit(cache=True)(knots.steering_at)
 
 
 @numba.njit(cache=True)
@@ -183,12 +231,42 @@ def steady_arc(state: Array, duration: float) -> None:
 
 
 @numba.njit(cache=True)
+def _next_steer_knot_after(time_s: float, steer_knots: Array, steer_count: int) -> float:
+    for i in range(steer_count):
+        if steer_knots[i, 0] > time_s:
+            return float(steer_knots[i, 0])
+    return math.inf
+
+
+@numba.njit(cache=True)
+def _steering_moves_in(time_s: float, steer_knots: Array, steer_count: int) -> bool:
+    i = 0
+    while i + 1 < steer_count and steer_knots[i + 1, 0] <= time_s:
+        i += 1
+    return i < steer_count - 1 and (steer_knots[i, 2] != 0.0 or steer_knots[i, 3] != 0.0)
+
+
+@numba.njit(cache=True)
+def _moving_derivative(state: Array, time_s: float, speeds: Array, steer_knots: Array,
+                       steer_count: int, wheel_offsets: Array, params: Array, out: Array,
+                       scratch: Array, angles: Array, steer: Array) -> None:
+    """The right-hand side while the wheels steer: their directions change with time."""
+    steering_at(time_s, steer_knots, steer_count, steer)
+    for k in range(3):
+        angles[k] = steer[0] + wheel_offsets[k]
+    state_derivative(state, speeds, steer[1], wheel_geometry(angles, params), params, out,
+                     scratch)
+
+
+@numba.njit(cache=True)
 def advance(state: Array, t_from: float, t_to: float, knot_times: Array, knot_speeds: Array,
-            knot_count: int, wheel_angles: Array, params: Array, max_step: float) -> bool:
+            knot_count: int, steer_knots: Array, steer_count: int, wheel_offsets: Array,
+            params: Array, max_step: float) -> bool:
     """Integrate ``state`` in place from ``t_from`` to ``t_to`` (move time) with classical RK4.
 
-    Steps never straddle a knot, where the wheel acceleration jumps, so each step integrates a
-    smooth right-hand side; steps are at most ``max_step`` long. Returns False if the state
+    The wheels roll along psi(t) + xi_k, psi from ``steer_knots``, xi_k in ``wheel_offsets``.
+    Steps never straddle a knot of either, where an acceleration jumps, so each step integrates
+    a smooth right-hand side; steps are at most ``max_step`` long. Returns False if the state
     became non-finite.
     """
     k1 = np.empty(STATE_SIZE)
@@ -199,44 +277,74 @@ def advance(state: Array, t_from: float, t_to: float, knot_times: Array, knot_sp
     speeds = np.empty(3)
     scratch = np.empty((4, 3))
     speeds_end = np.empty(3)
-    geometry = wheel_geometry(wheel_angles, params)
+    angles = np.empty(3)
+    steer = np.empty(2)
     time_s = t_from
     while t_to - time_s > 1e-15 * max(1.0, abs(t_to)):
-        segment_end = min(_next_knot_after(time_s, knot_times, knot_count), t_to)
+        segment_end = min(_next_knot_after(time_s, knot_times, knot_count),
+                          _next_steer_knot_after(time_s, steer_knots, steer_count), t_to)
         span = segment_end - time_s
         # int(): numba's math.ceil returns a float.
         steps = max(1, int(math.ceil(span / max_step - 1e-9)))  # noqa: RUF046
         h = span / steps
         start = time_s
-        speeds_at(start, knot_times, knot_speeds, knot_count, speeds)
-        steady_speeds = True
-        speeds_at(segment_end, knot_times, knot_speeds, knot_count, speeds_end)
-        for k in range(3):
-            if speeds_end[k] != speeds[k]:
-                steady_speeds = False
-        for j in range(steps):
-            t = start + j * h
-            speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(state, speeds, geometry, params, k1, scratch)
-            # Steady when the velocity only turns with the body: a = omega x v.
-            if steady_speeds and math.hypot(k1[3] + state[5] * state[4],
-                                            k1[4] - state[5] * state[3]) < STEADY_ACCELERATION \
-                    and abs(k1[5]) * params[_L] < STEADY_ACCELERATION:
-                steady_arc(state, segment_end - t)
-                break
-            for q in range(STATE_SIZE):
-                trial[q] = state[q] + 0.5 * h * k1[q]
-            speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(trial, speeds, geometry, params, k2, scratch)
-            for q in range(STATE_SIZE):
-                trial[q] = state[q] + 0.5 * h * k2[q]
-            state_derivative(trial, speeds, geometry, params, k3, scratch)
-            for q in range(STATE_SIZE):
-                trial[q] = state[q] + h * k3[q]
-            speeds_at(t + h, knot_times, knot_speeds, knot_count, speeds)
-            state_derivative(trial, speeds, geometry, params, k4, scratch)
-            for q in range(STATE_SIZE):
-                state[q] += h / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
+        if _steering_moves_in(start, steer_knots, steer_count):
+            for j in range(steps):
+                t = start + j * h
+                speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
+                _moving_derivative(state, t, speeds, steer_knots, steer_count, wheel_offsets,
+                                   params, k1, scratch, angles, steer)
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + 0.5 * h * k1[q]
+                speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
+                _moving_derivative(trial, t + 0.5 * h, speeds, steer_knots, steer_count,
+                                   wheel_offsets, params, k2, scratch, angles, steer)
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + 0.5 * h * k2[q]
+                _moving_derivative(trial, t + 0.5 * h, speeds, steer_knots, steer_count,
+                                   wheel_offsets, params, k3, scratch, angles, steer)
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + h * k3[q]
+                speeds_at(t + h, knot_times, knot_speeds, knot_count, speeds)
+                _moving_derivative(trial, t + h, speeds, steer_knots, steer_count,
+                                   wheel_offsets, params, k4, scratch, angles, steer)
+                for q in range(STATE_SIZE):
+                    state[q] += h / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
+        else:
+            steering_at(start, steer_knots, steer_count, steer)
+            for k in range(3):
+                angles[k] = steer[0] + wheel_offsets[k]
+            geometry = wheel_geometry(angles, params)
+            speeds_at(start, knot_times, knot_speeds, knot_count, speeds)
+            steady_speeds = True
+            speeds_at(segment_end, knot_times, knot_speeds, knot_count, speeds_end)
+            for k in range(3):
+                if speeds_end[k] != speeds[k]:
+                    steady_speeds = False
+            for j in range(steps):
+                t = start + j * h
+                speeds_at(t, knot_times, knot_speeds, knot_count, speeds)
+                state_derivative(state, speeds, 0.0, geometry, params, k1, scratch)
+                # Steady when the velocity only turns with the body: a = omega x v.
+                if steady_speeds and math.hypot(k1[3] + state[5] * state[4],
+                                                k1[4] - state[5] * state[3]) \
+                        < STEADY_ACCELERATION \
+                        and abs(k1[5]) * params[_L] < STEADY_ACCELERATION:
+                    steady_arc(state, segment_end - t)
+                    break
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + 0.5 * h * k1[q]
+                speeds_at(t + 0.5 * h, knot_times, knot_speeds, knot_count, speeds)
+                state_derivative(trial, speeds, 0.0, geometry, params, k2, scratch)
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + 0.5 * h * k2[q]
+                state_derivative(trial, speeds, 0.0, geometry, params, k3, scratch)
+                for q in range(STATE_SIZE):
+                    trial[q] = state[q] + h * k3[q]
+                speeds_at(t + h, knot_times, knot_speeds, knot_count, speeds)
+                state_derivative(trial, speeds, 0.0, geometry, params, k4, scratch)
+                for q in range(STATE_SIZE):
+                    state[q] += h / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
         for q in range(STATE_SIZE):
             if not math.isfinite(state[q]):
                 return False
@@ -253,8 +361,9 @@ def is_at_rest(state: Array, params: Array, rest_speed: float) -> bool:
 
 @numba.njit(cache=True)
 def settle(state: Array, t_from: float, knot_times: Array, knot_speeds: Array,
-           knot_count: int, wheel_angles: Array, params: Array, max_step: float,
-           rest_speed: float, max_settle_s: float, check_interval_s: float) -> float:
+           knot_count: int, steer_knots: Array, steer_count: int, wheel_offsets: Array,
+           params: Array, max_step: float, rest_speed: float, max_settle_s: float,
+           check_interval_s: float) -> float:
     """Integrate from ``t_from`` (after the last knot) until the robot is at rest.
 
     Returns the move time at which it was first seen at rest, or -1 if it did not come to rest
@@ -265,7 +374,7 @@ def settle(state: Array, t_from: float, knot_times: Array, knot_speeds: Array,
         if time_s - t_from >= max_settle_s:
             return -1.0
         if not advance(state, time_s, time_s + check_interval_s, knot_times, knot_speeds,
-                       knot_count, wheel_angles, params, max_step):
+                       knot_count, steer_knots, steer_count, wheel_offsets, params, max_step):
             return math.nan
         time_s += check_interval_s
     return time_s
@@ -273,23 +382,25 @@ def settle(state: Array, t_from: float, knot_times: Array, knot_speeds: Array,
 
 @numba.njit(cache=True)
 def run_move(state: Array, knot_times: Array, knot_speeds: Array, knot_count: int,
-             wheel_angles: Array, params: Array, max_step: float, rest_speed: float,
-             max_settle_s: float, check_interval_s: float) -> float:
-    """One open-loop move: advance ``state`` through its profile, then settle (see settle)."""
-    end = knot_times[knot_count - 1]
-    if not advance(state, 0.0, end, knot_times, knot_speeds, knot_count, wheel_angles, params,
-                   max_step):
+             steer_knots: Array, steer_count: int, wheel_offsets: Array, params: Array,
+             max_step: float, rest_speed: float, max_settle_s: float,
+             check_interval_s: float) -> float:
+    """One open-loop move: advance ``state`` through its steering and profile, then settle."""
+    end = max(knot_times[knot_count - 1], steer_knots[steer_count - 1, 0])
+    if not advance(state, 0.0, end, knot_times, knot_speeds, knot_count, steer_knots,
+                   steer_count, wheel_offsets, params, max_step):
         return math.nan
-    return settle(state, end, knot_times, knot_speeds, knot_count, wheel_angles, params,
-                  max_step, rest_speed, max_settle_s, check_interval_s)
+    return settle(state, end, knot_times, knot_speeds, knot_count, steer_knots, steer_count,
+                  wheel_offsets, params, max_step, rest_speed, max_settle_s, check_interval_s)
 
 
 @numba.njit(cache=True, parallel=True)
 def run_batch(states: Array, knot_times: Array, knot_speeds: Array, knot_counts: IntArray,
-              wheel_angles: Array, params: Array, max_step: float, rest_speed: float,
-              max_settle_s: float, check_interval_s: float, rest_times: Array) -> None:
+              steer_knots: Array, steer_counts: IntArray, wheel_offsets: Array, params: Array,
+              max_step: float, rest_speed: float, max_settle_s: float,
+              check_interval_s: float, rest_times: Array) -> None:
     """:func:`run_move` for every row of ``states``, in parallel; results in ``rest_times``."""
     for i in numba.prange(states.shape[0]):
         rest_times[i] = run_move(states[i], knot_times[i], knot_speeds[i], knot_counts[i],
-                                 wheel_angles[i], params[i], max_step, rest_speed,
-                                 max_settle_s, check_interval_s)
+                                 steer_knots[i], steer_counts[i], wheel_offsets[i], params[i],
+                                 max_step, rest_speed, max_settle_s, check_interval_s)

@@ -1,7 +1,9 @@
-"""Piecewise-linear wheel speeds between knots, in plain Python (no numba import).
+"""Piecewise-linear wheel speeds and piecewise-quadratic steering between knots, in plain Python
+(no numba import).
 
-:mod:`kernels` compiles :func:`speeds_at` for the integrator; the controller builds its commands
-with these as they are, so that the paper's mode never loads numba.
+:mod:`kernels` compiles :func:`speeds_at` and :func:`steering_at` for the integrator; the
+controller builds its commands with these as they are, so that the paper's mode never loads
+numba.
 """
 
 from __future__ import annotations
@@ -56,3 +58,19 @@ def rotation_until(time_s: float, knot_times: Array, knot_speeds: Array, knot_co
             out[k] += 0.5 * (previous[k] + current[k]) * (t - previous_time)
             previous[k] = current[k]
         previous_time = t
+
+
+def steering_at(time_s: float, steer_knots: Array, steer_count: int, out: Array) -> None:
+    """Steering angle ``out[0]`` and rate ``out[1]`` at ``time_s`` from steering knots, rows
+    ``[t_start, angle, rate, acceleration]``: quadratic from each row's start, the last holds."""
+    i = 0
+    while i + 1 < steer_count and steer_knots[i + 1, 0] <= time_s:
+        i += 1
+    if i == steer_count - 1:
+        out[0] = steer_knots[i, 1]
+        out[1] = 0.0
+        return
+    elapsed = max(0.0, time_s - steer_knots[i, 0])
+    out[0] = steer_knots[i, 1] + steer_knots[i, 2] * elapsed \
+        + 0.5 * steer_knots[i, 3] * elapsed * elapsed
+    out[1] = steer_knots[i, 2] + steer_knots[i, 3] * elapsed

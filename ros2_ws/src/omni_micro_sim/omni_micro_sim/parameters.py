@@ -64,8 +64,117 @@ KERNEL_FIELDS = (
     'moment_of_inertia_kg_m2',
     'wheel1_angle_rad',
     'wheel1_drive',
+    'center_of_mass_x_m',
+    'center_of_mass_y_m',
+    'contact_radius_m',
+    'pivot_coefficient',
 )
 KERNEL_INDEX = {name: index for index, name in enumerate(KERNEL_FIELDS)}
+
+
+@dataclass(frozen=True)
+class SteeringParameters:
+    """The steering motion (the paper's future work): motor, gear train and wheel pivot.
+
+    The defaults are the paper's assumption, exact and instantaneous steering with point
+    contacts; :data:`STEERING_PRESETS` names them ``ideal`` and gives ``realistic`` values
+    (docs/model.md, "Steering dynamics", says where each comes from).
+
+    Attributes
+    ----------
+    instantaneous : True: the wheels take the commanded angle at once and exactly (the paper);
+        the motor, gear and backlash fields then play no part.
+    motor_speed_rad_s, motor_acceleration_rad_s2 : the steering motor's speed and acceleration
+        limits, at the motor's shaft; the wheels turn ``gear_ratio`` times slower.
+    gear_ratio : the central gear to the wheels' big gears, 3:1 (section 2.1).
+    backlash_rad : dead band of the hand-assembled gear train, as wheel steering angle: on a
+        reversal the motor turns this far before the wheels follow.
+    step_rad : wheel steering angle per motor (micro)step; the commanded angle is rounded to a
+        whole number of steps (0: continuous).
+    contact_radius_m : radius a of each wheel's contact patch; 0 (point contacts) means no
+        pivot friction torque.
+    pivot_coefficient : the full-slip pivot torque is pivot_coefficient * mu_T * a * N
+        (2/3 for a uniformly loaded patch, 2/5 for a Hertzian one).
+    """
+
+    instantaneous: bool = True
+    motor_speed_rad_s: float = 3.0 * math.pi
+    motor_acceleration_rad_s2: float = 30.0 * math.pi
+    gear_ratio: float = 3.0
+    backlash_rad: float = 0.0
+    step_rad: float = 0.0
+    contact_radius_m: float = 0.0
+    pivot_coefficient: float = 2.0 / 3.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.instantaneous, (bool, np.bool_)):
+            raise ParameterError(
+                f'steering.instantaneous must be a bool, got {self.instantaneous!r}')
+        object.__setattr__(self, 'instantaneous', bool(self.instantaneous))
+        for name in ('motor_speed_rad_s', 'motor_acceleration_rad_s2', 'gear_ratio'):
+            object.__setattr__(self, name,
+                               require_positive(f'steering.{name}', getattr(self, name)))
+        for name in ('backlash_rad', 'step_rad', 'contact_radius_m', 'pivot_coefficient'):
+            object.__setattr__(self, name,
+                               require_non_negative(f'steering.{name}', getattr(self, name)))
+        if self.backlash_rad >= math.pi / 2:
+            raise ParameterError(
+                f'steering.backlash_rad must be below 90 deg, got {self.backlash_rad!r} rad')
+        if self.step_rad >= math.pi / 2:
+            raise ParameterError(
+                f'steering.step_rad must be below 90 deg, got {self.step_rad!r} rad')
+        if self.pivot_coefficient > 1.0:
+            raise ParameterError(f'steering.pivot_coefficient must be in [0, 1] (2/3 for a '
+                                 f'uniform patch), got {self.pivot_coefficient!r}')
+
+    @property
+    def rate_rad_s(self) -> float:
+        """The wheels' steering speed limit."""
+        return self.motor_speed_rad_s / self.gear_ratio
+
+    @property
+    def acceleration_rad_s2(self) -> float:
+        """The wheels' steering acceleration limit."""
+        return self.motor_acceleration_rad_s2 / self.gear_ratio
+
+    def replace(self, **changes: Any) -> SteeringParameters:
+        unknown = set(changes) - {f.name for f in fields(self)}
+        if unknown:
+            raise ParameterError(
+                f'unknown steering parameter(s): {", ".join(sorted(unknown))}')
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(changes)
+        return SteeringParameters(**values)
+
+
+# Named sets of steering values. ``ideal`` is the paper; ``realistic`` the documented estimates
+# of the real robot (docs/model.md, "Steering dynamics": source or stated guess of each).
+STEERING_PRESETS = {
+    'ideal': SteeringParameters(),
+    'realistic': SteeringParameters(
+        instantaneous=False,
+        # 180 deg/s of steering, reached in 0.1 s: a guess for a 3 mm stepper at 3:1.
+        motor_speed_rad_s=3.0 * math.pi,
+        motor_acceleration_rad_s2=30.0 * math.pi,
+        gear_ratio=3.0,
+        # Hand-assembled gears: a guess of 1 deg of play at the wheels.
+        backlash_rad=math.radians(1.0),
+        # 0.83 deg of steering per full step (Opt. Precision Eng. 16(6), 2008), 16 microsteps.
+        step_rad=math.radians(0.83) / 16.0,
+        # Between a Hertzian point (6 um) and a flat rim's line contact (~150 um): a guess.
+        contact_radius_m=50e-6,
+        pivot_coefficient=2.0 / 3.0,
+    ),
+}
+
+
+def steering_preset(name: str) -> SteeringParameters:
+    """The steering values named ``name`` (a key of :data:`STEERING_PRESETS`)."""
+    try:
+        return STEERING_PRESETS[name]
+    except KeyError:
+        raise ParameterError(f'steering must be one of {sorted(STEERING_PRESETS)}, '
+                             f'got {name!r}') from None
 
 
 @dataclass(frozen=True)
@@ -89,6 +198,9 @@ class RobotParameters:
         common steering angle theta (section 3.5.2).
     wheel1_active : False makes wheel 1 passive: it rolls freely, so its contact carries no
         longitudinal force (and hence no cantilever torque); transverse friction remains.
+    center_of_mass_m : where the centre of mass sits from the chassis centre, body frame (x, y);
+        off the centre, the wheels' normal forces follow from statics instead of m*g/3 each.
+    steering : the steering motion (:class:`SteeringParameters`; the default is the paper's).
     """
 
     mass_kg: float = 2.8e-3
@@ -104,6 +216,8 @@ class RobotParameters:
     wheel1_angle_rad: float = math.radians(45.0)
     wheel_offsets_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
     wheel1_active: bool = True
+    center_of_mass_m: tuple[float, float] = (0.0, 0.0)
+    steering: SteeringParameters = SteeringParameters()
 
     def __post_init__(self) -> None:
         for name in ('mass_kg', 'gravity_m_s2', 'friction_steepness_s_m', 'wheel_distance_m',
@@ -135,6 +249,22 @@ class RobotParameters:
         if not isinstance(self.wheel1_active, (bool, np.bool_)):
             raise ParameterError(f'wheel1_active must be a bool, got {self.wheel1_active!r}')
         object.__setattr__(self, 'wheel1_active', bool(self.wheel1_active))
+        centre = tuple(self.center_of_mass_m)
+        if len(centre) != 2:
+            raise ParameterError(
+                f'center_of_mass_m must be [x, y] in metres, got {list(centre)!r}')
+        centre = tuple(require_finite(f'center_of_mass_m[{k}]', value)
+                       for k, value in enumerate(centre))
+        # Statics needs the centre of mass inside the triangle of the contacts, or a wheel
+        # would have to pull on the ground.
+        if math.hypot(*centre) >= 0.5 * self.wheel_distance_m:
+            raise ParameterError(
+                f'center_of_mass_m must lie within L/2 = {0.5 * self.wheel_distance_m:g} m of '
+                f'the centre (inside the wheels), got {list(centre)!r}')
+        object.__setattr__(self, 'center_of_mass_m', centre)
+        if not isinstance(self.steering, SteeringParameters):
+            raise ParameterError(
+                f'steering must be SteeringParameters, got {self.steering!r}')
         # Each value finite is not enough: I = m R^2 / 2 can still overflow (found by
         # tests/sim/test_properties.py with R = 1e154 m).
         try:
@@ -160,6 +290,22 @@ class RobotParameters:
     def wheel1_drive(self) -> float:
         return 1.0 if self.wheel1_active else 0.0
 
+    @property
+    def center_of_mass_x_m(self) -> float:
+        return self.center_of_mass_m[0]
+
+    @property
+    def center_of_mass_y_m(self) -> float:
+        return self.center_of_mass_m[1]
+
+    @property
+    def contact_radius_m(self) -> float:
+        return self.steering.contact_radius_m
+
+    @property
+    def pivot_coefficient(self) -> float:
+        return self.steering.pivot_coefficient
+
     def as_kernel_array(self) -> np.ndarray:
         """The parameters in the order of :data:`KERNEL_FIELDS`, for the numba kernels."""
         return np.array([float(getattr(self, name)) for name in KERNEL_FIELDS], dtype=np.float64)
@@ -175,19 +321,38 @@ class RobotParameters:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> RobotParameters:
-        """Build from a flat mapping such as a ROS parameter dictionary."""
-        return cls().replace(**dict(values))
+        """Build from a flat mapping such as a ROS parameter dictionary.
+
+        The steering's values come as ``steering.<name>`` keys, as :func:`robot_parameter_values`
+        gives them.
+        """
+        flat = dict(values)
+        steering = {key.removeprefix(STEERING_PREFIX): flat.pop(key) for key in list(flat)
+                    if key.startswith(STEERING_PREFIX)}
+        robot = cls().replace(**flat)
+        if steering:
+            robot = robot.replace(steering=robot.steering.replace(**steering))
+        return robot
+
+
+STEERING_PREFIX = 'steering.'
 
 
 def robot_parameter_values(robot: RobotParameters) -> dict[str, object]:
-    """The robot as ROS parameter values: enums by name, tuples as lists."""
+    """The robot as ROS parameter values: enums by name, tuples as lists, the steering's
+    values as ``steering.<name>``."""
     values: dict[str, object] = {}
     for field in fields(robot):
         value = getattr(robot, field.name)
         if field.name == 'cantilever_side':
             value = value.name.lower()
-        elif field.name == 'wheel_offsets_rad':
+        elif field.name in ('wheel_offsets_rad', 'center_of_mass_m'):
             value = [float(v) for v in value]
+        elif field.name == 'steering':
+            for steering_field in fields(value):
+                values[STEERING_PREFIX + steering_field.name] = getattr(value,
+                                                                        steering_field.name)
+            continue
         values[field.name] = value
     return values
 

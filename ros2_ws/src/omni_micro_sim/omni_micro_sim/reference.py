@@ -16,17 +16,25 @@ from omni_micro_sim import kernels
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
-from omni_micro_sim.simulator import wheel_headings_rad
+from omni_micro_sim.simulator import delayed, wheel_headings_rad
 from omni_micro_sim.state import RobotState
+from omni_micro_sim.steering import SteeringMotion
 
 
 def solve_ivp_reference(params: RobotParameters, steering_rad: float,
                         profile: WheelSpeedProfile, end_time_s: float, *,
                         start: RobotState | None = None, method: str = 'DOP853',
-                        rtol: float = 1e-10, atol: float = 1e-14) -> tuple[RobotState, int]:
-    """Integrate from rest (or ``start``) to ``end_time_s``; return the state and rhs calls."""
+                        rtol: float = 1e-10, atol: float = 1e-14,
+                        motion: SteeringMotion | None = None) -> tuple[RobotState, int]:
+    """Integrate from rest (or ``start``) to ``end_time_s``; return the state and rhs calls.
+
+    With ``motion`` the wheels first steer (the profile waits for it), their directions
+    recomputed at every call.
+    """
     kernel_params = params.as_kernel_array()
     geometry = kernels.wheel_geometry(wheel_headings_rad(params, steering_rad), kernel_params)
+    if motion is not None:
+        profile = delayed(profile, motion.duration_s)
     knot_times = profile.knot_times_s
     knot_speeds = profile.knot_speeds_rad_s
     knot_count = knot_times.size
@@ -39,10 +47,16 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
         calls += 1
         out = np.empty(6)
         kernels.speeds_at(time_s, knot_times, knot_speeds, knot_count, speeds)
-        kernels.state_derivative(state, speeds, geometry, kernel_params, out, scratch)
+        rate = 0.0
+        wheels = geometry
+        if motion is not None:
+            angle, rate = motion.wheel_at(time_s)
+            wheels = kernels.wheel_geometry(wheel_headings_rad(params, angle), kernel_params)
+        kernels.state_derivative(state, speeds, rate, wheels, kernel_params, out, scratch)
         return out
 
-    breaks = [t for t in knot_times if 0.0 < t < end_time_s]
+    steer_times = [] if motion is None else list(motion.wheel_knots[:, 0])
+    breaks = sorted({t for t in [*knot_times, *steer_times] if 0.0 < t < end_time_s})
     edges = [0.0, *breaks, end_time_s]
     state = (start or RobotState()).as_array()
     for t0, t1 in itertools.pairwise(edges):

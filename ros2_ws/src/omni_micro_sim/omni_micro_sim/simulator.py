@@ -18,6 +18,7 @@ from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import KERNEL_INDEX, MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
 from omni_micro_sim.state import RobotState
+from omni_micro_sim.steering import SteeringMotion, plan_steering
 
 # RK4 step: with p = 1000 the fastest friction time constant is ~0.4 ms; 0.4 ms steps agree with
 # a solve_ivp reference at rtol 1e-10 to far better than 0.1 um (tests/sim/test_physics.py).
@@ -46,7 +47,22 @@ class ContactSlip:
 
 def wheel_headings_rad(params: RobotParameters, steering_rad: float) -> np.ndarray:
     """Body-frame rolling direction of each wheel: the common steering angle plus its offset."""
-    return steering_rad + np.asarray(params.wheel_offsets_rad, dtype=np.float64)
+    return steering_rad + wheel_offsets(params)
+
+
+def wheel_offsets(params: RobotParameters) -> np.ndarray:
+    return np.asarray(params.wheel_offsets_rad, dtype=np.float64)
+
+
+def delayed(profile: WheelSpeedProfile, delay_s: float) -> WheelSpeedProfile:
+    """``profile`` started ``delay_s`` later, the wheels still until then (they steer first)."""
+    if delay_s <= 0.0:
+        return profile
+    return WheelSpeedProfile(np.concatenate(([0.0], profile.knot_times_s + delay_s)),
+                             np.vstack([np.zeros(WHEEL_COUNT), profile.knot_speeds_rad_s]))
+
+
+STANDING = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
 
 
 def _check_step(name: str, value: float) -> float:
@@ -63,12 +79,13 @@ class SlipSimulator:
     ----------
     params : the robot.
     state : initial state (at rest at the origin by default).
+    steering_rad : the wheels' (and the steering gear's) initial angle.
     max_step_s : longest RK4 step.
     rest_speed_m_s : speed under which the robot counts as at rest.
     """
 
     def __init__(self, params: RobotParameters, state: RobotState | None = None, *,
-                 max_step_s: float = DEFAULT_MAX_STEP_S,
+                 steering_rad: float = 0.0, max_step_s: float = DEFAULT_MAX_STEP_S,
                  rest_speed_m_s: float = DEFAULT_REST_SPEED_M_S) -> None:
         self.params = params
         self._kernel_params = params.as_kernel_array()
@@ -76,10 +93,11 @@ class SlipSimulator:
         self._max_step = _check_step('max_step_s', max_step_s)
         self._rest_speed = _check_step('rest_speed_m_s', rest_speed_m_s)
         self._time_s = 0.0
-        self._steering_rad = 0.0
-        self._wheel_angles = wheel_headings_rad(params, 0.0)
-        self._geometry = kernels.wheel_geometry(self._wheel_angles, self._kernel_params)
-        self._profile = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
+        self._offsets = wheel_offsets(params)
+        initial = require_finite('initial steering angle', steering_rad)
+        self._steering_target = initial
+        self._motion = SteeringMotion.still(initial)
+        self._profile = STANDING
         self._move_start_s = 0.0
         # Wheel rotation accumulated by finished commands; the running one adds its own part.
         self._rotation_before_move = np.zeros(WHEEL_COUNT)
@@ -95,7 +113,25 @@ class SlipSimulator:
 
     @property
     def steering_rad(self) -> float:
-        return self._steering_rad
+        """The wheels' common steering angle now (the commanded one, with exact steering)."""
+        return self._motion.wheel_at(self.move_time_s)[0]
+
+    @property
+    def steering_rate_rad_s(self) -> float:
+        return self._motion.wheel_at(self.move_time_s)[1]
+
+    @property
+    def steering_time_s(self) -> float:
+        """How long the last command steered before the wheels could roll."""
+        return self._motion.duration_s
+
+    def _geometry(self) -> np.ndarray:
+        return kernels.wheel_geometry(self.steering_rad + self._offsets, self._kernel_params)
+
+    @property
+    def running_profile(self) -> WheelSpeedProfile:
+        """The wheel speeds of the running command from its start, the steering's wait included."""
+        return self._profile
 
     @property
     def move_time_s(self) -> float:
@@ -119,8 +155,9 @@ class SlipSimulator:
             driven[KERNEL_INDEX['wheel1_drive']] = 1.0
             speeds[0] = 0.0
             slip_long, scratch = np.empty(3), np.empty((3, 3))
-            kernels.contact_terms(self._state, speeds, self._geometry, driven, slip_long,
-                                  scratch[0], scratch[1], scratch[2])
+            kernels.contact_terms(self._state, speeds, self.steering_rate_rad_s,
+                                  self._geometry(), driven, slip_long, scratch[0], scratch[1],
+                                  scratch[2])
             speeds[0] = slip_long[0] / self.params.wheel_radius_m
         return speeds
 
@@ -136,16 +173,18 @@ class SlipSimulator:
         slip_trans = np.empty(3)
         scratch = np.empty((2, 3))
         kernels.contact_terms(self._state, self._profile.speeds_at(self.move_time_s),
-                              self._geometry, self._kernel_params, slip_long, slip_trans,
-                              scratch[0], scratch[1])
+                              self.steering_rate_rad_s, self._geometry(), self._kernel_params,
+                              slip_long, slip_trans, scratch[0], scratch[1])
         return ContactSlip(slip_long, slip_trans)
 
     # -- commands ----------------------------------------------------------------------------
     def command(self, steering_rad: float, profile: WheelSpeedProfile,
                 limits: MotorLimits | None = None) -> None:
-        """Steer to ``steering_rad`` (exact, instantaneous) and run ``profile`` from now on.
+        """Steer to ``steering_rad`` and run ``profile`` from now on.
 
-        A command replaces whatever was running.
+        With the paper's exact, instantaneous steering the wheels roll at once; with a steering
+        motion (``params.steering``) they first steer, still, then run ``profile``. Commanding
+        the angle already commanded steers no further. A command replaces whatever was running.
 
         Raises
         ------
@@ -159,10 +198,15 @@ class SlipSimulator:
         if limits is not None:
             profile.check_limits(limits)
         self._rotation_before_move = self.wheel_rotations_rad()
-        self._steering_rad = steering
-        self._wheel_angles = wheel_headings_rad(self.params, steering)
-        self._geometry = kernels.wheel_geometry(self._wheel_angles, self._kernel_params)
-        self._profile = profile
+        now = self.move_time_s
+        wheel = self._motion.wheel_at(now)[0]
+        gear = self._motion.gear_at(now)[0]
+        if steering == self._steering_target and not self.params.steering.instantaneous:
+            self._motion = SteeringMotion.still(wheel, gear)
+        else:
+            self._motion = plan_steering(self.params.steering, gear, wheel, steering)
+        self._steering_target = steering
+        self._profile = delayed(profile, self._motion.duration_s)
         self._move_start_s = self._time_s
 
     def command_move(self, steering_rad: float, duration_s: float,
@@ -178,10 +222,11 @@ class SlipSimulator:
         speeds = self._profile.speeds_at(self.move_time_s)
         ramp = float(np.max(np.abs(speeds))) / limits.deceleration_rad_s2
         if ramp == 0.0:
-            profile = WheelSpeedProfile(np.zeros(1), np.zeros((1, WHEEL_COUNT)))
+            profile = STANDING
         else:
             profile = WheelSpeedProfile(np.array([0.0, ramp]), np.vstack([speeds, np.zeros(3)]))
-        self.command(self._steering_rad, profile)
+        # The steering stops where it is (the same target steers no further).
+        self.command(self._steering_target, profile)
 
     # -- time --------------------------------------------------------------------------------
     def step(self, dt_s: float) -> RobotState:
@@ -198,9 +243,10 @@ class SlipSimulator:
         start = self.move_time_s
         saved = self._state.copy()
         profile = self._profile
+        steer = self._motion.wheel_knots
         ok = kernels.advance(self._state, start, start + dt, profile.knot_times_s,
-                             profile.knot_speeds_rad_s, profile.knot_times_s.size,
-                             self._wheel_angles, self._kernel_params, self._max_step)
+                             profile.knot_speeds_rad_s, profile.knot_times_s.size, steer,
+                             steer.shape[0], self._offsets, self._kernel_params, self._max_step)
         if not ok:
             self._state = saved
             raise SimulationError(
@@ -219,6 +265,8 @@ class OpenLoopResult:
     profile_end_s: float
     rest_time_s: float
     trace: dict[str, np.ndarray] | None = None
+    steering_time_s: float = 0.0
+    final_steering_rad: float = 0.0
 
     @property
     def drift_m(self) -> float:
@@ -244,10 +292,14 @@ def _raise_unless_settled(rest_time: float, state: np.ndarray, max_settle_s: flo
 
 def run_to_rest(params: RobotParameters, steering_rad: float, profile: WheelSpeedProfile,
                 start: RobotState, *, max_step_s: float = DEFAULT_MAX_STEP_S,
-                max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> tuple[RobotState, float]:
+                max_settle_s: float = DEFAULT_MAX_SETTLE_S,
+                motion: SteeringMotion | None = None) -> tuple[RobotState, float]:
     """Run ``profile`` along ``steering_rad`` from ``start`` until the robot is at rest.
 
-    Returns the state at rest and the time (s from the move's start) it came to rest.
+    ``motion`` is the steering before the wheels roll (:func:`steering_motion`); without it the
+    wheels stand at ``steering_rad`` already, as the paper has them. ``profile`` is then
+    delayed by the steering's duration. Returns the state at rest and the time (s from the
+    move's start) it came to rest.
 
     Raises
     ------
@@ -255,23 +307,40 @@ def run_to_rest(params: RobotParameters, steering_rad: float, profile: WheelSpee
         If the state became non-finite or the robot did not come to rest in ``max_settle_s``.
     """
     state = start.as_array()
+    motion = motion or SteeringMotion.still(steering_rad)
+    profile = delayed(profile, motion.duration_s)
     rest_time = kernels.run_move(
         state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
-        wheel_headings_rad(params, steering_rad), params.as_kernel_array(),
-        _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
-        _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S)
+        motion.wheel_knots, motion.wheel_knots.shape[0], wheel_offsets(params),
+        params.as_kernel_array(), _check_step('max_step_s', max_step_s),
+        DEFAULT_REST_SPEED_M_S, _check_step('max_settle_s', max_settle_s),
+        _SETTLE_CHECK_INTERVAL_S)
     _raise_unless_settled(rest_time, state, max_settle_s, 'the move')
     return RobotState.from_array(state), rest_time
+
+
+def steering_motion(params: RobotParameters, steering_rad: float,
+                    steer_from_rad: float | None) -> SteeringMotion:
+    """The steering before a move from rest: none when the wheels already stand at
+    ``steering_rad`` (``steer_from_rad`` None, the paper's case), else from ``steer_from_rad``
+    (gear and wheels there)."""
+    if steer_from_rad is None:
+        return SteeringMotion.still(steering_rad)
+    origin = require_finite('steer-from angle', steer_from_rad)
+    return plan_steering(params.steering, origin, origin, steering_rad)
 
 
 def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s: float, *,
                        limits: MotorLimits | None = None, start: RobotState | None = None,
                        sample_interval_s: float | None = None,
                        max_step_s: float = DEFAULT_MAX_STEP_S,
-                       max_settle_s: float = DEFAULT_MAX_SETTLE_S) -> OpenLoopResult:
+                       max_settle_s: float = DEFAULT_MAX_SETTLE_S,
+                       steer_from_rad: float | None = None) -> OpenLoopResult:
     """The section 3.5 open-loop move: run the profile for ``duration_s``, then wait for rest.
 
-    With ``sample_interval_s`` the result carries a trace (time, state, slip, wheel speeds).
+    With ``steer_from_rad`` the wheels first steer from that angle (the paper has them at
+    ``steering_rad`` already); ``duration_s`` 0 is then a steering-only move. With
+    ``sample_interval_s`` the result carries a trace (time, state, slip, wheel speeds).
 
     Raises
     ------
@@ -281,16 +350,24 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
         If the state became non-finite or the robot did not come to rest in ``max_settle_s``.
     """
     start = start or RobotState()
-    profile = move_profile(duration_s, limits)
     steering = require_finite('steering angle', steering_rad)
+    if steer_from_rad is not None and duration_s == 0:
+        profile = STANDING
+    else:
+        profile = move_profile(duration_s, limits)
+    motion = steering_motion(params, steering, steer_from_rad)
     goal = ideal_stop(params, start, steering, float(profile.rotation_rad()[0]))
     if sample_interval_s is None:
         final, rest_time = run_to_rest(params, steering, profile, start, max_step_s=max_step_s,
-                                       max_settle_s=max_settle_s)
-        return OpenLoopResult(final, goal, profile.end_time_s, rest_time)
+                                       max_settle_s=max_settle_s, motion=motion)
+        return OpenLoopResult(final, goal, motion.duration_s + profile.end_time_s, rest_time,
+                              steering_time_s=motion.duration_s,
+                              final_steering_rad=motion.final_wheel_rad)
     interval = _check_step('sample_interval_s', sample_interval_s)
-    simulator = SlipSimulator(params, start, max_step_s=max_step_s)
+    simulator = SlipSimulator(params, start, max_step_s=max_step_s,
+                              steering_rad=steering if steer_from_rad is None else steer_from_rad)
     simulator.command(steering, profile)
+    profile = simulator.running_profile   # with the steering's delay
     samples: dict[str, list[np.ndarray | float]] = {
         'time_s': [], 'state': [], 'slip_longitudinal_m_s': [], 'slip_transverse_m_s': [],
         'wheel_speed_rad_s': []}
@@ -315,7 +392,8 @@ def simulate_open_loop(params: RobotParameters, steering_rad: float, duration_s:
         simulator.step(interval)
         record()
     trace = {key: np.array(values) for key, values in samples.items()}
-    return OpenLoopResult(simulator.state, goal, profile.end_time_s, simulator.time_s, trace)
+    return OpenLoopResult(simulator.state, goal, profile.end_time_s, simulator.time_s, trace,
+                          simulator.steering_time_s, simulator.steering_rad)
 
 
 @dataclass(frozen=True)
@@ -364,7 +442,9 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
     knot_times = np.zeros((count, knots))
     knot_speeds = np.zeros((count, knots, WHEEL_COUNT))
     knot_counts = np.zeros(count, dtype=np.int64)
-    wheel_angles = np.zeros((count, WHEEL_COUNT))
+    steer_knots = np.zeros((count, 1, 4))
+    steer_counts = np.ones(count, dtype=np.int64)
+    offsets = np.zeros((count, WHEEL_COUNT))
     kernel_params = np.zeros((count, len(KERNEL_INDEX)))
     ideal = np.zeros((count, 2))
     for i, (profile, robot) in enumerate(zip(profiles, robots, strict=True)):
@@ -373,12 +453,15 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
         knot_speeds[i, :n] = profile.knot_speeds_rad_s
         knot_counts[i] = n
         steer = require_finite(f'steering angle of move {i}', steering[i])
-        wheel_angles[i] = wheel_headings_rad(robot, steer)
+        # The wheels stand at the move's angle already (the paper's moves).
+        steer_knots[i, 0, 1] = steer
+        offsets[i] = wheel_offsets(robot)
         kernel_params[i] = robot.as_kernel_array()
         ideal[i] = ideal_stop(robot, start, steer, float(profile.rotation_rad()[0]))
     states = np.tile(start.as_array(), (count, 1))
     rest_times = np.zeros(count)
-    kernels.run_batch(states, knot_times, knot_speeds, knot_counts, wheel_angles, kernel_params,
+    kernels.run_batch(states, knot_times, knot_speeds, knot_counts, steer_knots, steer_counts,
+                      offsets, kernel_params,
                       _check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
                       _check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S,
                       rest_times)
