@@ -13,6 +13,7 @@ from omni_micro_cli.orchestration.graph import run_graph
 from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
+from omni_micro_sim.parameters import steering_preset
 
 GOAL_MM = (100.0, 0.0)
 SEED = 3
@@ -119,6 +120,23 @@ def test_the_model_mode_over_the_graph_is_the_twin(tmp_path):
     assert graph.final_y_m == pytest.approx(twin.final_state.y_m, abs=1e-7)
     log = next(tmp_path.glob('*/controller_node.log')).read_text()
     assert 'period 2 (model)' in log and 'xi2 2.9' in log   # the offsets as it learns them
+
+
+def test_realistic_steering_over_the_graph_is_the_twin(tmp_path, omni_micro):
+    robot = paper.FIG11_OPEN_LOOP.robot().replace(steering=steering_preset('realistic'))
+    twin = run_closed_loop(paper.FIG11_GOAL_M, robot=robot, seed=SEED)
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', str(SEED),
+                        '--steering', 'realistic', '--json', '--quiet', '--no-markers',
+                        '--log-dir', str(tmp_path))
+    assert result.returncode == 0, result.stderr[-3000:]
+    graph = json.loads(result.stdout.strip().splitlines()[-1])
+    assert graph['periods'] == twin.periods
+    assert graph['final_x_mm'] * 1e-3 == pytest.approx(twin.final_state.x_m, abs=1e-7)
+    assert graph['final_y_mm'] * 1e-3 == pytest.approx(twin.final_state.y_m, abs=1e-7)
+    # The steering time counts in every period: later than the same run with ideal steering.
+    ideal = run_closed_loop(paper.FIG11_GOAL_M, robot=paper.FIG11_OPEN_LOOP.robot(), seed=SEED)
+    assert graph['sim_time_s'] > ideal.sim_time_s
+    assert graph['sim_time_s'] == pytest.approx(twin.sim_time_s, abs=0.03)
 
 
 @pytest.mark.parametrize('goal_mm, outcome, exit_code, words', [

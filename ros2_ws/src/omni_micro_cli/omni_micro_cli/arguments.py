@@ -148,9 +148,27 @@ def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:
 STEERING_CHOICES = ('ideal', 'realistic')
 
 
-def add_steering_argument(parser: argparse.ArgumentParser, default: str = 'ideal') -> None:
+def add_steering_argument(parser: argparse.ArgumentParser, default: str = 'ideal',
+                          scope: str = '') -> None:
     """--steering, the same for every command that drives the robot."""
     parser.add_argument('--steering', choices=STEERING_CHOICES, default=default,
                         help='the steering motion: ideal (the paper: exact and instantaneous) '
                              'or realistic (motor limits, gear backlash, pivot friction; '
-                             f'docs/model.md, "Steering dynamics"; default {default})')
+                             f'docs/model.md, "Steering dynamics"; default {default})' + scope)
+
+
+def steering_overrides(name: str, prefix: str = 'robot.') -> dict[str, object]:
+    """The ROS parameters (``<prefix>steering.*``) that give a node the steering preset
+    ``name``; none for ideal, the nodes' default."""
+    from omni_micro_sim.parameters import (
+        STEERING_PREFIX,
+        RobotParameters,
+        robot_parameter_values,
+        steering_preset,
+    )
+
+    if name == 'ideal':
+        return {}
+    values = robot_parameter_values(RobotParameters(steering=steering_preset(name)))
+    return {prefix + key: value for key, value in values.items()
+            if key.startswith(STEERING_PREFIX)}

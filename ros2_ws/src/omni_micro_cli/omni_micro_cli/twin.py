@@ -103,7 +103,7 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
         route.append((sample.time_s, state.x_m, state.y_m))
         decisions = []
         if watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
-                                  tuple(sample.wheel_speeds_rad_s)):
+                                  tuple(sample.wheel_speeds_rad_s), sample.steering_rate_rad_s):
             decisions.append(controller.on_wheels_stopped(stamp))
         forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
         events = camera.on_odometry(stamp, state.x_m, state.y_m,

@@ -36,6 +36,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_common.conventions import (
     JOINT_NAMES,
+    STEERING_JOINT,
     WHEEL_JOINTS,
     CaptureUncertainty,
     join_stamp,
@@ -223,6 +224,8 @@ class ControllerNode(Node):
             return
         rotations = tuple(msg.position[i] for i in index)
         speeds = tuple(msg.velocity[i] for i in index)
+        steering_rate = (msg.velocity[msg.name.index(STEERING_JOINT)]
+                         if STEERING_JOINT in msg.name else 0.0)
         stamp = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         if self.robot_time_s == 0.0 and stamp > 0.0:
             # First word from a robot whose clock was already running (this node was started
@@ -230,7 +233,7 @@ class ControllerNode(Node):
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
         self._robot_time_ns = max(self._robot_time_ns, stamp_ns(msg.header.stamp))
-        if self.watcher.on_wheel_state(rotations, speeds):
+        if self.watcher.on_wheel_state(rotations, speeds, steering_rate):
             self._act(self.controller.on_wheels_stopped(stamp))
         self._report_lockstep()
 

@@ -193,6 +193,10 @@ class PaperRule:
         return MovePlan(steering, min(period, remaining / config.speed_m_s))
 
 
+# Longest a move may take beyond its rolling time before the controller stops waiting for it.
+MOVE_ALLOWANCE_S = 2.0
+
+
 @dataclass(frozen=True)
 class Move:
     """Command: at ``start_s`` steer to ``steering_rad`` and run the wheels for ``duration_s``."""
@@ -354,8 +358,10 @@ class VisionFeedbackController:
         self.periods += 1
         self.phase = Phase.MOVING
         self._early_captures = []
-        # Ramps add at most a second to a move; then the same patience as for a capture.
-        self._move_overdue_s = (observation.stamp_s + config.command_lead_s + duration + 1.0
+        # Ramps add at most a second to a move, steering half a turn (realistic preset) a
+        # second more; then the same patience as for a capture.
+        self._move_overdue_s = (observation.stamp_s + config.command_lead_s + duration
+                                + MOVE_ALLOWANCE_S
                                 + config.capture_timeout_s * config.max_capture_tries)
         return Move(observation.stamp_s + config.command_lead_s, plan.steering_rad, duration,
                     self.periods, remaining, observation, plan.rule, plan.note)
@@ -398,8 +404,9 @@ class MoveWatcher:
     """Tells from the wheel joint states when a commanded move is over.
 
     The move is over at the first state in which the driven wheel has turned by the commanded
-    rotation since the command and stands still. Wheel 2 is watched: it is always driven (wheel 1
-    may be passive and roll freely).
+    rotation since the command and stands still, and the wheels no longer steer (the robot
+    steers before it rolls, so timer2 counts from the end of both). Wheel 2 is watched: it is
+    always driven (wheel 1 may be passive and roll freely).
     """
 
     WATCHED_WHEEL = 1
@@ -423,9 +430,10 @@ class MoveWatcher:
     def forget(self) -> None:
         self._baseline_rad = None
 
-    def on_wheel_state(self, rotations_rad: tuple[float, ...],
-                       speeds_rad_s: tuple[float, ...]) -> bool:
-        """Feed one wheel state (three wheels); True once, when the watched move is over."""
+    def on_wheel_state(self, rotations_rad: tuple[float, ...], speeds_rad_s: tuple[float, ...],
+                       steering_rate_rad_s: float = 0.0) -> bool:
+        """Feed one wheel state (three wheels, and the steering's rate); True once, when the
+        watched move is over."""
         self.latest_rotations = tuple(rotations_rad)
         if self._baseline_rad is None:
             return False
@@ -434,7 +442,7 @@ class MoveWatcher:
         # can differ from the commanded one in the ninth digit.
         if (turned >= self._target_rad * (1.0 - 1e-6)
                 and speeds_rad_s[self.WATCHED_WHEEL] == 0.0
-                and speeds_rad_s[2] == 0.0):
+                and speeds_rad_s[2] == 0.0 and steering_rate_rad_s == 0.0):
             self._baseline_rad = None
             return True
         return False

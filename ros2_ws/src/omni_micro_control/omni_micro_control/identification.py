@@ -25,7 +25,7 @@ import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import IdentificationError
-from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.parameters import RobotParameters, SteeringParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.state import RobotState
 
@@ -69,6 +69,15 @@ def _field(name: str, label: str, unit: str, scale: float, step: float, prior: f
                          lambda robot, value: robot.replace(**{name: value}))
 
 
+def _steering_field(name: str, label: str, unit: str, scale: float, step: float,
+                    prior: float, widest: float) -> FreeParameter:
+    def put(robot: RobotParameters, value: float) -> RobotParameters:
+        return robot.replace(steering=robot.steering.replace(**{name: value}))
+
+    return FreeParameter(f'robot.steering.{name}', label, unit, scale, step, prior, widest,
+                         lambda robot: float(getattr(robot.steering, name)), put)
+
+
 # Wheel 1's offset is the reference the steering angle is measured from: always 0.
 PARAMETERS = {
     'xi2': _offset(1),
@@ -76,7 +85,13 @@ PARAMETERS = {
     'mu_longitudinal': _field('mu_longitudinal', 'mu_L', '', 1.0, 1e-6, 0.5, 0.05),
     'mu_transverse': _field('mu_transverse', 'mu_T', '', 1.0, 1e-6, 0.5, 0.05),
     'cantilever_offset_m': _field('cantilever_offset_m', 'd1', 'mm', 1e3, 1e-9, 2e-3, 0.3e-3),
+    # Only with a steering motion (docs/model.md, "Steering dynamics").
+    'backlash': _steering_field('backlash_rad', 'backlash', 'deg', math.degrees(1.0), 1e-6,
+                                math.radians(2.0), math.radians(0.2)),
+    'contact_radius': _steering_field('contact_radius_m', 'a', 'um', 1e6, 1e-8, 100e-6,
+                                      20e-6),
 }
+STEERING_FITS = ('backlash', 'contact_radius')
 OFFSETS = ('xi2', 'xi3')
 
 
@@ -103,10 +118,60 @@ class Stop:
 
 @dataclass(frozen=True)
 class RecordedMove:
-    """A commanded move: the steering angle and the wheels' speed profile."""
+    """A commanded move: the steering angle and the wheels' speed profile.
+
+    With a steering motion the move starts by steering from where the gear stood, as the
+    commands put it (:class:`SteeringTracker`): ``gear_path`` holds every angle the gear
+    stood at since the wheels were centred in the backlash, the last one where this move
+    starts. Where in the play the wheels are follows from that path and the backlash
+    (:func:`wheels_after`). An empty path: the wheels stand at ``steering_rad`` already (the
+    paper's moves).
+    """
 
     steering_rad: float
     profile: WheelSpeedProfile
+    gear_path: tuple[float, ...] = ()
+
+
+def wheels_after(gear_path: Sequence[float], backlash_rad: float) -> float:
+    """The wheels' angle after the gear went through ``gear_path`` from the first angle with
+    the wheels centred: the play (backlash) operator, the gear's flanks dragging the wheels."""
+    half_band = 0.5 * backlash_rad
+    wheels = gear_path[0]
+    for gear in gear_path[1:]:
+        wheels = min(max(wheels, gear - half_band), gear + half_band)
+    return wheels
+
+
+class SteeringTracker:
+    """Where the steering gear stands after each commanded angle, as the robot moves it
+    (:func:`omni_micro_sim.steering.motor_target`); starts at ``gear_rad``, wheels centred."""
+
+    def __init__(self, steering: SteeringParameters, gear_rad: float = 0.0) -> None:
+        self.steering = steering
+        self.gear_path = [gear_rad]
+        self._target: float | None = gear_rad
+        self.steering_time_s = 0.0   # of the last move: the motor's, whatever the backlash
+
+    def move(self, steering_rad: float, profile: WheelSpeedProfile) -> RecordedMove:
+        """The move commanding ``steering_rad``, with the steering it starts from; the gear
+        then stands where that command leaves it."""
+        from omni_micro_sim.steering import motor_target, plan_steering
+
+        move = RecordedMove(steering_rad, profile, tuple(self.gear_path))
+        self.steering_time_s = 0.0
+        if steering_rad != self._target:   # the robot steers no further for the same angle
+            self.steering_time_s = plan_steering(self.steering, self.gear_rad, self.gear_rad,
+                                                 steering_rad).duration_s
+            target = motor_target(self.steering, self.gear_rad, steering_rad)
+            if target != self.gear_rad:
+                self.gear_path.append(target)
+            self._target = steering_rad
+        return move
+
+    @property
+    def gear_rad(self) -> float:
+        return self.gear_path[-1]
 
 
 @dataclass
@@ -152,8 +217,13 @@ def displacement(robot: RobotParameters, move: RecordedMove) -> np.ndarray:
     # The slip core (numba) loads with the first prediction, not with the module: the paper's
     # mode of controller_node imports this module and never predicts.
     from omni_micro_sim.simulator import run_to_rest
+    from omni_micro_sim.steering import plan_steering
 
-    final, _ = run_to_rest(robot, move.steering_rad, move.profile, RobotState())
+    motion = None
+    if move.gear_path and not robot.steering.instantaneous:
+        wheels = wheels_after(move.gear_path, robot.steering.backlash_rad)
+        motion = plan_steering(robot.steering, move.gear_path[-1], wheels, move.steering_rad)
+    final, _ = run_to_rest(robot, move.steering_rad, move.profile, RobotState(), motion=motion)
     return np.array([final.x_m, final.y_m, final.phi_rad])
 
 

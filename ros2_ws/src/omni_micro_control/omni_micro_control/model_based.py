@@ -38,6 +38,7 @@ from omni_micro_control.identification import (
     Chain,
     Prior,
     RecordedMove,
+    SteeringTracker,
     Stop,
     compose,
     displacement,
@@ -117,6 +118,13 @@ class ModelBasedPlanner:
         self.nominal = robot or RobotParameters()
         self.robot = self.nominal
         self.names = self.config.free_parameters
+        # With a steering motion the planner steers through the preset's model from where its
+        # own commands left the gear, and learns the gear's backlash with the offsets.
+        self.tracker: SteeringTracker | None = None
+        if not self.nominal.steering.instantaneous:
+            self.tracker = SteeringTracker(self.nominal.steering)
+            if 'backlash' not in self.names:
+                self.names = (*self.names, 'backlash')
         self.prior = Prior(self._values(),
                            np.diag([self._prior_sigma(name) ** 2 for name in self.names]))
         self.covariance = self.prior.covariance.copy()
@@ -200,7 +208,9 @@ class ModelBasedPlanner:
         stop = self.chain.stops[-1] if self.chain.stops else stop_from(observation)
         try:
             plan = self._plan_from(stop, observation, goal_m, config)
-            move = RecordedMove(plan.steering_rad, move_profile(plan.duration_s, self.limits))
+            profile = move_profile(plan.duration_s, self.limits)
+            move = (RecordedMove(plan.steering_rad, profile) if self.tracker is None
+                    else self.tracker.move(plan.steering_rad, profile))
             # Whichever rule planned it, the move is data: the next stop links to it.
             self._pending = (stop, move, self._predict(stop, move))
             return plan
@@ -243,9 +253,18 @@ class ModelBasedPlanner:
         unknowns = np.array([math.atan2(body[1], body[0]),
                              float(np.hypot(*body)) / config.speed_m_s])
 
+        robot = self.robot
+        gear_path: tuple[float, ...] = ()
+        if self.tracker is not None:
+            gear_path = tuple(self.tracker.gear_path)
+            # Whole motor steps would make the miss a staircase in the angle: the shooting
+            # steers continuously and the next period takes up the rounding.
+            robot = robot.replace(steering=robot.steering.replace(step_rad=0.0))
+
         def miss(values: np.ndarray) -> np.ndarray:
-            move = RecordedMove(float(values[0]), move_profile(float(values[1]), self.limits))
-            return compose(pose, displacement(self.robot, move))[:2] - goal
+            move = RecordedMove(float(values[0]), move_profile(float(values[1]), self.limits),
+                                gear_path)
+            return compose(pose, displacement(robot, move))[:2] - goal
 
         error = miss(unknowns)
         for iteration in range(1, self.config.max_shooting_iterations + 1):

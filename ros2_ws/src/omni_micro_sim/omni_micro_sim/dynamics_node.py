@@ -3,7 +3,8 @@
 Publishes, once per grid period of simulated time (``publish_period_s``):
   /clock          rosgraph_msgs/Clock
   /odom           nav_msgs/Odometry, odom -> base_link, twist in base_link (REP-103/105)
-  /joint_states   sensor_msgs/JointState: steering angle, wheel rotations and spin speeds
+  /joint_states   sensor_msgs/JointState: the wheels' actual steering angle and rate, wheel
+                  rotations and spin speeds
   /wheel_slip     sensor_msgs/JointState: ``wheel_<k>_longitudinal`` and ``wheel_<k>_transverse``
                   slip velocities of each contact (m/s) in ``velocity``; see README
 Subscribes:
@@ -116,6 +117,7 @@ class DynamicsNode(Node):
         if len(initial) != 3:
             raise ParameterError(f'initial_pose must be [x_m, y_m, phi_rad], got {list(initial)}')
         robot_values['wheel_offsets_rad'] = tuple(robot_values['wheel_offsets_rad'])
+        robot_values['center_of_mass_m'] = tuple(robot_values['center_of_mass_m'])
         self.grid = GridSimulator(
             RobotParameters.from_mapping(robot_values), period_s=period,
             limits=MotorLimits(**limit_values),
@@ -335,7 +337,7 @@ class DynamicsNode(Node):
         joints = self._joint_msg
         joints.header.stamp = stamp
         joints.position = [sample.steering_rad, *map(float, sample.wheel_rotations_rad)]
-        joints.velocity = [0.0, *map(float, sample.wheel_speeds_rad_s)]
+        joints.velocity = [sample.steering_rate_rad_s, *map(float, sample.wheel_speeds_rad_s)]
         self.joint_pub.publish(joints)
 
         slip = self._slip_msg

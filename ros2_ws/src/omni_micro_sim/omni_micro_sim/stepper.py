@@ -36,6 +36,7 @@ class Sample:
     time_s: float
     state: RobotState
     steering_rad: float
+    steering_rate_rad_s: float
     wheel_rotations_rad: np.ndarray
     wheel_speeds_rad_s: np.ndarray
     slip: ContactSlip
@@ -109,8 +110,8 @@ class GridSimulator:
     def sample(self) -> Sample:
         simulator = self.simulator
         return Sample(self.time_s, simulator.state, simulator.steering_rad,
-                      simulator.wheel_rotations_rad(), simulator.wheel_speeds(),
-                      simulator.slip(), simulator.status)
+                      simulator.steering_rate_rad_s, simulator.wheel_rotations_rad(),
+                      simulator.wheel_speeds(), simulator.slip(), simulator.status)
 
     def advance(self) -> Sample:
         """Start a due command, integrate one period and return the sample at its end."""

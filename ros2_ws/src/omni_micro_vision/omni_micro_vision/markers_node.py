@@ -144,16 +144,19 @@ class MarkersNode(Node):
         self._poses: list[tuple[int, Time, tuple[float, float, float]]] = []
         self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
         self._slips: dict[int, bytes] = {}
+        self._joint_states: dict[int, bytes] = {}
         self._due: int | None = None        # the stamp the next array draws
         self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
                                  event_callbacks=quiet)
-        # Per-tick: each subscriber costs the dynamics node a delivery per tick, so the
-        # steering comes from the commands (/wheel_trajectory), and the slip is kept as bytes
-        # and decoded once per publication.
+        # Per-tick streams are kept as bytes and decoded once per publication. The wheels are
+        # drawn at their actual steering angle (/joint_states): with a steering motion it
+        # lags the commanded one.
         self.create_subscription(JointState, '/wheel_slip', self._on_slip, DATA_QOS, raw=True,
                                  event_callbacks=quiet)
+        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
+                                 raw=True, event_callbacks=quiet)
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
@@ -208,6 +211,13 @@ class MarkersNode(Node):
             self.scene.on_slip(*slip_of(slip.name, slip.velocity))
             for stamp in slips:
                 del self._slips[stamp]
+        joint_stamps = [stamp for stamp in self._joint_states if stamp <= due]
+        if joint_stamps:
+            joints = deserialize_message(self._joint_states[max(joint_stamps)], JointState)
+            if STEERING_JOINT in joints.name:
+                self.scene.on_steering(joints.position[joints.name.index(STEERING_JOINT)])
+            for stamp in joint_stamps:
+                del self._joint_states[stamp]
         if everything:
             self._publish(self.scene.robot_shapes() + self.scene.route_shapes(only_last=False)
                           + self.scene.static_shapes())
@@ -221,6 +231,10 @@ class MarkersNode(Node):
         self.handled += 1
         self._slips[header_stamp_ns(data)] = data     # decoded only if drawn
 
+    def _on_joint_state(self, data: bytes) -> None:
+        self.handled += 1
+        self._joint_states[header_stamp_ns(data)] = data
+
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         if len(msg.points) < 2 or STEERING_JOINT not in msg.joint_names:
             self.handled += 1
@@ -229,9 +243,8 @@ class MarkersNode(Node):
                                    msg.points[-1].positions, self.scene.robot.wheel_radius_m)
 
         def start_move() -> None:
-            # Steering is exact and instantaneous at the command's start (the wheel command
-            # contract): the wheels turn, and the move's arrow appears, at that stamp.
-            self.scene.on_steering(steering)
+            # The move's arrow (what was commanded) appears at the command's start; the wheels
+            # turn as /joint_states says they do.
             self.scene.on_move(steering, length)
             self._changed.add('moves')
         self._at(msg.header.stamp, 0, start_move)

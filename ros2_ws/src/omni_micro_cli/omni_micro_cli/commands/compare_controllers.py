@@ -4,6 +4,9 @@ Seeded cases on the micro platform, each run by both modes through the in-proces
 graph's loop in one process): half drive (0,0) -> (100,0) mm, half drive from a random start
 in the macro field to a random goal inside the micro field; every robot has random assembly
 offsets xi2, xi3 in [-5, 5] deg, which the model mode does not know (it starts from none).
+With --steering realistic every robot also steers through the realistic preset with a
+backlash drawn in [0, 2] deg, which the model mode does not know either (it starts from the
+preset's 1 deg).
 """
 
 from __future__ import annotations
@@ -22,10 +25,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli.arguments import non_negative_int, positive_float, whole_number_in
+from omni_micro_cli.arguments import (
+    add_steering_argument,
+    non_negative_int,
+    positive_float,
+    whole_number_in,
+)
 from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_control.feedback import FeedbackConfig, Outcome
-from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.parameters import RobotParameters, steering_preset
 from omni_micro_sim.state import RobotState
 
 if TYPE_CHECKING:
@@ -33,6 +41,8 @@ if TYPE_CHECKING:
 
 
 OFFSET_RANGE_DEG = 5.0
+# Hand-assembled gears: from none to twice the realistic preset's 1 deg (a stated guess).
+BACKLASH_RANGE_DEG = (0.0, 2.0)
 MICRO_GOAL_HALF_WIDTH_M = 0.8e-3     # goals well inside the 2 mm micro field
 
 
@@ -51,6 +61,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--workers',
                         type=whole_number_in(0, 256), default=0, metavar='N',
                         help='processes (default: one per core)')
+    add_steering_argument(parser)
     parser.add_argument('--out', type=output_folder, default='out/compare-controllers',
                         metavar='DIR', help='where the table, figure and rows go')
     parser.set_defaults(handler=run)
@@ -64,13 +75,17 @@ class Case:
     start: tuple[float, float, float]     # m, m, rad
     goal_m: tuple[float, float]
     seed: int
+    steering: str = 'ideal'
+    backlash_deg: float = 0.0
 
 
-def make_cases(count: int, seed: int) -> list[Case]:
+def make_cases(count: int, seed: int, steering: str = 'ideal') -> list[Case]:
     cases = []
     for index in range(count):
         rng = np.random.default_rng([seed, index])
         xi2, xi3 = rng.uniform(-OFFSET_RANGE_DEG, OFFSET_RANGE_DEG, 2)
+        # Drawn after everything else, so that ideal cases stay the cases they always were.
+        backlash = 0.0
         if index % 2 == 0:
             start, goal = (0.0, 0.0, 0.0), (0.1, 0.0)
         else:
@@ -78,18 +93,25 @@ def make_cases(count: int, seed: int) -> list[Case]:
                      float(rng.uniform(-math.pi, math.pi)))
             offset = rng.uniform(-MICRO_GOAL_HALF_WIDTH_M, MICRO_GOAL_HALF_WIDTH_M, 2)
             goal = (0.1 + float(offset[0]), float(offset[1]))
-        cases.append(Case(index, float(xi2), float(xi3), start, goal, seed * 100_000 + index))
+        if steering != 'ideal':
+            backlash = float(rng.uniform(*BACKLASH_RANGE_DEG))
+        cases.append(Case(index, float(xi2), float(xi3), start, goal, seed * 100_000 + index,
+                          steering, backlash))
     return cases
 
 
 def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
     from omni_micro_cli.twin import run_closed_loop
 
-    robot = RobotParameters(wheel_offsets_rad=(0.0, math.radians(case.xi2_deg),
-                                               math.radians(case.xi3_deg)))
+    preset = steering_preset(case.steering)
+    robot = RobotParameters(
+        wheel_offsets_rad=(0.0, math.radians(case.xi2_deg), math.radians(case.xi3_deg)),
+        steering=preset.replace(backlash_rad=math.radians(case.backlash_deg)))
+    # The model knows the steering's form (the preset), not this robot's backlash or offsets.
     return run_closed_loop(case.goal_m, robot=robot, seed=case.seed,
                            start=RobotState(*case.start),
-                           config=FeedbackConfig(mode=mode, tolerance_m=tolerance_m))
+                           config=FeedbackConfig(mode=mode, tolerance_m=tolerance_m),
+                           model_robot=RobotParameters(steering=preset))
 
 
 def run_case(case: Case, tolerance_m: float) -> dict[str, object]:
@@ -116,6 +138,9 @@ def run_case(case: Case, tolerance_m: float) -> dict[str, object]:
                         log.estimates[index]['xi2']) - case.xi2_deg
                     row[f'xi3_error_deg_{label}'] = math.degrees(
                         log.estimates[index]['xi3']) - case.xi3_deg
+            if log.estimates and 'backlash' in log.estimates[-1]:
+                row['backlash_error_deg_last'] = math.degrees(
+                    log.estimates[-1]['backlash']) - case.backlash_deg
             row['plan_wall_s'] = log.plan_wall_s
             row['fit_wall_s'] = log.fit_wall_s
         if case.index == 0:
@@ -144,7 +169,8 @@ def summarise(rows: list[dict], tolerance_um: float) -> dict[str, object]:
 
     plans = [wall for row in rows for wall in row['plan_wall_s']]
     fits = [wall for row in rows for wall in row['fit_wall_s']]
-    summary: dict[str, object] = {'cases': len(rows), 'tolerance_um': tolerance_um}
+    summary: dict[str, object] = {'cases': len(rows), 'tolerance_um': tolerance_um,
+                                  'steering': rows[0].get('steering', 'ideal')}
     for mode in ('paper', 'model'):
         deviations = [row[f'{mode}_deviation_um'] for row in rows]
         periods = [row[f'{mode}_periods'] for row in rows]
@@ -163,6 +189,10 @@ def summarise(rows: list[dict], tolerance_um: float) -> dict[str, object]:
         summary[f'offset_error_deg_{label}'] = {
             'max': max(both), 'median': statistics.median(both),
             'within_0.1_deg_percent': share([e <= 0.1 for e in both])}
+    backlash = errors('backlash_error_deg_last')
+    if backlash:
+        summary['backlash_error_deg_last'] = {'median': statistics.median(backlash),
+                                              'max': max(backlash)}
     summary['plan_wall_ms'] = {'median': 1e3 * statistics.median(plans),
                                'max': 1e3 * max(plans)}
     summary['refit_wall_ms'] = {'median': 1e3 * statistics.median(fits),
@@ -174,7 +204,8 @@ def table(summary: dict) -> str:
     paper, model = summary['paper'], summary['model']
     first, second = summary['offset_error_deg_first_move'], summary['offset_error_deg_second_move']
     return '\n'.join([
-        f"| {summary['cases']} cases, tolerance {summary['tolerance_um']:g} um | paper's rule "
+        f"| {summary['cases']} cases, tolerance {summary['tolerance_um']:g} um, "
+        f"{summary['steering']} steering | paper's rule "
         f'| model-based |',
         '|---|---|---|',
         f"| reached | {paper['reached_percent']:.0f} % | {model['reached_percent']:.0f} % |",
@@ -197,6 +228,10 @@ def table(summary: dict) -> str:
         f"| xi2, xi3 error after the second move: median, max | - | "
         f"{second['median']:.4f}, {second['max']:.4f} deg "
         f"({second['within_0.1_deg_percent']:.0f} % within 0.1 deg) |",
+        *([f"| backlash error after the last move: median, max | - | "
+           f"{summary['backlash_error_deg_last']['median']:.3f}, "
+           f"{summary['backlash_error_deg_last']['max']:.3f} deg |"]
+          if 'backlash_error_deg_last' in summary else []),
         f"| wall time per plan: median, max | - | {summary['plan_wall_ms']['median']:.1f}, "
         f"{summary['plan_wall_ms']['max']:.1f} ms |",
         f"| wall time per refit (after each stop): median, max | - | "
@@ -237,7 +272,7 @@ def figure(path: Path, rows: list[dict], tolerance_um: float) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    cases = make_cases(args.cases, args.seed)
+    cases = make_cases(args.cases, args.seed, args.steering)
     if not cases:
         print('compare-controllers: --cases 0: nothing to run', file=sys.stderr)
         return 0

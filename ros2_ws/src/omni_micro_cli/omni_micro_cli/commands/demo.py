@@ -16,7 +16,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_cli.arguments import add_timing_arguments, check_timing, non_negative_int
+from omni_micro_cli.arguments import (
+    add_steering_argument,
+    add_timing_arguments,
+    check_timing,
+    non_negative_int,
+    steering_overrides,
+)
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
@@ -30,7 +36,7 @@ if TYPE_CHECKING:
 
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
-RUNS = ('open_loop', 'closed_loop', 'model', 'images')
+RUNS = ('open_loop', 'closed_loop', 'model', 'images', 'realistic_steering')
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -39,7 +45,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Run the paper's Fig. 11 scenario, (0,0) -> (100,0) mm, through the ROS 2 "
                     "node graph: one open-loop move of 7 s, then vision feedback by the "
                     "paper's rule, then by the model-based controller, then by the paper's "
-                    "rule on rendered camera images (camera_node + tracker_node); print the "
+                    "rule on rendered camera images (camera_node + tracker_node), then by the "
+                    "paper's rule on a robot with realistic steering; print the "
                     "deviations beside the paper's (13 mm and 0.0124 mm) and write the "
                     "comparison figure, plus the open-loop figures of Figs. 6-8 from the core. "
                     "Exit 0 when every closed loop reached the goal, 1 otherwise, 2 for a bad "
@@ -47,12 +54,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--out', type=output_folder, default='out/demo', metavar='DIR',
                         help='where the figures and summary go (default out/demo)')
     add_timing_arguments(parser, default_rtf='max')
+    add_steering_argument(parser, scope=". Here: the model-based and image runs' steering; "
+                          "the paper's rows stay ideal (their numbers are the point), and the "
+                          "last row is always the paper's rule with realistic steering")
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
     parser.add_argument('--record', type=output_folder, metavar='DIR',
                         help='record the runs as bags DIR/fig11_open_loop, '
-                             'DIR/fig11_closed_loop, DIR/fig11_model and DIR/fig11_images '
+                             'DIR/fig11_closed_loop, DIR/fig11_model, DIR/fig11_images and '
+                             'DIR/fig11_realistic_steering '
                              '(without the images themselves)')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
@@ -74,7 +85,8 @@ def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
 
 
 def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
-              bag: Path | None, mode: str = 'paper', vision: str = 'model') -> GraphResult:
+              bag: Path | None, mode: str = 'paper', vision: str = 'model',
+              steering: str = 'ideal') -> GraphResult:
     from omni_micro_cli.orchestration.graph import run_graph
 
     return run_graph(GraphOptions(
@@ -83,11 +95,13 @@ def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Pat
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
         force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {},
-        view=view_from_args(args), vision=vision))
+        view=view_from_args(args), vision=vision,
+        dynamics_overrides=steering_overrides(steering)))
 
 
 def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
-                     model: GraphResult, images: GraphResult) -> str:
+                     model: GraphResult, images: GraphResult,
+                     realistic: GraphResult) -> str:
 
     return '\n'.join([
         '| Fig. 11, (0,0) -> (100,0) mm | paper | this graph |',
@@ -106,6 +120,11 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
         f'| vision feedback on rendered images: periods | - | {images.periods} |',
         f'| vision feedback on rendered images: simulated time | - | '
         f'{images.sim_time_s:.2f} s |',
+        f'| vision feedback, realistic steering: deviation | - | '
+        f'{realistic.deviation_m * 1e6:.2f} um |',
+        f'| vision feedback, realistic steering: periods | - | {realistic.periods} |',
+        f'| vision feedback, realistic steering: simulated time | - | '
+        f'{realistic.sim_time_s:.2f} s |',
         ''])
 
 
@@ -131,16 +150,24 @@ def run(args: argparse.Namespace) -> int:
         _progress(f'  {closed_loop.outcome}: deviation {closed_loop.deviation_m * 1e6:.2f} um '
                   f'after {closed_loop.periods} periods')
         _progress('Fig. 11 with the model-based controller through the node graph')
-        model = graph_run(args, None, scratch / 'logs', bags['model'], mode='model')
+        model = graph_run(args, None, scratch / 'logs', bags['model'], mode='model',
+                          steering=args.steering)
         _progress(f'  {model.outcome}: deviation {model.deviation_m * 1e6:.2f} um '
                   f'after {model.periods} periods')
         _progress('Fig. 11 with vision feedback on rendered images (camera_node + '
                   'tracker_node)')
-        images = graph_run(args, None, scratch / 'logs', bags['images'], vision='images')
+        images = graph_run(args, None, scratch / 'logs', bags['images'], vision='images',
+                           steering=args.steering)
         _progress(f'  {images.outcome}: deviation {images.deviation_m * 1e6:.2f} um '
                   f'after {images.periods} periods')
+        _progress('Fig. 11 with vision feedback on a robot with realistic steering')
+        realistic = graph_run(args, None, scratch / 'logs', bags['realistic_steering'],
+                              steering='realistic')
+        _progress(f'  {realistic.outcome}: deviation {realistic.deviation_m * 1e6:.2f} um '
+                  f'after {realistic.periods} periods')
         for name, result in (('closed loop', closed_loop), ('model-based loop', model),
-                             ('loop on images', images)):
+                             ('loop on images', images),
+                             ('loop with realistic steering', realistic)):
             if result.outcome != 'reached':
                 raise RunFailed(f'the {name} ended {result.outcome}: {result.reason}')
         used = np.array([c[1:3] for c in closed_loop.captures]).reshape(-1, 2)
@@ -150,10 +177,11 @@ def run(args: argparse.Namespace) -> int:
             np.array([r[1:] for r in closed_loop.route]).reshape(-1, 2), used,
             paper.FIG11_GOAL_M, zoom_half_width_m=20e-6,
             title='Fig. 11 through the node graph')
-        table = comparison_table(open_loop, closed_loop, model, images)
+        table = comparison_table(open_loop, closed_loop, model, images, realistic)
         (scratch / 'fig11_graph.md').write_text(table)
         summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json(),
-                     'model': model.as_json(), 'images': images.as_json()}
+                     'model': model.as_json(), 'images': images.as_json(),
+                     'realistic_steering': realistic.as_json()}
         for summary in summaries.values():
             # The logs move with the rest from the scratch folder into --out.
             summary['log_dir'] = str(args.out / Path(str(summary['log_dir'])).relative_to(scratch))

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from omni_micro_cli.arguments import add_steering_argument
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text, output_file
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
@@ -31,14 +32,21 @@ from omni_micro_control.feedback import Observation, mean_observation
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
+    STEERING_FITS,
     Chain,
     Fit,
     RecordedMove,
+    SteeringTracker,
     Stop,
     fit_parameters,
 )
 from omni_micro_sim.errors import CommandError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.parameters import (
+    MotorLimits,
+    RobotParameters,
+    SteeringParameters,
+    steering_preset,
+)
 from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points
 
 CAMERAS = ('macro', 'micro')
@@ -68,13 +76,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "residual of every stop. Exit 0 when xi2 and xi3 were identified, 1 when "
                     'the bag holds too little motion, 2 for a bad argument.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='a bag recorded with --record')
-    parser.add_argument('--fit', type=parameter_names, default=DEFAULT_FIT, metavar='NAMES',
+    parser.add_argument('--fit', type=parameter_names, metavar='NAMES',
                         help=f'parameters to fit, comma-separated (default {",".join(DEFAULT_FIT)}'
                              '); those the data do not pin down stay nominal')
+    add_steering_argument(parser, scope='. The steering of the robot that made the bag: with '
+                          'realistic, each move steers from where the commands left the gear, '
+                          'and backlash and contact_radius (the pivot friction) can be fitted '
+                          '(default fit: the above and backlash)')
     parser.add_argument('--json', action='store_true',
                         help='print a final JSON line: wheel_offsets_deg, wheel_offsets_ci_deg '
-                             '(95 %% half-widths) and every other fitted parameter under its '
-                             'ROS parameter name')
+                             '(95 %% half-widths), steering_backlash_deg and '
+                             'steering_backlash_ci_deg when fitted, and every other fitted '
+                             'parameter under its ROS parameter name')
     parser.add_argument('--write-params', type=output_file, metavar='FILE',
                         help='write a params YAML with the identified values for dynamics_node '
                              '(robot.*) and for the model controller (model.robot.*)')
@@ -111,12 +124,15 @@ def _stop(observations: list[Observation]) -> Stop:
     return Stop(mean.x_m, mean.y_m, mean.phi_rad, mean_spread, mean.stamp_s, mean.camera)
 
 
-def read_run(bag: Path) -> RecordedRun:
+def read_run(bag: Path, steering: SteeringParameters | None = None) -> RecordedRun:
     """The chains of stops and moves a bag holds.
 
     A move's stop is every capture after its start and before the next move's start; a move
     with no capture after it (the run ended, or the robot left every field) ends a chain.
+    With a steering motion (``steering``) each move first steers: its moves carry where the
+    commands left the gear, and a move ends that much later.
     """
+    tracker = None if steering is None or steering.instantaneous else SteeringTracker(steering)
     from omni_micro_tools.bags import read_bag
 
     topics = ['/wheel_trajectory'] + [f'/camera/{c}/pose' for c in CAMERAS] + \
@@ -155,8 +171,12 @@ def read_run(bag: Path) -> RecordedRun:
         except CommandError as error:
             raise UsageError(f'{str(bag)!r}: the move at {start_s:.3f} s: {error}') from None
         assert command.profile is not None
-        moves.append((start_s, start_s + command.profile.end_time_s,
-                      RecordedMove(command.steering_rad, command.profile)))
+        if tracker is None:
+            commanded, steering_s = RecordedMove(command.steering_rad, command.profile), 0.0
+        else:
+            commanded = tracker.move(command.steering_rad, command.profile)
+            steering_s = tracker.steering_time_s
+        moves.append((start_s, start_s + steering_s + command.profile.end_time_s, commanded))
     if not moves:
         raise UsageError(f'{str(bag)!r} has no move on /wheel_trajectory: nothing to identify')
     if not observations:
@@ -293,6 +313,10 @@ def summary_json(fit: Fit, dropped: dict[str, float]) -> dict[str, object]:
             offsets[slot] = math.degrees(float(fit.values[index]))
             widths[slot] = math.degrees(float(fit.half_widths_95[index]))
         else:
+            if name == 'backlash':
+                result['steering_backlash_deg'] = math.degrees(float(fit.values[index]))
+                result['steering_backlash_ci_deg'] = math.degrees(
+                    float(fit.half_widths_95[index]))
             result[PARAMETERS[name].ros_name] = float(fit.values[index])
             result[f'{PARAMETERS[name].ros_name}_ci'] = float(fit.half_widths_95[index])
     result = {'wheel_offsets_deg': offsets, 'wheel_offsets_ci_deg': widths, **result,
@@ -303,10 +327,15 @@ def summary_json(fit: Fit, dropped: dict[str, float]) -> dict[str, object]:
 
 
 def params_yaml(fit: Fit) -> str:
-    robot: dict[str, object] = {}
+    robot: dict[str, Any] = {}
     for index, name in enumerate(fit.names):
         if name not in OFFSETS:
-            robot[name] = float(fit.values[index])
+            # Nested as the ROS parameter name says (robot.steering.backlash_rad).
+            *groups, leaf = PARAMETERS[name].ros_name.removeprefix('robot.').split('.')
+            section = robot
+            for group in groups:
+                section = section.setdefault(group, {})
+            section[leaf] = float(fit.values[index])
     robot['wheel_offsets_rad'] = [float(v) for v in fit.robot.wheel_offsets_rad]
     header = ('# Identified by omni-micro identify: the dynamics simulate this robot, and the\n'
               '# model controller starts from it. Use with: omni-micro run --params FILE\n')
@@ -317,13 +346,21 @@ def params_yaml(fit: Fit) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    recorded = read_run(args.bag)
+    steering = steering_preset(args.steering)
+    names = args.fit or (DEFAULT_FIT + (('backlash',) if args.steering != 'ideal' else ()))
+    needs_motion = [name for name in names if name in STEERING_FITS]
+    if needs_motion and steering.instantaneous:
+        raise UsageError(f'--fit {",".join(needs_motion)}: ideal steering has no backlash or '
+                         'pivot friction to fit; give --steering realistic (the steering of '
+                         'the robot that made the bag)')
+    args.fit = names
+    recorded = read_run(args.bag, steering)
     if not recorded.chains:
         raise RunFailed(f'{str(args.bag)!r}: no move between two seen stops: nothing to '
                         f'identify (not identifiable)')
     print(f'identify: fitting {", ".join(args.fit)} to {recorded.moves} moves', file=sys.stderr)
     try:
-        fit, dropped = identify(recorded, args.fit, RobotParameters())
+        fit, dropped = identify(recorded, args.fit, RobotParameters(steering=steering))
     except IdentificationError as error:
         raise RunFailed(str(error)) from None
     print(report(fit, dropped, recorded))

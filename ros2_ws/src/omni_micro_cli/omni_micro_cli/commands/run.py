@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from omni_micro_cli.arguments import (
+    add_steering_argument,
     add_timing_arguments,
     check_timing,
     float_list,
@@ -15,6 +16,7 @@ from omni_micro_cli.arguments import (
     non_negative_int,
     positive_float,
     probability,
+    steering_overrides,
 )
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
@@ -32,6 +34,7 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                         help='a ROS params YAML applied to every node after its package '
                              'defaults (sections dynamics_node:, vision_node:, controller_node:)')
     add_timing_arguments(parser, default_rtf='1')
+    add_steering_argument(parser)
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
                         help='camera noise seed (default 0); the same seed gives the same run '
                              'at any --rtf and any load')
@@ -155,8 +158,21 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         vision_overrides=faults, vision=args.vision,
                         record_images=args.record_images,
                         controller_overrides=controller_overrides(args),
+                        dynamics_overrides=preset_under_params(args),
                         respawn=getattr(args, 'respawn', False), markers=args.markers,
                         view=view_from_args(args))
+
+
+def preset_under_params(args: argparse.Namespace) -> dict[str, object]:
+    """The --steering preset's values, except those the user's --params file sets: the file
+    says what this robot has (e.g. its measured backlash), the preset the rest."""
+    overrides = steering_overrides(args.steering)
+    if args.params is not None and overrides:
+        from omni_micro_common import params
+
+        given = params.node_parameters([args.params], 'dynamics_node')
+        overrides = {name: value for name, value in overrides.items() if name not in given}
+    return overrides
 
 
 def summary_line(result: GraphResult) -> str:

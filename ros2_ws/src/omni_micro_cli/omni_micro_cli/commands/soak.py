@@ -12,9 +12,11 @@ import numpy as np
 import yaml
 
 from omni_micro_cli.arguments import (
+    add_steering_argument,
     add_timing_arguments,
     check_timing,
     non_negative_int,
+    steering_overrides,
     whole_number_in,
 )
 from omni_micro_cli.commands.run import echo_to_stderr
@@ -42,6 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         type=whole_number_in(0, 100_000), default=50, metavar='N',
                         help='how many random goals, one after the other (default 50)')
     add_timing_arguments(parser, default_rtf='max')
+    add_steering_argument(parser)
     parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N',
                         help='seed of the goals and of the camera noise (default 1)')
     parser.add_argument('--out', type=output_folder, default='out/soak', metavar='DIR',
@@ -82,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
         goal_m=goals[0], more_goals_m=goals[1:], seed=args.seed, real_time_factor=args.rtf,
         lockstep=not args.free_running,
         log_dir=folder / 'logs', record=bag, timeout_s=600.0,
-        dynamics_overrides={'initial_pose': [*DEFAULT_RIG.micro.center_m, 0.0]},
+        dynamics_overrides={'initial_pose': [*DEFAULT_RIG.micro.center_m, 0.0],
+                            **steering_overrides(args.steering)},
         echo=None if args.quiet else echo_to_stderr, view=view_from_args(args)))
     reached = sum(1 for status in result.goals if status['outcome'] == 'reached')
     recorded = bag_counts(bag)
