@@ -16,7 +16,8 @@ def test_both_modes_run_the_same_cases_and_the_model_needs_fewer_periods(tmp_pat
                            '--cases', '2', '--workers', '1', '--out', str(out)],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "| 2 cases, tolerance 0.5 um | paper's rule | model-based |" in done.stdout
+    assert ("| 2 cases, tolerance 0.5 um, ideal steering | paper's rule | model-based |"
+            in done.stdout)
     assert '2/2 cases' in done.stderr
     rows = [json.loads(line) for line in (out / 'cases.jsonl').read_text().splitlines()]
     assert [row['index'] for row in rows] == [0, 1]
@@ -28,3 +29,20 @@ def test_both_modes_run_the_same_cases_and_the_model_needs_fewer_periods(tmp_pat
     assert summary['model_not_worse_percent'] == 100.0
     assert (out / 'comparison.png').stat().st_size > 10_000
     assert (out / 'comparison.md').read_text().strip() in done.stdout
+
+
+def test_with_realistic_steering_each_robot_has_its_own_backlash_and_both_modes_reach(tmp_path):
+    out = tmp_path / 'compare'
+    done = subprocess.run([sys.executable, '-m', 'omni_micro_cli', 'compare-controllers',
+                           '--cases', '2', '--workers', '1', '--steering', 'realistic',
+                           '--out', str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert '2 cases, tolerance 0.5 um, realistic steering' in done.stdout
+    rows = [json.loads(line) for line in (out / 'cases.jsonl').read_text().splitlines()]
+    assert len({row['backlash_deg'] for row in rows}) == 2
+    for row in rows:
+        assert 0.0 <= row['backlash_deg'] <= 2.0
+        assert row['paper_outcome'] == row['model_outcome'] == 'reached'
+        assert row['model_periods'] <= row['paper_periods']
+        assert abs(row['backlash_error_deg_last']) < 0.5   # learnt on the way
+    assert 'backlash error after the last move' in done.stdout

@@ -1,6 +1,7 @@
 """The open-loop command line, run as a user runs it."""
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -37,7 +38,22 @@ def test_passive_wheel1_changes_the_result():
     assert p['drift_mm'] > 3 * a['drift_mm']
 
 
+def test_a_steering_only_move_turns_the_chassis_against_the_steering():
+    done = omni_micro('simulate', '--theta-deg', '90', '--duration', '0', '--steer-from-deg',
+                      '0', '--steering', 'realistic', '--json', check=True)
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result['steering_time_s'] == pytest.approx(0.6, abs=0.01)
+    assert result['final_steering_deg'] == pytest.approx(89.5, abs=0.06)   # half the play
+    assert -0.01 < result['phi_deg'] < -0.005
+    assert math.hypot(result['x_mm'], result['y_mm']) < 1e-9
+    ideal = omni_micro('simulate', '--theta-deg', '90', '--duration', '1', '--json', check=True)
+    assert json.loads(ideal.stdout.strip().splitlines()[-1])['steering_time_s'] == 0.0
+
+
 @pytest.mark.parametrize('args, named', [
+    (['--theta-deg', '0', '--duration', '0'], '--steer-from-deg'),
+    (['--theta-deg', '0', '--duration', '1', '--steering', 'sloppy'], '--steering'),
+    (['--theta-deg', '0', '--duration', '1', '--steer-from-deg', 'nan'], '--steer-from-deg'),
     (['--theta-deg', '0', '--duration', 'nan'], '--duration'),
     (['--theta-deg', '0', '--duration', '-1'], '--duration'),
     (['--theta-deg', 'inf', '--duration', '1'], '--theta-deg'),
@@ -58,9 +74,10 @@ def test_figures_writes_every_figure_and_the_table(tmp_path):
     names = {p.name for p in out.iterdir()}
     assert {'fig6_wheel1_state.png', 'fig7_assembly_error.png', 'fig8a_longitudinal_slip.png',
             'fig8b_transverse_slip.png', 'fig8c_route.png', 'fig11_open_loop_route.png',
-            'comparison.md', 'figures.json'} <= names
+            'steering_turn.png', 'comparison.md', 'figures.json'} <= names
     numbers = json.loads((out / 'figures.json').read_text())
     assert round(numbers['fig8_drift_mm'], 4) == 0.4727
+    assert -10 < numbers['steering_90deg_turn_mdeg_at_50um'] < -8
     assert not [p for p in tmp_path.iterdir() if '.partial-' in p.name]
 
 

@@ -132,6 +132,14 @@ def test_move_watcher_needs_the_rotation_and_a_standstill():
     assert not watcher.on_wheel_state((1.74, 6.74, 6.74), (0.0, 0.0, 0.0))  # reported once
 
 
+def test_move_watcher_waits_for_the_steering_to_stop_too():
+    watcher = MoveWatcher()
+    watcher.on_wheel_state((0.0, 5.0, 5.0), (0.0, 0.0, 0.0))
+    watcher.expect(0.0)   # a steering-only move: no rotation to wait for
+    assert not watcher.on_wheel_state((0.0, 5.0, 5.0), (0.0, 0.0, 0.0), 2.1)   # steering
+    assert watcher.on_wheel_state((0.0, 5.0, 5.0), (0.0, 0.0, 0.0), 0.0)
+
+
 def test_out_of_view_before_timer2_ends_is_lost_when_it_ends():
     controller = settled_controller()
     assert controller.on_out_of_field(0.04) is None

@@ -123,3 +123,37 @@ def test_a_wrong_model_falls_back_to_the_paper_rule_and_still_reaches():
     assert fallbacks and all("the paper's rule for this period" in m.note for m in fallbacks)
     assert isinstance(result.planner, ModelBasedPlanner)
     assert "from the model's prediction" in result.planner.log.fallbacks[0]
+
+
+def test_the_play_operator_puts_the_wheels_where_the_robot_has_them():
+    from omni_micro_control.identification import SteeringTracker, wheels_after
+    from omni_micro_sim.parameters import steering_preset
+    from omni_micro_sim.simulator import STANDING, SlipSimulator
+
+    steering = steering_preset('realistic').replace(backlash_rad=math.radians(3.0))
+    simulator = SlipSimulator(RobotParameters(steering=steering))
+    tracker = SteeringTracker(steering)
+    # Forward, a reversal smaller than the play (the wheels stay), a larger one, a repeat.
+    for degrees in (40.0, 38.5, 38.5, 30.0, 170.0, -175.0, -175.0, 0.2):
+        angle = math.radians(degrees)
+        tracker.move(angle, STANDING)
+        simulator.command(angle, STANDING)
+        simulator.step(2.0)
+        assert simulator.steering_rad == pytest.approx(
+            wheels_after(tracker.gear_path, steering.backlash_rad), abs=1e-12)
+
+
+def test_the_model_mode_learns_the_backlash_of_a_realistic_robot_in_the_twin():
+    from omni_micro_sim.parameters import steering_preset
+
+    preset = steering_preset('realistic')
+    truth = robot_with(-2.0, 3.5, steering=preset.replace(backlash_rad=math.radians(1.7)))
+    result = run_closed_loop((0.1, 0.0005), robot=truth, seed=4,
+                             config=FeedbackConfig(mode='model', tolerance_m=0.5e-6),
+                             model_robot=RobotParameters(steering=preset))
+    paper = run_closed_loop((0.1, 0.0005), robot=truth, seed=4,
+                            config=FeedbackConfig(tolerance_m=0.5e-6))
+    assert result.outcome is Outcome.REACHED and paper.outcome is Outcome.REACHED
+    assert result.periods <= 6 < paper.periods
+    estimate = result.planner.estimate()
+    assert abs(math.degrees(estimate['backlash']) - 1.7) < 0.3

@@ -68,9 +68,42 @@ def test_too_little_motion_says_not_identifiable_instead_of_a_number(recorded, o
     assert '-2.5' not in done.stdout
 
 
+TRUE_BACKLASH_DEG = 1.5
+
+
+def test_a_known_backlash_comes_back_within_its_interval(tmp_path_factory, omni_micro, tmp_path):
+    robot = tmp_path_factory.mktemp('backlash') / 'robot.yaml'
+    robot.write_text(yaml.safe_dump({'dynamics_node': {'ros__parameters': {'robot': {
+        'wheel_offsets_rad': [math.radians(value) for value in TRUE_OFFSETS_DEG],
+        'steering': {'backlash_rad': math.radians(TRUE_BACKLASH_DEG)}}}}}))
+    bag = tmp_path / 'bag'
+    done = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--steering', 'realistic',
+                      '--params', str(robot), '--record', str(bag), '--quiet', '--no-markers',
+                      '--log-dir', str(tmp_path / 'logs'))
+    assert done.returncode == 0, done.stderr[-2000:]
+    params = tmp_path / 'identified.yaml'
+    done = omni_micro('identify', str(bag), '--steering', 'realistic', '--fit',
+                      'xi2,xi3,backlash', '--json', '--write-params', str(params))
+    assert done.returncode == 0, done.stderr[-2000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    error = result['steering_backlash_deg'] - TRUE_BACKLASH_DEG
+    assert abs(error) <= result['steering_backlash_ci_deg'] < 0.3
+    for found, width, truth in zip(result['wheel_offsets_deg'], result['wheel_offsets_ci_deg'],
+                                   TRUE_OFFSETS_DEG, strict=True):
+        assert abs(found - truth) <= max(width, 1e-12)
+    written = yaml.safe_load(params.read_text())['dynamics_node']['ros__parameters']['robot']
+    assert math.degrees(written['steering']['backlash_rad']) == pytest.approx(
+        result['steering_backlash_deg'])
+    # The same bag read as if the steering were the paper's: the model cannot explain it.
+    ideal = omni_micro('identify', str(bag), '--fit', 'xi2,xi3', '--json')
+    assert json.loads(ideal.stdout.strip().splitlines()[-1])['reduced_chi_square'] > 2 * \
+        result['reduced_chi_square']
+
+
 @pytest.mark.parametrize('args, message', [
     (['no/such/bag'], 'does not exist'),
     (['BAG', '--fit', 'xi2,mu'], "expected a comma-separated list of xi2"),
+    (['BAG', '--fit', 'xi2,backlash'], 'give --steering realistic'),
 ])
 def test_bad_identify_arguments_exit_2_naming_the_value(args, message, recorded, omni_micro):
     args = [str(recorded / 'paper') if arg == 'BAG' else arg for arg in args]

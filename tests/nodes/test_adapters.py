@@ -59,6 +59,25 @@ def test_dynamics_node_refuses_a_malformed_initial_pose(context):
         DynamicsNode(context=context, parameter_overrides=overrides(initial_pose=[0.0, 1.0]))
 
 
+@pytest.mark.parametrize('name, value', [
+    ('robot.steering.backlash_rad', -0.01), ('robot.steering.motor_speed_rad_s', 0.0),
+    ('robot.steering.contact_radius_m', math.nan), ('robot.center_of_mass_m', [0.01, 0.0])])
+def test_dynamics_node_refuses_bad_steering_parameters_naming_them(context, name, value):
+    with pytest.raises(ParameterError, match=name.removeprefix('robot.').split('.')[-1]):
+        DynamicsNode(context=context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_dynamics_node_takes_the_steering_from_its_parameters(context):
+    node = DynamicsNode(context=context, parameter_overrides=overrides(
+        robot__steering__instantaneous=False, robot__steering__backlash_rad=0.02))
+    try:
+        steering = node.grid.simulator.params.steering
+        assert not steering.instantaneous and steering.backlash_rad == 0.02
+        assert node.get_parameter('robot.steering.gear_ratio').value == 3.0
+    finally:
+        node.destroy_node()
+
+
 # -- vision_node --------------------------------------------------------------------------------
 def test_vision_node_lets_only_faults_change_while_it_runs(context):
     node = VisionNode(context=context)

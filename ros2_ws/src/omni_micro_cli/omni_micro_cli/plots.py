@@ -119,3 +119,23 @@ def remaining_distance(path: Path, periods_remaining: np.ndarray) -> None:
     axes.grid(True, which='both', alpha=0.3)
     axes.legend()
     _save(figure, path)
+
+
+def steering_turn(path: Path, steering_deg: np.ndarray, turns_rad: dict[float, np.ndarray],
+                  creep_ratio: dict[float, float]) -> None:
+    """Chassis heading turned by a steering-only move against the steering angle, one line per
+    contact radius (m), with the linear creep law's prediction dashed."""
+    figure, axes = plt.subplots(figsize=(6.8, 4.4))
+    for index, (radius, turns) in enumerate(turns_rad.items()):
+        colour = plt.get_cmap('viridis')(index / max(1, len(turns_rad) - 1))
+        axes.plot(steering_deg, np.degrees(turns) * 1e3, color=colour, marker='o',
+                  markersize=3, label=f'a = {radius * 1e6:g} um')
+        axes.plot(steering_deg, -steering_deg * creep_ratio[radius] * 1e3, color=colour,
+                  linestyle='--', linewidth=0.8)
+    axes.set_xlabel('steering turned at rest (deg)')
+    axes.set_ylabel('chassis heading turned (mdeg)')
+    axes.set_title('Steering at rest turns the chassis against it\n'
+                   '(realistic steering; dashed: linear creep law -kappa a^2/(L^2 + kappa a^2))')
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize=8)
+    _save(figure, path)

@@ -131,9 +131,38 @@ def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float) -> d
                          title=f'Fig. 11: open-loop route, 7 s (deviation '
                                f'{result.drift_m * 1e3:.2f} mm)')
 
+    numbers.update(steering_figure(out))
     (out / 'figures.json').write_text(json.dumps(numbers, indent=2) + '\n')
     (out / 'comparison.md').write_text(comparison_table(numbers))
     return numbers
+
+
+STEERING_RADII_M = (10e-6, 25e-6, 50e-6, 100e-6, 150e-6)
+
+
+def steering_figure(out: Path) -> dict[str, float]:
+    """The chassis heading turned by steering-only moves of the realistic steering (no
+    backlash, continuous steps), against the steering angle and the contact radius."""
+    from omni_micro_cli import plots
+    from omni_micro_sim import RobotParameters, simulate_open_loop
+    from omni_micro_sim.parameters import steering_preset
+
+    angles_deg = np.arange(15.0, 180.0 + 1e-9, 15.0)
+    _progress(f'steering: {angles_deg.size * len(STEERING_RADII_M)} steering-only moves')
+    preset = steering_preset('realistic').replace(backlash_rad=0.0, step_rad=0.0)
+    base = RobotParameters()
+    turns: dict[float, np.ndarray] = {}
+    ratios: dict[float, float] = {}
+    for radius in STEERING_RADII_M:
+        robot = base.replace(steering=preset.replace(contact_radius_m=radius))
+        turns[radius] = np.array([
+            simulate_open_loop(robot, math.radians(angle), 0.0,
+                               steer_from_rad=0.0).final_state.phi_rad for angle in angles_deg])
+        pivot = preset.pivot_coefficient * radius ** 2
+        ratios[radius] = pivot / (base.wheel_distance_m ** 2 + pivot)
+    plots.steering_turn(out / 'steering_turn.png', angles_deg, turns, ratios)
+    return {'steering_90deg_turn_mdeg_at_50um': float(
+        np.degrees(turns[50e-6][list(angles_deg).index(90.0)]) * 1e3)}
 
 
 def comparison_table(numbers: dict[str, float]) -> str:
