@@ -22,3 +22,28 @@ def test_a_default_row_builds_the_default_cameras():
 
 def test_a_default_row_builds_the_default_controller():
     assert config_of({**DEFAULT_ROW, 'mode': 'paper'}) == FeedbackConfig()
+
+
+def test_a_realistic_default_row_builds_the_realistic_preset():
+    from omni_micro_sim.parameters import steering_preset
+
+    robot = robot_of({**DEFAULT_ROW, 'steering': 'realistic'})
+    assert robot.steering == steering_preset('realistic')
+
+
+def test_a_study_steering_is_a_preset_and_the_flag_may_not_contradict_the_file():
+    import pytest
+
+    from omni_micro_cli.commands.study.command import with_steering
+    from omni_micro_cli.commands.study.spec import parse_study
+    from omni_micro_cli.errors import StudyError, UsageError
+
+    plain = 'scenario: closed_loop\ngrid: {backlash_deg: [0.5, 1.5]}\n'
+    with pytest.raises(StudyError, match="expected one of ideal, realistic, got 'sloppy'"):
+        parse_study(plain + 'steering: sloppy\n')
+    realistic = with_steering(parse_study(plain), 'realistic', parse_study)
+    assert realistic.steering == 'realistic'
+    assert {row['steering'] for row in realistic.runs()} == {'realistic'}
+    assert parse_study(realistic.text).steering == 'realistic'   # what --resume reads back
+    with pytest.raises(UsageError, match='disagrees'):
+        with_steering(parse_study(plain + 'steering: ideal\n'), 'realistic', parse_study)

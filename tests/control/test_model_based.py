@@ -155,5 +155,6 @@ def test_the_model_mode_learns_the_backlash_of_a_realistic_robot_in_the_twin():
                             config=FeedbackConfig(tolerance_m=0.5e-6))
     assert result.outcome is Outcome.REACHED and paper.outcome is Outcome.REACHED
     assert result.periods <= 6 < paper.periods
+    assert isinstance(result.planner, ModelBasedPlanner)
     estimate = result.planner.estimate()
     assert abs(math.degrees(estimate['backlash']) - 1.7) < 0.3

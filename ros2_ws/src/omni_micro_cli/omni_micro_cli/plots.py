@@ -132,10 +132,11 @@ def steering_turn(path: Path, steering_deg: np.ndarray, turns_rad: dict[float, n
                   markersize=3, label=f'a = {radius * 1e6:g} um')
         axes.plot(steering_deg, -steering_deg * creep_ratio[radius] * 1e3, color=colour,
                   linestyle='--', linewidth=0.8)
+    axes.plot([], [], color='grey', linestyle='--', linewidth=0.8,
+              label='linear creep law: -kappa a^2 / (L^2 + kappa a^2)')
     axes.set_xlabel('steering turned at rest (deg)')
     axes.set_ylabel('chassis heading turned (mdeg)')
-    axes.set_title('Steering at rest turns the chassis against it\n'
-                   '(realistic steering; dashed: linear creep law -kappa a^2/(L^2 + kappa a^2))')
+    axes.set_title('Steering at rest turns the chassis against it (realistic steering)')
     axes.grid(True, alpha=0.3)
     axes.legend(fontsize=8)
     _save(figure, path)

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import whole_number_in
+from omni_micro_cli.arguments import STEERING_CHOICES, whole_number_in
 from omni_micro_cli.errors import StudyError, UsageError
 from omni_micro_cli.outputs import output_folder
 
@@ -43,6 +43,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'core)')
     parser.add_argument('--scheduler', metavar='tcp://HOST:PORT',
                         help='submit to this running Dask scheduler instead of a local cluster')
+    parser.add_argument('--steering', choices=STEERING_CHOICES,
+                        help="every run's steering motion, as the file's steering: key says "
+                             '(ideal: the paper, the default; realistic: motor limits, backlash, '
+                             'pivot friction, with the backlash_deg, contact_radius_um and '
+                             'steering_rate_deg_s parameters)')
     parser.add_argument('--serial', action='store_true',
                         help='no Dask: a plain loop in this process (the reference)')
     parser.set_defaults(handler=run)
@@ -60,6 +65,9 @@ def _check(args: argparse.Namespace) -> None:
     elif args.study is None or args.out is None:
         raise UsageError('give STUDY.yaml and --out DIR (or --example, --resume DIR, '
                          '--rerun DIR ROW)')
+    if args.steering and args.study is None:
+        raise UsageError('--steering sets a new study\'s steering: give STUDY.yaml (a resumed '
+                         'or rerun study keeps its own)')
     if args.serial and (args.scheduler or args.workers):
         raise UsageError('--serial runs in this process: no --workers or --scheduler')
     if args.scheduler and args.workers:
@@ -88,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
             out = args.out
             study = (parse_study(_stdin_text(), 'stdin') if str(args.study) == '-'
                      else load_study(args.study))
+            if args.steering and args.steering != study.steering:
+                study = with_steering(study, args.steering, parse_study)
             created = not out.exists()
             execution.prepare_directory(study, out)
     except StudyError as error:
@@ -122,6 +132,18 @@ def run(args: argparse.Namespace) -> int:
           f'{resumed}; rows, summary{" and figure" if drawn else ""} in {out}/',
           file=sys.stderr)
     return 0
+
+
+def with_steering(study: Any, steering: str, parse: Any) -> Any:
+    """The study with ``steering`` (--steering), its kept text saying so too: a resumed study
+    must run what this one ran."""
+    import yaml
+
+    if 'steering' in (yaml.safe_load(study.text) or {}):
+        raise UsageError(f'the study file says steering: {study.steering}; --steering '
+                         f'{steering} disagrees: change one')
+    text = study.text.rstrip('\n') + f'\nsteering: {steering}   # set by --steering\n'
+    return parse(text, study.name)
 
 
 def _stdin_text() -> str:

@@ -41,7 +41,8 @@ CHECKPOINT_INTERVAL_S = 2.0
 def schema(study: Study) -> pa.Schema:
     """Every row's columns and types: inputs, seed, metrics, wall time, error."""
     fields = [pa.field(name, pa.int64()) for name in ('run', 'point', 'replicate')]
-    fields += [pa.field('mode', pa.string()), pa.field('seed', pa.int64())]
+    fields += [pa.field('mode', pa.string()), pa.field('seed', pa.int64()),
+               pa.field('steering', pa.string())]
     fields += [pa.field(name, pa.float64()) for name in study.parameters]
     for column in study.metric_columns:
         kind = {'outcome': pa.string(), 'periods': pa.int64()}.get(column, pa.float64())

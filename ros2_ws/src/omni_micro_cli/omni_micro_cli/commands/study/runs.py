@@ -14,7 +14,7 @@ from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim import paper
-from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.parameters import RobotParameters, SteeringParameters, steering_preset
 from omni_micro_sim.simulator import simulate_open_loop
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig
@@ -23,12 +23,24 @@ from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig
 FAILED = 'failed'
 
 
+def steering_of(row: dict[str, Any]) -> SteeringParameters:
+    """The row's steering: its preset, with the row's own values where it steers in time."""
+    preset = steering_preset(row.get('steering', 'ideal'))
+    if preset.instantaneous:
+        return preset
+    return preset.replace(
+        backlash_rad=math.radians(row['backlash_deg']),
+        contact_radius_m=row['contact_radius_um'] / 1e6,
+        motor_speed_rad_s=math.radians(row['steering_rate_deg_s']) * preset.gear_ratio)
+
+
 def robot_of(row: dict[str, Any]) -> RobotParameters:
     return RobotParameters(
         wheel_offsets_rad=(math.radians(row['xi1_deg']), math.radians(row['xi2_deg']),
                            math.radians(row['xi3_deg'])),
         mu_longitudinal=row['mu_longitudinal'], mu_transverse=row['mu_transverse'],
-        cantilever_offset_m=row['cantilever_offset_mm'] * 1e-3, mass_kg=row['mass_g'] * 1e-3)
+        cantilever_offset_m=row['cantilever_offset_mm'] * 1e-3, mass_kg=row['mass_g'] * 1e-3,
+        steering=steering_of(row))
 
 
 def start_of(row: dict[str, Any]) -> RobotState:
@@ -66,7 +78,10 @@ def _pose(state: RobotState) -> dict[str, float]:
 def closed_loop(row: dict[str, Any]) -> dict[str, Any]:
     result = run_closed_loop((row['goal_x_mm'] * 1e-3, row['goal_y_mm'] * 1e-3),
                              robot=robot_of(row), config=config_of(row), rig=rig_of(row),
-                             seed=int(row['seed']), start=start_of(row))
+                             seed=int(row['seed']), start=start_of(row),
+                             # The model knows the steering's form, not this robot's values.
+                             model_robot=RobotParameters(
+                                 steering=steering_preset(row.get('steering', 'ideal'))))
     metrics: dict[str, Any] = {
         'outcome': result.outcome.value, 'deviation_um': result.deviation_m * 1e6,
         'periods': result.periods, 'sim_time_s': result.sim_time_s,
@@ -75,6 +90,8 @@ def closed_loop(row: dict[str, Any]) -> dict[str, Any]:
         last = result.planner.log.estimates[-1]
         metrics['xi2_identified_deg'] = math.degrees(last['xi2'])
         metrics['xi3_identified_deg'] = math.degrees(last['xi3'])
+        if 'backlash' in last:
+            metrics['backlash_identified_deg'] = math.degrees(last['backlash'])
     return metrics
 
 

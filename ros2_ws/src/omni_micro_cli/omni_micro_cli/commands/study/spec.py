@@ -25,7 +25,7 @@ import yaml
 from omni_micro_cli.errors import StudyError
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
-from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.parameters import STEERING_PRESETS, RobotParameters
 from omni_micro_vision.camera import DEFAULT_RIG
 
 SCENARIOS = ('closed_loop', 'open_loop')
@@ -51,6 +51,7 @@ class Parameter:
 _ROBOT = RobotParameters()
 _FEEDBACK = FeedbackConfig()
 _MACRO, _MICRO = DEFAULT_RIG.macro, DEFAULT_RIG.micro
+_REALISTIC = STEERING_PRESETS['realistic']
 _MM, _UM = 1e3, 1e6
 
 # The inputs a study can fix, sweep or draw. Ranges are the ones the physics, camera and
@@ -67,6 +68,15 @@ PARAMETERS: dict[str, Parameter] = {
     'cantilever_offset_mm': Parameter(_ROBOT.cantilever_offset_m * _MM, 'mm',
                                       "wheel 1's cantilever offset d1", 0.0, 5.0),
     'mass_g': Parameter(_ROBOT.mass_kg * 1e3, 'g', "the robot's mass", 0.1, 100.0),
+    # the steering motion (with ``steering: realistic`` only; docs/model.md)
+    'backlash_deg': Parameter(math.degrees(_REALISTIC.backlash_rad), 'deg',
+                              "the steering gears' backlash (realistic steering)", 0.0, 45.0),
+    'contact_radius_um': Parameter(_REALISTIC.contact_radius_m * _UM, 'um',
+                                   "the wheels' contact radius: pivot friction (realistic "
+                                   'steering)', 0.0, 1000.0),
+    'steering_rate_deg_s': Parameter(math.degrees(_REALISTIC.rate_rad_s), 'deg/s',
+                                     'the wheels\' steering speed limit (realistic steering)',
+                                     1.0, 36000.0),
     # the move
     'start_x_mm': Parameter(0.0, 'mm', 'start position x', -1000.0, 1000.0),
     'start_y_mm': Parameter(0.0, 'mm', 'start position y', -1000.0, 1000.0),
@@ -114,7 +124,8 @@ METRICS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     'drift_um': (('drift_um',), ('open_loop',)),
     'sim_time_s': (('sim_time_s',), SCENARIOS),
     'final_pose': (('final_x_mm', 'final_y_mm', 'final_heading_deg'), SCENARIOS),
-    'identified': (('xi2_identified_deg', 'xi3_identified_deg'), (CLOSED_LOOP,)),
+    'identified': (('xi2_identified_deg', 'xi3_identified_deg', 'backlash_identified_deg'),
+                   (CLOSED_LOOP,)),
 }
 # Closed-loop rows always carry these: the minimum a study of the loop is read by.
 REQUIRED_METRICS = {CLOSED_LOOP: ('outcome', 'deviation_um', 'periods'),
@@ -196,6 +207,7 @@ class Study:
     modes: tuple[str, ...]
     metrics: tuple[str, ...]
     text: str          # the file as given, kept beside the results
+    steering: str = 'ideal'   # a preset of omni_micro_sim.parameters.STEERING_PRESETS
 
     @property
     def swept(self) -> list[str]:
@@ -240,7 +252,8 @@ class Study:
                     seed = self.seed + point * self.seeds_per_point + replicate
                     for mode in self.modes:
                         rows.append({'run': len(rows), 'point': point, 'replicate': replicate,
-                                     'mode': mode, 'seed': seed, **inputs})
+                                     'mode': mode, 'seed': seed, 'steering': self.steering,
+                                     **inputs})
                 point += 1
         return rows
 
@@ -292,7 +305,7 @@ def _grid_values(where: str, name: str, spec: object) -> list[float]:
 
 
 TOP_KEYS = ('name', 'description', 'scenario', 'fixed', 'grid', 'random', 'seeds_per_point',
-            'seed', 'modes', 'metrics')
+            'seed', 'modes', 'metrics', 'steering')
 
 
 def parse_study(text: str, source: str = 'study') -> Study:
@@ -382,8 +395,13 @@ def parse_study(text: str, source: str = 'study') -> Study:
             raise StudyError(f'metrics[{i}]: {metric} is not measured in a {scenario} study')
     metrics = tuple(dict.fromkeys([*REQUIRED_METRICS[scenario], *metrics_value]))
 
+    steering = data.get('steering', 'ideal')
+    if steering not in STEERING_PRESETS:
+        raise StudyError(f'steering: expected one of {", ".join(STEERING_PRESETS)}, got '
+                         f'{steering!r}')
+
     study = Study(name.strip(), description.strip(), scenario, fixed, grid, draws, random,
-                  seeds_per_point, seed, modes, metrics, text)
+                  seeds_per_point, seed, modes, metrics, text, steering)
     _check_runs(study)
     return study
 
