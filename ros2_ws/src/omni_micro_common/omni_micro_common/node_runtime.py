@@ -58,6 +58,27 @@ NodeT = TypeVar('NodeT', bound=Node)
 # Reports are small and every one counts: the robot waits for them.
 # Set to a folder: each node writes its cProfile statistics there at exit (the benchmark does).
 PROFILE_ENV = 'OMNI_MICRO_PROFILE'
+# Which rclpy executor spins a node: 'events' (rclpy.experimental.EventsExecutor, the default:
+# its wait is C++, not a wait set rebuilt in Python on every wake-up) or 'single'
+# (SingleThreadedExecutor).
+EXECUTOR_ENV = 'OMNI_MICRO_EXECUTOR'
+# The EventsExecutor's spin_once is woken by a message or a timer only (not by wake() from
+# another thread): a signal is seen within this long.
+SPIN_TIMEOUT_S = 0.05
+EXECUTORS = ('events', 'single')
+
+
+def make_executor() -> Any:
+    """The executor of :data:`EXECUTOR_ENV`."""
+    kind = os.environ.get(EXECUTOR_ENV, 'events')
+    if kind not in EXECUTORS:
+        raise ParameterError(f'{EXECUTOR_ENV} must be one of {", ".join(EXECUTORS)}, '
+                             f'got {kind!r}')
+    if kind == 'single':
+        return SingleThreadedExecutor()
+    from rclpy.experimental import EventsExecutor
+
+    return EventsExecutor()
 LOCKSTEP_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -311,11 +332,14 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
                 raise ParameterError(f'{error} (from {", ".join(params_files(argv)) or "-p"})') \
                     from None
             check_given_parameters(node, argv)
-            guard = node.create_guard_condition(lambda: None)
-            waker = _Waker(guard.trigger, lifeline_fd())
-            waker.start()
-            executor = SingleThreadedExecutor()
+            executor = make_executor()
             executor.add_node(node)
+            if hasattr(executor, 'wake'):
+                wake = executor.wake   # the EventsExecutor takes no guard conditions
+            else:
+                wake = node.create_guard_condition(lambda: None).trigger
+            waker = _Waker(wake, lifeline_fd())
+            waker.start()
             profile_dir = os.environ.get(PROFILE_ENV)
             profiler = cProfile.Profile() if profile_dir else None
             if profiler is not None:
@@ -324,7 +348,9 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
             # at once, so none is missed between the check and the wait.
             try:
                 while not shutdown.requested:
-                    executor.spin_once()
+                    # With no timeout the EventsExecutor waits for a message only: its timers
+                    # would never run, and a signal would wait for the next message.
+                    executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
                 if drain is not None and not waker.orphaned:
                     _drain(executor, node, drain)
             finally:
@@ -360,7 +386,7 @@ DRAIN_IDLE_S = 0.05
 DRAIN_MAX_S = 0.5
 
 
-def _drain(executor: SingleThreadedExecutor, node: NodeT,
+def _drain(executor: Any, node: NodeT,
            handled: Callable[[NodeT], int]) -> None:
     deadline = time.monotonic() + DRAIN_MAX_S
     while time.monotonic() < deadline:

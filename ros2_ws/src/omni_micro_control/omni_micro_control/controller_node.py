@@ -11,7 +11,8 @@ Publishes:
   /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_common.lockstep)
-Timers follow /clock (use_sim_time); the decisions themselves are taken on capture stamps, see
+Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken
+on capture stamps, see
 :mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves through the slip core and
 identifies the robot as it goes (:mod:`omni_micro_control.model_based`). On shutdown the robot
 is told to stop.
@@ -30,6 +31,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -54,6 +56,7 @@ from omni_micro_common.qos import (
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
+from omni_micro_common.tick_messages import joint_state_template
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
     FeedbackConfig,
@@ -77,6 +80,8 @@ STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: Diagno
 # Where a capture's uncertainty comes from: the camera's PoseWithCovarianceStamped beside each
 # capture, or (a driver that publishes bare PoseStamped captures) this node's parameters.
 UNCERTAINTY_SOURCES = ('covariance', 'fixed')
+# How often, in the robot's time, the capture timeouts are checked.
+TIMEOUT_CHECK_S = 0.05
 
 
 def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -> str | None:
@@ -127,7 +132,10 @@ class ControllerNode(Node):
         self.status_pub = count(self.create_publisher(DiagnosticStatus, '/controller/status',
                                                       STATUS_QOS))
         self.lockstep = LockstepReporter(self)
+        # Raw, read in place (tick_messages): the per-tick message without its conversion.
+        self._joint_state = joint_state_template()
         self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
+                                 raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         for name in CAPTURE_TOPICS:
             if self.uncertainty_source == 'covariance':
@@ -143,7 +151,7 @@ class ControllerNode(Node):
         self.create_subscription(DiagnosticStatus, '/camera/status', self._on_camera_status,
                                  STATUS_QOS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.create_timer(0.05, self._on_timer)
+        self._timeout_checks = 0
         self._publish_status(DiagnosticStatus.OK, 'idle')
         self.get_logger().info(
             f'controller ready ({config.mode} mode): timer2 {config.settle_wait_s:g} s, timer1 '
@@ -193,7 +201,8 @@ class ControllerNode(Node):
                                                    defaults.max_chain_moves).value)
 
     def now_s(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        """The robot's time, as far as its wheel states have come."""
+        return self.robot_time_s
 
     # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
@@ -217,24 +226,41 @@ class ControllerNode(Node):
         self._publish_status(DiagnosticStatus.OK, 'settling')
 
     # -- events ------------------------------------------------------------------------------
-    def _on_joint_state(self, msg: JointState) -> None:
-        try:
-            index = [msg.name.index(name) for name in WHEEL_JOINTS]
-        except ValueError:
-            return
-        rotations = tuple(msg.position[i] for i in index)
-        speeds = tuple(msg.velocity[i] for i in index)
-        steering_rate = (msg.velocity[msg.name.index(STEERING_JOINT)]
-                         if STEERING_JOINT in msg.name else 0.0)
-        stamp = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+    def _on_joint_state(self, data: bytes) -> None:
+        values = self._joint_state.read(data)
+        if values is not None:   # the robot's own layout: JOINT_NAMES order, read in place
+            sec, nanosec = int(values[0]), int(values[1])
+            count = len(JOINT_NAMES)
+            steering_rate = float(values[2 + count])
+            rotations = tuple(float(v) for v in values[3:2 + count])
+            speeds = tuple(float(v) for v in values[3 + count:])
+        else:
+            msg = deserialize_message(data, JointState)
+            try:
+                index = [msg.name.index(name) for name in WHEEL_JOINTS]
+            except ValueError:
+                return
+            rotations = tuple(msg.position[i] for i in index)
+            speeds = tuple(msg.velocity[i] for i in index)
+            steering_rate = (msg.velocity[msg.name.index(STEERING_JOINT)]
+                             if STEERING_JOINT in msg.name and len(msg.velocity) == len(msg.name)
+                             else 0.0)
+            sec, nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
+        stamp = join_stamp(sec, nanosec)
         if self.robot_time_s == 0.0 and stamp > 0.0:
             # First word from a robot whose clock was already running (this node was started
             # late, e.g. respawned): timer2 counts from now, not from the time 0 we assumed.
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
-        self._robot_time_ns = max(self._robot_time_ns, stamp_ns(msg.header.stamp))
+        self._robot_time_ns = max(self._robot_time_ns, sec * 1_000_000_000 + nanosec)
         if self.watcher.on_wheel_state(rotations, speeds, steering_rate):
             self._act(self.controller.on_wheels_stopped(stamp))
+        # The capture timeouts every TIMEOUT_CHECK_S of the robot's time, on its own wheel
+        # states: no /clock subscription (one message less per tick).
+        check = int(self.robot_time_s // TIMEOUT_CHECK_S)
+        if check > self._timeout_checks:
+            self._timeout_checks = check
+            self._on_timer()
         self._report_lockstep()
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
@@ -266,6 +292,12 @@ class ControllerNode(Node):
             self.get_logger().warning(
                 f'ignored {camera} capture in frame {header.frame_id!r}: expected '
                 f'{self.frame_id!r}', throttle_duration_sec=5.0)
+            return
+        if self.watcher.latest_rotations is None:
+            # No wheel state yet (a respawned controller): the robot's time, and whether it
+            # moves, are unknown until the first; the next stop's captures decide.
+            self.get_logger().info(f'{camera} capture before the first wheel state: skipped',
+                                   throttle_duration_sec=5.0)
             return
         observation = Observation(
             join_stamp(header.stamp.sec, header.stamp.nanosec),
@@ -304,6 +336,7 @@ class ControllerNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_timer(self) -> None:
+        """The capture timeouts, every TIMEOUT_CHECK_S of the robot's time."""
         tries_before = self.controller.tries
         # Timeouts count the robot's own time as far as its reports have arrived, so a busy
         # machine delays them instead of firing them before the captures could arrive.

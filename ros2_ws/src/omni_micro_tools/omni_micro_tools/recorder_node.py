@@ -24,8 +24,8 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMessage
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
@@ -40,12 +40,13 @@ from omni_micro_tools.topics import GRAPH_TOPICS, IMAGE_TOPICS, RECORDABLE_TOPIC
 FLUSH_PERIOD_S = 0.5
 
 
+CLOCK_TOPIC = '/clock'
+
+
 class BagRecorder(Node):
     """Writes each message as it arrives, stamped with the simulated time of its arrival."""
 
     def __init__(self, **node_options: Any) -> None:
-        node_options['parameter_overrides'] = [
-            Parameter('use_sim_time', value=True), *node_options.get('parameter_overrides', [])]
         super().__init__('bag_recorder', **node_options)
         bag = Path(self.declare_parameter('bag', '').value)
         storage = self.declare_parameter('storage', 'mcap').value
@@ -83,6 +84,13 @@ class BagRecorder(Node):
             quiet = PER_TICK_SUBSCRIPTION_EVENTS if spec.depth >= 1000 else None
             self.create_subscription(message_class(spec.msgtype), topic, self._writer_of(topic),
                                      qos, raw=True, event_callbacks=quiet)
+        # Simulated time, from the /clock messages themselves (what use_sim_time would give,
+        # without a second /clock subscription per tick).
+        self._clock_ns = 0
+        if CLOCK_TOPIC not in topics:
+            self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, QoSProfile(
+                depth=1000, reliability=ReliabilityPolicy.RELIABLE), raw=True,
+                event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._watched = [sub for sub in self.subscriptions
                          if sub.topic_name in topics and sub.topic_name != '/goal_pose']
         self.status_pub = self.create_publisher(DiagnosticStatus, '/bag_recorder/status',
@@ -94,14 +102,21 @@ class BagRecorder(Node):
         self.create_timer(0.1, self._on_wall_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f'recording {len(topics)} topics into {bag} ({storage})')
 
+    def _on_clock(self, data: bytes) -> None:
+        sec, nanosec = struct.unpack_from('<iI', data, 4)   # after the CDR encapsulation
+        self._clock_ns = max(self._clock_ns, sec * 1_000_000_000 + nanosec)
+
     def _writer_of(self, topic: str) -> Callable[[bytes], None]:
         connection = self.connections[topic]
+        clock = topic == CLOCK_TOPIC
 
         def on_message(data: bytes) -> None:
+            if clock:
+                self._on_clock(data)
             if self.write_failure is not None:
                 return
             try:
-                self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+                self.writer.write(connection, self._clock_ns, data)
             except OSError as error:
                 self._writing_failed(error)
                 return

@@ -41,6 +41,7 @@ from omni_micro_common.qos import (
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
 )
+from omni_micro_common.tick_messages import odometry_template
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
@@ -148,7 +149,8 @@ class MarkersNode(Node):
         self._due: int | None = None        # the stamp the next array draws
         self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
+        self._odometry = odometry_template()
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
                                  event_callbacks=quiet)
         # Per-tick streams are kept as bytes and decoded once per publication. The wheels are
         # drawn at their actual steering angle (/joint_states): with a steering motion it
@@ -177,18 +179,17 @@ class MarkersNode(Node):
         self._sequence += 1
         heapq.heappush(self._events, (stamp_ns(stamp), order, self._sequence, apply))
 
-    def _on_odometry(self, msg: Odometry) -> None:
-        pose = msg.pose.pose
-        self._poses.append((stamp_ns(msg.header.stamp), msg.header.stamp, (
-            pose.position.x, pose.position.y,
-            quaternion_to_yaw(pose.orientation.z, pose.orientation.w))))
+    def _on_odometry(self, data: bytes) -> None:
+        sec, nanosec, x, y, qz, qw, *_ = self._odometry.decode(data)
+        stamp = Time(sec=int(sec), nanosec=int(nanosec))
+        self._poses.append((stamp_ns(stamp), stamp, (x, y, quaternion_to_yaw(qz, qw))))
         self._ticks += 1
         self.handled += 1
         if self._ticks % self.publish_every:
             return
         if self._due is not None:
             self._draw_until(self._due, everything=self._ticks % self.refresh_every == 0)
-        self._due = stamp_ns(msg.header.stamp)
+        self._due = stamp_ns(stamp)
 
     def finish(self) -> None:
         """At shutdown: publish the array already due, as the next odometry would have (so a
