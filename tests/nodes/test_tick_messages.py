@@ -80,3 +80,33 @@ def test_every_tick_template_round_trips():
 def test_the_odometry_fields_are_what_vision_node_reads():
     assert list(ODOMETRY_FIELDS)[2:4] == ['pose.pose.position.x', 'pose.pose.position.y']
     assert math.isfinite(odometry_template().decode(odometry_template().encode(VALUES))[4])
+
+
+@pytest.mark.parametrize('values', [[], [('processed_ns', '20000000')],
+                                    [('processed_ns', '7'), ('capture_first_ns', '123456789012'),
+                                     ('capture_last_ns', '1')]])
+def test_a_lockstep_report_by_hand_is_the_diagnostic_status_a_publisher_sends(values):
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
+
+    for name in ('vision_node', 'controller_node', 'x'):
+        msg = DiagnosticStatus(level=DiagnosticStatus.OK, name=name, message='lockstep',
+                               values=[KeyValue(key=k, value=v) for k, v in values])
+        data = diagnostic_status_bytes(0, name, 'lockstep', '', values)
+        assert data == canonical_bytes(msg)
+        assert read_diagnostic_status(data) == (0, name, 'lockstep', '', values)
+
+
+def test_a_report_round_trips_and_a_broken_one_is_named():
+    from omni_micro_common.cdr import diagnostic_status_bytes
+    from omni_micro_common.errors import LockstepError
+    from omni_micro_common.lockstep import ACK_MESSAGE, Ack
+    from omni_micro_common.node_runtime import decode_ack_bytes
+
+    ack = Ack('vision_node', 40_000_000, captures_ns=(20_000_000, 40_000_000))
+    data = diagnostic_status_bytes(0, 'vision_node', ACK_MESSAGE, '', ack.to_values())
+    assert decode_ack_bytes(data) == ack
+    assert decode_ack_bytes(diagnostic_status_bytes(0, 'x', 'ready', '', [])) is None
+    with pytest.raises(LockstepError, match='does not parse'):
+        decode_ack_bytes(data[:13])

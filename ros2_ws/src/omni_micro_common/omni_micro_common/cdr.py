@@ -226,8 +226,8 @@ def read_diagnostic_status(data: bytes) -> tuple[int, str, str, str, list[tuple[
 
     Raises
     ------
-    ValueError
-        If the bytes are not a little-endian DiagnosticStatus (struct.error is a ValueError).
+    ValueError, IndexError, struct.error
+        If the bytes are not a little-endian DiagnosticStatus.
     """
     if data[:2] not in _LITTLE_ENDIAN_CDR:
         raise ValueError('not little-endian CDR')

@@ -26,6 +26,7 @@ import json
 import os
 import select
 import signal
+import struct
 import sys
 import threading
 import time
@@ -34,7 +35,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -42,13 +43,14 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
+from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
 from omni_micro_common.conventions import (
     GRAPH_NODE_NAMES,
     LIFELINE_ENV,
     OPTIONAL_NODE_NAMES,
     PUBLISHED_MARKER,
 )
-from omni_micro_common.errors import ParameterError
+from omni_micro_common.errors import LockstepError, ParameterError
 from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
 from omni_micro_common.params import WILDCARD_SECTIONS, flatten, read_yaml
 from omni_micro_common.qos import PER_TICK_PUBLISHER_EVENTS
@@ -116,9 +118,26 @@ class LockstepReporter:
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS)
 
     def report(self, ack: Ack) -> None:
-        self._publisher.publish(DiagnosticStatus(
-            level=DiagnosticStatus.OK, name=self._name, message=ACK_MESSAGE,
-            values=[KeyValue(key=key, value=value) for key, value in ack.to_values()]))
+        # Serialized by hand (omni_micro_common.cdr): one report per tick per node.
+        self._publisher.publish(diagnostic_status_bytes(
+            0, self._name, ACK_MESSAGE, '', ack.to_values()))
+
+
+def decode_ack_bytes(data: bytes) -> Ack | None:
+    """:func:`decode_ack` of a raw /lockstep message.
+
+    Raises
+    ------
+    LockstepError
+        A report that does not parse, or with a missing, unknown or malformed field.
+    """
+    try:
+        _, name, message, _, values = read_diagnostic_status(data)
+    except (ValueError, IndexError, struct.error) as error:
+        raise LockstepError(f'a /lockstep message that does not parse: {error}') from None
+    if message != ACK_MESSAGE:
+        return None
+    return Ack.from_values(name, values)
 
 
 def decode_ack(msg: DiagnosticStatus) -> Ack | None:

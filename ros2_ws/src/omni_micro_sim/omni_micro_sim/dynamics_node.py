@@ -49,7 +49,12 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_TOPIC, DEFAULT_MAX_LEAD_S, LockstepGate
-from omni_micro_common.node_runtime import LOCKSTEP_QOS, PublicationCounter, decode_ack, run_node
+from omni_micro_common.node_runtime import (
+    LOCKSTEP_QOS,
+    PublicationCounter,
+    decode_ack_bytes,
+    run_node,
+)
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_sim import paper
@@ -146,6 +151,7 @@ class DynamicsNode(Node):
                                  DATA_QOS)
         if self.lockstep.enabled:
             self.create_subscription(DiagnosticStatus, ACK_TOPIC, self._on_ack, LOCKSTEP_QOS,
+                                     raw=True,
                                      event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._wall_origin = time.monotonic()
         self._tick_origin = 0
@@ -237,9 +243,9 @@ class DynamicsNode(Node):
             return 'matching ' + ', '.join(unmatched)
         return self.lockstep.waiting_for() or 'nothing (the wall clock paces it)'
 
-    def _on_ack(self, msg: DiagnosticStatus) -> None:
+    def _on_ack(self, data: bytes) -> None:
         try:
-            ack = decode_ack(msg)
+            ack = decode_ack_bytes(data)
         except LockstepError as error:
             self.get_logger().error(f'ignored: {error}', throttle_duration_sec=5.0)
             return
