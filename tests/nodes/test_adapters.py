@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from rclpy.exceptions import InvalidParameterTypeException
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
@@ -65,6 +66,26 @@ def test_dynamics_node_refuses_a_malformed_initial_pose(context):
 def test_dynamics_node_refuses_bad_steering_parameters_naming_them(context, name, value):
     with pytest.raises(ParameterError, match=name.removeprefix('robot.').split('.')[-1]):
         DynamicsNode(context=context, parameter_overrides=[Parameter(name, value=value)])
+
+
+@pytest.mark.parametrize('value', [0, -1, 2.5, True])
+def test_dynamics_node_refuses_a_slip_rate_that_is_not_a_whole_number_of_ticks(context, value):
+    with pytest.raises((ParameterError, InvalidParameterTypeException),
+                       match='wheel_slip_every'):
+        DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=value))
+
+
+def test_dynamics_node_publishes_the_slip_on_one_tick_in_wheel_slip_every(context):
+    node = DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=3))
+    try:
+        published = []
+        node.slip_pub.publish = published.append
+        node.odom_pub.publish = lambda data: None
+        for _ in range(9):
+            node._publish(node.grid.advance())
+        assert len(published) == 3
+    finally:
+        node.destroy_node()
 
 
 def test_dynamics_node_takes_the_steering_from_its_parameters(context):

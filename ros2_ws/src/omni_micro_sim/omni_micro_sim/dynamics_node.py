@@ -6,7 +6,8 @@ Publishes, once per grid period of simulated time (``publish_period_s``):
   /joint_states   sensor_msgs/JointState: the wheels' actual steering angle and rate, wheel
                   rotations and spin speeds
   /wheel_slip     sensor_msgs/JointState: ``wheel_<k>_longitudinal`` and ``wheel_<k>_transverse``
-                  slip velocities of each contact (m/s) in ``velocity``; see README
+                  slip velocities of each contact (m/s) in ``velocity``, on one period in
+                  ``wheel_slip_every`` (5 by default; nothing in the loop reads it)
 Subscribes:
   /wheel_trajectory  trajectory_msgs/JointTrajectory (contract in omni_micro_sim.wheel_trajectory)
 
@@ -84,6 +85,9 @@ def _robot_defaults() -> dict[str, object]:
     return robot_parameter_values(paper.FIG11_OPEN_LOOP.robot())
 
 
+# /wheel_slip at 10 Hz of simulated time by default (the grid is 50 Hz).
+DEFAULT_SLIP_EVERY = 5
+
 # Wall seconds of simulated time standing still (unpaused) before the node says what it waits for.
 STALL_REPORT_S = 5.0
 
@@ -101,6 +105,13 @@ class DynamicsNode(Node):
                                                        _READ_ONLY).value
                         for f in fields(MotorLimits)}
         period = self.declare_parameter('publish_period_s', DEFAULT_PERIOD_S, _READ_ONLY).value
+        # Nothing in the loop reads the slip: one sample in this many ticks (1: every tick).
+        self.slip_every = self.declare_parameter('wheel_slip_every', DEFAULT_SLIP_EVERY,
+                                                 _READ_ONLY).value
+        if isinstance(self.slip_every, bool) or not isinstance(self.slip_every, int) or \
+                self.slip_every < 1:
+            raise ParameterError(f'wheel_slip_every must be a whole number of ticks >= 1, got '
+                                 f'{self.slip_every!r}')
         initial = self.declare_parameter('initial_pose', [0.0, 0.0, 0.0], _READ_ONLY).value
         self.odom_frame = self.declare_parameter('odom_frame', 'odom', _READ_ONLY).value
         self.base_frame = self.declare_parameter('base_frame', 'base_link', _READ_ONLY).value
@@ -324,6 +335,8 @@ class DynamicsNode(Node):
         self.joint_pub.publish(templates.joint_state.encode((
             sec, nanosec, sample.steering_rad, *map(float, sample.wheel_rotations_rad),
             sample.steering_rate_rad_s, *map(float, sample.wheel_speeds_rad_s))))
+        if self.grid.tick % self.slip_every:
+            return
         self.slip_pub.publish(templates.slip.encode((
             sec, nanosec, *(float(value) for pair in zip(sample.slip.longitudinal_m_s,
                                                           sample.slip.transverse_m_s,
