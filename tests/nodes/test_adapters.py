@@ -78,7 +78,7 @@ def test_dynamics_node_refuses_a_slip_rate_that_is_not_a_whole_number_of_ticks(c
 def test_dynamics_node_publishes_the_slip_on_one_tick_in_wheel_slip_every(context):
     node = DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=3))
     try:
-        published = []
+        published: list[bytes] = []
         node.slip_pub.publish = published.append
         node.odom_pub.publish = lambda data: None
         for _ in range(9):

@@ -19,13 +19,14 @@ import struct
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
 from rclpy.serialization import deserialize_message
 
-# rclpy's type names of the numbers a message may hold in an array, as numpy dtypes.
-_DTYPES = {'double': np.float64, 'float': np.float32, 'int8': np.int8, 'uint8': np.uint8,
-           'int16': np.int16, 'uint16': np.uint16, 'int32': np.int32, 'uint32': np.uint32,
-           'int64': np.int64, 'uint64': np.uint64, 'octet': np.uint8, 'boolean': np.bool_}
+# rclpy's type names of the numbers a message may hold in an array, as numpy dtypes (numpy and
+# rosbags load with the first template: node_runtime imports this module, and the shared
+# contracts load nothing heavy).
+_DTYPES = {'double': 'float64', 'float': 'float32', 'int8': 'int8', 'uint8': 'uint8',
+           'int16': 'int16', 'uint16': 'uint16', 'int32': 'int32', 'uint32': 'uint32',
+           'int64': 'int64', 'uint64': 'uint64', 'octet': 'uint8', 'boolean': 'bool'}
 
 # The kinds of number a template can patch, as struct formats (CDR little-endian: the rmw's
 # encapsulation header says so; a template refuses a big-endian one).
@@ -52,6 +53,8 @@ def _element_type(field_type: str) -> str:
 
 def _as_rosbags(message: Any, store: Any) -> Any:
     """The same message as rosbags' dataclass, field by field."""
+    import numpy as np
+
     values: dict[str, Any] = {}
     for name, field_type in message.get_fields_and_field_types().items():
         value = getattr(message, name)
