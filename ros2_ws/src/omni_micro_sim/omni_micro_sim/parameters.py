@@ -37,6 +37,14 @@ def require_finite(name: str, value: float) -> float:
     return number
 
 
+def require_finite_values(name: str, values: Any, count: int, what: str) -> tuple[float, ...]:
+    """``values`` as a tuple of ``count`` finite floats, or ParameterError saying ``what``."""
+    numbers = tuple(values)
+    if len(numbers) != count:
+        raise ParameterError(f'{name} must be {what}, got {list(numbers)!r}')
+    return tuple(require_finite(f'{name}[{k}]', value) for k, value in enumerate(numbers))
+
+
 def require_positive(name: str, value: float) -> float:
     number = require_finite(name, value)
     if number <= 0.0:
@@ -235,12 +243,8 @@ class RobotParameters:
                     f"cantilever_side must be 'left' or 'right', got {self.cantilever_side!r}"
                 ) from None
             object.__setattr__(self, 'cantilever_side', side)
-        offsets = tuple(self.wheel_offsets_rad)
-        if len(offsets) != 3:
-            raise ParameterError(
-                f'wheel_offsets_rad must have 3 values (one per wheel), got {offsets!r}')
-        checked = tuple(require_finite(f'wheel_offsets_rad[{k}]', value)
-                        for k, value in enumerate(offsets))
+        checked = require_finite_values('wheel_offsets_rad', self.wheel_offsets_rad, 3,
+                                        '3 values (one per wheel)')
         for k, value in enumerate(checked):
             if abs(value) >= math.pi / 2:
                 raise ParameterError(
@@ -249,12 +253,8 @@ class RobotParameters:
         if not isinstance(self.wheel1_active, (bool, np.bool_)):
             raise ParameterError(f'wheel1_active must be a bool, got {self.wheel1_active!r}')
         object.__setattr__(self, 'wheel1_active', bool(self.wheel1_active))
-        centre = tuple(self.center_of_mass_m)
-        if len(centre) != 2:
-            raise ParameterError(
-                f'center_of_mass_m must be [x, y] in metres, got {list(centre)!r}')
-        centre = tuple(require_finite(f'center_of_mass_m[{k}]', value)
-                       for k, value in enumerate(centre))
+        centre = require_finite_values('center_of_mass_m', self.center_of_mass_m, 2,
+                                       '[x, y] in metres')
         # Statics needs the centre of mass inside the triangle of the contacts, or a wheel
         # would have to pull on the ground.
         if math.hypot(*centre) >= 0.5 * self.wheel_distance_m:
