@@ -139,6 +139,26 @@ def test_realistic_steering_over_the_graph_is_the_twin(tmp_path, omni_micro):
     assert graph['sim_time_s'] == pytest.approx(twin.sim_time_s, abs=0.03)
 
 
+def test_the_model_mode_with_realistic_steering_over_the_graph_is_the_twin(tmp_path, omni_micro):
+    preset = steering_preset('realistic')
+    robot = paper.FIG11_OPEN_LOOP.robot().replace(steering=preset)
+    # The controller knows the preset's form, not this robot's offsets: as the graph's does.
+    twin = run_closed_loop(paper.FIG11_GOAL_M, robot=robot, seed=SEED,
+                           config=FeedbackConfig(mode='model'),
+                           model_robot=paper.FIG11_OPEN_LOOP.robot().replace(
+                               wheel_offsets_rad=(0.0, 0.0, 0.0), steering=preset))
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', str(SEED),
+                        '--steering', 'realistic', '--controller', 'model', '--json', '--quiet',
+                        '--no-markers', '--log-dir', str(tmp_path))
+    assert result.returncode == 0, result.stderr[-3000:]
+    graph = json.loads(result.stdout.strip().splitlines()[-1])
+    assert graph['periods'] == twin.periods <= 6
+    assert graph['final_x_mm'] * 1e-3 == pytest.approx(twin.final_state.x_m, abs=1e-7)
+    assert graph['final_y_mm'] * 1e-3 == pytest.approx(twin.final_state.y_m, abs=1e-7)
+    log = next(tmp_path.glob('*/controller_node.log')).read_text()
+    assert 'backlash' in log   # it learns the backlash as it goes
+
+
 @pytest.mark.parametrize('goal_mm, outcome, exit_code, words', [
     # Outside the micro field only the macro camera sees the goal: it cannot tell 3 um.
     ('50,20', 'unresolved', 1, ('macro', '95 % uncertainty', 'coarser than the 3.00 um')),

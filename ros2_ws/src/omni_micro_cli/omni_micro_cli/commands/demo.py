@@ -94,8 +94,9 @@ def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Pat
         lockstep=not args.free_running,
         open_loop_s=open_loop_s, log_dir=log_root, follow_route=True,
         echo=echo_to_stderr if args.verbose else None, record=bag, storage=args.storage,
-        force=args.force, controller_overrides={'mode': mode} if mode != 'paper' else {},
-        view=view_from_args(args), vision=vision,
+        force=args.force, view=view_from_args(args), vision=vision,
+        controller_overrides=({'mode': mode, **steering_overrides(steering, 'model.robot.')}
+                              if mode != 'paper' else {}),
         dynamics_overrides=steering_overrides(steering)))
 
 

@@ -157,20 +157,25 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         storage=args.storage, force=args.force,
                         vision_overrides=faults, vision=args.vision,
                         record_images=args.record_images,
-                        controller_overrides=controller_overrides(args),
-                        dynamics_overrides=preset_under_params(args),
+                        controller_overrides={**controller_overrides(args),
+                                              **preset_under_params(args, 'controller_node',
+                                                                    'model.robot.')},
+                        dynamics_overrides=preset_under_params(args, 'dynamics_node', 'robot.'),
                         respawn=getattr(args, 'respawn', False), markers=args.markers,
                         view=view_from_args(args))
 
 
-def preset_under_params(args: argparse.Namespace) -> dict[str, object]:
-    """The --steering preset's values, except those the user's --params file sets: the file
-    says what this robot has (e.g. its measured backlash), the preset the rest."""
-    overrides = steering_overrides(args.steering)
+def preset_under_params(args: argparse.Namespace, node: str,
+                        prefix: str) -> dict[str, object]:
+    """The --steering preset's values for ``node`` (the robot, ``robot.``; the model
+    controller's model of it, ``model.robot.``: it knows the preset's form, not this robot),
+    except those the user's --params file sets: the file says what this robot has (e.g. its
+    measured backlash), the preset the rest."""
+    overrides = steering_overrides(args.steering, prefix)
     if args.params is not None and overrides:
         from omni_micro_common import params
 
-        given = params.node_parameters([args.params], 'dynamics_node')
+        given = params.node_parameters([args.params], node)
         overrides = {name: value for name, value in overrides.items() if name not in given}
     return overrides
 
