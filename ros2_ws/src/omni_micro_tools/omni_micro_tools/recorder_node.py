@@ -41,6 +41,7 @@ FLUSH_PERIOD_S = 0.5
 
 
 CLOCK_TOPIC = '/clock'
+RECORDER_DEPTH = 1000
 
 
 class BagRecorder(Node):
@@ -77,7 +78,11 @@ class BagRecorder(Node):
                                     if topic in IMAGE_TOPICS and topic.endswith('image_raw')}
             self.lockstep = LockstepReporter(self)
         for topic, spec in topics.items():
-            qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.RELIABLE,
+            # A deep history on the reader's side whatever the topic's own depth: a latched
+            # topic of depth 1 (a status) lost a message that came right after another before
+            # the recorder took it (a replay at 20x).
+            qos = QoSProfile(depth=max(spec.depth, RECORDER_DEPTH),
+                             reliability=ReliabilityPolicy.RELIABLE,
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
                                          else DurabilityPolicy.VOLATILE))
             # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_common.qos).
