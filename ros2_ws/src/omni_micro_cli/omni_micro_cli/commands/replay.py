@@ -88,9 +88,11 @@ def run(args: argparse.Namespace) -> int:
     publishers = {}
     for topic in topics:
         spec = RECORDABLE_TOPICS.get(topic)
-        # Deep enough that no message is replaced before a reader has it (a latched status of
-        # depth 1 sent twice in quick succession at --rate 20 lost the first).
-        qos = QoSProfile(depth=max(spec.depth, 1000) if spec else 1000,
+        # A latched topic deep enough that no message is replaced before a reader has it (a
+        # status of depth 1 sent twice in quick succession at --rate 20 lost the first); the
+        # others keep their depth (camera frames are paced by it).
+        qos = QoSProfile(depth=(max(spec.depth, 1000) if spec.latched else spec.depth)
+                         if spec else 1000,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec and spec.latched
                                      else DurabilityPolicy.VOLATILE))
