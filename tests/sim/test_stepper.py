@@ -41,6 +41,20 @@ def test_command_starts_at_its_stamp_on_the_grid_and_runs_in_full():
     assert final.wheel_rotations_rad == pytest.approx(np.full(3, 8.7 * 2.0))
 
 
+def test_loading_the_kernels_changes_nothing_of_the_run():
+    """The dynamics node loads the kernels before time starts by integrating a move on a copy:
+    the grid keeps its time, its queue and its robot."""
+    loaded, fresh = GridSimulator(ROBOT, period_s=0.02), GridSimulator(ROBOT, period_s=0.02)
+    command = WheelCommand(0.04, 0.3, move_profile(0.5))
+    for grid in (loaded, fresh):
+        grid.schedule(command)
+    loaded.load_kernels()
+    assert loaded.tick == 0 and loaded.pending is command
+    for _ in range(40):
+        ours, theirs = loaded.advance(), fresh.advance()
+        assert ours.state == theirs.state and ours.steering_rad == theirs.steering_rad
+
+
 def test_late_command_starts_now_and_says_how_late():
     grid = GridSimulator(ROBOT, period_s=0.02)
     for _ in range(10):

@@ -132,6 +132,7 @@ class DynamicsNode(Node):
             RobotParameters.from_mapping(robot_values), period_s=period,
             limits=MotorLimits(**limit_values),
             state=RobotState(x_m=initial[0], y_m=initial[1], phi_rad=initial[2]))
+        self.grid.load_kernels()
         try:
             self.lockstep = LockstepGate(lockstep_nodes, round(period * 1e9),
                                          round(float(max_lead_s) * 1e9))

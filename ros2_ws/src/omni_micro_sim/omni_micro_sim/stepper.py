@@ -9,6 +9,7 @@ command starts at the current grid time, and the lateness is reported, not hidde
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
-from omni_micro_sim.profile import WheelCommand
+from omni_micro_sim.profile import WheelCommand, move_profile
 from omni_micro_sim.simulator import (
     ContactSlip,
     MotionStatus,
@@ -112,6 +113,16 @@ class GridSimulator:
         return Sample(self.time_s, simulator.state, simulator.steering_rad,
                       simulator.steering_rate_rad_s, simulator.wheel_rotations_rad(),
                       simulator.wheel_speeds(), simulator.slip(), simulator.status)
+
+    def load_kernels(self) -> None:
+        """Integrate a period on a copy, leaving this one as it was: the first call of each
+        compiled kernel loads it from numba's cache (about half a second), which is better spent
+        before time starts than in the first tick of a run. A move too: its profile is typed
+        differently from standing still."""
+        trial = copy.deepcopy(self)
+        trial.schedule(WheelCommand(start_s=trial.time_s, profile=move_profile(self.period_s)))
+        trial.advance()
+        trial.advance()
 
     def advance(self) -> Sample:
         """Start a due command, integrate one period and return the sample at its end."""
