@@ -20,4 +20,9 @@ setup(
     description=('The contracts every omni-micro node shares: topics, QoS, stamps, '
                  'lockstep reports, the node runtime, params files.'),
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'container = omni_micro_common.container:main',
+        ],
+    },
 )

@@ -32,6 +32,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import rclpy
@@ -317,6 +318,29 @@ def _check_type(node: Node, key: str, value: Any, where: str) -> None:
             f'type: expected {_TYPE_NAMES.get(expected, expected.name)}')
 
 
+@dataclass(frozen=True)
+class NodeComponent:
+    """How to run one node class: what makes it, which errors mean a bad parameter, its last
+    words, and (a node that only listens) its drain count (see :func:`run_node`). Every node
+    module of the graph has one as ``COMPONENT``: its ``main`` runs it alone, the container
+    (:mod:`omni_micro_common.container`) runs several in one process."""
+
+    factory: Callable[..., Node]
+    config_errors: tuple[type[Exception], ...] = ()
+    on_shutdown: Callable[[Any], None] | None = None
+    drain: Callable[[Any], int] | None = None
+
+
+@dataclass(frozen=True)
+class Hosted:
+    """A component in a process: ``node_args`` are its own ROS arguments (``--ros-args ...``),
+    or None for the process's command line (a node alone in its process)."""
+
+    component: NodeComponent
+    node_args: list[str] | None = None
+    label: str = ''          # how errors name it (a container hosts several)
+
+
 def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exception], ...],
              on_shutdown: Callable[[NodeT], None] | None = None,
              args: list[str] | None = None, domain_id: int | None = None,
@@ -333,6 +357,21 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     moving for ``DRAIN_IDLE_S`` (at most ``DRAIN_MAX_S``), so that its last words are the
     graph's last state.
     """
+    run_component(NodeComponent(factory, config_errors, on_shutdown, drain), args=args,
+                  domain_id=domain_id)
+
+
+def run_component(component: NodeComponent, *, args: list[str] | None = None,
+                  domain_id: int | None = None) -> None:
+    """:func:`run_node` of a node module's ``COMPONENT``: its ``main``."""
+    run_components([Hosted(component)], args=args, domain_id=domain_id)
+
+
+def run_components(hosted: list[Hosted], *, args: list[str] | None = None,
+                   domain_id: int | None = None) -> None:
+    """:func:`run_node` for several nodes in one process, spun by one executor: each is made with
+    its own ROS arguments, in the order given, and stopped in that order. A bad parameter of any
+    exits 2 before any of them runs."""
     # A crash in the C layers (rmw, DDS) prints the Python stack it came from into the log.
     faulthandler.enable(all_threads=True)
     argv = list(sys.argv if args is None else args)
@@ -340,29 +379,31 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     shutdown = _Shutdown()
     signal.signal(signal.SIGINT, shutdown.on_signal)
     signal.signal(signal.SIGTERM, shutdown.on_signal)
-    node: NodeT | None = None
+    nodes: list[tuple[Hosted, Node]] = []
     refused = False   # its parameters: then it leaves without a word
     waker: _Waker | None = None
+    program = argv[0].rsplit('/', 1)[-1] if argv else 'node'
+    config_errors = tuple(error for entry in hosted for error in entry.component.config_errors)
+    current = hosted[0]
     try:
         try:
-            try:
-                node = factory()
-            except (InvalidParameterTypeException, InvalidParameterValueException) as error:
-                raise ParameterError(f'{error} (from {", ".join(params_files(argv)) or "-p"})') \
-                    from None
-            check_given_parameters(node, argv)
+            for current in hosted:
+                nodes.append((current, _make_node(current, argv)))
             executor = make_executor()
-            executor.add_node(node)
+            for _, node in nodes:
+                executor.add_node(node)
             if hasattr(executor, 'wake'):
                 wake = executor.wake   # the EventsExecutor takes no guard conditions
             else:
-                wake = node.create_guard_condition(lambda: None).trigger
+                wake = nodes[0][1].create_guard_condition(lambda: None).trigger
             waker = _Waker(wake, lifeline_fd())
             waker.start()
             profile_dir = os.environ.get(PROFILE_ENV)
             profiler = cProfile.Profile() if profile_dir else None
             if profiler is not None:
                 profiler.enable()
+            draining = [(h.component.drain, node) for h, node in nodes
+                        if h.component.drain is not None]
             # A signal that comes before the wait leaves the guard triggered: the wait returns
             # at once, so none is missed between the check and the wait.
             try:
@@ -370,24 +411,27 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
                     # With no timeout the EventsExecutor waits for a message only: its timers
                     # would never run, and a signal would wait for the next message.
                     executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
-                if drain is not None and not waker.orphaned:
-                    _drain(executor, node, drain)
+                if draining and not waker.orphaned:
+                    _drain(executor, lambda: sum(count(node) for count, node in draining))
             finally:
                 if profiler is not None and profile_dir:
                     profiler.disable()
-                    profiler.dump_stats(os.path.join(profile_dir, f'{node.get_name()}.prof'))
+                    name = '+'.join(node.get_name() for _, node in nodes)
+                    profiler.dump_stats(os.path.join(profile_dir, f'{name}.prof'))
         except ExternalShutdownException:
             pass
         except (ParameterError, *config_errors) as error:  # type: ignore[misc]  # a starred tuple of classes
             # A bad parameter: say which value, exit non-zero before any message is sent.
             refused = True
-            print(f'{sys.argv[0].rsplit("/", 1)[-1]}: invalid parameter: {error}', flush=True)
+            starting = len(nodes) < len(hosted)   # else a node refused one while running
+            where = f'{program}: {current.label}' if current.label and starting else program
+            print(f'{where}: invalid parameter: {error}', flush=True)
             raise SystemExit(2) from None
         finally:
-            if node is not None:
+            for entry, node in nodes:
                 if not refused:
-                    if on_shutdown is not None:
-                        on_shutdown(node)
+                    if entry.component.on_shutdown is not None:
+                        entry.component.on_shutdown(node)
                     counter = getattr(node, 'publication_counter', None)
                     if counter is not None:
                         print(counter.report(), flush=True)
@@ -400,18 +444,39 @@ def run_node(factory: Callable[[], NodeT], *, config_errors: tuple[type[Exceptio
     _exit_now(0)
 
 
+def _make_node(hosted: Hosted, argv: list[str]) -> Node:
+    """The node of ``hosted``, its given parameters checked.
+
+    Raises
+    ------
+    ParameterError
+        A parameter of the wrong type, or one the node does not declare (named).
+    """
+    own_args = argv if hosted.node_args is None else hosted.node_args
+    try:
+        if hosted.node_args is None:
+            node = hosted.component.factory()
+        else:
+            node = hosted.component.factory(cli_args=hosted.node_args,
+                                            use_global_arguments=False)
+    except (InvalidParameterTypeException, InvalidParameterValueException) as error:
+        raise ParameterError(f'{error} (from {", ".join(params_files(own_args)) or "-p"})') \
+            from None
+    check_given_parameters(node, own_args)
+    return node
+
+
 # A drain must not hold up a graph that is stopping (a death stops it all within 2 s).
 DRAIN_IDLE_S = 0.05
 DRAIN_MAX_S = 0.5
 
 
-def _drain(executor: Any, node: NodeT,
-           handled: Callable[[NodeT], int]) -> None:
+def _drain(executor: Any, handled: Callable[[], int]) -> None:
     deadline = time.monotonic() + DRAIN_MAX_S
     while time.monotonic() < deadline:
-        before = handled(node)
+        before = handled()
         executor.spin_once(timeout_sec=DRAIN_IDLE_S)
-        if handled(node) == before:
+        if handled() == before:
             return
 
 

@@ -47,7 +47,12 @@ from omni_micro_common.conventions import (
     stamp_ns,
 )
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_common.node_runtime import (
+    LockstepReporter,
+    NodeComponent,
+    PublicationCounter,
+    run_component,
+)
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -450,9 +455,13 @@ def _stop_on_shutdown(node: ControllerNode) -> None:
     time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
 
 
+COMPONENT = NodeComponent(ControllerNode,
+                          config_errors=(ControllerConfigError, ParameterError, CommandError),
+                          on_shutdown=_stop_on_shutdown)
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(ControllerNode, config_errors=(ControllerConfigError, ParameterError, CommandError),
-             on_shutdown=_stop_on_shutdown, args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

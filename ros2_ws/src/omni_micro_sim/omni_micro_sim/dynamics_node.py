@@ -52,9 +52,10 @@ from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_TOPIC, DEFAULT_MAX_LEAD_S, LockstepGate
 from omni_micro_common.node_runtime import (
     LOCKSTEP_QOS,
+    NodeComponent,
     PublicationCounter,
     decode_ack_bytes,
-    run_node,
+    run_component,
 )
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.tick_messages import tick_templates
@@ -370,8 +371,11 @@ class DynamicsNode(Node):
                 f'start stamp; it runs in full from t={scheduled.start_s:.3f} s')
 
 
+COMPONENT = NodeComponent(DynamicsNode, config_errors=(ParameterError, CommandError))
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(DynamicsNode, config_errors=(ParameterError, CommandError), args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

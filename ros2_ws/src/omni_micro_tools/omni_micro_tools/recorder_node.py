@@ -30,7 +30,7 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.messages import message_class
-from omni_micro_common.node_runtime import LockstepReporter, run_node
+from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
 from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_tools.bags import STORAGES, flush, open_writer
 from omni_micro_tools.errors import BagPathError
@@ -191,11 +191,14 @@ def report_and_close(recorder: BagRecorder) -> None:
           file=sys.stderr)
 
 
+# The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
+# (metadata.yaml written) and ends the process.
+COMPONENT = NodeComponent(BagRecorder, config_errors=(BagPathError,),
+                          on_shutdown=report_and_close)
+
+
 def main(args: list[str] | None = None) -> None:
-    # The node runtime stops it on Ctrl-C, SIGTERM or its orchestrator's death, closes the bag
-    # (metadata.yaml written) and ends the process.
-    run_node(BagRecorder, config_errors=(BagPathError,), on_shutdown=report_and_close,
-             args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

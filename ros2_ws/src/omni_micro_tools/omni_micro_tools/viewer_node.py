@@ -22,7 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.messages import message_class
-from omni_micro_common.node_runtime import run_node
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_tools.bags import TYPESTORE
 from omni_micro_tools.topics import GRAPH_TOPICS, TopicSpec
 
@@ -89,8 +89,11 @@ def stop_and_report(viewer: Viewer) -> None:
           file=sys.stderr)
 
 
+COMPONENT = NodeComponent(Viewer, on_shutdown=stop_and_report)
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(Viewer, config_errors=(), on_shutdown=stop_and_report, args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

@@ -25,7 +25,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, run_node
+from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
@@ -127,8 +127,11 @@ class CameraNode(Node):
         return sec * 1_000_000_000 + nanosec
 
 
+COMPONENT = NodeComponent(CameraNode, config_errors=(CameraConfigError,))
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(CameraNode, config_errors=(CameraConfigError,), args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

@@ -33,7 +33,7 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
     stamp_ns,
 )
-from omni_micro_common.node_runtime import run_node
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -297,10 +297,13 @@ class MarkersNode(Node):
         self.publisher.publish(MarkerArray(markers=markers))
 
 
+# Not in the lockstep, it may lag at --rtf max: it draws what is queued before it leaves.
+COMPONENT = NodeComponent(MarkersNode, config_errors=(CameraConfigError,),
+                          drain=lambda node: node.handled, on_shutdown=MarkersNode.finish)
+
+
 def main(args: list[str] | None = None) -> None:
-    # Not in the lockstep, it may lag at --rtf max: it draws what is queued before it leaves.
-    run_node(MarkersNode, config_errors=(CameraConfigError,), args=args,
-             drain=lambda node: node.handled, on_shutdown=MarkersNode.finish)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

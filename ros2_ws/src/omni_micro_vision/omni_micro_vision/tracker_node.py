@@ -32,7 +32,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, run_node
+from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -197,8 +197,11 @@ class _CameraReader:
 _Capture = tuple[_CameraReader, PoseWithCovarianceStamped, PoseStamped]
 
 
+COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,))
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(TrackerNode, config_errors=(CameraConfigError,), args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

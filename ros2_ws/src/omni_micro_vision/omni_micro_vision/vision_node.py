@@ -32,7 +32,12 @@ from omni_micro_common.conventions import (
     yaw_to_quaternion,
 )
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, PublicationCounter, run_node
+from omni_micro_common.node_runtime import (
+    LockstepReporter,
+    NodeComponent,
+    PublicationCounter,
+    run_component,
+)
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -191,8 +196,11 @@ class VisionNode(Node):
         return stamp_ns(msg.header.stamp)
 
 
+COMPONENT = NodeComponent(VisionNode, config_errors=(CameraConfigError,))
+
+
 def main(args: list[str] | None = None) -> None:
-    run_node(VisionNode, config_errors=(CameraConfigError,), args=args)
+    run_component(COMPONENT, args=args)
 
 
 if __name__ == '__main__':

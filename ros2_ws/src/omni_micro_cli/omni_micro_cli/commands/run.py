@@ -58,6 +58,12 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not start markers_node (the /markers it draws for RViz 2 and '
                              'Foxglove; the run is the same with or without it)')
+    parser.add_argument('--composed', action='store_true',
+                        help="run the loop's nodes (dynamics, the cameras' stand-in, the "
+                             'controller) in one process and one executor: about twice as '
+                             'fast at --rtf max, the same run and bag (docs/time.md, "Graph '
+                             'speed"); separate processes stay the default, so that a real '
+                             'camera or robot can replace one')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
 
@@ -162,7 +168,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                                                                     'model.robot.')},
                         dynamics_overrides=preset_under_params(args, 'dynamics_node', 'robot.'),
                         respawn=getattr(args, 'respawn', False), markers=args.markers,
-                        view=view_from_args(args))
+                        view=view_from_args(args), composed=args.composed)
 
 
 def preset_under_params(args: argparse.Namespace, node: str,

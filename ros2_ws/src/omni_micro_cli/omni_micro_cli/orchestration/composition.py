@@ -25,6 +25,9 @@ LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node
 VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
                 'images': (('omni_micro_vision', 'camera_node'),
                            ('omni_micro_vision', 'tracker_node'))}
+# The process that hosts the loop's nodes with --composed (its log is <name>.log).
+LOOP_CONTAINER = 'loop_container'
+
 
 @dataclass(frozen=True)
 class NodeSpec:
@@ -38,14 +41,38 @@ class NodeSpec:
     respawn: bool = False
     # A command that reports on /lockstep all the same (the recorder keeping every frame).
     lockstep: bool = False
+    # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
+    hosts: tuple[NodeSpec, ...] = ()
 
     @property
     def name(self) -> str:
-        return self.executable
+        return LOOP_CONTAINER if self.hosts else self.executable
 
     @property
     def reports_lockstep(self) -> bool:
         return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
+
+    @property
+    def lockstep_names(self) -> tuple[str, ...]:
+        """The nodes of this process that report on /lockstep."""
+        if self.hosts:
+            return tuple(name for spec in self.hosts for name in spec.lockstep_names)
+        return (self.name,) if self.reports_lockstep else ()
+
+
+def composed(specs: list[NodeSpec]) -> NodeSpec:
+    """One process, omni_micro_common's container, hosting the nodes of ``specs``.
+
+    Raises
+    ------
+    UsageError
+        A node given as a command (a stand-in driver): the container hosts installed nodes.
+    """
+    commands = [spec.name for spec in specs if spec.command is not None]
+    if commands:
+        raise UsageError(f'--composed hosts installed nodes only, not the command of '
+                         f'{", ".join(commands)}: run them as separate processes')
+    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs))
 
 
 def default_nodes(vision: str = 'model') -> list[NodeSpec]:
@@ -113,6 +140,8 @@ class GraphOptions:
     view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
     vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
     record_images: bool = False           # the recorder keeps the images too
+    # The loop's nodes in one process and one executor (omni_micro_common's container).
+    composed: bool = False
 
 
 def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
@@ -120,7 +149,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
-        taking_part = [other.name for other in all_specs(options) if other.reports_lockstep]
+        taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
         overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
@@ -162,8 +191,13 @@ def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
 
 
 def all_specs(options: GraphOptions) -> list[NodeSpec]:
-    """Every process of the graph: the loop, then who listens (markers, recorder, viewer)."""
-    specs = graph_nodes(options)
+    """Every process of the graph: the loop (one process with ``composed``), then who listens
+    (markers, recorder, viewer)."""
+    loop = graph_nodes(options)
+    if options.composed and options.respawn:
+        raise UsageError('--respawn restarts a crashed node in a process of its own; with '
+                         '--composed the loop shares one process: choose one of them')
+    specs = [composed(loop)] if options.composed else list(loop)
     if options.markers:
         specs.append(MARKERS_NODE)
     if options.record is not None:
@@ -171,7 +205,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         if options.record_images and not images:
             raise UsageError('--record-images needs the rendered cameras (--vision images)')
         # /camera/status is vision_node's (the tracker says why per camera, not recorded).
-        unpublished = () if any(spec.executable == 'vision_node' for spec in specs) \
+        unpublished = () if any(spec.executable == 'vision_node' for spec in loop) \
             else ('/camera/status',)
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
                                    unpublished))

@@ -95,8 +95,17 @@ class GraphResult:
 def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
     if spec.command is not None:
         return list(spec.command)
-    argv = [str(resolve_executable(spec.package, spec.executable)), '--ros-args',
-            '--params-file', str(package_params_file(spec.package, spec.executable))]
+    executable = str(resolve_executable(spec.package, spec.executable))
+    if spec.hosts:
+        # The container's command line: each node's module, then its own arguments up to --.
+        return [executable, *(word for hosted in spec.hosts for word in (
+            f'{hosted.package}.{hosted.executable}', *_ros_args(hosted, options), '--'))]
+    return [executable, *_ros_args(spec, options)]
+
+
+def _ros_args(spec: NodeSpec, options: GraphOptions) -> list[str]:
+    """A node's ROS arguments: its package's params file, the user's, the run's overrides."""
+    argv = ['--ros-args', '--params-file', str(package_params_file(spec.package, spec.executable))]
     if options.params_file is not None:
         argv += ['--params-file', str(options.params_file)]
     for name, value in node_overrides(spec, options).items():

@@ -1,0 +1,103 @@
+"""The container (several nodes in one process) and the graph's --composed layout: its command
+line, which nodes it hosts and what each is told."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+
+from omni_micro_cli.errors import UsageError
+from omni_micro_cli.orchestration.composition import (
+    LOOP_CONTAINER,
+    GraphOptions,
+    NodeSpec,
+    all_specs,
+    node_overrides,
+)
+from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
+from omni_micro_common.node_runtime import NodeComponent
+
+GRAPH_NODE_MODULES = ('omni_micro_sim.dynamics_node', 'omni_micro_vision.vision_node',
+                      'omni_micro_vision.camera_node', 'omni_micro_vision.tracker_node',
+                      'omni_micro_vision.markers_node', 'omni_micro_control.controller_node',
+                      'omni_micro_tools.recorder_node', 'omni_micro_tools.viewer_node')
+
+
+def test_each_node_module_takes_its_own_ros_arguments_up_to_the_separator():
+    assert parse_hosted(['omni_micro_sim.dynamics_node', '--ros-args', '-p', 'paused:=true',
+                         '--', 'omni_micro_vision.vision_node', '--ros-args', '--params-file',
+                         'v.yaml', '--', 'omni_micro_control.controller_node']) == [
+        ('omni_micro_sim.dynamics_node', ['--ros-args', '-p', 'paused:=true']),
+        ('omni_micro_vision.vision_node', ['--ros-args', '--params-file', 'v.yaml']),
+        ('omni_micro_control.controller_node', [])]
+
+
+@pytest.mark.parametrize('argv, message', [
+    ([], 'no node to run'),
+    (['--ros-args', '-p', 'a:=1'], "expected a node module .* got '--ros-args'"),
+    (['omni_micro_sim.dynamics_node', '-p', 'a:=1'], "got '-p'"),
+])
+def test_a_command_line_that_names_no_node_is_refused(argv, message):
+    with pytest.raises(ContainerUsageError, match=message):
+        parse_hosted(argv)
+
+
+@pytest.mark.parametrize('module', GRAPH_NODE_MODULES)
+def test_every_node_module_has_a_component(module):
+    assert isinstance(load_component(module), NodeComponent)
+
+
+@pytest.mark.parametrize('module, message', [
+    ('omni_micro_sim.no_such_node', "no module 'omni_micro_sim.no_such_node' is installed"),
+    ('omni_micro_common.qos', "'omni_micro_common.qos' has no COMPONENT"),
+])
+def test_what_is_not_a_node_module_is_named(module, message):
+    with pytest.raises(ContainerUsageError, match=message):
+        load_component(module)
+
+
+@pytest.mark.slow
+def test_the_container_refuses_bad_input_in_one_line_and_starts_nothing():
+    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    bad = subprocess.run([sys.executable, '-m', 'omni_micro_common.container',
+                          'omni_micro_sim.nope'], capture_output=True, text=True, env=env,
+                         timeout=60)
+    assert bad.returncode == 2 and 'Traceback' not in bad.stderr
+    assert bad.stderr.startswith("container: no module 'omni_micro_sim.nope' is installed")
+    refused = subprocess.run(
+        [sys.executable, '-m', 'omni_micro_common.container', 'omni_micro_vision.vision_node',
+         '--ros-args', '-p', 'seed:=-1'], capture_output=True, text=True, env=env, timeout=60)
+    assert refused.returncode == 2 and 'Traceback' not in refused.stderr + refused.stdout
+    assert 'omni_micro_vision.vision_node: invalid parameter: seed must be a whole number' \
+        in refused.stdout
+
+
+def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
+    options = GraphOptions(goal_m=(0.1, 0.0), real_time_factor=math.inf, composed=True,
+                           markers=True)
+    specs = all_specs(options)
+    assert [spec.name for spec in specs] == [LOOP_CONTAINER, 'markers_node']
+    loop = specs[0]
+    assert (loop.package, loop.executable) == ('omni_micro_common', 'container')
+    assert [spec.name for spec in loop.hosts] == ['dynamics_node', 'vision_node',
+                                                  'controller_node']
+    # The dynamics waits for the same reports as with separate processes.
+    assert node_overrides(loop.hosts[0], options)['lockstep_nodes'] == [
+        'vision_node', 'controller_node']
+    images = all_specs(GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False,
+                                    vision='images'))
+    assert [spec.name for spec in images[0].hosts] == [
+        'dynamics_node', 'camera_node', 'tracker_node', 'controller_node']
+
+
+def test_composed_refuses_what_needs_separate_processes():
+    with pytest.raises(UsageError, match=r'--respawn .* choose one'):
+        all_specs(GraphOptions(goal_m=(0.1, 0.0), composed=True, respawn=True))
+    stand_in = NodeSpec('x', 'vision_node', command=('camera-driver',))
+    with pytest.raises(UsageError, match='installed nodes only, not the command of vision_node'):
+        all_specs(GraphOptions(goal_m=(0.1, 0.0), composed=True,
+                               nodes=[NodeSpec('omni_micro_sim', 'dynamics_node'), stand_in]))
