@@ -25,19 +25,23 @@ from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_cli.outputs import output_folder
 from omni_micro_sim import paper
 
-# (label, real-time factor, lockstep, cores kept busy by other programs)
-CASES = (('lockstep --rtf max, idle', math.inf, True, 0),
-         ('lockstep --rtf max, 1 core busy', math.inf, True, 1),
-         ('lockstep --rtf max, 2 cores busy', math.inf, True, 2),
-         ('free-running --rtf 20, idle', 20.0, False, 0),
-         ('free-running --rtf 20, 1 core busy', 20.0, False, 1))
+# (label, real-time factor, lockstep, cores kept busy by other programs, loop in one process)
+CASES = (('lockstep --rtf max, idle', math.inf, True, 0, False),
+         ('lockstep --rtf max, 1 core busy', math.inf, True, 1, False),
+         ('lockstep --rtf max, 2 cores busy', math.inf, True, 2, False),
+         ('free-running --rtf 20, idle', 20.0, False, 0, False),
+         ('free-running --rtf 20, 1 core busy', 20.0, False, 1, False),
+         ('--composed lockstep --rtf max, idle', math.inf, True, 0, True),
+         ('--composed lockstep, 1 core busy', math.inf, True, 1, True),
+         ('--composed lockstep, 2 cores busy', math.inf, True, 2, True))
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bench-graph',
         description='Run the Fig. 11 closed loop, recorded, through the node graph in lockstep '
-                    'at --rtf max (idle, one and two cores kept busy by other programs) and '
+                    'at --rtf max (idle, one and two cores kept busy by other programs; as '
+                    'separate processes and --composed) and '
                     'free-running at --rtf 20, and print the real-time factor each reached, '
                     'its outcome and final pose. Target: >= 30x in lockstep on an idle 2-core '
                     'machine.')
@@ -53,11 +57,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def one_run(rtf: float, lockstep: bool, busy: int, scratch: Path, name: str,
-            markers: bool = True) -> GraphResult:
+            markers: bool = True, composed: bool = False) -> GraphResult:
     with busy_cores(busy):
         return run_graph(GraphOptions(
             goal_m=paper.FIG11_GOAL_M, real_time_factor=rtf, lockstep=lockstep,
-            log_dir=scratch / 'logs', record=scratch / name, timeout_s=300.0, markers=markers))
+            log_dir=scratch / 'logs', record=scratch / name, timeout_s=300.0, markers=markers,
+            composed=composed))
 
 
 def markers_cost(pairs: int, scratch: Path) -> dict[str, float]:
@@ -92,8 +97,8 @@ def run(args: argparse.Namespace) -> int:
     rows = []
     with tempfile.TemporaryDirectory(prefix='omni-micro-bench-graph-') as folder:
         scratch = Path(folder)
-        for index, (label, rtf, lockstep, busy) in enumerate(CASES):
-            result = one_run(rtf, lockstep, busy, scratch, f'bag{index}')
+        for index, (label, rtf, lockstep, busy, composed) in enumerate(CASES):
+            result = one_run(rtf, lockstep, busy, scratch, f'bag{index}', composed=composed)
             rtf_reached = result.sim_time_s / result.wall_time_s
             rows.append({'case': label, 'outcome': result.outcome,
                          'rtf_reached': round(rtf_reached, 1),
@@ -108,9 +113,11 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
     lockstep_poses = {(row['final_x_mm'], row['sim_time_s'], row['periods'])
                       for row, case in zip(rows, CASES, strict=True) if case[2]}
-    idle = rows[0]['rtf_reached']
-    print(f'lockstep runs identical: {len(lockstep_poses) == 1}; idle lockstep rtf {idle} '
-          f'(target >= 30), free-running rtf 20 reached {rows[3]["rtf_reached"]}')
+    idle, composed_idle = rows[0]['rtf_reached'], rows[5]['rtf_reached']
+    print(f'lockstep runs identical: {len(lockstep_poses) == 1}; idle lockstep rtf {idle}, '
+          f'--composed {composed_idle} (target >= 30; >= 20 with 2 cores busy: '
+          f'{rows[2]["rtf_reached"]}, --composed {rows[7]["rtf_reached"]}); free-running rtf 20 '
+          f'reached {rows[3]["rtf_reached"]}')
     report: dict[str, object] = {'runs': rows, 'lockstep_identical': len(lockstep_poses) == 1}
     if args.markers_pairs:
         with tempfile.TemporaryDirectory(prefix='omni-micro-bench-graph-') as folder:

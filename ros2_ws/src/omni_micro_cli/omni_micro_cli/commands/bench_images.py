@@ -116,13 +116,13 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
     return rows
 
 
-def _fig11(vision: str, busy: int, scratch: Path) -> GraphResult:
+def _fig11(vision: str, busy: int, scratch: Path, composed: bool = False) -> GraphResult:
     from omni_micro_cli.orchestration.graph import run_graph
 
     with busy_cores(busy):
         return run_graph(GraphOptions(
             goal_m=paper.FIG11_GOAL_M, real_time_factor=math.inf, log_dir=scratch / 'logs',
-            timeout_s=300.0, vision=vision, markers=False))
+            timeout_s=300.0, vision=vision, markers=False, composed=composed))
 
 
 def loop_costs(scratch: Path) -> dict[str, object]:
@@ -130,10 +130,11 @@ def loop_costs(scratch: Path) -> dict[str, object]:
     from omni_micro_tools.bags import read_bag
 
     rows = []
-    for label, vision, busy in (('model, idle (reference)', 'model', 0),
-                                ('images, idle', 'images', 0),
-                                ('images, 1 core busy', 'images', 1)):
-        result = _fig11(vision, busy, scratch)
+    for label, vision, busy, composed in (('model, idle (reference)', 'model', 0, False),
+                                          ('images, idle', 'images', 0, False),
+                                          ('images, 1 core busy', 'images', 1, False),
+                                          ('images --composed, idle', 'images', 0, True)):
+        result = _fig11(vision, busy, scratch, composed)
         rtf = result.sim_time_s / result.wall_time_s
         rows.append({'case': label, 'outcome': result.outcome, 'rtf_reached': round(rtf, 2),
                      'sim_time_s': round(result.sim_time_s, 3), 'periods': result.periods,
@@ -145,8 +146,10 @@ def loop_costs(scratch: Path) -> dict[str, object]:
     model, idle = float(rows[0]['rtf_reached']), float(rows[1]['rtf_reached'])  # type: ignore[arg-type]
     same = rows[1]['sim_time_s'] == rows[2]['sim_time_s'] \
         and rows[1]['deviation_um'] == rows[2]['deviation_um']
-    print(f'images / model rtf: {idle / model:.2f} (images rtf {idle}, target >= 5); '
-          f'images runs idle and busy identical: {same}', flush=True)
+    composed_rtf = rows[3]['rtf_reached']
+    print(f'images / model rtf: {idle / model:.2f} (images rtf {idle}, --composed '
+          f'{composed_rtf}, target >= 5); images runs idle and busy identical: {same}',
+          flush=True)
     bag = scratch / 'images-bag'
     recorded = run_graph(GraphOptions(
         goal_m=(0.1005, 0.0004), real_time_factor=math.inf, log_dir=scratch / 'logs',
@@ -165,6 +168,7 @@ def loop_costs(scratch: Path) -> dict[str, object]:
           f'{folder_mb:.0f} MB, {recorded.outcome} after {recorded.sim_time_s:.2f} s)',
           flush=True)
     return {'runs': rows, 'images_over_model_rtf': round(idle / model, 2),
+            'images_composed_rtf': composed_rtf,
             'images_identical_idle_busy': same, 'bag_mb_per_sim_s': round(per_second, 1)}
 
 
