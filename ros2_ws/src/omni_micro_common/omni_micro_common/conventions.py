@@ -131,4 +131,8 @@ OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recor
 # peers completes at its own pace, slower on a busy machine.)
 LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
     'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',)}
+# What a node that only listens reads from the robot, for the same wait (dynamics_node's
+# listening_nodes): markers_node draws the whole run, from its first sample.
+LISTENER_INPUTS: dict[str, tuple[str, ...]] = {
+    'markers_node': ('/odom', '/joint_states', '/wheel_slip')}
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

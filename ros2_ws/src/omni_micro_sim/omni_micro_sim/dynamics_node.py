@@ -41,6 +41,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.conventions import (
+    LISTENER_INPUTS,
     LOCKSTEP_INPUTS,
     body_twist,
     join_stamp,
@@ -122,6 +123,9 @@ class DynamicsNode(Node):
         # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
         lockstep_nodes = [name for name in self.declare_parameter(
             'lockstep_nodes', [''], _NODE_LIST).value or [] if name]
+        # Nodes that only listen (LISTENER_INPUTS) whose readers time waits for at its start.
+        self.listening_nodes = [name for name in self.declare_parameter(
+            'listening_nodes', [''], _NODE_LIST).value or [] if name]
         max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
                                             _READ_ONLY).value
         # Raises ParameterError naming the value: main() reports it and exits non-zero.
@@ -274,11 +278,12 @@ class DynamicsNode(Node):
         return self._tick_origin + int(elapsed / self.grid.period_s)
 
     def _unmatched_readers(self) -> list[str]:
-        """The lockstep nodes' readers of this node's topics that its publishers have not
-        matched yet (see omni_micro_common.conventions.LOCKSTEP_INPUTS)."""
+        """The lockstep and listening nodes' readers of this node's topics that its publishers
+        have not matched yet (see omni_micro_common.conventions.LOCKSTEP_INPUTS)."""
         missing = []
-        for node in self.lockstep.nodes:
-            for topic in LOCKSTEP_INPUTS.get(node, ()):
+        inputs = {**LOCKSTEP_INPUTS, **LISTENER_INPUTS}
+        for node in (*self.lockstep.nodes, *self.listening_nodes):
+            for topic in inputs.get(node, ()):
                 # Only readers a volatile writer can match (a transient-local one, say a user's
                 # tool, never matches it and must not hold the clock).
                 readers = [info for info in self.get_subscriptions_info_by_topic(topic)
