@@ -60,8 +60,8 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'Foxglove; the run is the same with or without it)')
     parser.add_argument('--composed', action='store_true',
                         help="run the loop's nodes (dynamics, the cameras' stand-in, the "
-                             'controller) in one process and one executor: about twice as '
-                             'fast at --rtf max, the same run and bag (docs/time.md, "Graph '
+                             'controller) in one process and one executor: faster at --rtf '
+                             'max (1.1-1.6x here), the same run and bag (docs/time.md, "Graph '
                              'speed"); separate processes stay the default, so that a real '
                              'camera or robot can replace one')
     add_storage_arguments(parser)
