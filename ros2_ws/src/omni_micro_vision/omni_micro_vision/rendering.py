@@ -84,40 +84,33 @@ def pixel_centres(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
     return left + (np.arange(columns) + 0.5) * px, top - (np.arange(rows) + 0.5) * py
 
 
-def _coverage(distance_m: np.ndarray, radius_m: float, pixel_m: float) -> np.ndarray:
-    """How much of a pixel a disc covers, from the distance of the pixel's centre to the disc's
-    centre: a linear ramp one pixel wide across the edge (area-exact to first order)."""
-    return np.clip(0.5 - (distance_m - radius_m) / pixel_m, 0.0, 1.0)
+_DOTS = tuple(dot for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL)
+              for dot in (fiducial.front, fiducial.back))
+_DOT_RADII = np.array([dot.radius_m for dot in _DOTS])
 
 
-def _reflectance(xs: np.ndarray, ys: np.ndarray, pose: tuple[float, float, float],
+def _reflectance(xs: np.ndarray, ys: np.ndarray, poses: list[tuple[float, float, float]],
                  pixel_m: float) -> np.ndarray:
-    """The scene's reflectance at the pixel centres ``xs`` x ``ys`` for the robot at ``pose``;
-    each dot only where it can reach (a dot is a few pixels in a frame of a million)."""
-    x, y, phi = pose
-    farthest = math.hypot(max(abs(xs[0] - x), abs(xs[-1] - x)),
-                          max(abs(ys[0] - y), abs(ys[-1] - y)))
-    if farthest + pixel_m < CHASSIS_RADIUS_M:
-        # The chassis fills the window (the micro camera's whole 2 mm field).
-        image = np.full((ys.size, xs.size), CHASSIS_LEVEL)
-    else:
-        image = PLATFORM_LEVEL + (CHASSIS_LEVEL - PLATFORM_LEVEL) * _coverage(
-            np.hypot(xs[None, :] - x, ys[:, None] - y), CHASSIS_RADIUS_M, pixel_m)
-    cos, sin = math.cos(phi), math.sin(phi)
-    for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL):
-        for dot in (fiducial.front, fiducial.back):
-            cx = x + cos * dot.x_m - sin * dot.y_m
-            cy = y + sin * dot.x_m + cos * dot.y_m
-            reach = dot.radius_m + pixel_m
-            columns = np.nonzero(np.abs(xs - cx) <= reach)[0]
-            rows = np.nonzero(np.abs(ys - cy) <= reach)[0]
-            if not columns.size or not rows.size:
-                continue
-            window = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
-            covered = _coverage(np.hypot(xs[window[1]][None, :] - cx,
-                                         ys[window[0]][:, None] - cy), dot.radius_m, pixel_m)
-            image[window] += (DOT_LEVEL - image[window]) * covered
-    return image
+    """The scene's reflectance at the pixel centres ``xs`` x ``ys``, summed over the robot at
+    each of ``poses`` (the instants of an exposure): the platform, the chassis's disc and the
+    dots over it, each disc's edge a linear ramp one pixel wide (area-exact to first order)."""
+    from omni_micro_vision.scene_kernel import reflectance_sum
+
+    x_span, y_span = (float(xs[0]), float(xs[-1])), (float(ys[0]), float(ys[-1]))
+    # Whether the chassis fills the window (the micro camera's whole 2 mm field) at an instant.
+    fills = np.array([math.hypot(max(abs(x_span[0] - x), abs(x_span[1] - x)),
+                                 max(abs(y_span[0] - y), abs(y_span[1] - y))) + pixel_m
+                      < CHASSIS_RADIUS_M for x, y, _ in poses])
+    dots_x = np.array([[x + math.cos(phi) * dot.x_m - math.sin(phi) * dot.y_m for dot in _DOTS]
+                       for x, y, phi in poses])
+    dots_y = np.array([[y + math.sin(phi) * dot.x_m + math.cos(phi) * dot.y_m for dot in _DOTS]
+                       for x, y, phi in poses])
+    result: np.ndarray = reflectance_sum(
+        np.ascontiguousarray(xs, np.float64), np.ascontiguousarray(ys, np.float64),
+        np.array([pose[0] for pose in poses]), np.array([pose[1] for pose in poses]), fills,
+        dots_x, dots_y, _DOT_RADII, pixel_m, CHASSIS_RADIUS_M, PLATFORM_LEVEL, CHASSIS_LEVEL,
+        DOT_LEVEL)
+    return result
 
 
 # The frame is put together in square blocks: a block the robot's edge, a dot or their blur
@@ -173,8 +166,8 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
     instants = [exposure_s * (step + 0.5) / steps for step in range(steps)]
     turn_px = abs(motion.omega_rad_s) * exposure_s * CHASSIS_RADIUS_M / pixel_m
     if steps == 1 or turn_px >= 0.25:
-        patch = sum(_reflectance(xs, ys, _pose_at(motion, t), pixel_m) for t in instants)
-        return (np.asarray(patch) / steps).astype(np.float32)
+        patch = _reflectance(xs, ys, [_pose_at(motion, t) for t in instants], pixel_m)
+        return (patch / steps).astype(np.float32)
     middle = 0.5 * exposure_s
     # Each instant's shift from mid-exposure in pixels (rows grow downwards, against y).
     shifts = [((t - middle) * motion.vx_m_s / px, -(t - middle) * motion.vy_m_s / py)
@@ -184,7 +177,8 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
                               xs[-1] + px * np.arange(1, margin + 1)])
     wide_ys = np.concatenate([ys[0] + py * np.arange(margin, 0, -1), ys,
                               ys[-1] - py * np.arange(1, margin + 1)])
-    scene = _reflectance(wide_xs, wide_ys, _pose_at(motion, middle), pixel_m).astype(np.float32)
+    scene = _reflectance(wide_xs, wide_ys, [_pose_at(motion, middle)], pixel_m).astype(
+        np.float32)
     # filter2D correlates: the value at a pixel is the scene an instant's shift behind it.
     kernel = np.zeros((2 * margin + 1, 2 * margin + 1), np.float32)
     for u, v in shifts:
