@@ -30,7 +30,7 @@ from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.rendering import Sensor, render, warm_up
+from omni_micro_vision.rendering import Sensor, render
 
 
 @dataclass(frozen=True)
@@ -77,8 +77,6 @@ class CameraNode(Node):
                 index, camera, sensor, yaw,
                 self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
                 self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
-            # Before the lockstep can start time: its first frame is then no slower than the rest.
-            warm_up(camera, sensor, yaw)
         self._next_frame = 0
         self.lockstep = LockstepReporter(self)
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
