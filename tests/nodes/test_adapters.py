@@ -4,19 +4,23 @@ into the plain modules' types and back, refusals that name the value."""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
+import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.exceptions import InvalidParameterTypeException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
 from omni_micro_common.errors import ParameterError
+from omni_micro_common.qos import IMAGE_QOS
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_sim.dynamics_node import DynamicsNode
@@ -167,6 +171,30 @@ def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(conte
         assert len(frame.data) == 1280 * 1024 and len(infos.messages) == 2
     finally:
         node.destroy_node()
+
+
+def test_camera_node_reads_odometry_only_once_the_trackers_image_reader_is_matched(context):
+    """A frame sent before would be lost to the tracker, and the lockstep would stand still."""
+    camera = CameraNode(context=context, parameter_overrides=overrides(
+        cameras=['macro'], image_readers=['tracker_node']))
+    tracker = rclpy.create_node('tracker_node', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        def reads_odometry() -> bool:
+            return any(sub.topic_name == '/odom' for sub in camera.subscriptions)
+        executor.add_node(camera)
+        executor.spin_once(timeout_sec=0.2)
+        assert not reads_odometry()
+        tracker.create_subscription(Image, '/camera/macro/image_raw', lambda msg: None,
+                                    IMAGE_QOS)
+        deadline = time.monotonic() + 10.0
+        while not reads_odometry() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert reads_odometry()
+    finally:
+        executor.shutdown()
+        tracker.destroy_node()
+        camera.destroy_node()
 
 
 def test_camera_node_refuses_a_frame_rate_of_zero(context):

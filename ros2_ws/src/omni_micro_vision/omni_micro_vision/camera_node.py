@@ -8,6 +8,10 @@ whether or not the robot moves, each stamped with its exposure's start:
 Frame k of camera c is rendered from the odometry sample that ends at or after its stamp, with
 noise seeded by (seed, c, k): the same run gives the same frames at any speed. What a frame
 shows is :func:`omni_micro_vision.rendering.render`'s; this node only moves numbers.
+
+``image_readers`` (node names; empty by default) are the nodes that must not miss a frame: the
+node reads /odom, and so lets the robot's clock start, only once its image writers have matched
+their readers (docs/time.md).
 """
 
 from __future__ import annotations
@@ -19,8 +23,12 @@ from typing import Any
 
 import numpy as np
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy
+from rclpy.timer import Timer
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
@@ -43,6 +51,10 @@ class _Stream:
     yaw_rad: float
     image_pub: Publisher
     info_pub: Publisher
+
+
+_NODE_LIST = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
+MATCH_POLL_S = 0.02
 
 
 class CameraNode(Node):
@@ -77,12 +89,48 @@ class CameraNode(Node):
                 index, camera, sensor, yaw,
                 self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
                 self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
+        # The nodes whose image readers must be matched before the first frame: a frame sent
+        # before would be lost to them (reliable, volatile), and a tracker in the lockstep would
+        # never report it, so time would stand still. Until then there is no /odom reader, and
+        # the robot's clock (which waits for that reader) does not start.
+        self.image_readers = [name for name in self.declare_parameter(
+            'image_readers', [''], _NODE_LIST).value or [] if name]
         self._next_frame = 0
         self.lockstep = LockstepReporter(self)
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
-                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self.get_logger().info(f'streaming {", ".join(chosen)} at {self.rate_hz:g} Hz of '
                                f'simulated time, seed {self.seed}')
+        self._matching: Timer | None = None
+        if self._unmatched_image_readers():
+            # On the steady clock: /clock does not run yet.
+            self._matching = self.create_timer(
+                MATCH_POLL_S, self._subscribe_once_matched,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self._subscribe()
+
+    def _unmatched_image_readers(self) -> list[str]:
+        missing = []
+        for stream in self.streams:
+            topic = stream.image_pub.topic_name
+            readers = [info for info in self.get_subscriptions_info_by_topic(topic)
+                       if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
+            for node in self.image_readers:
+                if not any(info.node_name == node for info in readers) or \
+                        stream.image_pub.get_subscription_count() < len(readers):
+                    missing.append(f"{node}'s reader of {topic}")
+        return missing
+
+    def _subscribe_once_matched(self) -> None:
+        if self._unmatched_image_readers() or self._matching is None:
+            return
+        self._matching.cancel()
+        self.destroy_timer(self._matching)
+        self._matching = None
+        self._subscribe()
+
+    def _subscribe(self) -> None:
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
+                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
     def _on_odometry(self, msg: Odometry) -> None:
         now_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)

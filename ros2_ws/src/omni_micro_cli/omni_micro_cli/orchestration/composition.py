@@ -156,6 +156,12 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
         overrides.update(seed=int(options.seed))
+        if spec.executable == 'camera_node':
+            # Its first frame waits for the readers that must not miss it.
+            present = {other.executable for other in all_specs(options)}
+            readers = [name for name in ('tracker_node',) if name in present]
+            overrides.update(image_readers=readers + (['bag_recorder'] if options.record_images
+                                                      else []))
         overrides.update(options.vision_overrides)
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
