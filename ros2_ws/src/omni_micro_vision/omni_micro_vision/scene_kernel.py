@@ -7,7 +7,7 @@ the exposure), most of them of pixels plainly in or out of a disc. Here each ins
 disc's pixels only along the rows and columns it can reach, and takes a distance
 (``math.hypot``, as ``np.hypot`` did) only near an edge. Every value is the one the array
 version computed, operation for operation: a frame is the same bit for bit
-(tests/vision/test_rendering.py keeps a reference).
+(tests/vision/test_scene_kernel.py keeps the array version as a reference).
 
 Imported by ``render`` on first use, so that importing the camera model does not load numba.
 """
