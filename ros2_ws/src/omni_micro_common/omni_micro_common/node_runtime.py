@@ -37,11 +37,13 @@ from typing import Any, TypeVar
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
@@ -69,6 +71,29 @@ EXECUTOR_ENV = 'OMNI_MICRO_EXECUTOR'
 # another thread): a signal is seen within this long.
 SPIN_TIMEOUT_S = 0.05
 EXECUTORS = ('events', 'single')
+
+
+def node_list_parameter(node: Node, name: str) -> list[str]:
+    """A read-only list of node names (empty by default: ROS has no empty-list default)."""
+    descriptor = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
+    return [value for value in node.declare_parameter(name, [''], descriptor).value or []
+            if value]
+
+
+def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str]) -> list[str]:
+    """Which of ``reader_nodes``' readers of ``publisher``'s topic it has not matched yet.
+
+    A sample sent before a reliable, volatile reader is matched is lost to that reader; seeing
+    the reader in the ROS graph is not enough (discovery between two peers completes at its own
+    pace, slower on a busy machine), so the publisher must count it. Transient-local readers
+    (a user's tool, say) never match a volatile writer and are not waited for.
+    """
+    topic = publisher.topic_name
+    readers = [info for info in node.get_subscriptions_info_by_topic(topic)
+               if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
+    return [f"{name}'s reader of {topic}" for name in reader_nodes
+            if not any(info.node_name == name for info in readers)
+            or publisher.get_subscription_count() < len(readers)]
 
 
 def make_executor() -> Any:

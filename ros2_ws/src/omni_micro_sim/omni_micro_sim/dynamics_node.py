@@ -31,11 +31,10 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -56,7 +55,9 @@ from omni_micro_common.node_runtime import (
     NodeComponent,
     PublicationCounter,
     decode_ack_bytes,
+    node_list_parameter,
     run_component,
+    unmatched_readers,
 )
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.tick_messages import tick_templates
@@ -72,7 +73,6 @@ from omni_micro_sim.wheel_trajectory import (
 
 # Fixed at start-up: they define the robot, and changing them mid-run would change physics.
 _READ_ONLY = ParameterDescriptor(read_only=True)
-_NODE_LIST = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
 # With no lockstep and an unbounded factor the timer would spin; with lockstep, reports drive
 # time and the timer only restarts it after a pause.
 _KICK_PERIOD_S = 0.01
@@ -121,11 +121,9 @@ class DynamicsNode(Node):
             self.declare_parameter('real_time_factor', 1.0).value)
         self.paused = bool(self.declare_parameter('paused', False).value)
         # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
-        lockstep_nodes = [name for name in self.declare_parameter(
-            'lockstep_nodes', [''], _NODE_LIST).value or [] if name]
+        lockstep_nodes = node_list_parameter(self, 'lockstep_nodes')
         # Nodes that only listen (LISTENER_INPUTS) whose readers time waits for at its start.
-        self.listening_nodes = [name for name in self.declare_parameter(
-            'listening_nodes', [''], _NODE_LIST).value or [] if name]
+        self.listening_nodes = node_list_parameter(self, 'listening_nodes')
         max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
                                             _READ_ONLY).value
         # Raises ParameterError naming the value: main() reports it and exits non-zero.
@@ -284,13 +282,7 @@ class DynamicsNode(Node):
         inputs = {**LOCKSTEP_INPUTS, **LISTENER_INPUTS}
         for node in (*self.lockstep.nodes, *self.listening_nodes):
             for topic in inputs.get(node, ()):
-                # Only readers a volatile writer can match (a transient-local one, say a user's
-                # tool, never matches it and must not hold the clock).
-                readers = [info for info in self.get_subscriptions_info_by_topic(topic)
-                           if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
-                if not any(info.node_name == node for info in readers) or \
-                        self._publishers_of[topic].get_subscription_count() < len(readers):
-                    missing.append(f"{node}'s reader of {topic}")
+                missing += unmatched_readers(self, self._publishers_of[topic], [node])
         return missing
 
     def _advance(self) -> None:

@@ -23,17 +23,21 @@ from typing import Any
 
 import numpy as np
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy
 from rclpy.timer import Timer
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
+from omni_micro_common.node_runtime import (
+    LockstepReporter,
+    NodeComponent,
+    node_list_parameter,
+    run_component,
+    unmatched_readers,
+)
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
@@ -53,7 +57,6 @@ class _Stream:
     info_pub: Publisher
 
 
-_NODE_LIST = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
 MATCH_POLL_S = 0.02
 
 
@@ -93,8 +96,7 @@ class CameraNode(Node):
         # before would be lost to them (reliable, volatile), and a tracker in the lockstep would
         # never report it, so time would stand still. Until then there is no /odom reader, and
         # the robot's clock (which waits for that reader) does not start.
-        self.image_readers = [name for name in self.declare_parameter(
-            'image_readers', [''], _NODE_LIST).value or [] if name]
+        self.image_readers = node_list_parameter(self, 'image_readers')
         self._next_frame = 0
         self.lockstep = LockstepReporter(self)
         self.get_logger().info(f'streaming {", ".join(chosen)} at {self.rate_hz:g} Hz of '
@@ -109,19 +111,11 @@ class CameraNode(Node):
             self._subscribe()
 
     def _unmatched_image_readers(self) -> list[str]:
-        missing = []
-        for stream in self.streams:
-            topic = stream.image_pub.topic_name
-            readers = [info for info in self.get_subscriptions_info_by_topic(topic)
-                       if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
-            for node in self.image_readers:
-                if not any(info.node_name == node for info in readers) or \
-                        stream.image_pub.get_subscription_count() < len(readers):
-                    missing.append(f"{node}'s reader of {topic}")
-        return missing
+        return [missing for stream in self.streams
+                for missing in unmatched_readers(self, stream.image_pub, self.image_readers)]
 
     def _subscribe_once_matched(self) -> None:
-        if self._unmatched_image_readers() or self._matching is None:
+        if self._matching is None or self._unmatched_image_readers():
             return
         self._matching.cancel()
         self.destroy_timer(self._matching)

@@ -101,10 +101,11 @@ def _reflectance(xs: np.ndarray, ys: np.ndarray, poses: list[tuple[float, float,
     fills = np.array([math.hypot(max(abs(x_span[0] - x), abs(x_span[1] - x)),
                                  max(abs(y_span[0] - y), abs(y_span[1] - y))) + pixel_m
                       < CHASSIS_RADIUS_M for x, y, _ in poses])
-    dots_x = np.array([[x + math.cos(phi) * dot.x_m - math.sin(phi) * dot.y_m for dot in _DOTS]
-                       for x, y, phi in poses])
-    dots_y = np.array([[y + math.sin(phi) * dot.x_m + math.cos(phi) * dot.y_m for dot in _DOTS]
-                       for x, y, phi in poses])
+    turns = [(math.cos(phi), math.sin(phi)) for _, _, phi in poses]
+    dots_x = np.array([[x + cos * dot.x_m - sin * dot.y_m for dot in _DOTS]
+                       for (x, _, _), (cos, sin) in zip(poses, turns, strict=True)])
+    dots_y = np.array([[y + sin * dot.x_m + cos * dot.y_m for dot in _DOTS]
+                       for (_, y, _), (cos, sin) in zip(poses, turns, strict=True)])
     result: np.ndarray = reflectance_sum(
         np.ascontiguousarray(xs, np.float64), np.ascontiguousarray(ys, np.float64),
         np.array([pose[0] for pose in poses]), np.array([pose[1] for pose in poses]), fills,

@@ -159,9 +159,10 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         if spec.executable == 'camera_node':
             # Its first frame waits for the readers that must not miss it.
             present = {other.executable for other in all_specs(options)}
-            readers = [name for name in ('tracker_node',) if name in present]
-            overrides.update(image_readers=readers + (['bag_recorder'] if options.record_images
-                                                      else []))
+            readers = ['tracker_node'] if 'tracker_node' in present else []
+            if options.record_images:
+                readers.append('bag_recorder')
+            overrides.update(image_readers=readers)
         overrides.update(options.vision_overrides)
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
