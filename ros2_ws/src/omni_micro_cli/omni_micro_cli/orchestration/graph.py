@@ -124,7 +124,7 @@ class Graph:
         self.domain_id = domain_id
         self.log_dir = log_dir
         self.shm_before = shared_memory_files()
-        env = node_environment(domain_id, log_dir, images=bool(streaming_cameras(options)))
+        env = node_environment(domain_id, log_dir)
         # Only this process holds the write end (os.pipe() fds are not inherited); the read end
         # goes to every child, which stops when it reads end-of-file.
         self._lifeline_read, self._lifeline_write = os.pipe()
@@ -306,7 +306,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
                 monitor.send_goal(graph, goal, recording)
                 if index == 0:
                     wall_start = time.monotonic()
-                    monitor.set_paused(False)
+                    monitor.set_paused(graph, False)
                     if options.on_running is not None:
                         options.on_running(graph)
                 status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)

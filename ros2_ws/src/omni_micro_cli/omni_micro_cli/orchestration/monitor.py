@@ -5,6 +5,7 @@ and reads the true final pose from /odom. It commands nothing that moves the rob
 from __future__ import annotations
 
 import functools
+import os
 import time
 from pathlib import Path
 from typing import ClassVar, Protocol
@@ -20,6 +21,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.orchestration.parameters import dds_profile
 from omni_micro_common.conventions import LOCKSTEP_INPUTS, join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -62,6 +64,9 @@ class GraphMonitor:
     costs a subscriber at the full sample rate, so plain runs only read /odom at the end."""
 
     def __init__(self, domain_id: int, follow_route: bool = False) -> None:
+        # The graph's Fast DDS profile here too (its announcements are what makes discovery
+        # quick), read when this process makes its first participant.
+        os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = Node(ORCHESTRATOR_NODE, context=self.context)
@@ -203,12 +208,18 @@ class GraphMonitor:
                 raise RunFailed('controller_node did not acknowledge the goal')
             self.spin_for(0.05)
 
-    def set_paused(self, paused: bool) -> None:
+    def set_paused(self, graph: Supervisor, paused: bool) -> None:
         request = SetParameters.Request(parameters=[Parameter(
             name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
                                                 bool_value=paused))])
         future = self.parameters.call_async(request)
-        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
+        deadline = time.monotonic() + 10.0
+        while not future.done() and time.monotonic() < deadline:
+            if not self.parameters.service_is_ready():
+                # dynamics_node is gone (one that refused its parameters dies just after it
+                # was seen): its death is the message (exit 2 for a refusal), not the clock.
+                graph.check_alive()
+            self.executor.spin_until_future_complete(future, timeout_sec=0.05)
         result = future.result()
         if result is None or not result.results[0].successful:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
@@ -243,7 +254,7 @@ class GraphMonitor:
     def _bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
                     recording: bool) -> None:
         """A node was respawned: hold the clock while it comes back, then go on from there."""
-        self.set_paused(True)
+        self.set_paused(graph, True)
         # The dead node's endpoints stay in the ROS graph until their lease runs out, so a
         # count of subscribers cannot tell: wait for the new process to say it is ready and
         # for endpoints of it that were not there before to appear on the topics it reads.
@@ -263,7 +274,7 @@ class GraphMonitor:
         self.send_goal(graph, goal, recording)
         self.remember_endpoints()
         seen = len(self.camera_statuses)
-        self.set_paused(False)
+        self.set_paused(graph, False)
         if 'vision_node' in restarted:
             # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
             # for its first capture (its status names the camera), then give the controller

@@ -57,8 +57,7 @@ def check_params_file(path: Path) -> None:
 
 
 def dds_profile() -> Path:
-    """The Fast DDS profile for graphs that carry camera frames (installed with
-    omni_micro_common)."""
+    """The Fast DDS profile of the graph's processes (installed with omni_micro_common)."""
     for prefix in install_prefixes():
         path = prefix / 'share' / 'omni_micro_common' / 'config' / 'fastdds.xml'
         if path.is_file():

@@ -184,14 +184,14 @@ def clean_shared_memory(before: set[str]) -> None:
                 leftover.unlink(missing_ok=True)
 
 
-def node_environment(domain_id: int, log_dir: Path, images: bool = False) -> dict[str, str]:
-    """The environment of a graph's processes; with ``images`` (camera frames flowing) the
-    project's Fast DDS profile too, unless the user set one (config/fastdds.xml says why)."""
+def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
+    """The environment of a graph's processes, with the project's Fast DDS profile unless the
+    user set one (config/fastdds.xml says why)."""
     env = dict(os.environ)
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
                RCUTILS_COLORIZED_OUTPUT='0')
     env.pop('ROS_LOCALHOST_ONLY', None)
-    if images and not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
+    if not env.get('FASTRTPS_DEFAULT_PROFILES_FILE'):
         env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(dds_profile())
     return env
