@@ -74,9 +74,13 @@ def test_recorded_images_replayed_into_a_fresh_tracker_give_the_recorded_capture
     recorded = [m for m in read_bag(bag, ['/camera/micro/pose']).messages['/camera/micro/pose']
                 if m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec <= end_ns]
     captures: list[PoseStamped] = []
-    probe.node.create_subscription(PoseStamped, '/camera/micro/pose', captures.append,
-                                   CAPTURE_QOS)
+    reader = probe.node.create_subscription(PoseStamped, '/camera/micro/pose', captures.append,
+                                            CAPTURE_QOS)
     start_node('omni_micro_vision', 'tracker_node')
+    # The replay waits for the tracker's image readers, not for this reader of its captures:
+    # a capture sent before the two have matched would be lost to it (seen on a busy run).
+    probe.spin_until(lambda: reader.get_publisher_count() >= 1, 30.0,
+                     "the tracker's capture writer")
     replay = omni_micro('replay', str(bag), '--topics', *IMAGE_TOPICS, '--sync', 'tracker_node',
                         '--wait-subscribers', '30', '--rate', '100', '--domain-id',
                         str(domain_id))

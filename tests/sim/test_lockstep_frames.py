@@ -40,8 +40,11 @@ def test_the_tracker_s_capture_then_waits_for_the_controller():
     lockstep.on_ack(Ack('tracker_node', None, captures_ns=(67 * MS, 67 * MS),
                         frame_handled_ns=67 * MS))
     assert lockstep.reachable_ns() == 67 * MS + LEAD
+    # A stalled graph's log names the capture, not the slowest node's odometry.
+    assert lockstep.waiting_for() == f'controller_node to handle the capture at {67 * MS} ns'
     lockstep.on_ack(Ack('controller_node', 200 * MS, capture_handled_ns=67 * MS))
     assert lockstep.reachable_ns() == 80 * MS + LEAD
+    assert 'capture' not in (lockstep.waiting_for() or '')
 
 
 def test_a_frame_is_handled_only_when_every_consumer_has_it():

@@ -190,6 +190,12 @@ class LockstepGate:
         if self._frame_handled and self._pending_frames:
             tracker = min(self._frame_handled, key=self._frame_handled.__getitem__)
             return f'{tracker} to handle the frame at {self._pending_frames[0][0]} ns'
+        if self._capture_handled:
+            handler = min(self._capture_handled, key=self._capture_handled.__getitem__)
+            pending = [first for first, last in self._pending_captures
+                       if last > self._capture_handled[handler]]
+            if pending:
+                return f'{handler} to handle the capture at {min(pending)} ns'
         slowest = min(self._processed, key=self._processed.__getitem__, default=None)
         return None if slowest is None else f'{slowest} at {self._processed[slowest]} ns'
 
