@@ -15,12 +15,14 @@ from nav_msgs.msg import Odometry
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image
+from visualization_msgs.msg import MarkerArray
 
-from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
+from omni_micro_common.conventions import quaternion_to_yaw, stamp_ns, yaw_to_quaternion
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.qos import IMAGE_QOS
+from omni_micro_common.tick_messages import odometry_template
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_sim.dynamics_node import DynamicsNode
@@ -72,11 +74,11 @@ def test_dynamics_node_refuses_bad_steering_parameters_naming_them(context, name
         DynamicsNode(context=context, parameter_overrides=[Parameter(name, value=value)])
 
 
+@pytest.mark.parametrize('name', ['wheel_slip_every', 'throttle_every'])
 @pytest.mark.parametrize('value', [0, -1, 2.5, True])
-def test_dynamics_node_refuses_a_slip_rate_that_is_not_a_whole_number_of_ticks(context, value):
-    with pytest.raises((ParameterError, InvalidParameterTypeException),
-                       match='wheel_slip_every'):
-        DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=value))
+def test_dynamics_node_refuses_a_rate_that_is_not_a_whole_number_of_ticks(context, name, value):
+    with pytest.raises((ParameterError, InvalidParameterTypeException), match=name):
+        DynamicsNode(context=context, parameter_overrides=overrides(**{name: value}))
 
 
 def test_dynamics_node_publishes_the_slip_on_one_tick_in_wheel_slip_every(context):
@@ -99,6 +101,23 @@ def test_dynamics_node_takes_the_steering_from_its_parameters(context):
         steering = node.grid.simulator.params.steering
         assert not steering.instantaneous and steering.backlash_rad == 0.02
         assert node.get_parameter('robot.steering.gear_ratio').value == 3.0
+    finally:
+        node.destroy_node()
+
+
+def test_dynamics_node_throttles_odometry_and_joints_for_who_only_watches(context):
+    node = DynamicsNode(context=context, parameter_overrides=overrides(throttle_every=4))
+    try:
+        sent: dict[str, list[bytes]] = {}
+        for publisher in (node.odom_pub, node.joint_pub, node.odom_throttle_pub,
+                          node.joint_throttle_pub):
+            publisher.publish = sent.setdefault(publisher.topic_name, []).append
+        for _ in range(12):
+            node._publish(node.grid.advance())
+        # The same messages, those of ticks 4, 8 and 12.
+        assert sent['/odom_throttle'] == sent['/odom'][3::4]
+        assert sent['/joint_states_throttle'] == sent['/joint_states'][3::4]
+        assert len(set(sent['/odom_throttle'])) == 3
     finally:
         node.destroy_node()
 
@@ -249,6 +268,46 @@ def test_tracker_node_refuses_an_unknown_camera_naming_it(context):
 def test_markers_node_refuses_a_turned_field_that_is_not_a_number(context):
     with pytest.raises(CameraConfigError, match=r'macro\.yaw_rad'):
         MarkersNode(context=context, parameter_overrides=overrides(macro__yaw_rad=math.nan))
+
+
+def _arrays_drawn(context, spy, period_ticks: int) -> list[tuple[int, bool]]:
+    """(stamp in ns, whether it holds the camera fields) of each array markers_node publishes
+    from 3 s of odometry, one sample in ``period_ticks`` of the 20 ms grid."""
+    node = MarkersNode(context=context, parameter_overrides=overrides(
+        publish_period_s=0.1, refresh_period_s=1.0))
+    try:
+        sent = spy(node.publisher)
+        odometry = odometry_template()
+        for tick in range(period_ticks, 151, period_ticks):
+            at_ns = tick * 20_000_000
+            node._on_odometry(odometry.encode((at_ns // 10**9, at_ns % 10**9,
+                                               tick * 1e-5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)))
+        node.finish()
+        arrays = [deserialize_message(data, MarkerArray).markers for data in sent.messages]
+        return [(stamp_ns(markers[0].header.stamp), any(m.ns == 'fields' for m in markers))
+                for markers in arrays]
+    finally:
+        node.destroy_node()
+
+
+def test_markers_node_draws_by_simulated_time_whatever_the_rate_of_its_odometry(context, spy):
+    throttled = _arrays_drawn(context, spy, 5)  # /odom_throttle, as dynamics_node sends it
+    every_tick = _arrays_drawn(context, spy, 1)  # a robot's /odom remapped to it
+    # One array per 0.1 s from 0.1 s on (and the first sample's at 0.02 s at full rate), the
+    # camera fields with the first and then once a second.
+    assert throttled == [(k * 100_000_000, k == 1 or k % 10 == 0) for k in range(1, 31)]
+    assert every_tick == [(20_000_000, True)] + [(k * 100_000_000, k % 10 == 0)
+                                                 for k in range(1, 31)]
+
+
+@pytest.mark.parametrize(('values', 'named'), [
+    ({'publish_period_s': 0.0}, 'publish_period_s'),
+    ({'refresh_period_s': math.inf}, 'refresh_period_s'),
+    ({'publish_period_s': 0.3, 'refresh_period_s': 1.0}, 'whole multiple'),
+])
+def test_markers_node_refuses_periods_it_cannot_keep(context, values, named):
+    with pytest.raises(CameraConfigError, match=named):
+        MarkersNode(context=context, parameter_overrides=overrides(**values))
 
 
 # -- bag_recorder and viewer (omni_micro_tools) -------------------------------------------------

@@ -134,5 +134,5 @@ LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
 # What a node that only listens reads from the robot, for the same wait (dynamics_node's
 # listening_nodes): markers_node draws the whole run, from its first sample.
 LISTENER_INPUTS: dict[str, tuple[str, ...]] = {
-    'markers_node': ('/odom', '/joint_states', '/wheel_slip')}
+    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip')}
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

@@ -8,6 +8,11 @@ Publishes, once per grid period of simulated time (``publish_period_s``):
   /wheel_slip     sensor_msgs/JointState: ``wheel_<k>_longitudinal`` and ``wheel_<k>_transverse``
                   slip velocities of each contact (m/s) in ``velocity``, on one period in
                   ``wheel_slip_every`` (5 by default; nothing in the loop reads it)
+  /odom_throttle, /joint_states_throttle
+                  the same messages as /odom and /joint_states on one period in
+                  ``throttle_every`` (5 by default): for who only watches (markers_node), to
+                  whom every tick would be a delivery it does not need (topic_tools throttle's
+                  names, so that a real robot's driver can be throttled the same way)
 Subscribes:
   /wheel_trajectory  trajectory_msgs/JointTrajectory (contract in omni_micro_sim.wheel_trajectory)
 
@@ -87,8 +92,10 @@ def _robot_defaults() -> dict[str, object]:
     return robot_parameter_values(paper.FIG11_OPEN_LOOP.robot())
 
 
-# /wheel_slip at 10 Hz of simulated time by default (the grid is 50 Hz).
+# /wheel_slip, /odom_throttle and /joint_states_throttle at 10 Hz of simulated time by default
+# (the grid is 50 Hz).
 DEFAULT_SLIP_EVERY = 5
+DEFAULT_THROTTLE_EVERY = 5
 
 # Wall seconds of simulated time standing still (unpaused) before the node says what it waits for.
 STALL_REPORT_S = 5.0
@@ -110,10 +117,14 @@ class DynamicsNode(Node):
         # Nothing in the loop reads the slip: one sample in this many ticks (1: every tick).
         self.slip_every = self.declare_parameter('wheel_slip_every', DEFAULT_SLIP_EVERY,
                                                  _READ_ONLY).value
-        if isinstance(self.slip_every, bool) or not isinstance(self.slip_every, int) or \
-                self.slip_every < 1:
-            raise ParameterError(f'wheel_slip_every must be a whole number of ticks >= 1, got '
-                                 f'{self.slip_every!r}')
+        # Who only watches the robot reads /odom and /joint_states at this fraction of ticks.
+        self.throttle_every = self.declare_parameter('throttle_every', DEFAULT_THROTTLE_EVERY,
+                                                     _READ_ONLY).value
+        for name, value in (('wheel_slip_every', self.slip_every),
+                            ('throttle_every', self.throttle_every)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ParameterError(f'{name} must be a whole number of ticks >= 1, got '
+                                     f'{value!r}')
         initial = self.declare_parameter('initial_pose', [0.0, 0.0, 0.0], _READ_ONLY).value
         self.odom_frame = self.declare_parameter('odom_frame', 'odom', _READ_ONLY).value
         self.base_frame = self.declare_parameter('base_frame', 'base_link', _READ_ONLY).value
@@ -158,8 +169,11 @@ class DynamicsNode(Node):
         self.odom_pub = per_tick(Odometry, '/odom')
         self.joint_pub = per_tick(JointState, '/joint_states')
         self.slip_pub = per_tick(JointState, '/wheel_slip')
+        self.odom_throttle_pub = per_tick(Odometry, '/odom_throttle')
+        self.joint_throttle_pub = per_tick(JointState, '/joint_states_throttle')
         self._publishers_of = {pub.topic_name: pub for pub in (
-            self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub)}
+            self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub,
+            self.odom_throttle_pub, self.joint_throttle_pub)}
         # Time starts (and resumes) only once the lockstep nodes' readers are matched.
         self._readers_pending = True
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
@@ -328,12 +342,17 @@ class DynamicsNode(Node):
         templates = self._templates
         self.clock_pub.publish(templates.clock.encode((sec, nanosec)))
         state = sample.state
-        self.odom_pub.publish(templates.odometry.encode((
+        odometry = templates.odometry.encode((
             sec, nanosec, state.x_m, state.y_m, *yaw_to_quaternion(state.phi_rad),
-            *body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s), state.omega_rad_s)))
-        self.joint_pub.publish(templates.joint_state.encode((
+            *body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s), state.omega_rad_s))
+        self.odom_pub.publish(odometry)
+        joint_state = templates.joint_state.encode((
             sec, nanosec, sample.steering_rad, *map(float, sample.wheel_rotations_rad),
-            sample.steering_rate_rad_s, *map(float, sample.wheel_speeds_rad_s))))
+            sample.steering_rate_rad_s, *map(float, sample.wheel_speeds_rad_s)))
+        self.joint_pub.publish(joint_state)
+        if self.grid.tick % self.throttle_every == 0:
+            self.odom_throttle_pub.publish(odometry)
+            self.joint_throttle_pub.publish(joint_state)
         if self.grid.tick % self.slip_every:
             return
         self.slip_pub.publish(templates.slip.encode((

@@ -1,13 +1,20 @@
 """ROS 2 adapter of the scene: visualization_msgs/MarkerArray on /markers, for RViz 2 and Foxglove.
 
-Only listens (/odom, /wheel_slip, /wheel_trajectory, /goal_pose and the cameras'
-captures) and publishes /markers in the ``platform`` frame, stamped with the simulated time of the
-odometry it draws. It takes no part in the lockstep, so the graph runs the same with or without
-it. What is drawn is :class:`omni_micro_vision.scene.Scene`'s; this node only moves numbers.
+Only listens (/odom_throttle, /joint_states_throttle, /wheel_slip, /wheel_trajectory, /goal_pose
+and the cameras' captures) and publishes /markers in the ``platform`` frame, stamped with the
+simulated time of the odometry it draws. It takes no part in the lockstep, so the graph runs the
+same with or without it. What is drawn is :class:`omni_micro_vision.scene.Scene`'s; this node only
+moves numbers.
 
-Every ``publish_every_ticks`` odometry samples it publishes the robot, its slip and the growing
-end of the route; after an event (a goal, a capture, a move) the event's markers too; and every
-``refresh_every_ticks`` samples everything, so that a viewer that connects late sees the whole run.
+The robot's pose and wheels come from the throttled streams dynamics_node publishes for who only
+watches (10 Hz of simulated time): every tick delivered to one more process cost the graph a
+quarter of its speed. A robot that publishes only /odom and /joint_states is drawn by remapping
+``odom_throttle:=/odom joint_states_throttle:=/joint_states`` (or through topic_tools throttle):
+what is published depends on the stamps, not on how many samples arrive.
+
+Each ``publish_period_s`` of simulated time it publishes the robot, its slip and the growing end
+of the route; after an event (a goal, a capture, a move) the event's markers too; and each
+``refresh_period_s`` everything, so that a viewer that connects late sees the whole run.
 """
 
 from __future__ import annotations
@@ -17,15 +24,14 @@ import math
 from collections.abc import Callable
 from typing import Any, Literal
 
-import rclpy
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
-from visualization_msgs.msg import Marker, MarkerArray
+from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import (
     STEERING_JOINT,
@@ -44,50 +50,8 @@ from omni_micro_common.qos import (
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.marker_messages import MarkerArrayEncoder
 from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
-
-MARKER_TYPES = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER,
-                'sphere_list': Marker.SPHERE_LIST, 'line_strip': Marker.LINE_STRIP,
-                'line_list': Marker.LINE_LIST, 'text': Marker.TEXT_VIEW_FACING}
-
-
-def to_marker(shape: Shape, frame_id: str, stamp: Time, marker: Marker | None = None) -> Marker:
-    """The Marker of ``shape``; ``marker``, a previous one of the same shape, is updated in place
-    (building rclpy messages is most of this node's time)."""
-    if marker is None:
-        marker = Marker(ns=shape.namespace, id=shape.id, type=MARKER_TYPES[shape.kind],
-                        action=Marker.ADD, frame_locked=False)
-        marker.header.frame_id = frame_id
-        marker.pose.orientation.w = 1.0
-    marker.header.stamp = stamp
-    colour = marker.color
-    colour.r, colour.g, colour.b, colour.a = shape.colour
-    if shape.kind in ('disc', 'text'):
-        marker.pose.position.x, marker.pose.position.y = shape.points[0]
-        if shape.kind == 'disc':
-            marker.scale.x = marker.scale.y = shape.size_m
-            marker.scale.z = shape.size_m * 0.02
-        else:
-            marker.scale.z = shape.size_m
-            marker.text = shape.text
-        return marker
-    points = marker.points
-    if len(points) == len(shape.points):
-        for point, (x, y) in zip(points, shape.points, strict=True):
-            point.x, point.y = x, y
-    else:
-        marker.points = [Point(x=x, y=y, z=0.0) for x, y in shape.points]
-    if shape.kind == 'arrow':
-        # Shaft diameter, head diameter, head length (RViz's and Foxglove's convention).
-        length = math.dist(*shape.points)
-        marker.scale.x = shape.size_m
-        marker.scale.y = 2.0 * shape.size_m
-        marker.scale.z = min(4.0 * shape.size_m, 0.3 * length) if length > 0 else 0.0
-    elif shape.kind == 'sphere_list':
-        marker.scale.x = marker.scale.y = marker.scale.z = shape.size_m
-    else:
-        marker.scale.x = shape.size_m
-    return marker
 
 
 def header_stamp_ns(data: bytes) -> int:
@@ -98,19 +62,28 @@ def header_stamp_ns(data: bytes) -> int:
             + int.from_bytes(data[8:12], order))
 
 
+def _period_ns(name: str, value: object) -> int:
+    seconds = float(value) if isinstance(value, (int, float)) and \
+        not isinstance(value, bool) else math.nan
+    if not (math.isfinite(seconds) and seconds >= 1e-6):
+        raise CameraConfigError(f'{name} must be a number of simulated seconds >= 1e-6, got '
+                                f'{value!r}')
+    return round(seconds * 1e9)
+
+
 class MarkersNode(Node):
     def __init__(self, **node_options: Any) -> None:
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('markers_node', **node_options)
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
-        self.publish_every = int(self.declare_parameter('publish_every_ticks', 5).value)
-        self.refresh_every = int(self.declare_parameter('refresh_every_ticks', 50).value)
-        if self.publish_every < 1 or self.refresh_every % self.publish_every \
-                or self.refresh_every < 1:
-            raise CameraConfigError(
-                f'publish_every_ticks must be >= 1 and refresh_every_ticks a multiple of it, '
-                f'got {self.publish_every} and {self.refresh_every}')
+        publish_s = self.declare_parameter('publish_period_s', 0.1).value
+        refresh_s = self.declare_parameter('refresh_period_s', 5.0).value
+        self.publish_ns, self.refresh_ns = (_period_ns(name, value) for name, value in (
+            ('publish_period_s', publish_s), ('refresh_period_s', refresh_s)))
+        if self.refresh_ns % self.publish_ns:
+            raise CameraConfigError(f'refresh_period_s must be a whole multiple of '
+                                    f'publish_period_s, got {refresh_s!r} and {publish_s!r}')
         cameras = {}
         yaws = {}
         for name in ('macro', 'micro'):
@@ -135,10 +108,9 @@ class MarkersNode(Node):
             wheel_offsets_rad=(float(offsets[0]), float(offsets[1]), float(offsets[2]))),
                            tolerance_m=tolerance, slip_arrow_s=slip_arrow, camera_yaw_rad=yaws)
         self.handled = 0          # messages taken in (the drain at shutdown watches it)
-        self._ticks = 0
         self._changed: set[str] = set()     # event groups to send with the next array
         self._stamp = Time()
-        self._markers: dict[tuple[str, int], Marker] = {}
+        self._encoder = MarkerArrayEncoder(self.frame_id)
         # Everything is applied in stamp order, one publication behind the odometry, so that
         # what an array holds does not depend on which message happened to arrive first (the
         # lockstep has every input of a tick published before the next tick's odometry).
@@ -147,18 +119,20 @@ class MarkersNode(Node):
         self._slips: dict[int, bytes] = {}
         self._joint_states: dict[int, bytes] = {}
         self._due: int | None = None        # the stamp the next array draws
+        self._due_everything = False        # and whether it draws everything
+        self._last_periods: tuple[int, int] | None = None   # (publish, refresh) of the last due
         self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self._odometry = odometry_template()
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
-                                 event_callbacks=quiet)
-        # Per-tick streams are kept as bytes and decoded once per publication. The wheels are
+        self.create_subscription(Odometry, '/odom_throttle', self._on_odometry, DATA_QOS,
+                                 raw=True, event_callbacks=quiet)
+        # The streams are kept as bytes and decoded once per publication. The wheels are
         # drawn at their actual steering angle (/joint_states): with a steering motion it
         # lags the commanded one.
         self.create_subscription(JointState, '/wheel_slip', self._on_slip, DATA_QOS, raw=True,
                                  event_callbacks=quiet)
-        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
-                                 raw=True, event_callbacks=quiet)
+        self.create_subscription(JointState, '/joint_states_throttle', self._on_joint_state,
+                                 DATA_QOS, raw=True, event_callbacks=quiet)
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
@@ -182,22 +156,25 @@ class MarkersNode(Node):
     def _on_odometry(self, data: bytes) -> None:
         sec, nanosec, x, y, qz, qw, *_ = self._odometry.decode(data)
         stamp = Time(sec=int(sec), nanosec=int(nanosec))
-        self._poses.append((stamp_ns(stamp), stamp, (x, y, quaternion_to_yaw(qz, qw))))
-        self._ticks += 1
+        at = stamp_ns(stamp)
+        self._poses.append((at, stamp, (x, y, quaternion_to_yaw(qz, qw))))
         self.handled += 1
-        if self._ticks % self.publish_every:
+        # A sample is drawn when it is the first of a publish period (a whole number of
+        # periods from time 0), whatever the rate of the stream.
+        periods = (at // self.publish_ns, at // self.refresh_ns)
+        if self._last_periods is not None and periods[0] <= self._last_periods[0]:
             return
+        everything = self._last_periods is None or periods[1] > self._last_periods[1]
+        self._last_periods = periods
         if self._due is not None:
-            self._draw_until(self._due, everything=self._ticks % self.refresh_every == 0)
-        self._due = stamp_ns(stamp)
+            self._draw_until(self._due, everything=self._due_everything)
+        self._due, self._due_everything = at, everything
 
     def finish(self) -> None:
         """At shutdown: publish the array already due, as the next odometry would have (so a
         run's arrays do not depend on how many ticks ran before it was stopped)."""
-        if self._due is not None and rclpy.ok():
-            due_tick = self._ticks - self._ticks % self.publish_every
-            self._draw_until(self._due, everything=(
-                due_tick + self.publish_every) % self.refresh_every == 0)
+        if self._due is not None and self.context.ok():
+            self._draw_until(self._due, everything=self._due_everything)
             self._due = None
 
     def _draw_until(self, due: int, everything: bool) -> None:
@@ -278,23 +255,14 @@ class MarkersNode(Node):
 
     def _publish(self, shapes: list[Shape]) -> None:
         self._changed.clear()
-        markers = []
-        if self.scene.cleared:
+        cleared = self.scene.cleared
+        if cleared:
             # The last goal's captures and moves go; everything still drawn is sent again.
             self.scene.cleared = False
-            self._markers.clear()
-            clear = Marker(action=Marker.DELETEALL)
-            clear.header.frame_id = self.frame_id
-            clear.header.stamp = self._stamp
-            markers.append(clear)
             shapes = (self.scene.robot_shapes() + self.scene.route_shapes(only_last=False)
                       + self.scene.static_shapes())
-        for shape in shapes:
-            key = (shape.namespace, shape.id)
-            self._markers[key] = to_marker(shape, self.frame_id, self._stamp,
-                                           self._markers.get(key))
-            markers.append(self._markers[key])
-        self.publisher.publish(MarkerArray(markers=markers))
+        self.publisher.publish(self._encoder.encode(
+            shapes, (self._stamp.sec, self._stamp.nanosec), clear_first=cleared))
 
 
 # Not in the lockstep, it may lag at --rtf max: it draws what is queued before it leaves.

@@ -29,6 +29,9 @@ MICRO_SCALE = 1.0 / 75.0
 # A new route point once the robot has moved this far (the route stays a few hundred points).
 ROUTE_SPACING_M = 2.0e-5
 ROUTE_SEGMENT_POINTS = 32        # a line strip per segment: only the last one changes
+# Captures as sphere lists of this many: a new capture re-sends the last list only (one list of
+# every capture re-sent on each capture was a third of everything the markers sent).
+CAPTURE_LIST_POINTS = 32
 # The micro close-up's copy of a route segment only where it comes this near the micro field.
 MICRO_ROUTE_MARGIN_M = 1.0e-3
 # The groups of shapes that change on an event (Scene.static_shapes).
@@ -282,10 +285,14 @@ class Scene:
             seen = [c for c in self.captures if c.camera == name]
             if not seen:
                 continue
-            points = tuple((c.x_m, c.y_m) for c in seen)
-            shapes.append(Shape(f'captures/{name}', 0, 'sphere_list', points, colour, 8e-4))
-            shapes.append(Shape(f'micro/captures/{name}', 0, 'sphere_list', points, colour,
-                                8e-4 * MICRO_SCALE))
+            lists = math.ceil(len(seen) / CAPTURE_LIST_POINTS)
+            for part in range(lists - 1 if newest_only else 0, lists):
+                points = tuple((c.x_m, c.y_m) for c in seen[part * CAPTURE_LIST_POINTS:
+                                                             (part + 1) * CAPTURE_LIST_POINTS])
+                shapes.append(Shape(f'captures/{name}', part, 'sphere_list', points, colour,
+                                    8e-4))
+                shapes.append(Shape(f'micro/captures/{name}', part, 'sphere_list', points,
+                                    colour, 8e-4 * MICRO_SCALE))
             first = len(seen) - 1 if newest_only else 0
             for index in range(first, len(seen)):
                 capture = seen[index]

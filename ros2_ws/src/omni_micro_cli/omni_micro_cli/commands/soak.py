@@ -25,6 +25,7 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.composition import GraphOptions
 from omni_micro_cli.orchestration.graph import run_graph
 from omni_micro_cli.outputs import output_folder
+from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG
 
 # Goals inside the micro camera's field (so each one can be reached to the 3 um tolerance),
@@ -90,8 +91,9 @@ def run(args: argparse.Namespace) -> int:
         echo=None if args.quiet else echo_to_stderr, view=view_from_args(args)))
     reached = sum(1 for status in result.goals if status['outcome'] == 'reached')
     recorded = bag_counts(bag)
+    # Of the recorded topics (the throttled copies of /odom and /joint_states are not).
     missing = {topic: count - recorded.get(topic, 0) for topic, count in result.published.items()
-               if recorded.get(topic, 0) != count}
+               if topic in RECORDABLE_TOPICS and recorded.get(topic, 0) != count}
     # Growth after a warm-up of five goals (imports, caches and DDS pools fill up first).
     warm = min(5, len(next(iter(result.memory_kb.values()), [])) - 1)
     growth = {name: {'after_warm_up_kb': sizes[warm], 'end_kb': sizes[-1],
