@@ -42,7 +42,7 @@ from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.rendering import Sensor, render
+from omni_micro_vision.rendering import Sensor, render, warm_up
 
 
 @dataclass(frozen=True)
@@ -92,6 +92,8 @@ class CameraNode(Node):
                 index, camera, sensor, yaw,
                 self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
                 self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
+            # Before the lockstep can start time: its first frame is then no slower than the rest.
+            warm_up(camera, sensor, yaw)
         # The nodes whose image readers must be matched before the first frame: a frame sent
         # before would be lost to them (reliable, volatile), and a tracker in the lockstep would
         # never report it, so time would stand still. Until then there is no /odom reader, and

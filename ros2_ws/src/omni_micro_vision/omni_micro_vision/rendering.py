@@ -286,3 +286,11 @@ def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
     return frame
 
 
+def warm_up(camera: CameraModel, sensor: Sensor, yaw_rad: float = 0.0) -> None:
+    """Draw one throwaway frame of a moving, turning robot in the middle of ``camera``'s field:
+    the scene kernel loads from numba's cache and the flat fields are drawn (together some
+    0.3 s, which the first frame would otherwise pay inside the loop's time). Frames drawn
+    after it are the same as without it: each is a function of its own seed."""
+    x, y = camera.center_m
+    render(camera, sensor, RobotState(x, y, 0.3, 0.01, 0.002, 0.05), np.random.default_rng(0),
+           yaw_rad)
