@@ -104,8 +104,11 @@ def assert_same_run(bag: Path, summary: dict, other_bag: Path, other: dict) -> N
     wall time makes it: more captures and odometry, and the stop sent at shutdown.)"""
     for key in ('outcome', 'periods', 'sim_time_s'):
         assert other[key] == summary[key], key
+    # The summary's final pose is the first /odom sample the orchestrator reads after the
+    # outcome, at a moment the wall clock decides, and the stopped robot still creeps by a
+    # picometre (seen in CI); the bags' odometry up to the outcome is compared exactly below.
     for key in ('final_x_mm', 'final_y_mm'):
-        assert other[key] == pytest.approx(summary[key], abs=1e-9), key    # 1 pm: at rest
+        assert other[key] == pytest.approx(summary[key], abs=1e-6), key    # 1 nm: at rest
     ours, theirs = read_bag(bag), read_bag(other_bag)
     outcome_ns = round(summary['sim_time_s'] * 1e9)     # the decisive capture's stamp
     drawn = ('/markers',) if '/markers' in ours.raw and '/markers' in theirs.raw else ()
