@@ -38,12 +38,14 @@ def run(tmp_path: Path, **options: Any) -> GraphResult:
 
 # -- vision faults ---------------------------------------------------------------------------
 def test_dropped_and_late_captures_still_reach_the_goal(tmp_path):
-    dropped = run(tmp_path, vision_overrides={'faults.drop_probability': 0.5})
+    # The faults act in simulated time: the lockstep's fastest pace changes nothing.
+    dropped = run(tmp_path, vision_overrides={'faults.drop_probability': 0.5},
+                  real_time_factor=math.inf)
     assert dropped.outcome == 'reached' and dropped.deviation_m < 5e-6
-    late = run(tmp_path, vision_overrides={'faults.delay_s': 0.5})
+    late = run(tmp_path, vision_overrides={'faults.delay_s': 0.5}, real_time_factor=math.inf)
     assert late.outcome == 'reached'
     # Latency costs time, never position: the same stop as without the fault.
-    clean = run(tmp_path)
+    clean = run(tmp_path, real_time_factor=math.inf)
     assert late.final_x_m == pytest.approx(clean.final_x_m, abs=1e-9)
     assert late.sim_time_s > clean.sim_time_s + 0.4 * clean.periods
 
