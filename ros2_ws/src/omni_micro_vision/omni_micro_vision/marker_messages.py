@@ -3,7 +3,7 @@
 Built from rosbags' message classes and serialized by rosbags' CDR serializer rather than as
 rclpy messages: rclpy's conversion of a Python MarkerArray to C was most of markers_node's time
 (about 0.1 ms a marker, measured), and markers_node shares two cores with the loop at
-``--rtf max``; rosbags builds and serializes the same array in about a third of that. The bytes
+``--rtf max``; rosbags builds and serializes a 12-marker array in 0.27 ms. The bytes
 are an ordinary CDR MarkerArray (tests/vision/test_marker_messages.py reads them back with
 rclpy), with zeroed padding, so that the same shapes always give the same bytes.
 """

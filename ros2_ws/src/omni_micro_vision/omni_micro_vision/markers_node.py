@@ -7,10 +7,11 @@ same with or without it. What is drawn is :class:`omni_micro_vision.scene.Scene`
 moves numbers.
 
 The robot's pose and wheels come from the throttled streams dynamics_node publishes for who only
-watches (10 Hz of simulated time): every tick delivered to one more process cost the graph a
-quarter of its speed. A robot that publishes only /odom and /joint_states is drawn by remapping
-``odom_throttle:=/odom joint_states_throttle:=/joint_states`` (or through topic_tools throttle):
-what is published depends on the stamps, not on how many samples arrive.
+watches (10 Hz of simulated time): at ``--rtf max`` the loop fills both cores, and each message
+delivered to a process that only watches takes its share of them. A robot that publishes only
+/odom and /joint_states is drawn by remapping ``/odom_throttle:=/odom
+/joint_states_throttle:=/joint_states`` (or through topic_tools throttle): what is published
+depends on the stamps, not on how many samples arrive.
 
 Each ``publish_period_s`` of simulated time it publishes the robot, its slip and the growing end
 of the route; after an event (a goal, a capture, a move) the event's markers too; and each
