@@ -147,9 +147,11 @@ def test_a_worker_killed_mid_study_costs_only_its_unfinished_runs(tmp_path):
 
 def test_an_unreachable_scheduler_exits_2_and_leaves_nothing(tmp_path):
     out = tmp_path / 'study'
-    done = _cli('--scheduler', 'tcp://127.0.0.1:9', '--out', str(out), '-', input=SMALL_STUDY)
+    done = _cli('--scheduler', 'tcp://127.0.0.1:9', '--scheduler-timeout', '1', '--out', str(out),
+                '-', input=SMALL_STUDY)
     assert done.returncode == 2, done.stderr[-3000:]
     assert 'cannot connect' in done.stderr.strip().splitlines()[-1]
+    assert 'after 1 s' in done.stderr       # --scheduler-timeout, not the default 10 s
     assert 'Traceback' not in done.stderr
     assert not out.exists()
 

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import STEERING_CHOICES, whole_number_in
+from omni_micro_cli.arguments import STEERING_CHOICES, positive_float, whole_number_in
 from omni_micro_cli.errors import StudyError, UsageError
 from omni_micro_cli.outputs import output_folder
 
@@ -43,6 +43,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'core)')
     parser.add_argument('--scheduler', metavar='tcp://HOST:PORT',
                         help='submit to this running Dask scheduler instead of a local cluster')
+    parser.add_argument('--scheduler-timeout', type=positive_float, default=10.0, metavar='S',
+                        help='give up connecting to --scheduler after S seconds (default 10)')
     parser.add_argument('--steering', choices=STEERING_CHOICES,
                         help="every run's steering motion, as the file's steering: key says "
                              '(ideal: the paper, the default; realistic: motor limits, backlash, '
@@ -108,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
           file=sys.stderr)
     try:
         done = execution.execute(study, out, workers=workers, scheduler=args.scheduler,
+                                 scheduler_timeout_s=args.scheduler_timeout,
                                  serial=args.serial)
     except KeyboardInterrupt:
         kept = len(execution.finished_rows(study, out))

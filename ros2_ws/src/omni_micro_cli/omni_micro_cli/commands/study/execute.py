@@ -163,13 +163,14 @@ class Execution:
 
 
 @contextlib.contextmanager
-def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+def dask_client(workers: int, scheduler: str | None,
+                scheduler_timeout_s: float = 10.0) -> Iterator[Any]:
     """A client of ``scheduler``, or of a LocalCluster of ``workers`` processes on loopback."""
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout='10s')
+            client = Client(scheduler, timeout=scheduler_timeout_s)
         except OSError as error:
             raise StudyError(f'--scheduler {scheduler}: cannot connect ({error})') from None
         with client:
@@ -197,7 +198,8 @@ def _tasks(study: Study, rows: list[dict[str, Any]]) -> list[list[dict[str, Any]
 
 
 def execute(study: Study, out: Path, *, workers: int, scheduler: str | None = None,
-            serial: bool = False, progress: bool = True) -> Execution:
+            scheduler_timeout_s: float = 10.0, serial: bool = False,
+            progress: bool = True) -> Execution:
     """Run every run of ``study`` not yet kept in ``out``; keep each as it finishes.
 
     On KeyboardInterrupt the finished runs are on disk before it propagates.
@@ -226,7 +228,7 @@ def execute(study: Study, out: Path, *, workers: int, scheduler: str | None = No
         else:
             from distributed import as_completed
 
-            with dask_client(workers, scheduler) as client:
+            with dask_client(workers, scheduler, scheduler_timeout_s) as client:
                 where = (f'scheduler {scheduler}' if scheduler else
                          f'LocalCluster of {workers} worker processes')
                 client.run(warm_up)
