@@ -34,7 +34,8 @@ KINDS = {'float64': 'd', 'int32': 'i', 'uint32': 'I'}
 _LITTLE_ENDIAN_CDR = (b'\x00\x01', b'\x00\x03')   # CDR_LE, PL_CDR_LE
 
 
-def _typestore() -> Any:
+def typestore() -> Any:
+    """rosbags' store of Jazzy's message types (loaded on first use: rosbags is not light)."""
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_JAZZY)
@@ -76,7 +77,7 @@ def _as_rosbags(message: Any, store: Any) -> Any:
 
 def canonical_bytes(message: Any, store: Any | None = None) -> bytes:
     """``message`` serialized as a publisher sends it: CDR, zeros in the padding."""
-    store = store or _typestore()
+    store = store or typestore()
     return bytes(store.serialize_cdr(_as_rosbags(message, store), _type_name(message)))
 
 
@@ -122,7 +123,7 @@ class MessageTemplate:
     def __init__(self, message: Any, fields: dict[str, str]) -> None:
         self.message_type = type(message)
         self.names = tuple(fields)
-        store = _typestore()
+        store = typestore()
         base = canonical_bytes(message, store)
         if base[:2] not in _LITTLE_ENDIAN_CDR:
             raise ValueError(f'{self.message_type.__name__}: not little-endian CDR')

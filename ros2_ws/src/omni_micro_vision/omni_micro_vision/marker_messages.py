@@ -14,6 +14,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from omni_micro_common.cdr import typestore
 from omni_micro_vision.scene import Shape
 
 # visualization_msgs/Marker's type and action constants.
@@ -29,11 +30,10 @@ class MarkerArrayEncoder:
 
     def __init__(self, frame_id: str) -> None:
         import numpy as np
-        from rosbags.typesys import Stores, get_typestore
 
-        self._store = get_typestore(Stores.ROS2_JAZZY)
+        self._store = typestore()
         types = self._store.types
-        self._marker = types['visualization_msgs/msg/Marker']
+        self._marker_type = types['visualization_msgs/msg/Marker']
         self._array = types[MARKER_ARRAY]
         self._header = types['std_msgs/msg/Header']
         self._time = types['builtin_interfaces/msg/Time']
@@ -67,16 +67,10 @@ class MarkerArrayEncoder:
         DELETEALL marker leads, so that a viewer drops what it drew before."""
         header = self._header(stamp=self._time(sec=stamp[0], nanosec=stamp[1]),
                               frame_id=self.frame_id)
-        markers = [self._clear(header)] if clear_first else []
+        markers = [self._marker(header, '', 0, ARROW, DELETEALL, self._origin, (0.0, 0.0, 0.0),
+                                (0.0, 0.0, 0.0, 0.0))] if clear_first else []
         markers += [self._marker_of(shape, header) for shape in shapes]
         return bytes(self._store.serialize_cdr(self._array(markers=markers), MARKER_ARRAY))
-
-    def _clear(self, header: Any) -> Any:
-        return self._marker(
-            header=header, ns='', id=0, type=ARROW, action=DELETEALL,
-            pose=self._pose(position=self._origin, orientation=self._identity),
-            scale=self._vector(x=0.0, y=0.0, z=0.0),
-            color=self._colour(r=0.0, g=0.0, b=0.0, a=0.0), points=[], text='', **self._unused)
 
     def _marker_of(self, shape: Shape, header: Any) -> Any:
         size = shape.size_m
@@ -100,9 +94,17 @@ class MarkerArrayEncoder:
                 scale = (size, size, size)
             else:
                 scale = (size, 0.0, 0.0)
-        r, g, b, a = shape.colour
-        return self._marker(
-            header=header, ns=shape.namespace, id=shape.id, type=MARKER_TYPES[shape.kind],
-            action=ADD, pose=self._pose(position=position, orientation=self._identity),
+        return self._marker(header, shape.namespace, shape.id, MARKER_TYPES[shape.kind], ADD,
+                            position, scale, shape.colour, points, text)
+
+    def _marker(self, header: Any, namespace: str, marker_id: int, kind: int, action: int,
+                position: Any, scale: tuple[float, float, float],
+                colour: tuple[float, float, float, float], points: list[Any] | None = None,
+                text: str = '') -> Any:
+        r, g, b, a = colour
+        return self._marker_type(
+            header=header, ns=namespace, id=marker_id, type=kind, action=action,
+            pose=self._pose(position=position, orientation=self._identity),
             scale=self._vector(x=scale[0], y=scale[1], z=scale[2]),
-            color=self._colour(r=r, g=g, b=b, a=a), points=points, text=text, **self._unused)
+            color=self._colour(r=r, g=g, b=b, a=a), points=points or [], text=text,
+            **self._unused)

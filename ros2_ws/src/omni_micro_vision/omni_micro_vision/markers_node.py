@@ -119,8 +119,8 @@ class MarkersNode(Node):
         self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
         self._slips: dict[int, bytes] = {}
         self._joint_states: dict[int, bytes] = {}
-        self._due: int | None = None        # the stamp the next array draws
-        self._due_everything = False        # and whether it draws everything
+        # The stamp the next array draws, and whether it draws everything.
+        self._due: tuple[int, bool] | None = None
         self._last_periods: tuple[int, int] | None = None   # (publish, refresh) of the last due
         self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
@@ -168,14 +168,14 @@ class MarkersNode(Node):
         everything = self._last_periods is None or periods[1] > self._last_periods[1]
         self._last_periods = periods
         if self._due is not None:
-            self._draw_until(self._due, everything=self._due_everything)
-        self._due, self._due_everything = at, everything
+            self._draw_until(*self._due)
+        self._due = (at, everything)
 
     def finish(self) -> None:
         """At shutdown: publish the array already due, as the next odometry would have (so a
         run's arrays do not depend on how many ticks ran before it was stopped)."""
         if self._due is not None and self.context.ok():
-            self._draw_until(self._due, everything=self._due_everything)
+            self._draw_until(*self._due)
             self._due = None
 
     def _draw_until(self, due: int, everything: bool) -> None:
