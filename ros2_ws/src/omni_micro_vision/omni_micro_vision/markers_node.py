@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections import deque
 from collections.abc import Callable
 from typing import Any, Literal
 
@@ -61,6 +62,13 @@ def header_stamp_ns(data: bytes) -> int:
     order: Literal['little', 'big'] = 'little' if data[1] & 1 else 'big'
     return (int.from_bytes(data[4:8], order, signed=True) * 1_000_000_000
             + int.from_bytes(data[8:12], order))
+
+
+# An array is drawn once the odometry has gone this many arrays further, so that every event
+# stamped up to it (a capture, a move) has arrived, although it comes from another publisher:
+# at --rtf max with a viewer running, one array's time (5 ticks, a few ms of wall time) was
+# not always enough, and a capture fell into the next array in one run of two.
+DRAW_LAG_ARRAYS = 2
 
 
 def _period_ns(name: str, value: object) -> int:
@@ -112,15 +120,15 @@ class MarkersNode(Node):
         self._changed: set[str] = set()     # event groups to send with the next array
         self._stamp = Time()
         self._encoder = MarkerArrayEncoder(self.frame_id)
-        # Everything is applied in stamp order, one publication behind the odometry, so that
+        # Everything is applied in stamp order, two arrays behind the odometry, so that
         # what an array holds does not depend on which message happened to arrive first (the
         # lockstep has every input of a tick published before the next tick's odometry).
         self._poses: list[tuple[int, Time, tuple[float, float, float]]] = []
         self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
         self._slips: dict[int, bytes] = {}
         self._joint_states: dict[int, bytes] = {}
-        # The stamp the next array draws, and whether it draws everything.
-        self._due: tuple[int, bool] | None = None
+        # The arrays due, oldest first: the stamp each draws, and whether it draws everything.
+        self._due: deque[tuple[int, bool]] = deque()
         self._last_periods: tuple[int, int] | None = None   # (publish, refresh) of the last due
         self._sequence = 0
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
@@ -167,16 +175,15 @@ class MarkersNode(Node):
             return
         everything = self._last_periods is None or periods[1] > self._last_periods[1]
         self._last_periods = periods
-        if self._due is not None:
-            self._draw_until(*self._due)
-        self._due = (at, everything)
+        self._due.append((at, everything))
+        if len(self._due) > DRAW_LAG_ARRAYS:
+            self._draw_until(*self._due.popleft())
 
     def finish(self) -> None:
-        """At shutdown: publish the array already due, as the next odometry would have (so a
+        """At shutdown: publish the arrays already due, as the next odometry would have (so a
         run's arrays do not depend on how many ticks ran before it was stopped)."""
-        if self._due is not None and self.context.ok():
-            self._draw_until(*self._due)
-            self._due = None
+        while self._due and self.context.ok():
+            self._draw_until(*self._due.popleft())
 
     def _draw_until(self, due: int, everything: bool) -> None:
         while self._poses and self._poses[0][0] <= due:
