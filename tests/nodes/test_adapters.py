@@ -16,12 +16,13 @@ from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import CameraInfo, Image
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import quaternion_to_yaw, stamp_ns, yaw_to_quaternion
 from omni_micro_common.errors import ParameterError
-from omni_micro_common.qos import IMAGE_QOS
+from omni_micro_common.qos import DATA_QOS, IMAGE_QOS
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
@@ -119,6 +120,32 @@ def test_dynamics_node_throttles_odometry_and_joints_for_who_only_watches(contex
         assert sent['/joint_states_throttle'] == sent['/joint_states'][3::4]
         assert len(set(sent['/odom_throttle'])) == 3
     finally:
+        node.destroy_node()
+
+
+def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(context):
+    """The recorder says "recording" once its readers see the publishers, which is not that the
+    publishers have matched its readers: a run's bag once lacked its first odometry."""
+    node = DynamicsNode(context=context, parameter_overrides=overrides(
+        listening_nodes=['bag_recorder'], real_time_factor=100.0))
+    recorder = rclpy.create_node('bag_recorder', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        executor.add_node(node)
+        for _ in range(4):
+            executor.spin_once(timeout_sec=0.05)
+        assert node.grid.tick == 0
+        assert "matching bag_recorder's reader of /clock" in node._waiting_for()
+        for topic, kind in (('/clock', Clock), ('/odom', Odometry), ('/joint_states', JointState),
+                            ('/wheel_slip', JointState)):
+            recorder.create_subscription(kind, topic, lambda msg: None, DATA_QOS)
+        deadline = time.monotonic() + 10.0
+        while node.grid.tick == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert node.grid.tick > 0
+    finally:
+        executor.shutdown()
+        recorder.destroy_node()
         node.destroy_node()
 
 

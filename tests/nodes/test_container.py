@@ -7,6 +7,7 @@ import math
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -92,6 +93,15 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
                                     vision='images'))
     assert [spec.name for spec in images[0].hosts] == [
         'dynamics_node', 'camera_node', 'tracker_node', 'controller_node']
+
+
+def test_the_clock_waits_for_the_readers_of_whoever_draws_or_keeps_the_run():
+    dynamics = NodeSpec('omni_micro_sim', 'dynamics_node')
+    recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
+    assert node_overrides(dynamics, recorded)['listening_nodes'] == ['markers_node',
+                                                                     'bag_recorder']
+    bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
+    assert node_overrides(dynamics, bare)['listening_nodes'] == []
 
 
 def test_composed_refuses_what_needs_separate_processes():

@@ -132,7 +132,11 @@ OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recor
 LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
     'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',)}
 # What a node that only listens reads from the robot, for the same wait (dynamics_node's
-# listening_nodes): markers_node draws the whole run, from its first sample.
+# listening_nodes): markers_node draws the whole run, and bag_recorder keeps it, from its first
+# sample. The recorder's own "recording" says that its readers see every publisher, not that the
+# publishers have matched its readers: discovery runs each way at its own pace, and a bag once
+# lacked a run's first odometry.
 LISTENER_INPUTS: dict[str, tuple[str, ...]] = {
-    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip')}
+    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip'),
+    'bag_recorder': ('/clock', '/odom', '/joint_states', '/wheel_slip')}
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

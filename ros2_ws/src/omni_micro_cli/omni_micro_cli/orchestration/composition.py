@@ -151,8 +151,11 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
         taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
         overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
-        # markers_node draws the run from its first sample: time waits for its readers too.
-        overrides.update(listening_nodes=['markers_node'] if options.markers else [])
+        # markers_node draws the run and the recorder keeps it from its first sample: time
+        # waits for their readers too.
+        overrides.update(listening_nodes=[
+            *(['markers_node'] if options.markers else []),
+            *(['bag_recorder'] if options.record is not None else [])])
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
         overrides.update(seed=int(options.seed))
