@@ -1,5 +1,6 @@
 """The markers' wire format (omni_micro_vision.marker_messages): the bytes markers_node
-publishes read back, with rclpy's own deserializer, as the MarkerArray of the scene's shapes."""
+publishes are rosbags' serialization of the same MarkerArray, byte for byte, and read back with
+rclpy's own deserializer as the MarkerArray of the scene's shapes."""
 
 import math
 
@@ -7,8 +8,9 @@ import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
+from omni_micro_common.cdr import typestore
 from omni_micro_vision.camera import DEFAULT_RIG
-from omni_micro_vision.marker_messages import MarkerArrayEncoder
+from omni_micro_vision.marker_messages import MARKER_ARRAY, MARKER_TYPES, MarkerArrayEncoder
 from omni_micro_vision.scene import CAPTURE_LIST_POINTS, Scene
 
 KINDS = {'arrow': Marker.ARROW, 'disc': Marker.CYLINDER, 'sphere_list': Marker.SPHERE_LIST,
@@ -84,3 +86,58 @@ def test_a_new_capture_resends_only_the_last_list_of_captures():
     assert len(newest[0].points) == 80 % CAPTURE_LIST_POINTS
     every = [shape for shape in scene.static_shapes() if shape.namespace == 'captures/macro']
     assert sum(len(shape.points) for shape in every) == 80
+
+
+def rosbags_marker_array(shapes, stamp, frame_id: str, clear_first: bool) -> bytes:
+    """The same MarkerArray built from rosbags' message classes and serialized by rosbags."""
+    import numpy as np
+
+    store = typestore()
+    types = store.types
+    time_of = types['builtin_interfaces/msg/Time']
+    header_of = types['std_msgs/msg/Header']
+    point = types['geometry_msgs/msg/Point']
+    empty = np.zeros(0, np.uint8)
+
+    def marker(namespace, marker_id, kind, action, position, scale, colour, points, text):
+        return types['visualization_msgs/msg/Marker'](
+            header=header_of(stamp=time_of(sec=stamp[0], nanosec=stamp[1]), frame_id=frame_id),
+            ns=namespace, id=marker_id, type=kind, action=action,
+            pose=types['geometry_msgs/msg/Pose'](
+                position=point(x=position[0], y=position[1], z=0.0),
+                orientation=types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)),
+            scale=types['geometry_msgs/msg/Vector3'](x=scale[0], y=scale[1], z=scale[2]),
+            color=types['std_msgs/msg/ColorRGBA'](r=colour[0], g=colour[1], b=colour[2],
+                                                  a=colour[3]),
+            lifetime=types['builtin_interfaces/msg/Duration'](sec=0, nanosec=0),
+            frame_locked=False, points=[point(x=x, y=y, z=0.0) for x, y in points], colors=[],
+            texture_resource='', texture=types['sensor_msgs/msg/CompressedImage'](
+                header=header_of(stamp=time_of(sec=0, nanosec=0), frame_id=''), format='',
+                data=empty),
+            uv_coordinates=[], text=text, mesh_resource='',
+            mesh_file=types['visualization_msgs/msg/MeshFile'](filename='', data=empty),
+            mesh_use_embedded_materials=False)
+
+    markers = [marker('', 0, Marker.ARROW, Marker.DELETEALL, (0.0, 0.0), (0.0, 0.0, 0.0),
+                      (0.0, 0.0, 0.0, 0.0), (), '')] if clear_first else []
+    for shape in shapes:
+        decoded = deserialize_message(MarkerArrayEncoder(frame_id).encode([shape], stamp),
+                                      MarkerArray).markers[0]
+        scale = (decoded.scale.x, decoded.scale.y, decoded.scale.z)   # checked above
+        centred = shape.kind in ('disc', 'text')
+        markers.append(marker(shape.namespace, shape.id, MARKER_TYPES[shape.kind], Marker.ADD,
+                              shape.points[0] if centred else (0.0, 0.0), scale, shape.colour,
+                              () if centred else shape.points, shape.text))
+    return bytes(store.serialize_cdr(types[MARKER_ARRAY](markers=markers), MARKER_ARRAY))
+
+
+@pytest.mark.parametrize('frame_id', ['platform', 'map', 'a_frame_of_odd_length'])
+def test_the_bytes_are_rosbags_serialization_of_the_same_array(frame_id):
+    """Every kind of shape, at every alignment a string of another length leaves it at."""
+    scene = a_scene_with_everything()
+    shapes = scene.robot_shapes() + scene.route_shapes(only_last=False) + scene.static_shapes()
+    encoder = MarkerArrayEncoder(frame_id)
+    for clear_first in (False, True):
+        assert encoder.encode(shapes, (7, 5), clear_first) == \
+            rosbags_marker_array(shapes, (7, 5), frame_id, clear_first)
+
