@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import SingleThreadedExecutor
@@ -325,6 +325,57 @@ def test_markers_node_draws_by_simulated_time_whatever_the_rate_of_its_odometry(
     assert throttled == [(k * 100_000_000, k == 1 or k % 10 == 0) for k in range(1, 31)]
     assert every_tick == [(20_000_000, True)] + [(k * 100_000_000, k % 10 == 0)
                                                  for k in range(1, 31)]
+
+
+def _capture_with_covariance(x_m: float, at_s: float,
+                             variance: float) -> PoseWithCovarianceStamped:
+    msg = PoseWithCovarianceStamped()
+    msg.header.stamp.sec = int(at_s)
+    msg.header.stamp.nanosec = round(at_s % 1 * 1e9)
+    msg.pose.pose.position.x = x_m
+    msg.pose.covariance[0] = msg.pose.covariance[7] = variance
+    return msg
+
+
+def test_markers_node_reads_each_capture_from_one_topic_as_the_controller_does(context, spy):
+    """With covariance (the default) the captures come from pose_with_covariance alone, drawn
+    with their circle; a covariance that is not one is not drawn, and the node goes on."""
+    node = MarkersNode(context=context)
+    try:
+        readers = {sub.topic_name: sub for sub in node.subscriptions}
+        assert '/camera/macro/pose_with_covariance' in readers
+        assert '/camera/macro/pose' not in readers and '/camera/micro/pose' not in readers
+        sent = spy(node.publisher)
+        readers['/camera/macro/pose_with_covariance'].callback(
+            _capture_with_covariance(0.01, 0.05, 1e-10))
+        readers['/camera/macro/pose_with_covariance'].callback(
+            _capture_with_covariance(0.02, 0.06, -1.0))
+        odometry = odometry_template()
+        for tick in range(5, 31, 5):
+            at_ns = tick * 20_000_000
+            node._on_odometry(odometry.encode((at_ns // 10**9, at_ns % 10**9, 0.0, 0.0, 0.0,
+                                               1.0, 0.0, 0.0, 0.0)))
+        node.finish()
+        drawn = [marker for data in sent.messages
+                 for marker in deserialize_message(data, MarkerArray).markers]
+        (points,) = {tuple((p.x, p.y) for p in m.points) for m in drawn
+                     if m.ns == 'captures/macro'}
+        assert points == ((0.01, 0.0),)
+        (circle,) = {m.scale.x for m in drawn if m.ns == 'micro/capture_uncertainty/macro'}
+        assert circle == pytest.approx(2 * 1e-5 * math.sqrt(-2 * math.log(0.05)), rel=1e-6)
+    finally:
+        node.destroy_node()
+    bare = MarkersNode(context=context, parameter_overrides=overrides(
+        capture_uncertainty='fixed'))
+    try:
+        topics = {sub.topic_name for sub in bare.subscriptions}
+        assert {'/camera/macro/pose', '/camera/micro/pose'} <= topics
+        assert not any(topic.endswith('pose_with_covariance') for topic in topics)
+    finally:
+        bare.destroy_node()
+    with pytest.raises(CameraConfigError, match=r"capture_uncertainty .* got 'guessed'"):
+        MarkersNode(context=context, parameter_overrides=overrides(
+            capture_uncertainty='guessed'))
 
 
 @pytest.mark.parametrize(('values', 'named'), [

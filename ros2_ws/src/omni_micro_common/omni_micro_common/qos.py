@@ -20,6 +20,11 @@ CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
 # uncertainty still fits the contract (the controller then takes a fixed one from its params).
 CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
                              'micro': '/camera/micro/pose_with_covariance'}
+# Where a reader of the captures takes their uncertainty from (controller_node's and
+# markers_node's capture_uncertainty): 'covariance' reads each capture from its
+# CAPTURE_COVARIANCE_TOPICS message alone, which has the pose too; 'fixed' reads CAPTURE_TOPICS,
+# for a camera driver that publishes bare PoseStamped captures.
+CAPTURE_UNCERTAINTY_SOURCES = ('covariance', 'fixed')
 
 
 def latched(depth: int) -> QoSProfile:

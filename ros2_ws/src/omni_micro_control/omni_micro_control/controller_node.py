@@ -57,6 +57,7 @@ from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
+    CAPTURE_UNCERTAINTY_SOURCES,
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
@@ -82,9 +83,6 @@ from omni_micro_sim.wheel_trajectory import points_from_profile
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
                  Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
-# Where a capture's uncertainty comes from: the camera's PoseWithCovarianceStamped beside each
-# capture, or (a driver that publishes bare PoseStamped captures) this node's parameters.
-UNCERTAINTY_SOURCES = ('covariance', 'fixed')
 # How often, in the robot's time, the capture timeouts are checked.
 TIMEOUT_CHECK_S = 0.05
 
@@ -172,9 +170,11 @@ class ControllerNode(Node):
 
     def _declare_uncertainty(self) -> str:
         source = self.declare_parameter('capture_uncertainty', 'covariance').value
-        if source not in UNCERTAINTY_SOURCES:
+        # The camera's PoseWithCovarianceStamped beside each capture, or (a driver that
+        # publishes bare PoseStamped captures) this node's parameters.
+        if source not in CAPTURE_UNCERTAINTY_SOURCES:
             raise ParameterError(f'capture_uncertainty must be one of '
-                                 f'{list(UNCERTAINTY_SOURCES)}, got {source!r}')
+                                 f'{list(CAPTURE_UNCERTAINTY_SOURCES)}, got {source!r}')
         self.fixed_uncertainty: dict[str, CaptureUncertainty] = {}
         for name in CAPTURE_TOPICS:
             key = f'fixed_uncertainty.{name}'

@@ -46,6 +46,7 @@ from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
+    CAPTURE_UNCERTAINTY_SOURCES,
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
 )
@@ -145,19 +146,29 @@ class MarkersNode(Node):
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
         self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
-        for name, topic in CAPTURE_TOPICS.items():
-            self.create_subscription(PoseStamped, topic, self._capture_reader(name),
-                                     CAPTURE_QOS)
-        for name, topic in CAPTURE_COVARIANCE_TOPICS.items():
-            self.create_subscription(PoseWithCovarianceStamped, topic,
-                                     self._uncertainty_reader(name), CAPTURE_QOS)
+        # Each capture from one topic, as the controller reads it (the same parameter): the
+        # covariance topic has the pose too, and a second subscription would double the
+        # deliveries of every capture to a process that only watches.
+        source = self.declare_parameter('capture_uncertainty', 'covariance').value
+        if source not in CAPTURE_UNCERTAINTY_SOURCES:
+            raise CameraConfigError(f'capture_uncertainty must be one of '
+                                    f'{list(CAPTURE_UNCERTAINTY_SOURCES)}, got {source!r}')
+        for name in CAPTURE_TOPICS:
+            if source == 'covariance':
+                self.create_subscription(PoseWithCovarianceStamped,
+                                         CAPTURE_COVARIANCE_TOPICS[name],
+                                         self._capture_with_uncertainty_reader(name),
+                                         CAPTURE_QOS)
+            else:
+                self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
+                                         self._capture_reader(name), CAPTURE_QOS)
         # Made last: once the orchestration sees it, every subscription above exists.
         self.publisher = self.create_publisher(MarkerArray, '/markers', DATA_QOS)
 
     # -- inputs ------------------------------------------------------------------------------
     def _at(self, stamp: Time, order: int, apply: Callable[[], None]) -> None:
         """Apply ``apply`` when the drawing reaches ``stamp`` (``order`` breaks ties: a
-        capture before its covariance)."""
+        goal or a move before a capture)."""
         self.handled += 1
         self._sequence += 1
         heapq.heappush(self._events, (stamp_ns(stamp), order, self._sequence, apply))
@@ -249,17 +260,24 @@ class MarkersNode(Node):
             self._at(msg.header.stamp, 1, add)
         return on_capture
 
-    def _uncertainty_reader(self, camera: str) -> Callable[[PoseWithCovarianceStamped], None]:
-        def on_uncertainty(msg: PoseWithCovarianceStamped) -> None:
-            pose = msg.pose.pose
-            radius = CaptureUncertainty.from_covariance(list(msg.pose.covariance)).radius_95_m
+    def _capture_with_uncertainty_reader(
+            self, camera: str) -> Callable[[PoseWithCovarianceStamped], None]:
+        def on_capture(msg: PoseWithCovarianceStamped) -> None:
+            x, y = msg.pose.pose.position.x, msg.pose.pose.position.y
+            try:
+                radius = CaptureUncertainty.from_covariance(msg.pose.covariance).radius_95_m
+            except ValueError as error:   # as the controller: ignored, said
+                self.get_logger().warning(f'not drawn: {camera} capture: {error}',
+                                          throttle_duration_sec=5.0)
+                self.handled += 1
+                return
 
-            def attach() -> None:
-                self.scene.on_capture_uncertainty(camera, pose.position.x, pose.position.y,
-                                                  radius)
+            def add() -> None:
+                self.scene.on_capture(camera, x, y)
+                self.scene.on_capture_uncertainty(camera, x, y, radius)
                 self._changed.add('captures')
-            self._at(msg.header.stamp, 2, attach)
-        return on_uncertainty
+            self._at(msg.header.stamp, 1, add)
+        return on_capture
 
     def _publish(self, shapes: list[Shape]) -> None:
         self._changed.clear()

@@ -176,7 +176,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         controller = node_parameters('omni_micro_control', 'controller_node',
                                      options.params_file, options.controller_overrides)
         overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
-        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller)):
+        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
+                             ('capture_uncertainty', controller)):
             if name in source:
                 overrides[name] = source[name]
     elif spec.executable == 'controller_node':
