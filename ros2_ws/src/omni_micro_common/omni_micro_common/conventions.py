@@ -123,7 +123,6 @@ GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
 OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recorder',
                        'omni_micro_viewer')
 
-# The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 # What each node that takes part in the lockstep reads from the robot. The robot's clock moves
 # only once its own publishers have matched these readers: a sample sent before would be lost to
 # that node (reliable, volatile), which would then never report it, and time would stand still.
@@ -139,4 +138,5 @@ LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
 LISTENER_INPUTS: dict[str, tuple[str, ...]] = {
     'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip'),
     'bag_recorder': ('/clock', '/odom', '/joint_states', '/wheel_slip')}
+# The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'
