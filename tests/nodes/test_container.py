@@ -14,6 +14,7 @@ import pytest
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.orchestration.composition import (
     LOOP_CONTAINER,
+    MARKERS_NODE,
     GraphOptions,
     NodeSpec,
     all_specs,
@@ -102,6 +103,13 @@ def test_the_clock_waits_for_the_readers_of_whoever_draws_or_keeps_the_run():
                                                                      'bag_recorder']
     bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
     assert node_overrides(dynamics, bare)['listening_nodes'] == []
+
+
+def test_markers_read_the_captures_where_the_controller_reads_them():
+    bare = GraphOptions(goal_m=(0.1, 0.0), controller_overrides={'capture_uncertainty': 'fixed'})
+    assert node_overrides(MARKERS_NODE, bare)['capture_uncertainty'] == 'fixed'
+    assert node_overrides(MARKERS_NODE, GraphOptions(goal_m=(0.1, 0.0)))[
+        'capture_uncertainty'] == 'covariance'
 
 
 def test_composed_refuses_what_needs_separate_processes():
