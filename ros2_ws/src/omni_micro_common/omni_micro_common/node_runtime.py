@@ -38,6 +38,7 @@ from typing import Any, TypeVar
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -94,6 +95,38 @@ def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str])
     return [f"{name}'s reader of {topic}" for name in reader_nodes
             if not any(info.node_name == name for info in readers)
             or publisher.get_subscription_count() < len(readers)]
+
+
+# How often a node that waits for readers (when_readers_matched) looks again.
+MATCH_POLL_S = 0.02
+
+
+def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
+                         then: Callable[[], None]) -> None:
+    """Call ``then`` once each publisher has matched the readers of the nodes named beside it
+    (:func:`unmatched_readers`), at once if it already has. A node reads ``/odom`` only from
+    ``then`` on, so that the robot's clock, which waits for that reader, starts no sooner: a
+    sample of its own sent before would be lost to those readers. Polled on the steady clock,
+    since /clock does not run yet."""
+    def unmatched() -> list[str]:
+        return [missing for publisher, names in writers
+                for missing in unmatched_readers(node, publisher, names)]
+
+    if not unmatched():
+        then()
+        return
+    timer: Any = None
+
+    def look_again() -> None:
+        nonlocal timer
+        if timer is None or unmatched():
+            return
+        timer.cancel()
+        node.destroy_timer(timer)
+        timer = None
+        then()
+    timer = node.create_timer(MATCH_POLL_S, look_again,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
 def make_executor() -> Any:

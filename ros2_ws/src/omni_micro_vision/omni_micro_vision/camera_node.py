@@ -23,10 +23,8 @@ from typing import Any
 
 import numpy as np
 from nav_msgs.msg import Odometry
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.publisher import Publisher
-from rclpy.timer import Timer
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
@@ -36,7 +34,7 @@ from omni_micro_common.node_runtime import (
     NodeComponent,
     node_list_parameter,
     run_component,
-    unmatched_readers,
+    when_readers_matched,
 )
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_sim.state import RobotState
@@ -56,8 +54,6 @@ class _Stream:
     image_pub: Publisher
     info_pub: Publisher
 
-
-MATCH_POLL_S = 0.02
 
 
 class CameraNode(Node):
@@ -103,26 +99,8 @@ class CameraNode(Node):
         self.lockstep = LockstepReporter(self)
         self.get_logger().info(f'streaming {", ".join(chosen)} at {self.rate_hz:g} Hz of '
                                f'simulated time, seed {self.seed}')
-        self._matching: Timer | None = None
-        if self._unmatched_image_readers():
-            # On the steady clock: /clock does not run yet.
-            self._matching = self.create_timer(
-                MATCH_POLL_S, self._subscribe_once_matched,
-                clock=Clock(clock_type=ClockType.STEADY_TIME))
-        else:
-            self._subscribe()
-
-    def _unmatched_image_readers(self) -> list[str]:
-        return [missing for stream in self.streams
-                for missing in unmatched_readers(self, stream.image_pub, self.image_readers)]
-
-    def _subscribe_once_matched(self) -> None:
-        if self._matching is None or self._unmatched_image_readers():
-            return
-        self._matching.cancel()
-        self.destroy_timer(self._matching)
-        self._matching = None
-        self._subscribe()
+        when_readers_matched(self, [(stream.image_pub, self.image_readers)
+                                    for stream in self.streams], self._subscribe)
 
     def _subscribe(self) -> None:
         self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
