@@ -22,7 +22,7 @@ from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import quaternion_to_yaw, stamp_ns, yaw_to_quaternion
 from omni_micro_common.errors import ParameterError
-from omni_micro_common.qos import DATA_QOS, IMAGE_QOS
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, IMAGE_QOS
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
@@ -150,6 +150,33 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
 
 
 # -- vision_node --------------------------------------------------------------------------------
+def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(context):
+    """The first captures come at time 0: one sent before markers_node's reader was matched was
+    lost to it (reliable, volatile)."""
+    vision = VisionNode(context=context, parameter_overrides=overrides(
+        covariance_readers=['markers_node']))
+    markers = rclpy.create_node('markers_node', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        def reads_odometry() -> bool:
+            return any(sub.topic_name == '/odom' for sub in vision.subscriptions)
+        executor.add_node(vision)
+        executor.spin_once(timeout_sec=0.2)
+        assert not reads_odometry()
+        for camera in ('macro', 'micro'):
+            markers.create_subscription(PoseWithCovarianceStamped,
+                                        f'/camera/{camera}/pose_with_covariance',
+                                        lambda msg: None, CAPTURE_QOS)
+        deadline = time.monotonic() + 10.0
+        while not reads_odometry() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert reads_odometry()
+    finally:
+        executor.shutdown()
+        markers.destroy_node()
+        vision.destroy_node()
+
+
 def test_vision_node_lets_only_faults_change_while_it_runs(context):
     node = VisionNode(context=context)
     try:

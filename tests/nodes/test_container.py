@@ -18,6 +18,7 @@ from omni_micro_cli.orchestration.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
+    capture_readers,
     node_overrides,
 )
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
@@ -110,6 +111,20 @@ def test_markers_read_the_captures_where_the_controller_reads_them():
     assert node_overrides(MARKERS_NODE, bare)['capture_uncertainty'] == 'fixed'
     assert node_overrides(MARKERS_NODE, GraphOptions(goal_m=(0.1, 0.0)))[
         'capture_uncertainty'] == 'covariance'
+
+
+def test_vision_waits_for_the_readers_of_its_captures_on_the_topics_they_read():
+    recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
+    assert capture_readers(recorded) == {
+        'capture_readers': ['bag_recorder'],
+        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder']}
+    bare = GraphOptions(goal_m=(0.1, 0.0), markers=False, composed=True,
+                        controller_overrides={'capture_uncertainty': 'fixed'})
+    assert capture_readers(bare) == {'capture_readers': ['controller_node'],
+                                     'covariance_readers': []}
+    vision = NodeSpec('omni_micro_vision', 'vision_node')
+    assert node_overrides(vision, recorded)['covariance_readers'] == [
+        'controller_node', 'markers_node', 'bag_recorder']
 
 
 def test_composed_refuses_what_needs_separate_processes():

@@ -9,7 +9,10 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
   /lockstep            its report after each odometry sample (omni_micro_common.lockstep)
-The stamp of a capture is its exposure time in simulated time. The camera model and the capture
+It reads /odom only once its capture writers have matched the readers of the nodes named in
+``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
+that none of them misses the first captures. The stamp of a capture is its exposure time in
+simulated time. The camera model and the capture
 rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and out.
 """
 
@@ -36,7 +39,9 @@ from omni_micro_common.node_runtime import (
     LockstepReporter,
     NodeComponent,
     PublicationCounter,
+    node_list_parameter,
     run_component,
+    when_readers_matched,
 )
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -97,6 +102,8 @@ class VisionNode(Node):
         self.faults = FaultInjector(faults, seed)
         if faults != fault_defaults:
             self.get_logger().warning(f'camera faults injected: {faults}')
+        pose_readers = node_list_parameter(self, 'capture_readers')
+        covariance_readers = node_list_parameter(self, 'covariance_readers')
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
@@ -110,13 +117,23 @@ class VisionNode(Node):
         self.lockstep = LockstepReporter(self)
         # Raw, read in place: an Odometry's conversion to Python cost more than the cameras.
         self._odometry = odometry_template()
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
-                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._status: tuple[int, str] | None = None
+        # The nodes that must not miss a capture, by the topics they read (empty when started
+        # alone): /odom is read, and the robot's clock (which waits for that reader) starts, only
+        # once the capture writers have matched their readers. The first captures come at time
+        # 0, and one was lost to markers_node in a fast start.
+        when_readers_matched(
+            self, [(publisher, pose_readers) for publisher in self.capture_pubs.values()]
+            + [(publisher, covariance_readers) for publisher in self.covariance_pubs.values()],
+            self._read_odometry)
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
+
+    def _read_odometry(self) -> None:
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
+                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Only the fault injection may change at run time; it is checked before it applies."""

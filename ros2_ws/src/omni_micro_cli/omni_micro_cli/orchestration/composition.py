@@ -159,6 +159,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
         overrides.update(seed=int(options.seed))
+        if spec.executable == 'vision_node':
+            overrides.update(capture_readers(options))
         if spec.executable == 'camera_node':
             # Its first frame waits for the readers that must not miss it.
             present = {other.executable for other in all_specs(options)}
@@ -186,6 +188,20 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.controller_overrides)
     overrides.update(spec.overrides)
     return overrides
+
+
+def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
+    """vision_node's ``capture_readers`` and ``covariance_readers``: the nodes of this graph
+    that read its captures from the bare and from the covariance topics (the controller and
+    markers_node as the controller's ``capture_uncertainty`` says, the recorder both)."""
+    present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
+    source = node_parameters('omni_micro_control', 'controller_node', options.params_file,
+                             options.controller_overrides).get('capture_uncertainty',
+                                                               'covariance')
+    readers = [name for name in ('controller_node', 'markers_node') if name in present]
+    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
+    return {'capture_readers': (readers if source == 'fixed' else []) + recorder,
+            'covariance_readers': (readers if source != 'fixed' else []) + recorder}
 
 
 def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
