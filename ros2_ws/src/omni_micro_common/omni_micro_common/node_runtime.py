@@ -46,6 +46,7 @@ from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rclpy.timer import Timer
 
 from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
 from omni_micro_common.conventions import (
@@ -115,7 +116,7 @@ def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
     if not unmatched():
         then()
         return
-    timer: Any = None
+    timer: Timer | None = None
 
     def look_again() -> None:
         nonlocal timer
