@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.exceptions import InvalidParameterTypeException
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
 from rosgraph_msgs.msg import Clock
@@ -150,31 +152,40 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
 
 
 # -- vision_node --------------------------------------------------------------------------------
-def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(context):
-    """The first captures come at time 0: one sent before markers_node's reader was matched was
-    lost to it (reliable, volatile)."""
-    vision = VisionNode(context=context, parameter_overrides=overrides(
-        covariance_readers=['markers_node']))
-    markers = rclpy.create_node('markers_node', context=context)
+def assert_reads_odometry_only_once_matched(context, node: Node, reader_name: str,
+                                            make_readers: Callable[[Node], object]) -> None:
+    """``node`` has no /odom reader (so the robot's clock would not start) until the readers
+    that ``make_readers`` gives a node named ``reader_name`` are matched."""
+    reader = rclpy.create_node(reader_name, context=context)
     executor = SingleThreadedExecutor(context=context)
     try:
         def reads_odometry() -> bool:
-            return any(sub.topic_name == '/odom' for sub in vision.subscriptions)
-        executor.add_node(vision)
+            return any(sub.topic_name == '/odom' for sub in node.subscriptions)
+        executor.add_node(node)
         executor.spin_once(timeout_sec=0.2)
         assert not reads_odometry()
-        for camera in ('macro', 'micro'):
-            markers.create_subscription(PoseWithCovarianceStamped,
-                                        f'/camera/{camera}/pose_with_covariance',
-                                        lambda msg: None, CAPTURE_QOS)
+        make_readers(reader)
         deadline = time.monotonic() + 10.0
         while not reads_odometry() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         assert reads_odometry()
     finally:
         executor.shutdown()
-        markers.destroy_node()
-        vision.destroy_node()
+        reader.destroy_node()
+        node.destroy_node()
+
+
+def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(context):
+    """The first captures come at time 0: one sent before markers_node's reader was matched was
+    lost to it (reliable, volatile)."""
+    def covariance_readers(markers: Node) -> None:
+        for camera in ('macro', 'micro'):
+            markers.create_subscription(PoseWithCovarianceStamped,
+                                        f'/camera/{camera}/pose_with_covariance',
+                                        lambda msg: None, CAPTURE_QOS)
+    assert_reads_odometry_only_once_matched(
+        context, VisionNode(context=context, parameter_overrides=overrides(
+            covariance_readers=['markers_node'])), 'markers_node', covariance_readers)
 
 
 def test_vision_node_lets_only_faults_change_while_it_runs(context):
@@ -248,26 +259,11 @@ def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(conte
 
 def test_camera_node_reads_odometry_only_once_the_trackers_image_reader_is_matched(context):
     """A frame sent before would be lost to the tracker, and the lockstep would stand still."""
-    camera = CameraNode(context=context, parameter_overrides=overrides(
-        cameras=['macro'], image_readers=['tracker_node']))
-    tracker = rclpy.create_node('tracker_node', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    try:
-        def reads_odometry() -> bool:
-            return any(sub.topic_name == '/odom' for sub in camera.subscriptions)
-        executor.add_node(camera)
-        executor.spin_once(timeout_sec=0.2)
-        assert not reads_odometry()
-        tracker.create_subscription(Image, '/camera/macro/image_raw', lambda msg: None,
-                                    IMAGE_QOS)
-        deadline = time.monotonic() + 10.0
-        while not reads_odometry() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        assert reads_odometry()
-    finally:
-        executor.shutdown()
-        tracker.destroy_node()
-        camera.destroy_node()
+    assert_reads_odometry_only_once_matched(
+        context, CameraNode(context=context, parameter_overrides=overrides(
+            cameras=['macro'], image_readers=['tracker_node'])), 'tracker_node',
+        lambda tracker: tracker.create_subscription(Image, '/camera/macro/image_raw',
+                                                    lambda msg: None, IMAGE_QOS))
 
 
 def test_camera_node_refuses_a_frame_rate_of_zero(context):
