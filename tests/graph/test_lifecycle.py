@@ -94,6 +94,44 @@ def test_a_second_signal_ends_the_last_words_at_once(start_node, tmp_path):
     assert process.returncode == 130
 
 
+def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain_id,
+                                                                           tmp_path):
+    """A killed orchestrator takes the reading ends of its nodes' stdout and stderr with it.
+    Every write then raises BrokenPipeError: the recorder's last line (printed once its bag is
+    closed) used to abort its teardown, and the interpreter's slow exit kept it alive up to
+    1.2 s after the orchestrator on an idle machine. Now it exits through the fast path: code 0
+    (an exception on the way out ends with 1)."""
+    from omni_micro_cli.orchestration.parameters import package_params_file, resolve_executable
+    from omni_micro_cli.orchestration.processes import node_environment
+    from omni_micro_common.conventions import LIFELINE_ENV
+
+    bag = tmp_path / 'bag'
+    lifeline_read, lifeline_write = os.pipe()
+    env = {**node_environment(domain_id, tmp_path), LIFELINE_ENV: str(lifeline_read)}
+    recorder = subprocess.Popen(
+        [str(resolve_executable('omni_micro_tools', 'bag_recorder')), '--ros-args',
+         '--params-file', str(package_params_file('omni_micro_tools', 'bag_recorder')),
+         '-p', f'bag:={bag}', '-p', 'topics:=[/odom]'],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, pass_fds=(lifeline_read,))
+    os.close(lifeline_read)
+    try:
+        assert recorder.stdout is not None
+        for line in recorder.stdout:
+            if b'recording 1 topics' in line:
+                break
+        else:
+            raise AssertionError(f'the recorder never started: {recorder.wait()}')
+        recorder.stdout.close()   # the orchestrator's end of the pipe: gone
+        os.close(lifeline_write)  # and the orchestrator with it
+        recorder.wait(10.0)
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+            recorder.wait()
+    assert recorder.returncode == 0
+    assert (bag / 'metadata.yaml').exists()
+
+
 def processes_of_run(log_dir: Path) -> dict[int, str]:
     """PID -> command of every live process started for the run whose logs go to log_dir."""
     found = {}

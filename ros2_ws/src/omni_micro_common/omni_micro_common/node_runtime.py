@@ -18,6 +18,7 @@ A second signal during the shutdown ends the process at once (exit code 130).
 
 from __future__ import annotations
 
+import contextlib
 import cProfile
 import difflib
 import faulthandler
@@ -261,11 +262,32 @@ class _Waker(threading.Thread):
                     # handler runs in the main thread; its wake-up byte brings us back here.
                     self.orphaned = True
                     watched.remove(fd)
+                    silence_output()
                     os.kill(os.getpid(), signal.SIGTERM)
             self._wake()
 
     def close(self) -> None:
         signal.set_wakeup_fd(self._previous_fd)
+
+
+def silence_output() -> None:
+    """Send this process's stdout and stderr to /dev/null from now on.
+
+    An orphaned node's output went to its dead orchestrator's pipes, where every write raises
+    BrokenPipeError: the first one in a shutdown hook or in the counts printed at the end
+    aborted the teardown before the fast exit (:func:`_exit_now`), and the interpreter's own
+    teardown then kept the graph alive up to 1.2 s after its orchestrator was killed, on an
+    idle machine (the recorder, whose last line is printed after its bag is closed, every
+    time)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()   # what is buffered was for the pipe: lost either way
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+    finally:
+        os.close(devnull)
 
 
 def lifeline_fd() -> int | None:
