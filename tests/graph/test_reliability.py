@@ -110,6 +110,71 @@ def test_respawn_brings_a_crashed_node_back_and_the_run_goes_on(node, tmp_path):
     assert result.outcome == 'reached' and result.deviation_m < 5e-6
 
 
+class _NoDeaths:
+    """The monitor's supervisor when no process of the test dies."""
+
+    def __init__(self, log_dir: Path) -> None:
+        self.log_dir = log_dir
+
+    def check_alive(self) -> list[str]:
+        return []
+
+    def wait_ready(self, name: str, timeout_s: float) -> bool:
+        return True
+
+
+def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe, tmp_path,
+                                                                domain_id):
+    """A respawned node whose first samples were sent before its reader was matched never
+    reports them, and the lockstep would wait for ever: the orchestrator stops the clock and
+    starts it again, which levels every node where time stands."""
+    from nav_msgs.msg import Odometry
+    from rclpy.node import Node
+
+    from omni_micro_cli.orchestration.monitor import GraphMonitor
+    from omni_micro_common.lockstep import Ack
+    from omni_micro_common.node_runtime import LockstepReporter
+    from omni_micro_common.qos import DATA_QOS
+
+    # A stand-in vision_node that lost the samples up to 40 ms (the lead's worth the robot sends
+    # before it waits), and reports every later one.
+    standin = Node('vision_node', context=probe.context)
+    probe.executor.add_node(standin)
+    reporter = LockstepReporter(standin)
+    handled = []
+
+    def on_odometry(msg: Odometry) -> None:
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        if stamp_ns > 40_000_000:
+            handled.append(stamp_ns)
+            reporter.report(Ack('vision_node', stamp_ns))
+
+    standin.create_subscription(Odometry, '/odom', on_odometry, DATA_QOS)
+    start_node('omni_micro_sim', 'dynamics_node', 'paused:=true', 'real_time_factor:=5.0',
+               'lockstep_nodes:=[vision_node]')
+    lines: list[str] = []
+    monitor = GraphMonitor(domain_id, echo=lines.append)
+    spinning = True
+
+    def spin_standin() -> None:
+        while spinning:
+            probe.executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin_standin, daemon=True)
+    spinner.start()
+    try:
+        supervisor = _NoDeaths(tmp_path)
+        assert monitor.parameters.wait_for_service(timeout_sec=30.0)
+        monitor.resume(supervisor, ['vision_node'])
+    finally:
+        spinning = False
+        spinner.join(5.0)
+        monitor.close()
+    assert any('stands still at 0.04 s' in line for line in lines), lines
+    assert handled and handled[0] == 60_000_000   # the first sample after time started again
+    assert monitor.latest_odometry is not None and monitor.latest_odometry[0] >= 0.24
+
+
 # -- bad input at run time ---------------------------------------------------------------------
 def test_bad_goals_are_rejected_and_the_controller_stays_idle(start_node, probe, tmp_path):
     start_node('omni_micro_control', 'controller_node')

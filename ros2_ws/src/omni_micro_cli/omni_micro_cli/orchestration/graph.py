@@ -292,7 +292,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     lease = DomainLease(options.domain_id)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = GraphMonitor(domain_id, follow_route=options.follow_route)
+        monitor = GraphMonitor(domain_id, follow_route=options.follow_route, echo=options.echo)
         recording = options.record is not None
         statuses = []
         memory: dict[str, list[int]] = {}
@@ -369,7 +369,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     lease = DomainLease(options.domain_id)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = GraphMonitor(domain_id)
+        monitor = GraphMonitor(domain_id, echo=options.echo)
         try:
             graph.start()
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,

@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import ClassVar, Protocol
 
@@ -57,13 +58,20 @@ READY_SUBSCRIBERS: list[tuple[str, ...]] = [
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
+# After a respawn: wall seconds with no new sample before the clock is stopped and started
+# again, and how far simulated time must go (beyond the lockstep's lead) to show that the
+# new process reports.
+RESUME_STALL_S = 3.0
+RESUMED_AFTER_S = 0.2
 
 
 class GraphMonitor:
     """With ``follow_route`` it keeps the whole route and every capture (for figures); that
     costs a subscriber at the full sample rate, so plain runs only read /odom at the end."""
 
-    def __init__(self, domain_id: int, follow_route: bool = False) -> None:
+    def __init__(self, domain_id: int, follow_route: bool = False,
+                 echo: Callable[[str], None] | None = None) -> None:
+        self.echo = echo
         # The graph's Fast DDS profile here too (its announcements are what makes discovery
         # quick), read when this process makes its first participant.
         os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
@@ -274,7 +282,7 @@ class GraphMonitor:
         self.send_goal(graph, goal, recording)
         self.remember_endpoints()
         seen = len(self.camera_statuses)
-        self.set_paused(graph, False)
+        self.resume(graph, restarted)
         if 'vision_node' in restarted:
             # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
             # for its first capture (its status names the camera), then give the controller
@@ -297,6 +305,54 @@ class GraphMonitor:
             else:
                 raise RunFailed('controller_node receives no capture from the respawned '
                                 'vision_node')
+
+    def resume(self, graph: Supervisor, restarted: list[str]) -> None:
+        """Start the clock held for the respawn of ``restarted`` and wait until simulated time
+        has gone well past where it stood; if it stands still instead, stop it and start it
+        again.
+
+        The robot starts time once its publishers have matched the readers it sees of the
+        respawned node. A dead process's reader stays in the ROS graph for a while and, in the
+        robot's view, can stand in for the new one not yet discovered there: the new process
+        then loses the first samples, never reports them, and the lockstep would wait for ever
+        (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
+        clock again levels every node at the time it stands at and looks at the readers anew.
+        """
+        odometry = None if self._following else self.node.create_subscription(
+            Odometry, '/odom', self._on_odometry, DATA_QOS)
+        try:
+            self.set_paused(graph, False)
+            self._wait_for_time_to_move(graph, restarted)
+        finally:
+            if odometry is not None:
+                self.node.destroy_subscription(odometry)   # a reader per tick: only while needed
+
+    def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str]) -> None:
+        deadline = time.monotonic() + 60.0
+        first: float | None = None
+        latest = self.latest_odometry[0] if self.latest_odometry else None
+        moved_at = time.monotonic()
+        while True:
+            graph.check_alive()
+            self.spin_for(0.05)
+            stamp = self.latest_odometry[0] if self.latest_odometry else None
+            if stamp != latest:
+                latest, moved_at = stamp, time.monotonic()
+                first = stamp if first is None else first
+            if latest is not None and first is not None and latest - first >= RESUMED_AFTER_S:
+                return
+            if time.monotonic() > deadline:
+                raise RunFailed(f'simulated time stands still after respawning '
+                                f'{", ".join(restarted)}')
+            if time.monotonic() - moved_at >= RESUME_STALL_S:
+                if self.echo:
+                    self.echo(f'[orchestration] simulated time stands still at '
+                              f'{latest or 0.0:.2f} s after respawning {", ".join(restarted)}: '
+                              'stopping and starting the clock again')
+                self.set_paused(graph, True)
+                self.spin_for(MATCH_GRACE_S)
+                first, moved_at = None, time.monotonic()
+                self.set_paused(graph, False)
 
     def wait_for_outcome(self, graph: Supervisor, timeout_s: float, goal: tuple[float, float],
                          recording: bool = False) -> dict[str, str]:
