@@ -240,19 +240,24 @@ def test_controller_node_rejects_a_goal_in_another_frame_and_says_so(context, sp
 def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(context, spy):
     node = CameraNode(context=context, parameter_overrides=overrides(cameras=['macro']))
     try:
-        images = spy(node.streams[0].image_pub)
-        infos = spy(node.streams[0].info_pub)
+        images, infos = spy(node.streams[0].image_pub), spy(node.streams[0].info_pub)
         odometry = Odometry()
         odometry.pose.pose.position.x, odometry.pose.pose.position.y = 0.05, 0.0
         odometry.pose.pose.orientation.z, odometry.pose.pose.orientation.w = yaw_to_quaternion(
             0.0)
         for nanosec in (0, 20_000_000, 40_000_000):   # the 50 Hz grid: frames 0 and 1 (1/30 s)
             odometry.header.stamp.nanosec = nanosec
-            node._on_odometry(odometry)
-        assert [m.header.stamp.nanosec for m in images.messages] == [0, round(1e9 / 30)]
-        frame = images.messages[0]
-        assert (frame.width, frame.height, frame.encoding) == (1280, 1024, 'mono8')
-        assert len(frame.data) == 1280 * 1024 and len(infos.messages) == 2
+            node._on_odometry(serialize_message(odometry))   # raw, as it subscribes
+        frames = [deserialize_message(data, Image) for data in images.messages]
+        assert [m.header.stamp.nanosec for m in frames] == [0, round(1e9 / 30)]
+        assert (frames[0].width, frames[0].height, frames[0].encoding) == (1280, 1024, 'mono8')
+        assert frames[0].header.frame_id == 'camera_macro' and len(frames[0].data) == 1280 * 1024
+        # The robot, at the field's centre, is drawn there: not the platform of the corner.
+        pixels = np.frombuffer(frames[0].data, np.uint8).reshape(1024, 1280).astype(float)
+        assert abs(pixels[462:562, 590:690].mean() - pixels[:100, :100].mean()) > 10
+        infos = [deserialize_message(data, CameraInfo) for data in infos.messages]
+        assert [(i.width, i.height, i.header.stamp.nanosec) for i in infos] == \
+            [(1280, 1024, 0), (1280, 1024, round(1e9 / 30))]
     finally:
         node.destroy_node()
 
@@ -291,7 +296,7 @@ def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(co
             pixels = render(DEFAULT_RIG.macro, Sensor(), truth, np.random.default_rng([5, index]))
             image, info = frame(pixels, index * 33_333_333)
             reader.on_info(info)
-            reader.on_image(image)
+            reader.on_image(serialize_message(image))   # raw, as it subscribes
         # Three frames agree from the third on: a capture each, stamped with its frame.
         assert [c.header.stamp.nanosec for c in captures.messages] == [66_666_666, 99_999_999]
         for capture in captures.messages:
@@ -302,8 +307,10 @@ def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(co
         assert len(covariances.messages) == 2 and covariances.messages[0].pose.covariance[0] > 0
         image, _ = frame(np.zeros((1024, 1280), dtype=np.uint8), 5 * 33_333_333)
         image.encoding = 'rgb8'
-        reader.on_image(image)
+        reader.on_image(serialize_message(image))
         assert "encoding 'rgb8' is not mono8 or mono16" in statuses.messages[-1].message
+        reader.on_image(serialize_message(image)[:30])   # cut short: refused, named
+        assert 'an image message' in statuses.messages[-1].message
         assert len(captures.messages) == 2
     finally:
         node.destroy_node()

@@ -16,7 +16,6 @@ their readers (docs/time.md).
 
 from __future__ import annotations
 
-import array
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -27,7 +26,7 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp, stamp_ns
+from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.node_runtime import (
     LockstepReporter,
@@ -37,9 +36,11 @@ from omni_micro_common.node_runtime import (
     when_readers_matched,
 )
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.tick_messages import odometry_template
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.image_messages import ImageWriter
 from omni_micro_vision.rendering import Sensor, render, warm_up
 
 
@@ -53,6 +54,7 @@ class _Stream:
     yaw_rad: float
     image_pub: Publisher
     info_pub: Publisher
+    writer: ImageWriter
 
 
 
@@ -87,7 +89,9 @@ class CameraNode(Node):
             self.streams.append(_Stream(
                 index, camera, sensor, yaw,
                 self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
-                self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
+                self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS),
+                ImageWriter(f'camera_{name}', int(camera.resolution_px[1]),
+                            int(camera.resolution_px[0]), sensor.encoding)))
             # Before the lockstep can start time: its first frame is then no slower than the rest.
             warm_up(camera, sensor, yaw)
         # The nodes whose image readers must be matched before the first frame: a frame sent
@@ -103,19 +107,18 @@ class CameraNode(Node):
                                     for stream in self.streams], self._subscribe)
 
     def _subscribe(self) -> None:
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS,
+        # Raw, read in place (tick_messages): the per-tick message without its conversion.
+        self._odometry = odometry_template()
+        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
-    def _on_odometry(self, msg: Odometry) -> None:
-        now_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-        pose = msg.pose.pose
-        phi = quaternion_to_yaw(pose.orientation.z, pose.orientation.w)
+    def _on_odometry(self, data: bytes) -> None:
+        sec, nanosec, x, y, qz, qw, forward, lateral, omega = self._odometry.decode(data)
+        now_s = join_stamp(int(sec), int(nanosec))
+        phi = quaternion_to_yaw(qz, qw)
         # The twist is in the robot's frame (REP-103); the renderer wants the platform's.
-        forward, lateral = msg.twist.twist.linear.x, msg.twist.twist.linear.y
-        state = RobotState(pose.position.x, pose.position.y, phi,
-                           forward * math.cos(phi) - lateral * math.sin(phi),
-                           forward * math.sin(phi) + lateral * math.cos(phi),
-                           msg.twist.twist.angular.z)
+        state = RobotState(x, y, phi, forward * math.cos(phi) - lateral * math.sin(phi),
+                           forward * math.sin(phi) + lateral * math.cos(phi), omega)
         # Every frame whose exposure starts by this sample, from it (at 30 Hz on a 50 Hz grid,
         # at most one). Frames long past (a node started late) are not made up.
         self._next_frame = max(self._next_frame, math.floor(now_s * self.rate_hz + 1e-9))
@@ -124,7 +127,7 @@ class CameraNode(Node):
             published.append(self._publish_frame(self._next_frame, state))
             self._next_frame += 1
         # Last: the frames are out before the robot may move on.
-        self.lockstep.report(Ack(self.get_name(), stamp_ns(msg.header.stamp),
+        self.lockstep.report(Ack(self.get_name(), int(sec) * 1_000_000_000 + int(nanosec),
                                  frames_ns=(published[0], published[-1]) if published else None))
 
     def _publish_frame(self, number: int, state: RobotState) -> int:
@@ -135,17 +138,8 @@ class CameraNode(Node):
             pixels = render(camera, sensor, state,
                             np.random.default_rng([self.seed, stream.index, number]),
                             stream.yaw_rad)
-            image = Image(height=pixels.shape[0], width=pixels.shape[1],
-                          encoding=sensor.encoding, is_bigendian=0,
-                          step=pixels.shape[1] * pixels.itemsize)
-            # An array.array is taken as it is; bytes or a list would be checked value by value.
-            image.data = array.array('B', pixels.tobytes())
-            image.header.stamp.sec, image.header.stamp.nanosec = sec, nanosec
-            image.header.frame_id = f'camera_{camera.name}'
-            info = CameraInfo(height=image.height, width=image.width)
-            info.header = image.header
-            stream.info_pub.publish(info)
-            stream.image_pub.publish(image)
+            stream.info_pub.publish(stream.writer.info(sec, nanosec))
+            stream.image_pub.publish(stream.writer.image(sec, nanosec, pixels))
         return sec * 1_000_000_000 + nanosec
 
 

@@ -43,7 +43,7 @@ from omni_micro_common.qos import (
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import fiducial_for
-from omni_micro_vision.image_messages import image_array
+from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
@@ -99,7 +99,8 @@ class TrackerNode(Node):
             reader = _CameraReader(self, model, yaw)
             self.readers.append(reader)
             fields[name] = min(model.field_m)
-            self.create_subscription(Image, image_topic, reader.on_image, image_qos)
+            # Raw: the pixels are read where they lie (image_messages.read_image).
+            self.create_subscription(Image, image_topic, reader.on_image, image_qos, raw=True)
             self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
         # The smaller field has the finer pixel (the resolution comes with the images).
         self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
@@ -155,11 +156,18 @@ class _CameraReader:
         """The camera as this frame shows it: its resolution comes with the image."""
         return dataclasses.replace(self.model, resolution_px=(width, height))
 
-    def on_image(self, msg: Image) -> None:
+    def on_image(self, data: bytes) -> None:
+        try:
+            msg = read_image(data)
+        except CameraConfigError as error:
+            # No stamp to report it under: as a frame lost on the way.
+            self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
+            self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
+            return
         found, capture = self._see(msg)
         self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture)
 
-    def _see(self, msg: Image) -> tuple[bool, _Capture | None]:
+    def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None]:
         """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
         try:
             pixels = image_array(msg, self.size)
