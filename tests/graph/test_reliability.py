@@ -175,6 +175,31 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     assert monitor.latest_odometry is not None and monitor.latest_odometry[0] >= 0.24
 
 
+def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_id, tmp_path):
+    """The server's response writer may match the orchestrator's reader after it answered: the
+    answer is lost. The request goes again, and the clock starts."""
+    from rclpy.task import Future
+
+    from omni_micro_cli.orchestration.monitor import GraphMonitor
+
+    start_node('omni_micro_sim', 'dynamics_node', 'paused:=true')
+    monitor = GraphMonitor(domain_id)
+    calls = []
+    call_async = monitor.parameters.call_async
+
+    def first_answer_lost(request):
+        calls.append(request)
+        return Future() if len(calls) == 1 else call_async(request)
+
+    monitor.parameters.call_async = first_answer_lost   # type: ignore[method-assign]
+    try:
+        assert monitor.parameters.wait_for_service(timeout_sec=30.0)
+        monitor.set_paused(_NoDeaths(tmp_path), False)
+    finally:
+        monitor.close()
+    assert len(calls) == 2
+
+
 # -- bad input at run time ---------------------------------------------------------------------
 def test_bad_goals_are_rejected_and_the_controller_stays_idle(start_node, probe, tmp_path):
     start_node('omni_micro_control', 'controller_node')

@@ -58,6 +58,8 @@ READY_SUBSCRIBERS: list[tuple[str, ...]] = [
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
+# How long an unanswered request to dynamics_node's parameter service waits before it goes again.
+SERVICE_RESEND_S = 2.0
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
 # again, and how far simulated time must go (beyond the lockstep's lead) to show that the
 # new process reports.
@@ -220,15 +222,23 @@ class GraphMonitor:
         request = SetParameters.Request(parameters=[Parameter(
             name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
                                                 bool_value=paused))])
-        future = self.parameters.call_async(request)
         deadline = time.monotonic() + 10.0
+        future = self.parameters.call_async(request)
+        sent_at = time.monotonic()
         while not future.done() and time.monotonic() < deadline:
             if not self.parameters.service_is_ready():
                 # dynamics_node is gone (one that refused its parameters dies just after it
                 # was seen): its death is the message (exit 2 for a refusal), not the clock.
                 graph.check_alive()
+            elif time.monotonic() - sent_at >= SERVICE_RESEND_S:
+                # A server sees a new client's request reader before its own response writer
+                # has matched the client's response reader: an answer sent in between is lost.
+                # Asking again is harmless: the same value twice changes no more than once.
+                self.parameters.remove_pending_request(future)
+                future = self.parameters.call_async(request)
+                sent_at = time.monotonic()
             self.executor.spin_until_future_complete(future, timeout_sec=0.05)
-        result = future.result()
+        result = future.result() if future.done() else None
         if result is None or not result.results[0].successful:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
