@@ -153,14 +153,15 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
 
 # -- vision_node --------------------------------------------------------------------------------
 def assert_reads_odometry_only_once_matched(context, node: Node, reader_name: str,
-                                            make_readers: Callable[[Node], object]) -> None:
-    """``node`` has no /odom reader (so the robot's clock would not start) until the readers
-    that ``make_readers`` gives a node named ``reader_name`` are matched."""
+                                            make_readers: Callable[[Node], object],
+                                            input_topic: str = '/odom') -> None:
+    """``node`` has no reader of ``input_topic`` (so the robot's clock would not start) until
+    the readers that ``make_readers`` gives a node named ``reader_name`` are matched."""
     reader = rclpy.create_node(reader_name, context=context)
     executor = SingleThreadedExecutor(context=context)
     try:
         def reads_odometry() -> bool:
-            return any(sub.topic_name == '/odom' for sub in node.subscriptions)
+            return any(sub.topic_name == input_topic for sub in node.subscriptions)
         executor.add_node(node)
         executor.spin_once(timeout_sec=0.2)
         assert not reads_odometry()
@@ -269,6 +270,20 @@ def test_camera_node_reads_odometry_only_once_the_trackers_image_reader_is_match
             cameras=['macro'], image_readers=['tracker_node'])), 'tracker_node',
         lambda tracker: tracker.create_subscription(Image, '/camera/macro/image_raw',
                                                     lambda msg: None, IMAGE_QOS))
+
+
+def test_tracker_node_reads_images_only_once_the_capture_readers_are_matched(context):
+    """Its first capture comes three frames after time 0: one sent before markers_node's reader
+    was matched would be lost to it (reliable, volatile), and the camera's frames, then the
+    robot's clock, wait for the tracker's image readers."""
+    def covariance_readers(markers: Node) -> None:
+        markers.create_subscription(PoseWithCovarianceStamped,
+                                    '/camera/macro/pose_with_covariance', lambda msg: None,
+                                    CAPTURE_QOS)
+    assert_reads_odometry_only_once_matched(
+        context, TrackerNode(context=context, parameter_overrides=overrides(
+            cameras=['macro'], covariance_readers=['markers_node'])), 'markers_node',
+        covariance_readers, input_topic='/camera/macro/image_raw')
 
 
 def test_camera_node_refuses_a_frame_rate_of_zero(context):

@@ -113,6 +113,15 @@ def test_markers_read_the_captures_where_the_controller_reads_them():
         'capture_uncertainty'] == 'covariance'
 
 
+def test_the_tracker_waits_for_the_readers_of_its_captures_as_vision_does():
+    images = GraphOptions(goal_m=(0.1, 0.0), vision='images', record=Path('bag'))
+    tracker = NodeSpec('omni_micro_vision', 'tracker_node')
+    assert {name: node_overrides(tracker, images)[name]
+            for name in ('capture_readers', 'covariance_readers')} == capture_readers(images)
+    assert capture_readers(images)['covariance_readers'] == [
+        'controller_node', 'markers_node', 'bag_recorder']
+
+
 def test_vision_waits_for_the_readers_of_its_captures_on_the_topics_they_read():
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
     assert capture_readers(recorded) == {

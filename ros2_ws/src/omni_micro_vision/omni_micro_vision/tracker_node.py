@@ -17,6 +17,9 @@ and only from the finest camera that sees the robot (:mod:`omni_micro_vision.tra
 Where the camera looks is a parameter (``<name>.center_m``, ``<name>.field_m``: the platform
 point under the image's centre and the field the image spans; the pixel size follows from the
 image's size). The image processing is :mod:`omni_micro_vision.rendering`'s.
+It reads images only once its capture writers have matched the readers of the nodes named in
+``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
+that none of them misses the first captures.
 """
 
 from __future__ import annotations
@@ -32,7 +35,13 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
+from omni_micro_common.node_runtime import (
+    LockstepReporter,
+    NodeComponent,
+    node_list_parameter,
+    run_component,
+    when_readers_matched,
+)
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -70,7 +79,10 @@ class TrackerNode(Node):
                                     f'got {reliability!r}')
         image_qos = QoSProfile(depth=IMAGE_QOS.depth, reliability=RELIABILITIES[reliability])
         self.lockstep = LockstepReporter(self)
+        pose_readers = node_list_parameter(self, 'capture_readers')
+        covariance_readers = node_list_parameter(self, 'covariance_readers')
         self.readers: list[_CameraReader] = []
+        inputs: list[tuple[str, str, _CameraReader]] = []
         fields: dict[str, float] = {}
         # Every camera's parameters are declared (one params file serves any choice of cameras);
         # only those in ``cameras`` are read.
@@ -99,12 +111,25 @@ class TrackerNode(Node):
             reader = _CameraReader(self, model, yaw)
             self.readers.append(reader)
             fields[name] = min(model.field_m)
-            # Raw: the pixels are read where they lie (image_messages.read_image).
-            self.create_subscription(Image, image_topic, reader.on_image, image_qos, raw=True)
-            self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
+            inputs.append((image_topic, info_topic, reader))
         # The smaller field has the finer pixel (the resolution comes with the images).
         self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
+
+        def read_images() -> None:
+            for image_topic, info_topic, reader in inputs:
+                # Raw: the pixels are read where they lie (image_messages.read_image).
+                self.create_subscription(Image, image_topic, reader.on_image, image_qos,
+                                         raw=True)
+                self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
+
+        # The nodes that must not miss a capture, by the topics they read (empty when started
+        # alone): the images are read, and the camera (whose frames wait for these readers),
+        # then the robot's clock, start only once the capture writers have matched them.
+        when_readers_matched(
+            self, [(reader.capture_pub, pose_readers) for reader in self.readers]
+            + [(reader.covariance_pub, covariance_readers) for reader in self.readers],
+            read_images)
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
 

@@ -169,6 +169,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                 readers.append('bag_recorder')
             overrides.update(image_readers=readers)
         overrides.update(options.vision_overrides)
+    elif spec.executable == 'tracker_node':
+        overrides.update(capture_readers(options))
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters('omni_micro_vision', _camera_node(options),
@@ -191,7 +193,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
 
 
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
-    """vision_node's ``capture_readers`` and ``covariance_readers``: the nodes of this graph
+    """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers``: the
+    nodes of this graph
     that read its captures from the bare and from the covariance topics (the controller and
     markers_node as the controller's ``capture_uncertainty`` says, the recorder both)."""
     present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
