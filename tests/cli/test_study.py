@@ -20,6 +20,7 @@ from omni_micro_cli.commands.study.execute import (
     finished_rows,
     prepare_directory,
 )
+from omni_micro_cli.commands.study.runs import run_row
 from omni_micro_cli.commands.study.spec import load_study, parse_study
 from omni_micro_cli.errors import StudyError
 
@@ -211,7 +212,8 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
     _, stderr = study.communicate(timeout=60)
     assert study.returncode == 130, stderr[-3000:]
     parsed = parse_study(text)
-    kept = len(finished_rows(parsed, out))
+    kept_runs = sorted(row['run'] for row in finished_rows(parsed, out))
+    kept = len(kept_runs)
     assert 0 < kept < parsed.run_count
     assert f'{kept} of {parsed.run_count} runs kept in {out}/' in stderr
     # The workers stop with the cluster, quietly: one line, no worker's traceback.
@@ -227,7 +229,13 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
     assert f'{parsed.run_count - kept} runs in' in resumed.stderr
     assert f'(resumed: {kept} were done)' in resumed.stderr
     rows = _without_wall_time(pq.read_table(out / 'runs.parquet').to_pylist())
-    assert rows == _serial_rows(text, tmp_path / 'serial')
+    # Every run once, in order; and rows from before and after the interruption are what the
+    # run gives alone (that a whole study on workers gives the serial rows is tested above).
+    assert [row['run'] for row in rows] == list(range(parsed.run_count))
+    resumed_runs = sorted(set(range(parsed.run_count)) - set(kept_runs))
+    for index in {kept_runs[0], kept_runs[-1], resumed_runs[0], resumed_runs[-1]}:
+        alone = run_row(parsed.runs()[index], parsed.metric_columns)
+        assert rows[index] == _without_wall_time([alone])[0], index
 
 
 def test_rerun_reproduces_a_kept_row_alone(tmp_path, capsys):

@@ -165,7 +165,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     try:
         supervisor = _NoDeaths(tmp_path)
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
-        monitor.resume(supervisor, ['vision_node'])
+        monitor.resume(supervisor, ['vision_node'], stall_s=1.0)
     finally:
         spinning = False
         spinner.join(5.0)
@@ -194,7 +194,7 @@ def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_i
     monitor.parameters.call_async = first_answer_lost   # type: ignore[method-assign]
     try:
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
-        monitor.set_paused(_NoDeaths(tmp_path), False)
+        monitor.set_paused(_NoDeaths(tmp_path), False, resend_s=0.5)
     finally:
         monitor.close()
     assert len(calls) == 2

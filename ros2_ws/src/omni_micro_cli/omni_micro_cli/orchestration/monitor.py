@@ -218,7 +218,8 @@ class GraphMonitor:
                 raise RunFailed('controller_node did not acknowledge the goal')
             self.spin_for(0.05)
 
-    def set_paused(self, graph: Supervisor, paused: bool) -> None:
+    def set_paused(self, graph: Supervisor, paused: bool,
+                   resend_s: float = SERVICE_RESEND_S) -> None:
         request = SetParameters.Request(parameters=[Parameter(
             name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
                                                 bool_value=paused))])
@@ -230,7 +231,7 @@ class GraphMonitor:
                 # dynamics_node is gone (one that refused its parameters dies just after it
                 # was seen): its death is the message (exit 2 for a refusal), not the clock.
                 graph.check_alive()
-            elif time.monotonic() - sent_at >= SERVICE_RESEND_S:
+            elif time.monotonic() - sent_at >= resend_s:
                 # A server sees a new client's request reader before its own response writer
                 # has matched the client's response reader: an answer sent in between is lost.
                 # Asking again is harmless: the same value twice changes no more than once.
@@ -316,7 +317,8 @@ class GraphMonitor:
                 raise RunFailed('controller_node receives no capture from the respawned '
                                 'vision_node')
 
-    def resume(self, graph: Supervisor, restarted: list[str]) -> None:
+    def resume(self, graph: Supervisor, restarted: list[str],
+               stall_s: float = RESUME_STALL_S) -> None:
         """Start the clock held for the respawn of ``restarted`` and wait until simulated time
         has gone well past where it stood; if it stands still instead, stop it and start it
         again.
@@ -332,12 +334,13 @@ class GraphMonitor:
             Odometry, '/odom', self._on_odometry, DATA_QOS)
         try:
             self.set_paused(graph, False)
-            self._wait_for_time_to_move(graph, restarted)
+            self._wait_for_time_to_move(graph, restarted, stall_s)
         finally:
             if odometry is not None:
                 self.node.destroy_subscription(odometry)   # a reader per tick: only while needed
 
-    def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str]) -> None:
+    def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str],
+                               stall_s: float) -> None:
         deadline = time.monotonic() + 60.0
         first: float | None = None
         latest = self.latest_odometry[0] if self.latest_odometry else None
@@ -354,7 +357,7 @@ class GraphMonitor:
             if time.monotonic() > deadline:
                 raise RunFailed(f'simulated time stands still after respawning '
                                 f'{", ".join(restarted)}')
-            if time.monotonic() - moved_at >= RESUME_STALL_S:
+            if time.monotonic() - moved_at >= stall_s:
                 if self.echo:
                     self.echo(f'[orchestration] simulated time stands still at '
                               f'{latest or 0.0:.2f} s after respawning {", ".join(restarted)}: '
