@@ -30,12 +30,17 @@ def rclpy_image(frame_id: str, pixels: np.ndarray, encoding: str) -> Image:
     return image
 
 
+def written(frame_id: str, encoding: str) -> tuple[np.ndarray, ImageWriter, bytes]:
+    """Pixels, the writer of their camera, and the frame it writes of them at 12.345 s."""
+    pixels = pixels_of(encoding)
+    writer = ImageWriter(frame_id, pixels.shape[0], pixels.shape[1], encoding)
+    return pixels, writer, writer.image(12, 345_000_000, pixels)
+
+
 @pytest.mark.parametrize('encoding', ['mono8', 'mono16'])
 @pytest.mark.parametrize('frame_id', FRAMES)
 def test_frames_are_the_bytes_of_the_same_message(frame_id, encoding):
-    pixels = pixels_of(encoding)
-    writer = ImageWriter(frame_id, pixels.shape[0], pixels.shape[1], encoding)
-    data = writer.image(12, 345_000_000, pixels)
+    pixels, writer, data = written(frame_id, encoding)
     assert data == canonical_bytes(rclpy_image(frame_id, pixels, encoding))
     info = CameraInfo(height=pixels.shape[0], width=pixels.shape[1])
     info.header.frame_id = frame_id
@@ -47,10 +52,8 @@ def test_frames_are_the_bytes_of_the_same_message(frame_id, encoding):
 @pytest.mark.parametrize('encoding', ['mono8', 'mono16'])
 @pytest.mark.parametrize('frame_id', FRAMES)
 def test_a_raw_image_reads_back_from_ours_and_from_rclpys_bytes(frame_id, encoding):
-    pixels = pixels_of(encoding)
-    writer = ImageWriter(frame_id, pixels.shape[0], pixels.shape[1], encoding)
-    ours = writer.image(12, 345_000_000, pixels)
-    # rclpy's serializer pads the end to four bytes: another publisher's layout.
+    pixels, _, ours = written(frame_id, encoding)
+    # rclpy's serializer may pad the end to four bytes: another publisher's layout.
     theirs = serialize_message(rclpy_image(frame_id, pixels, encoding))
     for data in (ours, theirs):
         image = read_image(data)
