@@ -185,22 +185,23 @@ class _CameraReader:
         try:
             msg = read_image(data)
         except CameraConfigError as error:
-            # No stamp to report it under: as a frame lost on the way.
-            self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
-            self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
+            self._refuse(error)   # no stamp to report it under: as a frame lost on the way
             return
         found, capture = self._see(msg)
         self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture)
+
+    def _refuse(self, error: CameraConfigError) -> None:
+        self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
+        self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
+        self.stillness.reset()
+        self.tracker.reset()
 
     def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None]:
         """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
         try:
             pixels = image_array(msg, self.size)
         except CameraConfigError as error:
-            self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
-            self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
-            self.stillness.reset()
-            self.tracker.reset()
+            self._refuse(error)
             return False, None
         camera = self.camera(msg.width, msg.height)
         result = self.tracker(pixels, camera)

@@ -194,9 +194,9 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
 
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
     """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers``: the
-    nodes of this graph
-    that read its captures from the bare and from the covariance topics (the controller and
-    markers_node as the controller's ``capture_uncertainty`` says, the recorder both)."""
+    nodes of this graph that read its captures from the bare and from the covariance topics
+    (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
+    recorder both)."""
     present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
     source = node_parameters('omni_micro_control', 'controller_node', options.params_file,
                              options.controller_overrides).get('capture_uncertainty',
