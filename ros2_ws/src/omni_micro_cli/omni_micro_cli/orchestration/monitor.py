@@ -309,13 +309,20 @@ class GraphMonitor:
             for _ in range(20):
                 self.send_goal(graph, goal, recording)
                 acted_from = self.goal_sent_at
-                self.spin_for(3.0)
-                if any(status['message'] in ('moving', 'reached')
-                       for status in self.statuses[acted_from:]):
+                asked_at = time.monotonic()
+                while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
+                    graph.check_alive()
+                    self.spin_for(0.05)
+                if self._acted_since(acted_from):
                     break
             else:
                 raise RunFailed('controller_node receives no capture from the respawned '
                                 'vision_node')
+
+    def _acted_since(self, status_index: int) -> bool:
+        """Whether the controller moved the robot (or reached the goal) since that status."""
+        return any(status['message'] in ('moving', 'reached')
+                   for status in self.statuses[status_index:])
 
     def resume(self, graph: Supervisor, restarted: list[str],
                stall_s: float = RESUME_STALL_S) -> None:
