@@ -170,7 +170,9 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
         spinning = False
         spinner.join(5.0)
         monitor.close()
-    assert any('stands still at 0.04 s' in line for line in lines), lines
+    # (Where the monitor saw time stand depends on when its own /odom reader was matched.)
+    assert any('stands still at' in line and 'respawning vision_node' in line
+               for line in lines), lines
     assert handled and handled[0] == 60_000_000   # the first sample after time started again
     assert monitor.latest_odometry is not None and monitor.latest_odometry[0] >= 0.24
 
