@@ -31,7 +31,7 @@ _DTYPES = {'double': 'float64', 'float': 'float32', 'int8': 'int8', 'uint8': 'ui
 # The kinds of number a template can patch, as struct formats (CDR little-endian: the rmw's
 # encapsulation header says so; a template refuses a big-endian one).
 KINDS = {'float64': 'd', 'int32': 'i', 'uint32': 'I'}
-_LITTLE_ENDIAN_CDR = (b'\x00\x01', b'\x00\x03')   # CDR_LE, PL_CDR_LE
+LITTLE_ENDIAN_CDR = (b'\x00\x01', b'\x00\x03')   # CDR_LE, PL_CDR_LE
 
 
 def typestore() -> Any:
@@ -125,7 +125,7 @@ class MessageTemplate:
         self.names = tuple(fields)
         store = typestore()
         base = canonical_bytes(message, store)
-        if base[:2] not in _LITTLE_ENDIAN_CDR:
+        if base[:2] not in LITTLE_ENDIAN_CDR:
             raise ValueError(f'{self.message_type.__name__}: not little-endian CDR')
         self._base = base
         offsets = []
@@ -218,11 +218,19 @@ def diagnostic_status_bytes(level: int, name: str, message: str, hardware_id: st
     return _ENCAPSULATION + b''.join(parts)
 
 
-def _read_string(data: bytes, offset: int) -> tuple[str, int]:
+def read_string(data: bytes | memoryview, offset: int) -> tuple[str, int]:
+    """The CDR string at payload ``offset`` (counted from after the encapsulation header, then
+    aligned to 4) and the offset after it.
+
+    Raises
+    ------
+    struct.error, UnicodeDecodeError
+        If the bytes end before the string, or it is not UTF-8.
+    """
     offset += -offset % 4
     (length,) = struct.unpack_from('<I', data, 4 + offset)
     start = 4 + offset + 4
-    return data[start:start + length - 1].decode(), offset + 4 + length
+    return bytes(data[start:start + length - 1]).decode(), offset + 4 + length
 
 
 def read_diagnostic_status(data: bytes) -> tuple[int, str, str, str, list[tuple[str, str]]]:
@@ -233,20 +241,20 @@ def read_diagnostic_status(data: bytes) -> tuple[int, str, str, str, list[tuple[
     ValueError, IndexError, struct.error
         If the bytes are not a little-endian DiagnosticStatus.
     """
-    if data[:2] not in _LITTLE_ENDIAN_CDR:
+    if data[:2] not in LITTLE_ENDIAN_CDR:
         raise ValueError('not little-endian CDR')
     level = data[4]
     offset = 1
     texts = []
     for _ in range(3):
-        text, offset = _read_string(data, offset)
+        text, offset = read_string(data, offset)
         texts.append(text)
     offset += -offset % 4
     (count,) = struct.unpack_from('<I', data, 4 + offset)
     offset += 4
     values = []
     for _ in range(count):
-        key, offset = _read_string(data, offset)
-        value, offset = _read_string(data, offset)
+        key, offset = read_string(data, offset)
+        value, offset = read_string(data, offset)
         values.append((key, value))
     return level, texts[0], texts[1], texts[2], values

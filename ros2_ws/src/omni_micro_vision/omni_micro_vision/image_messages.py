@@ -19,11 +19,10 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
-from omni_micro_common.cdr import MessageTemplate
+from omni_micro_common.cdr import LITTLE_ENDIAN_CDR, MessageTemplate, read_string
 from omni_micro_vision.errors import CameraConfigError
 
 _STAMP = {'header.stamp.sec': 'int32', 'header.stamp.nanosec': 'uint32'}
-_LITTLE_ENDIAN_CDR = b'\x00\x01'
 
 
 class ImageLike(Protocol):
@@ -113,13 +112,6 @@ class RawImage:
     data: memoryview
 
 
-def _cdr_string(data: memoryview, offset: int) -> tuple[str, int]:
-    offset += -offset % 4
-    (length,) = struct.unpack_from('<I', data, 4 + offset)
-    start = 4 + offset + 4
-    return bytes(data[start:start + length - 1]).decode(), offset + 4 + length
-
-
 def read_image(data: bytes) -> RawImage | Image:
     """The Image of a raw subscription: read in place if little-endian CDR (any publisher's;
     the pixels a view of ``data``), else deserialized by rclpy.
@@ -129,15 +121,15 @@ def read_image(data: bytes) -> RawImage | Image:
     CameraConfigError
         If the bytes are not an Image (cut short, lengths that do not add up).
     """
-    if data[:2] != _LITTLE_ENDIAN_CDR:
+    if data[:2] != LITTLE_ENDIAN_CDR[0]:   # plain CDR, little-endian
         return deserialize_message(data, Image)
     view = memoryview(data)
     try:
         sec, nanosec = struct.unpack_from('<iI', view, 4)
-        frame_id, offset = _cdr_string(view, 8)
+        frame_id, offset = read_string(view, 8)
         offset += -offset % 4
         height, width = struct.unpack_from('<II', view, 4 + offset)
-        encoding, offset = _cdr_string(view, offset + 8)
+        encoding, offset = read_string(view, offset + 8)
         is_bigendian = view[4 + offset]
         offset += 1
         offset += -offset % 4
