@@ -152,7 +152,7 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
 
 
 # -- vision_node --------------------------------------------------------------------------------
-def assert_reads_odometry_only_once_matched(context, node: Node, reader_name: str,
+def assert_reads_input_only_once_matched(context, node: Node, reader_name: str,
                                             make_readers: Callable[[Node], object],
                                             input_topic: str = '/odom') -> None:
     """``node`` has no reader of ``input_topic`` (so the robot's clock would not start) until
@@ -160,16 +160,16 @@ def assert_reads_odometry_only_once_matched(context, node: Node, reader_name: st
     reader = rclpy.create_node(reader_name, context=context)
     executor = SingleThreadedExecutor(context=context)
     try:
-        def reads_odometry() -> bool:
+        def reads_input() -> bool:
             return any(sub.topic_name == input_topic for sub in node.subscriptions)
         executor.add_node(node)
         executor.spin_once(timeout_sec=0.2)
-        assert not reads_odometry()
+        assert not reads_input()
         make_readers(reader)
         deadline = time.monotonic() + 10.0
-        while not reads_odometry() and time.monotonic() < deadline:
+        while not reads_input() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        assert reads_odometry()
+        assert reads_input()
     finally:
         executor.shutdown()
         reader.destroy_node()
@@ -184,7 +184,7 @@ def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(co
             markers.create_subscription(PoseWithCovarianceStamped,
                                         f'/camera/{camera}/pose_with_covariance',
                                         lambda msg: None, CAPTURE_QOS)
-    assert_reads_odometry_only_once_matched(
+    assert_reads_input_only_once_matched(
         context, VisionNode(context=context, parameter_overrides=overrides(
             covariance_readers=['markers_node'])), 'markers_node', covariance_readers)
 
@@ -265,7 +265,7 @@ def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(conte
 
 def test_camera_node_reads_odometry_only_once_the_trackers_image_reader_is_matched(context):
     """A frame sent before would be lost to the tracker, and the lockstep would stand still."""
-    assert_reads_odometry_only_once_matched(
+    assert_reads_input_only_once_matched(
         context, CameraNode(context=context, parameter_overrides=overrides(
             cameras=['macro'], image_readers=['tracker_node'])), 'tracker_node',
         lambda tracker: tracker.create_subscription(Image, '/camera/macro/image_raw',
@@ -280,7 +280,7 @@ def test_tracker_node_reads_images_only_once_the_capture_readers_are_matched(con
         markers.create_subscription(PoseWithCovarianceStamped,
                                     '/camera/macro/pose_with_covariance', lambda msg: None,
                                     CAPTURE_QOS)
-    assert_reads_odometry_only_once_matched(
+    assert_reads_input_only_once_matched(
         context, TrackerNode(context=context, parameter_overrides=overrides(
             cameras=['macro'], covariance_readers=['markers_node'])), 'markers_node',
         covariance_readers, input_topic='/camera/macro/image_raw')

@@ -32,7 +32,7 @@ import sys
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -129,6 +129,20 @@ def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
         then()
     timer = node.create_timer(MATCH_POLL_S, look_again,
                               clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def when_capture_readers_matched(node: Node, pose_publishers: Iterable[Publisher],
+                                 covariance_publishers: Iterable[Publisher],
+                                 then: Callable[[], None]) -> None:
+    """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node): the
+    readers of the nodes named in its ``capture_readers`` (bare PoseStamped captures) and
+    ``covariance_readers`` (their PoseWithCovarianceStamped) parameters, which the
+    orchestration sets from the nodes present and which are empty when it is started alone."""
+    pose_readers = node_list_parameter(node, 'capture_readers')
+    covariance_readers = node_list_parameter(node, 'covariance_readers')
+    when_readers_matched(
+        node, [(publisher, pose_readers) for publisher in pose_publishers]
+        + [(publisher, covariance_readers) for publisher in covariance_publishers], then)
 
 
 def make_executor() -> Any:

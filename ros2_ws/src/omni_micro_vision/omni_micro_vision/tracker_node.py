@@ -38,9 +38,8 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.node_runtime import (
     LockstepReporter,
     NodeComponent,
-    node_list_parameter,
     run_component,
-    when_readers_matched,
+    when_capture_readers_matched,
 )
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -79,8 +78,6 @@ class TrackerNode(Node):
                                     f'got {reliability!r}')
         image_qos = QoSProfile(depth=IMAGE_QOS.depth, reliability=RELIABILITIES[reliability])
         self.lockstep = LockstepReporter(self)
-        pose_readers = node_list_parameter(self, 'capture_readers')
-        covariance_readers = node_list_parameter(self, 'covariance_readers')
         self.readers: list[_CameraReader] = []
         inputs: list[tuple[str, str, _CameraReader]] = []
         fields: dict[str, float] = {}
@@ -126,10 +123,9 @@ class TrackerNode(Node):
         # The nodes that must not miss a capture, by the topics they read (empty when started
         # alone): the images are read, and the camera (whose frames wait for these readers),
         # then the robot's clock, start only once the capture writers have matched them.
-        when_readers_matched(
-            self, [(reader.capture_pub, pose_readers) for reader in self.readers]
-            + [(reader.covariance_pub, covariance_readers) for reader in self.readers],
-            read_images)
+        when_capture_readers_matched(self, [reader.capture_pub for reader in self.readers],
+                                     [reader.covariance_pub for reader in self.readers],
+                                     read_images)
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
 

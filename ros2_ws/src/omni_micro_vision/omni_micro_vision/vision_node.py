@@ -39,9 +39,8 @@ from omni_micro_common.node_runtime import (
     LockstepReporter,
     NodeComponent,
     PublicationCounter,
-    node_list_parameter,
     run_component,
-    when_readers_matched,
+    when_capture_readers_matched,
 )
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -102,9 +101,6 @@ class VisionNode(Node):
         self.faults = FaultInjector(faults, seed)
         if faults != fault_defaults:
             self.get_logger().warning(f'camera faults injected: {faults}')
-        pose_readers = node_list_parameter(self, 'capture_readers')
-        covariance_readers = node_list_parameter(self, 'covariance_readers')
-        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
         self.capture_pubs = {name: count(self.create_publisher(PoseStamped, topic, CAPTURE_QOS))
@@ -122,10 +118,10 @@ class VisionNode(Node):
         # alone): /odom is read, and the robot's clock (which waits for that reader) starts, only
         # once the capture writers have matched their readers. The first captures come at time
         # 0, and one was lost to markers_node in a fast start.
-        when_readers_matched(
-            self, [(publisher, pose_readers) for publisher in self.capture_pubs.values()]
-            + [(publisher, covariance_readers) for publisher in self.covariance_pubs.values()],
-            self._read_odometry)
+        when_capture_readers_matched(self, self.capture_pubs.values(),
+                                     self.covariance_pubs.values(), self._read_odometry)
+        # Last: from here on only faults.* may change (the parameters above are declared).
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
