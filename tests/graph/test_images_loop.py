@@ -76,7 +76,9 @@ def test_recorded_images_replayed_into_a_fresh_tracker_give_the_recorded_capture
     captures: list[PoseStamped] = []
     reader = probe.node.create_subscription(PoseStamped, '/camera/micro/pose', captures.append,
                                             CAPTURE_QOS)
-    start_node('omni_micro_vision', 'tracker_node')
+    # Reliable: at 100x a best-effort reader (the node's default, to meet any driver) may lose
+    # frames, and this replay must reproduce every capture.
+    start_node('omni_micro_vision', 'tracker_node', 'image_reliability:=reliable')
     # The replay waits for the tracker's image readers, not for this reader of its captures:
     # a capture sent before the two have matched would be lost to it (seen on a busy run).
     probe.spin_until(lambda: reader.get_publisher_count() >= 1, 30.0,

@@ -93,12 +93,12 @@ def test_a_still_robot_is_captured_where_it_is_and_bad_frames_are_refused(
     images.publish(image)
     probe.spin_until(lambda: statuses and 'frame refused' in statuses[-1], 10.0, 'a refusal')
     assert 'bytes of data for 1024 rows' in statuses[-1]
-    # A colour frame (a driver left at rgb8): refused naming the encoding.
+    # A depth camera's float frame: refused naming the encoding and those it reads.
     image, _ = frame_messages(np.zeros((1024, 1280), dtype=np.uint8), 9 / 30)
-    image.encoding = 'rgb8'
+    image.encoding = '32FC1'
     images.publish(image)
-    probe.spin_until(lambda: statuses and 'rgb8' in statuses[-1], 10.0, 'a refused encoding')
-    assert "encoding 'rgb8' is not mono8 or mono16" in statuses[-1]
+    probe.spin_until(lambda: statuses and '32FC1' in statuses[-1], 10.0, 'a refused encoding')
+    assert "encoding '32FC1' is not one the tracker reads: mono8, mono16, rgb8" in statuses[-1]
     assert len(captures) == 2
     assert tracker.poll() is None
 
@@ -143,3 +143,59 @@ def test_camera_node_frames_through_tracker_node_give_captures_of_the_odometry(
     for capture in captures:
         position = capture.pose.position
         assert math.hypot(position.x - truth[0], position.y - truth[1]) < 20e-6
+
+
+def spin_for_status(probe, statuses: list[str], text: str, what: str, send) -> None:
+    """Send frames until the tracker's status says ``text`` (a best-effort frame may be lost
+    on its way, as a real driver's may)."""
+    deadline = 30.0
+    for index in range(int(deadline / 0.3)):
+        send(index)
+        probe.spin_for(0.3)
+        if any(text in status for status in statuses):
+            return
+    raise AssertionError(f'no {what}: statuses {statuses}')
+
+
+def test_standing_alone_the_tracker_reads_a_best_effort_driver_with_no_setting(
+        start_node, probe):
+    """REP-2003: a driver offers best effort (SensorDataQoS, as many GigE and USB3 drivers
+    do) or reliable (the other test here); the tracker at its defaults takes either."""
+    from rclpy.qos import qos_profile_sensor_data
+
+    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]')
+    images = probe.node.create_publisher(Image, '/camera/macro/image_raw',
+                                         qos_profile_sensor_data)
+    statuses: list[str] = []
+    probe.node.create_subscription(DiagnosticStatus, '/camera/macro/tracker_status',
+                                   lambda msg: statuses.append(msg.message), latched(1))
+    probe.spin_until(lambda: images.get_subscription_count() > 0, 30.0, 'the tracker to listen')
+    pixels = render(CAMERA, Sensor(), RobotState(0.05, 0.01, 0.4), np.random.default_rng(5))
+    spin_for_status(probe, statuses, 'moving', 'status of a tracked frame',
+                    lambda index: images.publish(frame_messages(pixels, index / 30)[0]))
+
+
+def test_an_incompatible_driver_is_named_by_the_tracker_with_the_setting_to_change(
+        start_node, probe, tmp_path):
+    """A tracker asked for reliable frames and a best-effort driver never match: the node says
+    so itself (rclpy's incompatible-QoS event), in its status and in one log line."""
+    from rclpy.qos import qos_profile_sensor_data
+
+    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+                         'image_reliability:=reliable')
+    statuses: list[str] = []
+    probe.node.create_subscription(DiagnosticStatus, '/camera/macro/tracker_status',
+                                   lambda msg: statuses.append(msg.message), latched(1))
+    probe.spin_until(lambda: probe.node.count_subscribers('/camera/macro/image_raw') > 0, 30.0,
+                     'the tracker to listen')
+    probe.node.create_publisher(Image, '/camera/macro/image_raw', qos_profile_sensor_data)
+    probe.spin_until(lambda: any('incompatible' in status for status in statuses), 30.0,
+                     'the incompatible-QoS status')
+    expected = ('/camera/macro/image_raw: a publisher offers QoS incompatible with this reader '
+                '(reliability; image_reliability is reliable): set image_reliability: '
+                'best_effort')
+    assert any(status.startswith(expected) for status in statuses), statuses
+    assert tracker.poll() is None
+    probe.spin_for(0.5)
+    log = (tmp_path / 'tracker_node.log').read_text()
+    assert expected in log

@@ -252,13 +252,24 @@ def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(conte
         frames = [deserialize_message(data, Image) for data in images.messages]
         assert [m.header.stamp.nanosec for m in frames] == [0, round(1e9 / 30)]
         assert (frames[0].width, frames[0].height, frames[0].encoding) == (1280, 1024, 'mono8')
-        assert frames[0].header.frame_id == 'camera_macro' and len(frames[0].data) == 1280 * 1024
+        assert frames[0].header.frame_id == 'macro_optical_frame'
+        assert len(frames[0].data) == 1280 * 1024
         # The robot, at the field's centre, is drawn there: not the platform of the corner.
         pixels = np.frombuffer(frames[0].data, np.uint8).reshape(1024, 1280).astype(float)
         assert abs(pixels[462:562, 590:690].mean() - pixels[:100, :100].mean()) > 10
         infos = [deserialize_message(data, CameraInfo) for data in infos.messages]
         assert [(i.width, i.height, i.header.stamp.nanosec) for i in infos] == \
             [(1280, 1024, 0), (1280, 1024, round(1e9 / 30))]
+        # A true CameraInfo, as image_pipeline reads it: a pinhole 0.3 m above the platform,
+        # its pixels 117.19 um there, no distortion by default; the image's own frame.
+        info = infos[0]
+        assert info.header.frame_id == 'macro_optical_frame'
+        assert info.distortion_model == 'plumb_bob' and list(info.d) == [0.0] * 5
+        fx, fy = 0.3 / (0.15 / 1280), 0.3 / (0.15 / 1024)
+        np.testing.assert_allclose(info.k, [fx, 0, 639.5, 0, fy, 511.5, 0, 0, 1], rtol=1e-12)
+        np.testing.assert_allclose(info.p, [fx, 0, 639.5, 0, 0, fy, 511.5, 0, 0, 0, 1, 0],
+                                   rtol=1e-12)
+        assert list(info.r) == [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0]
     finally:
         node.destroy_node()
 
@@ -321,9 +332,9 @@ def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(co
                                          capture.pose.orientation.w) - truth.phi_rad) < 0.01
         assert len(covariances.messages) == 2 and covariances.messages[0].pose.covariance[0] > 0
         image, _ = frame(np.zeros((1024, 1280), dtype=np.uint8), 5 * 33_333_333)
-        image.encoding = 'rgb8'
+        image.encoding = '32FC1'
         reader.on_image(serialize_message(image))
-        assert "encoding 'rgb8' is not mono8 or mono16" in statuses.messages[-1].message
+        assert "encoding '32FC1' is not one the tracker reads" in statuses.messages[-1].message
         reader.on_image(serialize_message(image)[:30])   # cut short: refused, named
         assert 'an image message' in statuses.messages[-1].message
         assert len(captures.messages) == 2

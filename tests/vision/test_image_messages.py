@@ -9,6 +9,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.cdr import canonical_bytes
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.geometry import Lens
 from omni_micro_vision.image_messages import ImageWriter, image_array, read_image
 
 # Frame ids of four lengths: the fields after them fall on every alignment.
@@ -47,6 +48,20 @@ def test_frames_are_the_bytes_of_the_same_message(frame_id, encoding):
     info.header.stamp.sec, info.header.stamp.nanosec = 12, 345_000_000
     assert writer.info(12, 345_000_000) == canonical_bytes(info)
     assert deserialize_message(writer.info(12, 345_000_000), CameraInfo) == info
+
+
+@pytest.mark.parametrize('frame_id', FRAMES)
+def test_a_calibrated_camera_info_is_the_bytes_of_the_same_message(frame_id):
+    lens = Lens((2560.0, 0.0, 639.5, 0.0, 2048.0, 511.5, 0.0, 0.0, 1.0),
+                (-0.2, 0.05, 0.0, 0.0, 0.0))
+    writer = ImageWriter(frame_id, 1024, 1280, 'mono8', lens)
+    info = CameraInfo(height=1024, width=1280, distortion_model='plumb_bob',
+                      d=[-0.2, 0.05, 0.0, 0.0, 0.0], k=list(lens.camera_matrix),
+                      r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                      p=[2560.0, 0.0, 639.5, 0.0, 0.0, 2048.0, 511.5, 0.0, 0.0, 0.0, 1.0, 0.0])
+    info.header.frame_id = frame_id
+    info.header.stamp.sec, info.header.stamp.nanosec = 12, 345_000_000
+    assert writer.info(12, 345_000_000) == canonical_bytes(info)
 
 
 @pytest.mark.parametrize('encoding', ['mono8', 'mono16'])

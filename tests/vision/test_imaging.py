@@ -10,6 +10,7 @@ import pytest
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.geometry import PlaneMap
 from omni_micro_vision.rendering import Sensor, render
 from omni_micro_vision.tracking import track
 
@@ -30,7 +31,7 @@ def test_tracker_bias_and_spread_beside_the_analytic_model(camera, half_range_m)
         y = camera.center_m[1] + rng.uniform(-half_range_m, half_range_m)
         phi = rng.uniform(-math.pi, math.pi)
         result = track(render(camera, SENSOR, RobotState(x, y, phi),
-                              np.random.default_rng([11, sample])), camera)
+                              np.random.default_rng([11, sample])), PlaneMap.nominal(camera))
         assert result.pose is not None, result.reason
         found_x, found_y, found_phi = result.pose
         errors.append((found_x - x, found_y - y, math.remainder(found_phi - phi, 2 * math.pi)))
@@ -56,7 +57,7 @@ def test_frames_are_a_function_of_their_seed_and_motion_blurs_them():
     moving = RobotState(0.05, 0.0, 0.2, vx_m_s=1.4)
     smeared = render(camera, SENSOR, moving, np.random.default_rng([3, 7]))
     assert smeared.max() < first.max()
-    assert not track(smeared, camera).found
+    assert not track(smeared, PlaneMap.nominal(camera)).found
 
 
 def test_a_mono16_frame_tracks_as_well():
@@ -65,7 +66,7 @@ def test_a_mono16_frame_tracks_as_well():
     assert sensor.encoding == 'mono16'
     frame = render(camera, sensor, RobotState(0.1001, 0.0002, 2.0), np.random.default_rng(1))
     assert frame.dtype == np.uint16 and frame.max() > 255
-    result = track(frame, camera)
+    result = track(frame, PlaneMap.nominal(camera))
     assert result.pose is not None
     assert math.hypot(result.pose[0] - 0.1001, result.pose[1] - 0.0002) < 0.05e-6
 
@@ -77,7 +78,8 @@ def test_a_mono16_frame_tracks_as_well():
 ], ids=['cut-by-the-edge', 'front-dot-outside', 'robot-out-of-view'])
 def test_a_frame_without_a_whole_fiducial_gives_no_pose_and_says_why(pose, reason):
     camera = DEFAULT_RIG.micro
-    result = track(render(camera, SENSOR, RobotState(*pose), np.random.default_rng(2)), camera)
+    frame = render(camera, SENSOR, RobotState(*pose), np.random.default_rng(2))
+    result = track(frame, PlaneMap.nominal(camera))
     assert not result.found and result.pose is None
     assert result.reason == reason
 
@@ -86,9 +88,9 @@ def test_a_corrupt_or_wrongly_sized_frame_is_refused_naming_the_problem():
     camera = DEFAULT_RIG.macro
     with pytest.raises(CameraConfigError, match=r'expected a 1280 x 1024 mono image, got '
                                                 r'shape \(1024, 1000\)'):
-        track(np.zeros((1024, 1000), dtype=np.uint8), camera)
+        track(np.zeros((1024, 1000), dtype=np.uint8), PlaneMap.nominal(camera))
     with pytest.raises(CameraConfigError, match='got shape'):
-        track(np.zeros((1024, 1280, 3), dtype=np.uint8), camera)
+        track(np.zeros((1024, 1280, 3), dtype=np.uint8), PlaneMap.nominal(camera))
     with pytest.raises(CameraConfigError, match='bit_depth must be 8'):
         Sensor(bit_depth=12)
 
@@ -100,12 +102,12 @@ def test_a_search_near_the_last_pose_finds_what_the_whole_frame_shows(camera):
     x = camera.center_m[0] + 0.2 * camera.field_m[0]
     y = camera.center_m[1] - 0.1 * camera.field_m[1]
     frame = render(camera, SENSOR, RobotState(x, y, 1.0), np.random.default_rng(5))
-    whole = track(frame, camera)
+    whole = track(frame, PlaneMap.nominal(camera))
     assert whole.pose is not None
     spread = camera.uncertainty(1.0).x_sigma_m
     for guess in ((x + 0.05 * spread, y), (camera.center_m[0] - 0.4 * camera.field_m[0],
                                            camera.center_m[1] + 0.4 * camera.field_m[1])):
-        near = track(frame, camera, near=guess)
+        near = track(frame, PlaneMap.nominal(camera), near=guess)
         assert near.pose is not None
         assert math.hypot(near.pose[0] - whole.pose[0], near.pose[1] - whole.pose[1]) \
             < 0.01 * spread
@@ -118,11 +120,11 @@ def test_a_turned_camera_is_tracked_in_the_platform_frame_once_its_yaw_is_known(
     yaw = math.radians(1.0)
     x, y, phi = camera.center_m[0] + 0.6e-3, camera.center_m[1] + 0.2e-3, 0.4
     frame = render(camera, SENSOR, RobotState(x, y, phi), np.random.default_rng(9), yaw)
-    known = track(frame, camera, yaw_rad=yaw)
+    known = track(frame, PlaneMap.nominal(camera, yaw))
     assert known.pose is not None
     assert math.hypot(known.pose[0] - x, known.pose[1] - y) < 0.05e-6
     assert abs(known.pose[2] - phi) < 1e-3
-    square = track(frame, camera)
+    square = track(frame, PlaneMap.nominal(camera))
     assert square.pose is not None and math.hypot(square.pose[0] - x, square.pose[1] - y) > 5e-6
     assert abs(square.pose[2] - (phi - yaw)) < 1e-3
     with pytest.raises(CameraConfigError, match=r'micro.yaw_rad must be finite and within'):

@@ -11,8 +11,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 # Camera images: a megabyte each, so a short history (in lockstep no more than the lead's worth
-# are ever unhandled). Real drivers often publish best effort (SensorDataQoS): tracker_node's
-# image_reliability parameter matches them.
+# are ever unhandled). camera_node offers reliable; tracker_node reads best effort by default
+# (REP-2003: it then meets any driver) and reliable in the lockstep graph.
 IMAGE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
 # Beside each capture, the same pose with its uncertainty (geometry_msgs/PoseWithCovarianceStamped,

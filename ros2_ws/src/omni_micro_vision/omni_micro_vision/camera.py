@@ -341,15 +341,14 @@ def checked_cameras(names: list[str]) -> list[str]:
 
 
 def checked_yaw(name: str, value: object) -> float:
-    """A camera's turn about its centre: finite radians within +-pi/4, else a
-    CameraConfigError naming ``name``."""
+    """A camera's turn about its centre (its image's x against the platform's): finite radians
+    within +-pi, else a CameraConfigError naming ``name``."""
     try:
         angle = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise CameraConfigError(f'{name} must be a number of radians, got {value!r}') from None
-    if not math.isfinite(angle) or abs(angle) > math.pi / 4:
-        raise CameraConfigError(f"{name} must be finite and within +-pi/4 rad (the image's x "
-                                f"roughly along the platform's), got {value!r}")
+    if not math.isfinite(angle) or abs(angle) > math.pi:
+        raise CameraConfigError(f'{name} must be finite and within +-pi rad, got {value!r}')
     return angle
 
 

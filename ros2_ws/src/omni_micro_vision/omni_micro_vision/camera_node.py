@@ -3,11 +3,18 @@
 Subscribes /odom (the robot's true motion) and publishes, for each camera of ``cameras``, a
 sensor_msgs/Image (mono8 or mono16) and its CameraInfo at ``frame_rate_hz`` of simulated time,
 whether or not the robot moves, each stamped with its exposure's start:
-  /camera/<name>/image_raw, /camera/<name>/camera_info      (frame ``camera_<name>``)
+  /camera/<name>/image_raw, /camera/<name>/camera_info      (frame ``<name>_optical_frame``)
   /lockstep            its report after each odometry sample, naming the frames it published
 Frame k of camera c is rendered from the odometry sample that ends at or after its stamp, with
 noise seeded by (seed, c, k): the same run gives the same frames at any speed. What a frame
 shows is :func:`omni_micro_vision.rendering.render`'s; this node only moves numbers.
+
+Each camera is mounted as a real one is (:class:`omni_micro_vision.optics.CameraOptics`): where
+it looks (``center_m``), its pixels (``resolution_px`` over ``field_m``), any turn
+(``yaw_rad``), a mirrored image (``mirrored``), a lens (``working_distance_m`` sets K,
+``distortion`` is [k1, k2]); the CameraInfo states K, D, R and P. With ``scene: chessboard`` the
+cameras show a calibration target (``target.*``) instead of the robot: the frames
+``omni-micro calibrate-camera`` reads (``omni-micro record-target`` records them).
 
 ``image_readers`` (node names; empty by default) are the nodes that must not miss a frame: the
 node reads /odom, and so lets the robot's clock start, only once its image writers have matched
@@ -20,7 +27,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -39,22 +45,20 @@ from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
+from omni_micro_vision.camera_frames import SCENES, CameraFrames
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.image_messages import ImageWriter
-from omni_micro_vision.rendering import Sensor, render, warm_up
+from omni_micro_vision.optics import WORKING_DISTANCE_M, CameraOptics
+from omni_micro_vision.rendering import Sensor
+from omni_micro_vision.targets import DEFAULT_TARGET, Chessboard
 
 
 @dataclass(frozen=True)
 class _Stream:
     """One camera's stream: what it sees with, and where its frames go."""
 
-    index: int            # in the noise seed: (seed, index, frame number)
-    camera: CameraModel
-    sensor: Sensor
-    yaw_rad: float
+    frames: CameraFrames
     image_pub: Publisher
     info_pub: Publisher
-    writer: ImageWriter
 
 
 
@@ -69,31 +73,26 @@ class CameraNode(Node):
             raise CameraConfigError(f'frame_rate_hz must be > 0, got {self.rate_hz}')
         chosen = checked_cameras(list(self.declare_parameter('cameras',
                                                              ['macro', 'micro']).value))
-        defaults = Sensor()
+        scene = self.declare_parameter('scene', 'robot').value
+        target = Chessboard(
+            tuple(self.declare_parameter('target.pattern', list(DEFAULT_TARGET.pattern)).value),
+            self.declare_parameter('target.pitch_m', DEFAULT_TARGET.pitch_m).value,
+            tuple(self.declare_parameter('target.center_m',
+                                         list(DEFAULT_TARGET.center_m)).value),
+            self.declare_parameter('target.yaw_rad', DEFAULT_TARGET.yaw_rad).value)
+        if scene not in SCENES:
+            raise CameraConfigError(f'scene must be one of {list(SCENES)}, got {scene!r}')
         self.streams: list[_Stream] = []
         for index, name in enumerate(CAPTURE_TOPICS):
-            default: CameraModel = getattr(DEFAULT_RIG, name)
-            camera = CameraModel(
-                name, self.declare_parameter(f'{name}.center_m', list(default.center_m)).value,
-                self.declare_parameter(f'{name}.field_m', list(default.field_m)).value,
-                self.declare_parameter(f'{name}.resolution_px',
-                                       [int(v) for v in default.resolution_px]).value)
-            sensor = Sensor(**{
-                field: self.declare_parameter(f'{name}.{field}', getattr(defaults, field)).value
-                for field in ('psf_sigma_px', 'full_well_e', 'read_noise_e', 'bit_depth',
-                              'exposure_s')})
-            yaw = checked_yaw(f'{name}.yaw_rad',
-                              self.declare_parameter(f'{name}.yaw_rad', 0.0).value)
+            frames = CameraFrames(index, self._optics(name), self._sensor(name), self.seed,
+                                  target if scene == 'chessboard' else None)
             if name not in chosen:
                 continue
             self.streams.append(_Stream(
-                index, camera, sensor, yaw,
-                self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
-                self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS),
-                ImageWriter(f'camera_{name}', int(camera.resolution_px[1]),
-                            int(camera.resolution_px[0]), sensor.encoding)))
+                frames, self.create_publisher(Image, f'/camera/{name}/image_raw', IMAGE_QOS),
+                self.create_publisher(CameraInfo, f'/camera/{name}/camera_info', IMAGE_QOS)))
             # Before the lockstep can start time: its first frame is then no slower than the rest.
-            warm_up(camera, sensor, yaw)
+            frames.warm_up()
         # The nodes whose image readers must be matched before the first frame: a frame sent
         # before would be lost to them (reliable, volatile), and a tracker in the lockstep would
         # never report it, so time would stand still. Until then there is no /odom reader, and
@@ -130,16 +129,35 @@ class CameraNode(Node):
         self.lockstep.report(Ack(self.get_name(), int(sec) * 1_000_000_000 + int(nanosec),
                                  frames_ns=(published[0], published[-1]) if published else None))
 
+    def _optics(self, name: str) -> CameraOptics:
+        default: CameraModel = getattr(DEFAULT_RIG, name)
+        camera = CameraModel(
+            name, self.declare_parameter(f'{name}.center_m', list(default.center_m)).value,
+            self.declare_parameter(f'{name}.field_m', list(default.field_m)).value,
+            self.declare_parameter(f'{name}.resolution_px',
+                                   [int(v) for v in default.resolution_px]).value)
+        return CameraOptics(
+            camera, checked_yaw(f'{name}.yaw_rad',
+                                self.declare_parameter(f'{name}.yaw_rad', 0.0).value),
+            self.declare_parameter(f'{name}.mirrored', False).value,
+            self.declare_parameter(f'{name}.working_distance_m',
+                                   WORKING_DISTANCE_M[name]).value,
+            tuple(self.declare_parameter(f'{name}.distortion', [0.0, 0.0]).value))
+
+    def _sensor(self, name: str) -> Sensor:
+        defaults = Sensor()
+        return Sensor(**{
+            field: self.declare_parameter(f'{name}.{field}', getattr(defaults, field)).value
+            for field in ('psf_sigma_px', 'full_well_e', 'read_noise_e', 'bit_depth',
+                          'exposure_s')})
+
     def _publish_frame(self, number: int, state: RobotState) -> int:
         """Publish frame ``number`` of every camera; returns its stamp in nanoseconds."""
         sec, nanosec = split_stamp(number / self.rate_hz)
         for stream in self.streams:
-            camera, sensor = stream.camera, stream.sensor
-            pixels = render(camera, sensor, state,
-                            np.random.default_rng([self.seed, stream.index, number]),
-                            stream.yaw_rad)
-            stream.info_pub.publish(stream.writer.info(sec, nanosec))
-            stream.image_pub.publish(stream.writer.image(sec, nanosec, pixels))
+            info, image = stream.frames.messages(number, sec, nanosec, state)
+            stream.info_pub.publish(info)
+            stream.image_pub.publish(image)
         return sec * 1_000_000_000 + nanosec
 
 

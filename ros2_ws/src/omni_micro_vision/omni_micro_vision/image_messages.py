@@ -20,7 +20,9 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
 from omni_micro_common.cdr import LITTLE_ENDIAN_CDR, MessageTemplate, read_string
+from omni_micro_vision.encodings import encoding_of, grey
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.geometry import Lens
 
 _STAMP = {'header.stamp.sec': 'int32', 'header.stamp.nanosec': 'uint32'}
 
@@ -38,44 +40,54 @@ class ImageLike(Protocol):
     data: Any
 
 
-DTYPES = {'mono8': np.uint8, 'mono16': np.uint16}
-
-
 def image_array(msg: ImageLike, expected: tuple[int, int] | None) -> np.ndarray:
-    """The pixels of ``msg`` (a sensor_msgs/Image, from rclpy or read from a bag) as a rows x
-    columns array; a native little-endian frame without row padding is not copied.
+    """The pixels of ``msg`` (a sensor_msgs/Image, from rclpy or read from a bag) as one grey
+    channel, rows x columns (:mod:`omni_micro_vision.encodings`: every encoding a driver
+    commonly sends); a native little-endian mono frame without row padding is not copied.
 
     Raises
     ------
     CameraConfigError
         Naming what is wrong: the encoding, the size against the CameraInfo, the data length.
     """
-    if msg.encoding not in DTYPES:
-        raise CameraConfigError(f'encoding {msg.encoding!r} is not mono8 or mono16')
+    encoding = encoding_of(msg.encoding)
     if expected is not None and (msg.width, msg.height) != expected:
         raise CameraConfigError(f'image is {msg.width} x {msg.height}, its CameraInfo says '
                                 f'{expected[0]} x {expected[1]}')
-    dtype = np.dtype(DTYPES[msg.encoding]).newbyteorder('>' if msg.is_bigendian else '<')
-    row_bytes = msg.width * dtype.itemsize
+    if encoding.channels == 2 and msg.width % 2:
+        raise CameraConfigError(f'a {msg.encoding} image of odd width {msg.width} (two pixels '
+                                'share their colour)')
+    if encoding.to_grey and encoding.to_grey.startswith('COLOR_Bayer') and (
+            msg.width < 2 or msg.height < 2):
+        raise CameraConfigError(f'a {msg.encoding} image of {msg.width} x {msg.height}: a '
+                                'Bayer frame is at least 2 x 2')
+    dtype = np.dtype(encoding.dtype).newbyteorder('>' if msg.is_bigendian else '<')
+    row_bytes = msg.width * encoding.channels * dtype.itemsize
     if msg.step < row_bytes or len(msg.data) != msg.step * msg.height:
         raise CameraConfigError(f'{len(msg.data)} bytes of data for {msg.height} rows of step '
-                                f'{msg.step} ({msg.width} pixels of {dtype.itemsize} bytes)')
+                                f'{msg.step} ({msg.width} pixels of {encoding.channels} x '
+                                f'{dtype.itemsize} bytes)')
     rows = np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
-    pixels = rows[:, :row_bytes]
+    samples = rows[:, :row_bytes]
     if msg.step != row_bytes:
-        pixels = pixels.copy()    # padded rows: the view needs contiguous rows
-    # A native little-endian mono8/mono16 frame is used as it is, with no copy.
-    return pixels.view(dtype).astype(DTYPES[msg.encoding], copy=False)
+        samples = samples.copy()    # padded rows: the view needs contiguous rows
+    # A native little-endian frame is used as it is, with no copy.
+    pixels = samples.view(dtype).astype(encoding.dtype, copy=False)
+    if encoding.channels > 1:
+        pixels = pixels.reshape(msg.height, msg.width, encoding.channels)
+    return grey(pixels, encoding)
 
 
 class ImageWriter:
-    """One camera's frames as serialized sensor_msgs/Image, and their CameraInfo (size and
-    frame only, as a driver without calibration sends it)."""
+    """One camera's frames as serialized sensor_msgs/Image, and their CameraInfo: the size,
+    the frame and, with ``lens``, K, D (plumb_bob), R (identity) and P as image_pipeline reads
+    them (without, all zero: an uncalibrated driver's)."""
 
-    def __init__(self, frame_id: str, height: int, width: int, encoding: str) -> None:
-        itemsize = np.dtype(DTYPES[encoding]).itemsize
+    def __init__(self, frame_id: str, height: int, width: int, encoding: str,
+                 lens: Lens | None = None) -> None:
         self.shape = (height, width)
-        self.dtype = np.dtype(DTYPES[encoding]).newbyteorder('<')
+        self.dtype = np.dtype(encoding_of(encoding).dtype).newbyteorder('<')
+        itemsize = self.dtype.itemsize
         image = Image(height=height, width=width, encoding=encoding, is_bigendian=0,
                       step=width * itemsize)
         image.header.frame_id = frame_id
@@ -84,6 +96,13 @@ class ImageWriter:
         self._head = MessageTemplate(image, _STAMP)
         info = CameraInfo(height=height, width=width)
         info.header.frame_id = frame_id
+        if lens is not None and lens.calibrated:
+            fx, _, cx, _, fy, cy = lens.camera_matrix[:6]
+            info.distortion_model = 'plumb_bob'
+            info.k = list(lens.camera_matrix)
+            info.d = list(lens.distortion)
+            info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+            info.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
         self._info = MessageTemplate(info, _STAMP)
 
     def image(self, sec: int, nanosec: int, pixels: np.ndarray) -> bytes:

@@ -294,3 +294,17 @@ def warm_up(camera: CameraModel, sensor: Sensor, yaw_rad: float = 0.0) -> None:
     x, y = camera.center_m
     render(camera, sensor, RobotState(x, y, 0.3, 0.01, 0.002, 0.05), np.random.default_rng(0),
            yaw_rad)
+
+
+def expose(reflectance: np.ndarray, sensor: Sensor, rng: np.random.Generator) -> np.ndarray:
+    """A whole frame of a still scene of ``reflectance`` (rows x columns, fractions of the full
+    well): the point spread, shot and read noise, quantisation, as :func:`render` gives the
+    robot (a calibration target, say)."""
+    import cv2
+
+    signal = np.asarray(reflectance, np.float32)
+    if sensor.psf_sigma_px > 0:
+        signal = np.asarray(cv2.GaussianBlur(signal, (0, 0), sensor.psf_sigma_px,
+                                             borderType=cv2.BORDER_REPLICATE), np.float32)
+    return _counts(signal * np.float32(sensor.full_well_e), sensor,
+                   rng.standard_normal(signal.shape, dtype=np.float32))

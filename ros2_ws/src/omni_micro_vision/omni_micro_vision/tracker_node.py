@@ -24,13 +24,14 @@ that none of them misses the first captures.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
@@ -48,10 +49,10 @@ from omni_micro_common.qos import (
     IMAGE_QOS,
     latched,
 )
-from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
+from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.fiducial import fiducial_for
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
+from omni_micro_vision.tracked_camera import TrackedCamera, tracked_camera
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
@@ -72,11 +73,14 @@ class TrackerNode(Node):
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
         checked_cameras(cameras)
-        reliability = self.declare_parameter('image_reliability', 'reliable').value
-        if reliability not in RELIABILITIES:
+        # Best effort by default, which meets a reliable and a best-effort driver alike
+        # (REP-2003); the lockstep graph asks reliable of its own camera_node.
+        self.reliability = self.declare_parameter('image_reliability', 'best_effort').value
+        if self.reliability not in RELIABILITIES:
             raise CameraConfigError(f'image_reliability must be one of {sorted(RELIABILITIES)}, '
-                                    f'got {reliability!r}')
-        image_qos = QoSProfile(depth=IMAGE_QOS.depth, reliability=RELIABILITIES[reliability])
+                                    f'got {self.reliability!r}')
+        image_qos = QoSProfile(depth=IMAGE_QOS.depth,
+                               reliability=RELIABILITIES[self.reliability])
         self.lockstep = LockstepReporter(self)
         self.readers: list[_CameraReader] = []
         inputs: list[tuple[str, str, _CameraReader]] = []
@@ -84,32 +88,26 @@ class TrackerNode(Node):
         # Every camera's parameters are declared (one params file serves any choice of cameras);
         # only those in ``cameras`` are read.
         for name in CAPTURE_TOPICS:
-            default: CameraModel = getattr(DEFAULT_RIG, name)
-            center = self.declare_parameter(f'{name}.center_m', list(default.center_m)).value
-            field = self.declare_parameter(f'{name}.field_m', list(default.field_m)).value
             image_topic = self.declare_parameter(f'{name}.image_topic',
                                                  f'/camera/{name}/image_raw').value
             info_topic = self.declare_parameter(f'{name}.info_topic',
                                                 f'/camera/{name}/camera_info').value
-            # The spread the published covariance states (vision_node's model): set them to
-            # what `omni-micro track` measures on a real camera's still frames.
-            noise = self.declare_parameter(f'{name}.noise_px', default.noise_px).value
-            quantisation = self.declare_parameter(f'{name}.quantisation_px',
-                                                  default.quantisation_px).value
-            # How the camera is turned about its centre (its image's x against the platform's).
-            yaw = checked_yaw(f'{name}.yaw_rad',
-                              self.declare_parameter(f'{name}.yaw_rad', 0.0).value)
             # Checks the parameters now, whichever cameras are used.
-            model = CameraModel(name, center, field, default.resolution_px, noise, quantisation)
-            # The heading's spread follows from the baseline of the pair this camera tracks.
-            model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
+            camera = tracked_camera(name, self._setting)
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, model, yaw)
+            reader = _CameraReader(self, camera)
             self.readers.append(reader)
-            fields[name] = min(model.field_m)
+            fields[name] = min(camera.model.field_m)
             inputs.append((image_topic, info_topic, reader))
-        # The smaller field has the finer pixel (the resolution comes with the images).
+            columns, rows = camera.plane.resolution_px
+            self.get_logger().info(
+                f'{name}: {columns} x {rows} pixels mapped by '
+                + (f'its calibration (residual {camera.plane.residual_px:.3g} px, '
+                   f'{camera.plane.residual_m * 1e6:.3g} um)' if camera.calibrated else
+                   'the nominal geometry (no calibration: a real camera needs omni-micro '
+                   'calibrate-camera)'))
+        # The smaller field has the finer pixel.
         self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
 
@@ -117,8 +115,9 @@ class TrackerNode(Node):
             for image_topic, info_topic, reader in inputs:
                 # Raw: the pixels are read where they lie (image_messages.read_image).
                 self.create_subscription(Image, image_topic, reader.on_image, image_qos,
-                                         raw=True)
-                self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos)
+                                         raw=True, event_callbacks=reader.events(image_topic))
+                self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos,
+                                         event_callbacks=reader.events(info_topic))
 
         # The nodes that must not miss a capture, by the topics they read (empty when started
         # alone): the images are read, and the camera (whose frames wait for these readers),
@@ -128,6 +127,15 @@ class TrackerNode(Node):
                                      read_images)
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
+
+    def _setting(self, name: str, default: object) -> object:
+        """A camera setting as a declared parameter (tracked_camera reads them all so). One
+        with no default (a calibration's entries) takes whatever type a params file gives:
+        tracked_camera checks it and names it."""
+        if default is None:
+            return self.declare_parameter(
+                name, None, ParameterDescriptor(dynamic_typing=True)).value
+        return self.declare_parameter(name, default).value
 
     def on_frame(self, reader: _CameraReader, stamp: int, found: bool,
                  capture: _Capture | None) -> None:
@@ -145,16 +153,19 @@ class TrackerNode(Node):
 
 
 class _CameraReader:
-    """One camera's frames: track, decide stillness, publish."""
+    """One camera's frames: check them against the camera's geometry, track, decide stillness,
+    publish."""
 
-    def __init__(self, node: TrackerNode, model: CameraModel, yaw_rad: float) -> None:
+    def __init__(self, node: TrackerNode, camera: TrackedCamera) -> None:
         self.node = node
-        self.name = model.name
-        self.model = model
-        self.size: tuple[int, int] | None = None
+        self.camera = camera
+        self.name = camera.plane.name
         self.handled_ns = -1
-        self.stillness = StillnessRule(node.still_frames, 0.0)
-        self.tracker = FrameTracker(yaw_rad)
+        # Why the latest CameraInfo rules its frames out (None: it does not, or none came yet).
+        self.info_refusal: str | None = None
+        self.stillness = StillnessRule(node.still_frames,
+                                       node.still_px * min(camera.plane.pixel_size_m))
+        self.tracker = FrameTracker(camera.plane, camera.bit_depth)
         self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[self.name],
                                                  CAPTURE_QOS)
         self.covariance_pub = node.create_publisher(
@@ -164,18 +175,30 @@ class _CameraReader:
                                                 latched(1))
         self._said: str | None = None
 
+    def events(self, topic: str) -> SubscriptionEventCallbacks:
+        """rclpy's incompatible-QoS event, said by this node in its status and log."""
+        def on_incompatible(event: QoSRequestedIncompatibleQoSInfo) -> None:
+            policy = QoSPolicyKind(event.last_policy_kind).name.lower()
+            hint = ('set image_reliability: best_effort (it meets reliable and best-effort '
+                    'drivers)' if policy == 'reliability' else
+                    f"make the driver's {policy} QoS match a volatile reader")
+            message = (f'{topic}: a publisher offers QoS incompatible with this reader '
+                       f'({policy}; image_reliability is {self.node.reliability}): {hint}')
+            self.node.get_logger().warning(message)
+            self._say(DiagnosticStatus.ERROR, message)
+        return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)
+
     def on_info(self, msg: CameraInfo) -> None:
-        self.size = (int(msg.width), int(msg.height))
+        refusal = self.camera.refusal(int(msg.width), int(msg.height), list(msg.k), list(msg.d))
+        if refusal != self.info_refusal and refusal is not None:
+            self.node.get_logger().warning(f'{self.name}: frames refused: {refusal}')
+        self.info_refusal = refusal
 
     def _say(self, level: bytes, message: str) -> None:
         if message != self._said:
             self._said = message
             self.status_pub.publish(DiagnosticStatus(level=level, name=f'tracker {self.name}',
                                                      message=message))
-
-    def camera(self, width: int, height: int) -> CameraModel:
-        """The camera as this frame shows it: its resolution comes with the image."""
-        return dataclasses.replace(self.model, resolution_px=(width, height))
 
     def on_image(self, data: bytes) -> None:
         try:
@@ -186,27 +209,30 @@ class _CameraReader:
         found, capture = self._see(msg)
         self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture)
 
-    def _refuse(self, error: CameraConfigError) -> None:
-        self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
+    def _refuse(self, error: CameraConfigError | str) -> None:
+        if not isinstance(error, str):
+            self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
         self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
         self.stillness.reset()
         self.tracker.reset()
 
     def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None]:
         """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
+        if self.info_refusal is not None:
+            # Said once in the log when the CameraInfo came; in the status with every frame.
+            self._refuse(self.info_refusal)
+            return False, None
         try:
-            pixels = image_array(msg, self.size)
+            pixels = image_array(msg, self.camera.plane.resolution_px)
+            result = self.tracker(pixels)
         except CameraConfigError as error:
             self._refuse(error)
             return False, None
-        camera = self.camera(msg.width, msg.height)
-        result = self.tracker(pixels, camera)
         if result.pose is None:
             self.stillness.reset()
             self._say(DiagnosticStatus.WARN, result.reason)
             return False, None
         x, y, phi = result.pose
-        self.stillness.tolerance_m = self.node.still_px * min(camera.pixel_size_m)
         if not self.stillness.still(x, y):
             self._say(DiagnosticStatus.OK, 'moving')
             return True, None
@@ -219,7 +245,7 @@ class _CameraReader:
         covariance = PoseWithCovarianceStamped()
         covariance.header = capture.header
         covariance.pose.pose = capture.pose
-        covariance.pose.covariance = camera.uncertainty(phi).covariance()
+        covariance.pose.covariance = self.camera.uncertainty(phi).covariance()
         return True, (self, covariance, capture)
 
 

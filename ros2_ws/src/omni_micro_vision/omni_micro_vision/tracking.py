@@ -33,9 +33,10 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from omni_micro_vision.camera import CameraModel, camera_frame, platform_frame
+from omni_micro_vision.encodings import full_scale
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import DOT_LEVEL, PLATFORM_LEVEL, Fiducial, fiducial_for
+from omni_micro_vision.geometry import PlaneMap
 
 
 @dataclass(frozen=True)
@@ -57,66 +58,58 @@ class Track:
 SEARCH_MARGIN_BASELINES = 0.25
 
 
-def track(image: np.ndarray, camera: CameraModel, near: tuple[float, float] | None = None,
-          yaw_rad: float = 0.0) -> Track:
-    """The robot's pose (platform frame) in ``image`` of ``camera`` turned by ``yaw_rad`` about
-    its centre, from its fiducial.
+def track(image: np.ndarray, plane: PlaneMap, near: tuple[float, float] | None = None,
+          full_scale: int | None = None) -> Track:
+    """The robot's pose (platform frame) in ``image``, a frame of the camera whose pixels
+    ``plane`` maps to the platform, from its fiducial.
 
     ``near``: where the robot was in the last frame (platform x, y). The fiducial is then first
     looked for in a window around it, and in the whole frame only if it is not found there
     whole (a quarter of the micro camera's frame, 67 x 54 of the macro camera's 1280 x 1024
     pixels: most of the tracker's time per frame was the whole frame's histogram).
+    ``full_scale``: the largest count the sensor gives (:func:`encodings.full_scale`); by
+    default the image type's.
 
     Raises
     ------
     CameraConfigError
-        If ``image`` is not a 2-D array of the camera's resolution (a corrupt frame).
+        If ``image`` is not a 2-D array of the map's resolution (a corrupt frame).
     """
-    columns, rows = (int(v) for v in camera.resolution_px)
+    columns, rows = plane.resolution_px
     if image.ndim != 2 or image.shape != (rows, columns):
-        raise CameraConfigError(f'{camera.name}: expected a {columns} x {rows} mono image, got '
+        raise CameraConfigError(f'{plane.name}: expected a {columns} x {rows} mono image, got '
                                 f'shape {image.shape}')
-    fiducial = fiducial_for(camera)
-    found = _track_in_camera_frame(
-        image, camera, fiducial,
-        None if near is None else camera_frame(camera, yaw_rad, near[0], near[1], 0.0)[:2])
-    if found.pose is None or not yaw_rad:
-        return found
-    return Track(platform_frame(camera, yaw_rad, *found.pose))
-
-
-def _track_in_camera_frame(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
-                           near: tuple[float, float] | None) -> Track:
-    columns, rows = (int(v) for v in camera.resolution_px)
+    scale = int(np.iinfo(image.dtype).max) if full_scale is None else full_scale
+    pixel_m = plane.pixel_size_m
+    fiducial = fiducial_for(plane.camera_model(0.0, 0.0))
     if near is not None:
-        px, py = camera.pixel_size_m
+        column, row = plane.to_pixels(np.array([near]))[0]
         reach = ((0.5 + SEARCH_MARGIN_BASELINES) * fiducial.baseline_m
                  + fiducial.front.radius_m)
-        column = (near[0] - (camera.center_m[0] - camera.field_m[0] / 2)) / px
-        row = (camera.center_m[1] + camera.field_m[1] / 2 - near[1]) / py
-        region = (max(0, int(row - reach / py)), min(rows, int(row + reach / py) + 1),
-                  max(0, int(column - reach / px)), min(columns, int(column + reach / px) + 1))
-        if region[1] - region[0] > 8 and region[3] - region[2] > 8:
-            found = _locate(image, camera, fiducial, region)
-            if found.found:
-                return found
-    return _locate(image, camera, fiducial, (0, rows, 0, columns))
+        reach_u, reach_v = (reach * extent for extent in plane.pixels_per_metre)
+        if math.isfinite(column) and math.isfinite(row):
+            region = (max(0, int(row - reach_v)), min(rows, int(row + reach_v) + 1),
+                      max(0, int(column - reach_u)), min(columns, int(column + reach_u) + 1))
+            if region[1] - region[0] > 8 and region[3] - region[2] > 8:
+                found = _locate(image, plane, pixel_m, fiducial, region, scale)
+                if found.found:
+                    return found
+    return _locate(image, plane, pixel_m, fiducial, (0, rows, 0, columns), scale)
 
 
-def _locate(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
-            region: tuple[int, int, int, int]) -> Track:
+def _locate(image: np.ndarray, plane: PlaneMap, pixel_m: tuple[float, float],
+            fiducial: Fiducial, region: tuple[int, int, int, int], full_scale: int) -> Track:
     """The fiducial in ``region`` (first row, end row, first column, end column) of ``image``;
     a blob touching the region's border is cut (by the field's edge when the region is the
     whole frame)."""
     import cv2
 
-    columns, rows = (int(v) for v in camera.resolution_px)
+    columns, rows = plane.resolution_px
     r0, r1, c0, c1 = region
     part = image[r0:r1, c0:c1]
-    px, py = camera.pixel_size_m
+    px, py = pixel_m
     # The surround as the median level, the peak as the tenth brightest pixel: both from the
     # histogram (one pass over the frame, no sort or float copy of a megapixel).
-    full_scale = int(np.iinfo(image.dtype).max)
     histogram = cv2.calcHist([part], [0], None, [full_scale + 1], [0, full_scale + 1]).ravel()
     cumulative = np.cumsum(histogram)
     background = float(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
@@ -149,7 +142,7 @@ def _locate(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
                 found[name].append(label)
     missing = [name for name in ('front', 'back') if not found[name]]
     if missing and any(cut[name] for name in missing):
-        return Track(reason=f'fiducial cut by the edge of the {camera.name} field')
+        return Track(reason=f'fiducial cut by the edge of the {plane.name} field')
     if missing:
         sizes = ', '.join(f'{expected[name]:.0f} px' for name in missing)
         return Track(reason=f'fiducial not found: no {" or ".join(missing)} dot of the '
@@ -157,7 +150,7 @@ def _locate(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
     if len(found['front']) > 1 or len(found['back']) > 1:
         return Track(reason=f'ambiguous: {len(found["front"])} front and {len(found["back"])} '
                             'back dot candidates')
-    centres = {}
+    centres: dict[str, tuple[float, float]] = {}
     for name in ('front', 'back'):
         left, top, width, height = boxes[found[name][0]]
         pad = max(2, round(1.5 * min(width, height) / 4) + 2)
@@ -172,34 +165,40 @@ def _locate(image: np.ndarray, camera: CameraModel, fiducial: Fiducial,
         if total <= 0.0:
             return Track(reason=f'{name} dot has no contrast')
         rows_index, columns_index = np.mgrid[y0:y1, x0:x1]
-        u = float((weights * columns_index).sum() / total) + 0.5
-        v = float((weights * rows_index).sum() / total) + 0.5
-        centres[name] = (camera.center_m[0] - camera.field_m[0] / 2 + u * px,
-                         camera.center_m[1] + camera.field_m[1] / 2 - v * py)
-    (fx, fy), (bx, by) = centres['front'], centres['back']
+        centres[name] = (float((weights * columns_index).sum() / total),
+                         float((weights * rows_index).sum() / total))
+    # Each dot's centre through the lens and onto the platform: the heading is read there, so
+    # a turned or mirrored image gives the platform's heading.
+    (fx, fy), (bx, by) = plane.to_platform(np.array([centres['front'], centres['back']]))
     # The dots sit symmetrically about the centre on the robot's X axis.
     offset = 0.5 * (fiducial.front.x_m + fiducial.back.x_m)
     heading = math.atan2(fy - by, fx - bx)
-    return Track((0.5 * (fx + bx) - offset * math.cos(heading),
-                  0.5 * (fy + by) - offset * math.sin(heading), heading))
+    return Track((float(0.5 * (fx + bx) - offset * math.cos(heading)),
+                  float(0.5 * (fy + by) - offset * math.sin(heading)), heading))
 
 
 T = TypeVar('T')
 
 
 class FrameTracker:
-    """:func:`track` on the frames of one camera (turned by
-    ``yaw_rad`` about its centre), in order."""
+    """:func:`track` on the frames of one camera, in order.
 
-    def __init__(self, yaw_rad: float = 0.0) -> None:
-        self.yaw_rad = yaw_rad
+    ``bit_depth``: the sensor's (0: the least that holds every frame seen so far, so that a
+    12-bit sensor's counts in mono16 are read on their own scale).
+    """
+
+    def __init__(self, plane: PlaneMap, bit_depth: int = 0) -> None:
+        self.plane = plane
+        self.bit_depth = bit_depth
+        self._full_scale = 0
         self._last: tuple[float, float] | None = None
 
     def reset(self) -> None:
         self._last = None
 
-    def __call__(self, image: np.ndarray, camera: CameraModel) -> Track:
-        result = track(image, camera, near=self._last, yaw_rad=self.yaw_rad)
+    def __call__(self, image: np.ndarray) -> Track:
+        self._full_scale = max(self._full_scale, full_scale(image, self.bit_depth))
+        result = track(image, self.plane, near=self._last, full_scale=self._full_scale)
         self._last = None if result.pose is None else result.pose[:2]
         return result
 

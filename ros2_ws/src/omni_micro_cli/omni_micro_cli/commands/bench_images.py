@@ -72,6 +72,7 @@ def _median_ms(action: Callable[[int], object], count: int) -> float:
 def frame_costs(frames: int) -> list[dict[str, object]]:
     from omni_micro_sim.state import RobotState
     from omni_micro_vision.camera import DEFAULT_RIG, CameraModel
+    from omni_micro_vision.geometry import PlaneMap
     from omni_micro_vision.rendering import Sensor, render
     from omni_micro_vision.tracking import track
 
@@ -79,6 +80,7 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
     rows = []
     for name, label, x, y, heading, speed in FRAME_CASES:
         camera = getattr(DEFAULT_RIG, name)
+        plane = PlaneMap.nominal(camera)
         state = RobotState(x, y, heading, speed, 0.0, 0.0)
         images = [render(camera, sensor, state, np.random.default_rng([1, i]))
                   for i in range(frames + 1)]
@@ -88,14 +90,14 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
                        state: RobotState = state) -> object:
             return render(camera, sensor, state, np.random.default_rng([2, index]))
 
-        def track_frame(index: int, camera: CameraModel = camera,
+        def track_frame(index: int, plane: PlaneMap = plane,
                         images: list[np.ndarray] = images) -> object:
-            return track(images[index], camera)
+            return track(images[index], plane)
 
-        def track_near(index: int, camera: CameraModel = camera,
+        def track_near(index: int, plane: PlaneMap = plane,
                        images: list[np.ndarray] = images,
                        near: tuple[float, float] = (x, y)) -> object:
-            return track(images[index], camera, near=near)
+            return track(images[index], plane, near=near)
 
         def draw_noise(index: int, shape: tuple[int, ...] = shape) -> object:
             return np.random.default_rng(index).standard_normal(shape, dtype=np.float32)
@@ -104,7 +106,7 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
         track_ms = _median_ms(track_frame, frames)
         near_ms = _median_ms(track_near, frames)
         noise_ms = _median_ms(draw_noise, frames)
-        found = track(images[0], camera).found
+        found = track(images[0], plane).found
         rows.append({'camera': name, 'case': label, 'render_ms': round(render_ms, 2),
                      'track_ms': round(track_ms, 2), 'track_near_last_pose_ms': round(near_ms, 2),
                      'noise_draw_ms': round(noise_ms, 2),

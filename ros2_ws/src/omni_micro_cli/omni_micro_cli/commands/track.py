@@ -11,18 +11,20 @@ from __future__ import annotations
 
 import argparse
 import csv
-import dataclasses
 import io
 import math
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import atomic_text, output_file
+
+if TYPE_CHECKING:
+    from omni_micro_vision.tracked_camera import TrackedCamera
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -41,8 +43,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--image-topic', metavar='T',
                         help="the images' topic in the bag (default: the camera's image_topic "
                              'param, /camera/<camera>/image_raw)')
-    parser.add_argument('--params', type=Path, metavar='FILE',
-                        help='a tracker_node params file, as you will give the node')
+    parser.add_argument('--params', type=Path, metavar='FILE', action='append', default=[],
+                        help='a tracker_node params file, as you will give the node; again for '
+                             'another (the calibration calibrate-camera wrote, say): later '
+                             'files win, as with --params-file')
     parser.add_argument('--max-frames', type=positive_int, metavar='N',
                         help='only the first N frames')
     parser.add_argument('--csv', type=output_file, metavar='FILE',
@@ -54,9 +58,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
     from omni_micro_cli.orchestration.parameters import check_params_file, params_from_files
 
-    if args.params is not None:
-        check_params_file(args.params)
-    values = params_from_files('omni_micro_vision', 'tracker_node', args.params)
+    for path in args.params:
+        check_params_file(path)
+    values = params_from_files('omni_micro_vision', 'tracker_node', *args.params)
     topic = args.image_topic or str(values.get(f'{args.camera}.image_topic',
                                                f'/camera/{args.camera}/image_raw'))
     return values, topic
@@ -64,31 +68,18 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.bags import check_readable_bag, reading
-    from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
     from omni_micro_vision.errors import CameraConfigError
-    from omni_micro_vision.fiducial import fiducial_for
     from omni_micro_vision.image_messages import image_array
+    from omni_micro_vision.tracked_camera import tracked_camera
     from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
     check_readable_bag(args.bag)
     values, topic = _tracker_settings(args)
-    default: CameraModel = getattr(DEFAULT_RIG, args.camera)
-    name = args.camera
-
-    def setting(key: str, fallback: object) -> Any:
-        """As YAML gave it: CameraModel checks it and names it if it is wrong."""
-        return values.get(key, fallback)
-
     try:
-        model = CameraModel(name, setting(f'{name}.center_m', list(default.center_m)),
-                            setting(f'{name}.field_m', list(default.field_m)),
-                            default.resolution_px,
-                            setting(f'{name}.noise_px', default.noise_px),
-                            setting(f'{name}.quantisation_px', default.quantisation_px))
-        model = dataclasses.replace(model, marker_baseline_m=fiducial_for(model).baseline_m)
-        yaw = checked_yaw(f'{name}.yaw_rad', setting(f'{name}.yaw_rad', 0.0))
-        frames_needed = int(setting('still_frames', 3))
-        tolerance_px = float(setting('still_tolerance_px', 0.2))
+        # As tracker_node reads its parameters: the same geometry, the same poses.
+        camera = tracked_camera(args.camera, values.get)
+        frames_needed = int(values.get('still_frames', 3))  # type: ignore[call-overload]
+        tolerance_px = float(values.get('still_tolerance_px', 0.2))  # type: ignore[arg-type]
     except (CameraConfigError, TypeError, ValueError) as error:
         raise UsageError(f'tracker params: {error}') from None
     rows: list[tuple[float, bool, bool, float, float, float, str]] = []
@@ -102,37 +93,33 @@ def run(args: argparse.Namespace) -> int:
         if connections[0].msgtype != 'sensor_msgs/msg/Image':
             raise UsageError(f'{topic} in {str(args.bag)!r} carries {connections[0].msgtype}, '
                              f'not sensor_msgs/msg/Image: {choose}')
-        stillness = StillnessRule(frames_needed, 0.0)
-        tracker = FrameTracker(yaw)   # as tracker_node reads the frames: the same poses
+        stillness = StillnessRule(frames_needed,
+                                  tolerance_px * min(camera.plane.pixel_size_m))
+        tracker = FrameTracker(camera.plane, camera.bit_depth)
         for _, _, raw in reader.messages(connections=connections):
             msg: Any = reader.deserialize(raw, connections[0].msgtype)
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
             try:
-                pixels = image_array(msg, None)
+                pixels = image_array(msg, camera.plane.resolution_px)
+                found = tracker(pixels)
             except CameraConfigError as error:
                 stillness.reset()
                 tracker.reset()
                 rows.append((stamp, False, False, math.nan, math.nan, math.nan,
                              f'refused: {error}'))
                 continue
-            camera = dataclasses.replace(model, resolution_px=(msg.width, msg.height))
-            found = tracker(pixels, camera)
             if found.pose is None:
                 stillness.reset()
                 rows.append((stamp, False, False, math.nan, math.nan, math.nan, found.reason))
             else:
-                stillness.tolerance_m = tolerance_px * min(camera.pixel_size_m)
                 x, y, heading = found.pose
                 rows.append((stamp, True, stillness.still(x, y), x, y, heading, ''))
             if args.max_frames and len(rows) >= args.max_frames:
                 break
-    return _report(args, rows, camera if rows else model)
+    return _report(args, rows, camera)
 
 
-def _report(args: argparse.Namespace, rows: list, camera: object) -> int:
-    from omni_micro_vision.camera import CameraModel
-
-    assert isinstance(camera, CameraModel)
+def _report(args: argparse.Namespace, rows: list, camera: TrackedCamera) -> int:
     total = len(rows)
     found = [row for row in rows if row[1]]
     still = [row for row in rows if row[2]]
@@ -159,7 +146,7 @@ def _report(args: argparse.Namespace, rows: list, camera: object) -> int:
               f'heading {stated.heading_sigma_rad * 1e3:.3f} mrad')
         # The stated position spread is mark_sigma / sqrt(2) pixels, mark_sigma^2 = noise^2 +
         # quantisation^2 / 12: solve for noise, or for both when the grid alone says too much.
-        pixel = float(np.mean(camera.pixel_size_m))
+        pixel = float(np.mean(camera.plane.pixel_size_m))
         mark_sigma = math.sqrt(2.0) * float(np.mean(spread[:2])) / pixel
         quantisation = camera.quantisation_px
         if mark_sigma ** 2 < quantisation ** 2 / 12.0:

@@ -171,6 +171,9 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.vision_overrides)
     elif spec.executable == 'tracker_node':
         overrides.update(capture_readers(options))
+        # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
+        # never reported: time would stand still. Alone, the node takes best effort.
+        overrides.update(image_reliability='reliable')
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters('omni_micro_vision', _camera_node(options),

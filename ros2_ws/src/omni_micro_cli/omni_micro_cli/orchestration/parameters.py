@@ -74,9 +74,9 @@ def node_parameters(package: str, node: str, params_file: Path | None,
     return values
 
 
-def params_from_files(package: str, node: str, params_file: Path | None) -> dict[str, object]:
-    """A node's parameters from its package file, then ``params_file`` (dotted names)."""
-    files = [package_params_file(package, node)]
-    if params_file is not None:
-        files.append(params_file)
+def params_from_files(package: str, node: str, *params_files: Path | None) -> dict[str, object]:
+    """A node's parameters from its package file, then each of ``params_files`` in turn
+    (dotted names; None stands for no file)."""
+    files = [package_params_file(package, node),
+             *(path for path in params_files if path is not None)]
     return params.node_parameters(files, node)

@@ -1,0 +1,66 @@
+"""One simulated camera's frames as a driver sends them: the bytes of each sensor_msgs/Image
+and of its CameraInfo, of the robot or of a calibration target.
+
+``camera_node`` publishes them; ``omni-micro record-target`` writes them to a bag: the same
+bytes. A frame is a function of (seed, camera, frame number) and what the camera sees.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from omni_micro_sim.state import RobotState
+from omni_micro_vision.image_messages import ImageWriter
+from omni_micro_vision.optics import CameraOptics
+from omni_micro_vision.rendering import Sensor, expose, render, warm_up
+from omni_micro_vision.targets import Chessboard, render_target
+
+# What the cameras show: the robot, or a chessboard target lying on the platform.
+SCENES = ('robot', 'chessboard')
+
+
+class CameraFrames:
+    """Camera ``optics`` with ``sensor``, the ``index``-th of the rig (its noise is seeded by
+    (seed, index, frame number)), showing the robot or, with ``target``, that target."""
+
+    def __init__(self, index: int, optics: CameraOptics, sensor: Sensor, seed: int,
+                 target: Chessboard | None = None) -> None:
+        self.index = index
+        self.optics = optics
+        self.sensor = sensor
+        self.seed = seed
+        self.target = target
+        columns, rows = (int(v) for v in optics.camera.resolution_px)
+        self.writer = ImageWriter(f'{optics.camera.name}_optical_frame', rows, columns,
+                                  sensor.encoding, optics.lens)
+
+    @functools.cached_property
+    def _target_reflectance(self) -> np.ndarray:
+        assert self.target is not None
+        return render_target(self.optics.camera, self.target, self.optics.yaw_rad)
+
+    def pixels(self, number: int, state: RobotState) -> np.ndarray:
+        """Frame ``number`` of a robot whose motion at the exposure's start is ``state``."""
+        rng = np.random.default_rng([self.seed, self.index, number])
+        if self.target is None:
+            ideal = render(self.optics.camera, self.sensor, state, rng, self.optics.yaw_rad)
+        else:
+            ideal = expose(self._target_reflectance, self.sensor, rng)
+        return self.optics.view(ideal)
+
+    def messages(self, number: int, sec: int, nanosec: int,
+                 state: RobotState) -> tuple[bytes, bytes]:
+        """The CameraInfo and the Image of frame ``number``, stamped (sec, nanosec)."""
+        return (self.writer.info(sec, nanosec),
+                self.writer.image(sec, nanosec, self.pixels(number, state)))
+
+    def warm_up(self) -> None:
+        """What the first frame would otherwise pay inside the loop's time: the scene kernel,
+        the flat fields, the target, the lens's map."""
+        if self.target is None:
+            warm_up(self.optics.camera, self.sensor, self.optics.yaw_rad)
+        else:
+            _ = self._target_reflectance
+        self.optics.prepare()
