@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from typing import Any
 
 
 def finite_float(text: str) -> float:
@@ -172,3 +173,43 @@ def steering_overrides(name: str, prefix: str = 'robot.') -> dict[str, object]:
     values = robot_parameter_values(RobotParameters(steering=steering_preset(name)))
     return {prefix + key: value for key, value in values.items()
             if key.startswith(STEERING_PREFIX)}
+
+
+def pattern(text: str) -> tuple[int, int]:
+    """A calibration target's inner corners, ``COLSxROWS`` (OpenCV's convention)."""
+    parts = text.lower().split('x')
+    if len(parts) != 2 or not all(part.strip().isdigit() for part in parts):
+        raise argparse.ArgumentTypeError(f'expected COLSxROWS inner corners (9x6), got {text!r}')
+    columns, rows = (int(part) for part in parts)
+    if columns < 2 or rows < 2 or columns * rows > 10_000:
+        raise argparse.ArgumentTypeError(f'expected 2 to 10000 inner corners each way, got '
+                                         f'{text!r}')
+    return columns, rows
+
+
+def add_target_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where a chessboard calibration target lies on the platform (record-target,
+    calibrate-camera): the same words for both."""
+    parser.add_argument('--target', choices=('chessboard',), default='chessboard',
+                        help='the calibration target (a chessboard; the square at its own '
+                             'lowest x and y black)')
+    parser.add_argument('--pattern', type=pattern, default=(9, 6), metavar='COLSxROWS',
+                        help='inner corners, as OpenCV counts them; one count odd, one even '
+                             '(default 9x6)')
+    parser.add_argument('--pitch-mm', type=positive_float, default=0.15, metavar='MM',
+                        help="a square's side (default 0.15, for the micro camera)")
+    parser.add_argument('--target-center-mm', type=float_list(2, 'millimetres'),
+                        default=(100.0, 0.0), metavar='X,Y',
+                        help="the target's centre on the platform (default 100,0: the micro "
+                             "camera's field)")
+    parser.add_argument('--target-yaw-deg', type=finite_float, default=0.0, metavar='DEG',
+                        help="its rows against the platform's x axis (default 0)")
+
+
+def target_from(args: argparse.Namespace) -> Any:
+    """The :class:`omni_micro_vision.targets.Chessboard` the target arguments describe."""
+    from omni_micro_vision.targets import Chessboard
+
+    return Chessboard(args.pattern, args.pitch_mm * 1e-3,
+                      (args.target_center_mm[0] * 1e-3, args.target_center_mm[1] * 1e-3),
+                      math.radians(args.target_yaw_deg))

@@ -47,6 +47,10 @@ COMMANDS: dict[str, Command] = {
     'replay': Command('replay', "publish a bag's messages again, e.g. to feed a node"),
     'track': Command('track', "run the tracker on a bag's recorded images (a real camera's, "
                               'say)'),
+    'record-target': Command('record_target', "a simulated camera's frames of a calibration "
+                                              'target, to rehearse calibrate-camera'),
+    'calibrate-camera': Command('calibrate_camera', "a camera's map to the platform from its "
+                                                    'frames of a chessboard (for tracker_node)'),
     'analyze': Command('analyze', 'figures and a summary of a recorded bag', ('analyse',)),
     'identify': Command('identify', "the robot's wheel offsets (and friction) from a recorded "
                                     'run'),

@@ -8,14 +8,17 @@ bytes. A frame is a function of (seed, camera, frame number) and what the camera
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from omni_micro_sim.state import RobotState
+from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
 from omni_micro_vision.image_messages import ImageWriter
-from omni_micro_vision.optics import CameraOptics
+from omni_micro_vision.optics import WORKING_DISTANCE_M, CameraOptics
 from omni_micro_vision.rendering import Sensor, expose, render, warm_up
-from omni_micro_vision.targets import Chessboard, render_target
+from omni_micro_vision.targets import DEFAULT_TARGET, Chessboard, render_target
 
 # What the cameras show: the robot, or a chessboard target lying on the platform.
 SCENES = ('robot', 'chessboard')
@@ -64,3 +67,41 @@ class CameraFrames:
         else:
             _ = self._target_reflectance
         self.optics.prepare()
+
+
+Setting = Callable[[str, Any], Any]
+
+
+def camera_settings(name: str, setting: Setting) -> tuple[CameraOptics, Sensor]:
+    """Camera ``name``'s mount, lens and sensor from camera_node's parameters:
+    ``setting(key, default)`` gives the value of ``<name>.<key>`` (a declared parameter, or a
+    params file's entry).
+
+    Raises
+    ------
+    CameraConfigError
+        Naming the setting that is wrong.
+    """
+    default: CameraModel = getattr(DEFAULT_RIG, name)
+    camera = CameraModel(name, setting(f'{name}.center_m', list(default.center_m)),
+                         setting(f'{name}.field_m', list(default.field_m)),
+                         setting(f'{name}.resolution_px',
+                                 [int(v) for v in default.resolution_px]))
+    optics = CameraOptics(
+        camera, checked_yaw(f'{name}.yaw_rad', setting(f'{name}.yaw_rad', 0.0)),
+        setting(f'{name}.mirrored', False),
+        setting(f'{name}.working_distance_m', WORKING_DISTANCE_M[name]),
+        tuple(setting(f'{name}.distortion', [0.0, 0.0])))
+    defaults = Sensor()
+    sensor = Sensor(**{field: setting(f'{name}.{field}', getattr(defaults, field))
+                       for field in ('psf_sigma_px', 'full_well_e', 'read_noise_e', 'bit_depth',
+                                     'exposure_s')})
+    return optics, sensor
+
+
+def target_settings(setting: Setting) -> Chessboard:
+    """The calibration target from camera_node's ``target.*`` parameters."""
+    return Chessboard(tuple(setting('target.pattern', list(DEFAULT_TARGET.pattern))),
+                      setting('target.pitch_m', DEFAULT_TARGET.pitch_m),
+                      tuple(setting('target.center_m', list(DEFAULT_TARGET.center_m))),
+                      setting('target.yaw_rad', DEFAULT_TARGET.yaw_rad))

@@ -44,12 +44,9 @@ from omni_micro_common.node_runtime import (
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_cameras, checked_yaw
-from omni_micro_vision.camera_frames import SCENES, CameraFrames
+from omni_micro_vision.camera import checked_cameras
+from omni_micro_vision.camera_frames import SCENES, CameraFrames, camera_settings, target_settings
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.optics import WORKING_DISTANCE_M, CameraOptics
-from omni_micro_vision.rendering import Sensor
-from omni_micro_vision.targets import DEFAULT_TARGET, Chessboard
 
 
 @dataclass(frozen=True)
@@ -74,17 +71,12 @@ class CameraNode(Node):
         chosen = checked_cameras(list(self.declare_parameter('cameras',
                                                              ['macro', 'micro']).value))
         scene = self.declare_parameter('scene', 'robot').value
-        target = Chessboard(
-            tuple(self.declare_parameter('target.pattern', list(DEFAULT_TARGET.pattern)).value),
-            self.declare_parameter('target.pitch_m', DEFAULT_TARGET.pitch_m).value,
-            tuple(self.declare_parameter('target.center_m',
-                                         list(DEFAULT_TARGET.center_m)).value),
-            self.declare_parameter('target.yaw_rad', DEFAULT_TARGET.yaw_rad).value)
+        target = target_settings(self._setting)
         if scene not in SCENES:
             raise CameraConfigError(f'scene must be one of {list(SCENES)}, got {scene!r}')
         self.streams: list[_Stream] = []
         for index, name in enumerate(CAPTURE_TOPICS):
-            frames = CameraFrames(index, self._optics(name), self._sensor(name), self.seed,
+            frames = CameraFrames(index, *camera_settings(name, self._setting), self.seed,
                                   target if scene == 'chessboard' else None)
             if name not in chosen:
                 continue
@@ -129,27 +121,8 @@ class CameraNode(Node):
         self.lockstep.report(Ack(self.get_name(), int(sec) * 1_000_000_000 + int(nanosec),
                                  frames_ns=(published[0], published[-1]) if published else None))
 
-    def _optics(self, name: str) -> CameraOptics:
-        default: CameraModel = getattr(DEFAULT_RIG, name)
-        camera = CameraModel(
-            name, self.declare_parameter(f'{name}.center_m', list(default.center_m)).value,
-            self.declare_parameter(f'{name}.field_m', list(default.field_m)).value,
-            self.declare_parameter(f'{name}.resolution_px',
-                                   [int(v) for v in default.resolution_px]).value)
-        return CameraOptics(
-            camera, checked_yaw(f'{name}.yaw_rad',
-                                self.declare_parameter(f'{name}.yaw_rad', 0.0).value),
-            self.declare_parameter(f'{name}.mirrored', False).value,
-            self.declare_parameter(f'{name}.working_distance_m',
-                                   WORKING_DISTANCE_M[name]).value,
-            tuple(self.declare_parameter(f'{name}.distortion', [0.0, 0.0]).value))
-
-    def _sensor(self, name: str) -> Sensor:
-        defaults = Sensor()
-        return Sensor(**{
-            field: self.declare_parameter(f'{name}.{field}', getattr(defaults, field)).value
-            for field in ('psf_sigma_px', 'full_well_e', 'read_noise_e', 'bit_depth',
-                          'exposure_s')})
+    def _setting(self, name: str, default: object) -> Any:
+        return self.declare_parameter(name, default).value
 
     def _publish_frame(self, number: int, state: RobotState) -> int:
         """Publish frame ``number`` of every camera; returns its stamp in nanoseconds."""
