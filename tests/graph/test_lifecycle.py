@@ -195,6 +195,7 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
 def test_a_domain_is_not_leased_while_a_process_of_its_run_lives():
     lease = DomainLease()
     with lease as domain:
+        assert lease.fileno is not None
         child = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(30)'],
                                  pass_fds=(lease.fileno,))
     try:

@@ -3,19 +3,7 @@ rclpy context of its own, as rclpy's own tests do, with no process and no DDS tr
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
-import rclpy
-from rclpy.context import Context
-
-
-@pytest.fixture
-def context() -> Iterator[Context]:
-    context = Context()
-    rclpy.init(context=context)
-    yield context
-    context.try_shutdown()
 
 
 class Published:

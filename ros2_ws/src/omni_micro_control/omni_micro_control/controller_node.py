@@ -36,6 +36,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
     JOINT_NAMES,
     STEERING_JOINT,
@@ -125,6 +126,7 @@ class ControllerNode(Node):
                                 self._declare_model_config()))
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
+        self._said_mismatch: str | None = None   # the last clock mismatch logged
         self._robot_time_ns = 0
         self._capture_handled_ns = -1
         self._command_ns: int | None = None
@@ -304,8 +306,17 @@ class ControllerNode(Node):
             self.get_logger().info(f'{camera} capture before the first wheel state: skipped',
                                    throttle_duration_sec=5.0)
             return
+        stamp = join_stamp(header.stamp.sec, header.stamp.nanosec)
+        mismatch = clock_mismatch(f'a {camera} capture', stamp, 'the robot', self.robot_time_s)
+        if mismatch is not None:
+            if mismatch != self._said_mismatch:
+                self._said_mismatch = mismatch
+                self.get_logger().error(mismatch)
+                self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch', reason=mismatch)
+            self._act(self.controller.on_foreign_capture(mismatch))
+            return
         observation = Observation(
-            join_stamp(header.stamp.sec, header.stamp.nanosec),
+            stamp,
             pose.position.x, pose.position.y,
             quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera, uncertainty)
         self._act(self.controller.on_capture(observation))

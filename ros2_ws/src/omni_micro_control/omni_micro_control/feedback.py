@@ -366,6 +366,13 @@ class VisionFeedbackController:
         return Move(observation.stamp_s + config.command_lead_s, plan.steering_rad, duration,
                     self.periods, remaining, observation, plan.rule, plan.note)
 
+    def on_foreign_capture(self, reason: str) -> Finished | None:
+        """A capture stamped on another clock than the robot's: it would never be current, so
+        the goal is lost at once, with ``reason`` (which names both clocks)."""
+        if self.phase not in (Phase.SETTLING, Phase.MOVING):
+            return None
+        return self._finish(Outcome.LOST, reason)
+
     def on_out_of_field(self, stamp_s: float) -> Finished | None:
         """The camera reports it cannot see the robot: lost once timer2 has run out."""
         if self.phase is not Phase.SETTLING:

@@ -18,7 +18,11 @@ Subscribes:
 
 Time is owned here and paced by a wall timer at ``real_time_factor`` (``.inf``: as fast as the
 graph allows; the node itself never uses sim time). While ``paused`` is true the clock stands
-still, which lets an orchestrator bring the whole graph up before time 0 moves.
+still, which lets an orchestrator bring the whole graph up before time 0 moves. Stamps count
+from 0 (``stamp_origin: zero``), or from the wall clock at the moment time starts
+(``stamp_origin: wall``, at a real-time factor of 1: what a real camera or controller beside
+this simulated robot stamps with). A trajectory stamped on another clock is refused, naming
+both (:mod:`omni_micro_common.clocks`).
 
 Lockstep (``lockstep_nodes``, see :mod:`omni_micro_common.lockstep`): simulated time goes no
 further than the reports on /lockstep of the named nodes allow, so a busy machine slows a run
@@ -44,6 +48,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
     LISTENER_INPUTS,
     LOCKSTEP_INPUTS,
@@ -97,6 +102,9 @@ def _robot_defaults() -> dict[str, object]:
 DEFAULT_SLIP_EVERY = 5
 DEFAULT_THROTTLE_EVERY = 5
 
+# Where stamps count from: 0, or the wall clock when time starts.
+STAMP_ORIGINS = ('zero', 'wall')
+
 # Wall seconds of simulated time standing still (unpaused) before the node says what it waits for.
 STALL_REPORT_S = 5.0
 
@@ -130,6 +138,15 @@ class DynamicsNode(Node):
         self.base_frame = self.declare_parameter('base_frame', 'base_link', _READ_ONLY).value
         self.real_time_factor = self._checked_rtf(
             self.declare_parameter('real_time_factor', 1.0).value)
+        self.stamp_origin = self.declare_parameter('stamp_origin', 'zero', _READ_ONLY).value
+        if self.stamp_origin not in STAMP_ORIGINS:
+            raise ParameterError(f'stamp_origin must be one of {list(STAMP_ORIGINS)}, got '
+                                 f'{self.stamp_origin!r}')
+        if self.stamp_origin == 'wall' and self.real_time_factor != 1.0:
+            raise ParameterError(f'stamp_origin wall needs real_time_factor 1 (the wall clock '
+                                 f'runs at 1), got {self.real_time_factor!r}')
+        # What a stamp adds to simulated time (set when time starts, with stamp_origin wall).
+        self._origin_ns = 0
         self.paused = bool(self.declare_parameter('paused', False).value)
         # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
         lockstep_nodes = node_list_parameter(self, 'lockstep_nodes')
@@ -227,6 +244,9 @@ class DynamicsNode(Node):
         if 'rtf' in changes:
             self.real_time_factor = changes['rtf']
         if 'paused' in changes:
+            if self.stamp_origin == 'wall' and changes.get('rtf', 1.0) != 1.0:
+                return SetParametersResult(successful=False,
+                                           reason='stamp_origin wall runs at real_time_factor 1')
             if self.paused and not changes['paused']:
                 self._readers_pending = True
                 # A node may have been replaced while time stood still: a new process knows
@@ -309,6 +329,9 @@ class DynamicsNode(Node):
             # Pacing starts from here: the wait for readers is not simulated time.
             self._wall_origin = time.monotonic()
             self._tick_origin = self.grid.tick
+            if self.stamp_origin == 'wall' and not self._origin_ns:
+                # The current tick is now on the wall clock, and every later one follows it.
+                self._origin_ns = time.time_ns() - round(self.grid.time_s * 1e9)
         due = self._due_tick()
         if self.lockstep.enabled:
             reachable = self.lockstep.reachable_ns()   # whole ns, as the nodes' stamps
@@ -337,8 +360,14 @@ class DynamicsNode(Node):
         # 5 us). The bytes are what serialize_message gives (tests/nodes).
         self._templates = tick_templates(self.odom_frame, self.base_frame)
 
+    def _stamp(self, time_s: float) -> tuple[int, int]:
+        """Simulated time as the messages carry it (from 0, or on the wall clock)."""
+        if not self._origin_ns:
+            return split_stamp(time_s)
+        return divmod(self._origin_ns + round(time_s * 1e9), 1_000_000_000)
+
     def _publish(self, sample: Sample) -> None:
-        sec, nanosec = split_stamp(sample.time_s)
+        sec, nanosec = self._stamp(sample.time_s)
         templates = self._templates
         self.clock_pub.publish(templates.clock.encode((sec, nanosec)))
         state = sample.state
@@ -367,11 +396,19 @@ class DynamicsNode(Node):
             self._advance()   # time may have been waiting for this very command
 
     def _schedule_trajectory(self, msg: JointTrajectory) -> None:
-        self.lockstep.on_command(stamp_ns(msg.header.stamp))
+        stamp = stamp_ns(msg.header.stamp) - self._origin_ns
+        self.lockstep.on_command(stamp)
+        mismatch = clock_mismatch('a /wheel_trajectory', stamp_seconds(msg.header.stamp),
+                                  'this robot', join_stamp(*self._stamp(self.grid.time_s)))
+        if mismatch is not None and msg.points:
+            self.get_logger().error(f'rejected: {mismatch}; the robot stays as it is',
+                                    throttle_duration_sec=1.0)
+            return
         points = [TrajectoryPoint(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9,
                                   list(p.positions), list(p.velocities)) for p in msg.points]
         try:
-            command = command_from_points(msg.joint_names, points, stamp_seconds(msg.header.stamp),
+            start_s = join_stamp(*divmod(stamp, 1_000_000_000))
+            command = command_from_points(msg.joint_names, points, start_s,
                                           self.grid.time_s, self.grid.limits)
             scheduled = self.grid.schedule(command)
         except CommandError as error:

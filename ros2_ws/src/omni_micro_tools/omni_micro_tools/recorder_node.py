@@ -81,8 +81,13 @@ class BagRecorder(Node):
             # A deep history on the reader's side whatever the topic's own depth: a latched
             # topic of depth 1 (a status) lost a message that came right after another before
             # the recorder took it (a replay at 20x).
+            # A camera driver's images, recorded outside the lockstep, are read best effort: that
+            # meets a reliable and a best-effort driver alike (REP-2003), as rosbag2 adapts to
+            # what a publisher offers. In the lockstep no frame may be lost: reliable.
+            best_effort = topic in IMAGE_TOPICS and not lockstep_frames
             qos = QoSProfile(depth=max(spec.depth, RECORDER_DEPTH),
-                             reliability=ReliabilityPolicy.RELIABLE,
+                             reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
+                                          else ReliabilityPolicy.RELIABLE),
                              durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
                                          else DurabilityPolicy.VOLATILE))
             # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_common.qos).

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -11,6 +12,7 @@ from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
     check_timing,
+    domain_id,
     float_list,
     non_negative_float,
     non_negative_int,
@@ -21,7 +23,7 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.composition import VISION_MODES, GraphOptions
+from omni_micro_cli.orchestration.composition import SOURCES, VISION_MODES, GraphOptions
 from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_cli.orchestration.parameters import check_params_file
 from omni_micro_cli.orchestration.platform_bounds import check_goal
@@ -30,9 +32,11 @@ from omni_micro_control.feedback import MODES
 
 
 def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--params', type=Path, metavar='FILE',
+    parser.add_argument('--params', type=Path, metavar='FILE', action='append', default=[],
                         help='a ROS params YAML applied to every node after its package '
-                             'defaults (sections dynamics_node:, vision_node:, controller_node:)')
+                             'defaults (sections dynamics_node:, vision_node:, controller_node:); '
+                             'again for another (a calibration beside your own file): later '
+                             'files win, as with --params-file')
     add_timing_arguments(parser, default_rtf='1')
     add_steering_argument(parser)
     parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
@@ -66,6 +70,36 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'camera or robot can replace one')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
+
+
+def image_topic(text: str) -> tuple[str, str]:
+    """``CAMERA=TOPIC``: which tracker camera reads a driver's image topic."""
+    camera, _, topic = text.partition('=')
+    if camera not in ('macro', 'micro') or not topic.startswith('/'):
+        raise argparse.ArgumentTypeError(f'expected CAMERA=TOPIC with CAMERA macro or micro and '
+                                         f'an absolute topic (micro=/camera/image_raw), got '
+                                         f'{text!r}')
+    return camera, topic
+
+
+def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
+    bench = parser.add_argument_group('the bench: a real camera or robot in the loop '
+                                      '(docs/images.md, "The bench")')
+    bench.add_argument('--camera', choices=SOURCES, default='simulated',
+                       help="external: no camera_node; tracker_node reads a camera driver's "
+                            'images (its params, or --image-topic) running in --domain-id')
+    bench.add_argument('--robot', choices=SOURCES, default='simulated',
+                       help="external: no dynamics_node; the robot's driver reads "
+                            '/wheel_trajectory and publishes /joint_states (steering_joint, '
+                            'wheel_1_joint .. wheel_3_joint)')
+    bench.add_argument('--image-topic', type=image_topic, action='append', default=[],
+                       metavar='CAMERA=TOPIC',
+                       help="with --camera external: a driver's image topic for that tracker "
+                            'camera, its CameraInfo on camera_info beside it (again for the '
+                            'other camera); the tracker then reads only these')
+    bench.add_argument('--domain-id', type=domain_id, metavar='N',
+                       help='the ROS_DOMAIN_ID the drivers are in (default: ROS_DOMAIN_ID; '
+                            'without external parts, a private free one)')
 
 
 def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
@@ -109,6 +143,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='print a final JSON line with the outcome and true final pose')
     add_controller_arguments(parser)
     add_graph_arguments(parser)
+    add_bench_arguments(parser)
     faults = parser.add_argument_group('fault injection (see docs/reliability.md)')
     faults.add_argument('--drop-captures', type=probability, default=0.0, metavar='P',
                         help='lose each camera capture with probability P (seeded)')
@@ -142,9 +177,10 @@ def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                       open_loop_s: float | None) -> GraphOptions:
-    if args.params is not None:
-        check_params_file(args.params)
-    check_goal(goal_m, args.params)
+    params_files = tuple(args.params)
+    for path in params_files:
+        check_params_file(path)
+    check_goal(goal_m, params_files)
     try:
         check_timing(args)
     except argparse.ArgumentTypeError as error:
@@ -153,11 +189,28 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     if faults and args.vision != 'model':
         raise UsageError(f'fault injection ({", ".join(sorted(faults))}) is vision_node\'s: '
                          f'it needs --vision model, got --vision {args.vision}')
+    external = 'external' in (args.camera, args.robot)
+    if args.image_topic and args.camera != 'external':
+        raise UsageError('--image-topic names an external camera\'s topics: it needs --camera '
+                         'external')
+    if external and args.rtf != 1.0:
+        raise UsageError(f'with an external camera or robot the graph runs at real time: '
+                         f'--rtf must be 1, got {args.rtf:g}')
+    if external and (faults or args.record_images):
+        raise UsageError('fault injection and --record-images are the simulated camera\'s: '
+                         'not with --camera external or --robot external')
     if args.record_images and (args.vision != 'images' or args.record is None):
         raise UsageError('--record-images needs --record BAG and --vision images')
+    domain = getattr(args, 'domain_id', None)
+    if external and domain is None:
+        from_environment = os.environ.get('ROS_DOMAIN_ID', '')
+        if not from_environment.isdigit():
+            raise UsageError('with an external camera or robot, say which ROS_DOMAIN_ID its '
+                             'driver is in: --domain-id N (or set ROS_DOMAIN_ID)')
+        domain = int(from_environment)
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
                         lockstep=not args.free_running,
-                        open_loop_s=open_loop_s, params_file=args.params,
+                        open_loop_s=open_loop_s, params_files=params_files,
                         timeout_s=args.timeout, log_dir=args.log_dir,
                         echo=None if args.quiet else echo_to_stderr, record=args.record,
                         storage=args.storage, force=args.force,
@@ -168,7 +221,10 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                                                                     'model.robot.')},
                         dynamics_overrides=preset_under_params(args, 'dynamics_node', 'robot.'),
                         respawn=getattr(args, 'respawn', False), markers=args.markers,
-                        view=view_from_args(args), composed=args.composed)
+                        view=view_from_args(args), composed=args.composed,
+                        camera=getattr(args, 'camera', 'simulated'),
+                        robot=getattr(args, 'robot', 'simulated'),
+                        image_topics=dict(getattr(args, 'image_topic', [])), domain_id=domain)
 
 
 def preset_under_params(args: argparse.Namespace, node: str,
@@ -178,25 +234,28 @@ def preset_under_params(args: argparse.Namespace, node: str,
     except those the user's --params file sets: the file says what this robot has (e.g. its
     measured backlash), the preset the rest."""
     overrides = steering_overrides(args.steering, prefix)
-    if args.params is not None and overrides:
+    if args.params and overrides:
         from omni_micro_common import params
 
-        given = params.node_parameters([args.params], node)
+        given = params.node_parameters(list(args.params), node)
         overrides = {name: value for name, value in overrides.items() if name not in given}
     return overrides
 
 
-def summary_line(result: GraphResult) -> str:
-    return (f'{result.outcome}: stopped at ({result.final_x_m * 1e3:.4f}, '
+def summary_line(result: GraphResult, external: bool = False) -> str:
+    where = ('last seen by the camera at' if external else 'stopped at')
+    took = (f'{result.wall_time_s:.2f} s on the wall clock' if external else
+            f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.2f} s wall')
+    return (f'{result.outcome}: {where} ({result.final_x_m * 1e3:.4f}, '
             f'{result.final_y_m * 1e3:.4f}) mm, {result.deviation_m * 1e3:.4f} mm from the goal, '
-            f'{result.periods} periods, {result.sim_time_s:.2f} s simulated in '
-            f'{result.wall_time_s:.2f} s wall; logs in {result.log_dir}')
+            f'{result.periods} periods, {took}; logs in {result.log_dir}')
 
 
 def run(args: argparse.Namespace) -> int:
     goal = (args.goal_mm[0] * 1e-3, args.goal_mm[1] * 1e-3)
-    result = run_graph(options_from_args(args, goal, args.open_loop))
-    print(summary_line(result), file=sys.stderr)
+    options = options_from_args(args, goal, args.open_loop)
+    result = run_graph(options)
+    print(summary_line(result, options.external), file=sys.stderr)
     if args.json:
         print(json.dumps(result.as_json()))
     succeeded = 'completed' if args.open_loop else 'reached'

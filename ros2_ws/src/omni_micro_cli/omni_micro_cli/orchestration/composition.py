@@ -27,6 +27,10 @@ VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
                            ('omni_micro_vision', 'tracker_node'))}
 # The process that hosts the loop's nodes with --composed (its log is <name>.log).
 LOOP_CONTAINER = 'loop_container'
+# What may come from the bench instead of the simulation (run --camera / --robot).
+SOURCES = ('simulated', 'external')
+# What a robot's driver must publish and read, and a camera driver publish, for the loop.
+EXTERNAL_ROBOT_TOPICS = {'publishes': ('/joint_states',), 'reads': ('/wheel_trajectory',)}
 
 
 @dataclass(frozen=True)
@@ -118,7 +122,8 @@ class GraphOptions:
     real_time_factor: float = 1.0         # math.inf: as fast as the lockstep allows
     lockstep: bool = True                 # False: the dynamics runs free at the factor
     open_loop_s: float | None = None
-    params_file: Path | None = None
+    # The user's params files, each after the packages' own (later files win, as ROS does).
+    params_files: tuple[Path, ...] = ()
     timeout_s: float = 600.0
     log_dir: Path = Path('out/runs')
     echo: Callable[[str], None] | None = None
@@ -142,6 +147,23 @@ class GraphOptions:
     record_images: bool = False           # the recorder keeps the images too
     # The loop's nodes in one process and one executor (omni_micro_common's container).
     composed: bool = False
+    # A real camera driver (its images to tracker_node) or a real robot (its driver reads
+    # /wheel_trajectory and publishes /joint_states) instead of the simulated one: then every
+    # node runs on the wall clock, free, at real time.
+    camera: str = 'simulated'
+    robot: str = 'simulated'
+    # With an external camera: the driver's image topic per tracker camera (its CameraInfo
+    # beside it); empty: the tracker's params say.
+    image_topics: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def external(self) -> bool:
+        return 'external' in (self.camera, self.robot)
+
+    @property
+    def in_lockstep(self) -> bool:
+        """Whether time waits for the nodes' reports (nothing real reports on /lockstep)."""
+        return self.lockstep and not self.external
 
 
 def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
@@ -150,12 +172,15 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
         taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
-        overrides.update(lockstep_nodes=taking_part if options.lockstep else [])
+        overrides.update(lockstep_nodes=taking_part if options.in_lockstep else [])
         # markers_node draws the run and the recorder keeps it from its first sample: time
         # waits for their readers too.
         overrides.update(listening_nodes=[
             *(['markers_node'] if options.markers else []),
             *(['bag_recorder'] if options.record is not None else [])])
+        if options.external:
+            # Beside a real camera: stamps on the wall clock, at real time.
+            overrides.update(stamp_origin='wall', real_time_factor=1.0)
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
         overrides.update(seed=int(options.seed))
@@ -171,17 +196,23 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.vision_overrides)
     elif spec.executable == 'tracker_node':
         overrides.update(capture_readers(options))
-        # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
-        # never reported: time would stand still. Alone, the node takes best effort.
-        overrides.update(image_reliability='reliable')
+        if options.camera == 'simulated':
+            # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
+            # never reported: time would stand still. A driver's frames are read best effort.
+            overrides.update(image_reliability='reliable')
+        if options.image_topics:
+            overrides.update(cameras=sorted(options.image_topics))
+            for camera, topic in options.image_topics.items():
+                overrides.update({f'{camera}.image_topic': topic,
+                                  f'{camera}.info_topic': sibling_info_topic(topic)})
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters('omni_micro_vision', _camera_node(options),
-                                 options.params_file, options.vision_overrides)
-        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options.params_file,
+                                 options.params_files, options.vision_overrides)
+        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options.params_files,
                                    options.dynamics_overrides)
         controller = node_parameters('omni_micro_control', 'controller_node',
-                                     options.params_file, options.controller_overrides)
+                                     options.params_files, options.controller_overrides)
         overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
         for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
                              ('capture_uncertainty', controller)):
@@ -201,7 +232,7 @@ def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
     (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
     recorder both)."""
     present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
-    source = node_parameters('omni_micro_control', 'controller_node', options.params_file,
+    source = node_parameters('omni_micro_control', 'controller_node', options.params_files,
                              options.controller_overrides).get('capture_uncertainty',
                                                                'covariance')
     readers = [name for name in ('controller_node', 'markers_node') if name in present]
@@ -211,15 +242,65 @@ def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
 
 
 def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
-    """The nodes closing the loop: those given, else the default set for ``options.vision``."""
-    return list(options.nodes or default_nodes(options.vision))
+    """The nodes closing the loop: those given, else the default set for ``options.vision``,
+    less what the bench supplies (the robot's driver for dynamics_node; the camera's driver for
+    camera_node, its images then read by tracker_node)."""
+    if options.nodes:
+        return list(options.nodes)
+    nodes = default_nodes('images' if options.camera == 'external' else options.vision)
+    replaced = {*(('camera_node',) if options.camera == 'external' else ()),
+                *(('dynamics_node',) if options.robot == 'external' else ())}
+    return [spec for spec in nodes if spec.executable not in replaced]
+
+
+def sibling_info_topic(image_topic: str) -> str:
+    """Where a driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside it
+    (image_transport's convention)."""
+    return image_topic.rsplit('/', 1)[0] + '/camera_info'
+
+
+def simulates_robot(options: GraphOptions) -> bool:
+    return any(spec.executable == 'dynamics_node' for spec in graph_nodes(options))
+
+
+def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
+    """The topics someone must read before time may start (of alternatives, any one): the
+    robot its trajectories, the controller the wheels and the captures, a simulated camera the
+    robot's /odom."""
+    from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
+
+    names = {spec.executable for spec in graph_nodes(options)}
+    return [('/wheel_trajectory',), ('/joint_states',),
+            *((('/odom',),) if names & {'vision_node', 'camera_node'} else ()),
+            *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera])
+              for camera in CAPTURE_TOPICS)]
+
+
+def external_publications(options: GraphOptions) -> dict[str, str]:
+    """Topics the bench's drivers must publish, each with who should (the run waits for them
+    and names the one missing)."""
+    needed = {}
+    if options.robot == 'external':
+        needed.update({topic: "the robot's driver"
+                       for topic in EXTERNAL_ROBOT_TOPICS['publishes']})
+    if options.camera == 'external':
+        if options.image_topics:
+            topics = list(options.image_topics.values())
+        else:
+            values = node_parameters('omni_micro_vision', 'tracker_node', options.params_files,
+                                     {})
+            cameras = values.get('cameras', ['macro', 'micro'])
+            topics = [str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
+                      for camera in (cameras if isinstance(cameras, list) else [])]
+        needed.update({topic: 'the camera driver' for topic in topics})
+    return needed
 
 
 def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
     """The cameras whose images camera_node streams in this graph (none without it)."""
     if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
         return ()
-    values = node_parameters('omni_micro_vision', 'camera_node', options.params_file,
+    values = node_parameters('omni_micro_vision', 'camera_node', options.params_files,
                              options.vision_overrides)
     cameras = values.get('cameras', ['macro', 'micro'])
     return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
@@ -229,6 +310,12 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     """Every process of the graph: the loop (one process with ``composed``), then who listens
     (markers, recorder, viewer)."""
     loop = graph_nodes(options)
+    for name, source in (('camera', options.camera), ('robot', options.robot)):
+        if source not in SOURCES:
+            raise UsageError(f'{name} must be one of {list(SOURCES)}, got {source!r}')
+    if options.external and options.composed:
+        raise UsageError('--composed runs the lockstep faster than real time; with an external '
+                         'camera or robot the graph runs at real time: leave --composed out')
     if options.composed and options.respawn:
         raise UsageError('--respawn restarts a crashed node in a process of its own; with '
                          '--composed the loop shares one process: choose one of them')
@@ -239,9 +326,12 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         images = streaming_cameras(options) if options.record_images else ()
         if options.record_images and not images:
             raise UsageError('--record-images needs the rendered cameras (--vision images)')
-        # /camera/status is vision_node's (the tracker says why per camera, not recorded).
-        unpublished = () if any(spec.executable == 'vision_node' for spec in loop) \
-            else ('/camera/status',)
+        # /camera/status is vision_node's (the tracker says why per camera, not recorded);
+        # a real robot's driver publishes its wheels, not the simulation's clock, pose or slip.
+        unpublished: tuple[str, ...] = (
+            () if any(spec.executable == 'vision_node' for spec in loop) else ('/camera/status',))
+        if options.robot == 'external':
+            unpublished += ('/clock', '/odom', '/wheel_slip')
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
                                    unpublished))
     if options.view is not None:

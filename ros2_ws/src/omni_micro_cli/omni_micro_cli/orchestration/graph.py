@@ -28,7 +28,10 @@ from omni_micro_cli.orchestration.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
+    external_publications,
     node_overrides,
+    ready_subscriptions,
+    simulates_robot,
     streaming_cameras,
 )
 from omni_micro_cli.orchestration.parameters import (
@@ -106,8 +109,8 @@ def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
 def _ros_args(spec: NodeSpec, options: GraphOptions) -> list[str]:
     """A node's ROS arguments: its package's params file, the user's, the run's overrides."""
     argv = ['--ros-args', '--params-file', str(package_params_file(spec.package, spec.executable))]
-    if options.params_file is not None:
-        argv += ['--params-file', str(options.params_file)]
+    for path in options.params_files:
+        argv += ['--params-file', str(path)]
     for name, value in node_overrides(spec, options).items():
         argv += ['-p', f'{name}:={format_parameter(value)}']
     return argv
@@ -281,32 +284,38 @@ def run_graph(options: GraphOptions) -> GraphResult:
     """
     from omni_micro_cli.orchestration.monitor import GraphMonitor  # rclpy only where a graph runs
 
-    if options.params_file is not None:
-        check_params_file(options.params_file)
+    for path in options.params_files:
+        check_params_file(path)
     if options.record is not None:
         from omni_micro_cli.outputs import check_output_path
 
         check_output_path(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
     goals = [(float(x), float(y)) for x, y in [options.goal_m, *options.more_goals_m]]
-    lease = DomainLease(options.domain_id)
+    # With external parts the domain is the drivers': joined, not leased.
+    lease = DomainLease(options.domain_id, joined=options.external)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
         monitor = GraphMonitor(domain_id, follow_route=options.follow_route, echo=options.echo)
         recording = options.record is not None
         statuses = []
         memory: dict[str, list[int]] = {}
+        simulated_robot = simulates_robot(options)
         try:
             graph.start()
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=recording,
                                      markers=options.markers,
-                                     images=streaming_cameras(options))
+                                     images=streaming_cameras(options),
+                                     subscriptions=ready_subscriptions(options),
+                                     publications=external_publications(options),
+                                     clock=simulated_robot)
             wall_start = time.monotonic()
             for index, goal in enumerate(goals):
                 monitor.send_goal(graph, goal, recording)
                 if index == 0:
                     wall_start = time.monotonic()
-                    monitor.set_paused(graph, False)
+                    if simulated_robot:
+                        monitor.set_paused(graph, False)
                     if options.on_running is not None:
                         options.on_running(graph)
                 status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)
@@ -317,7 +326,13 @@ def run_graph(options: GraphOptions) -> GraphResult:
                     break
             wall_time = time.monotonic() - wall_start
             capture_stamp = float(status.get('capture_stamp_s', '0'))
-            odom = monitor.wait_for_odometry_after(graph, capture_stamp, timeout_s=30.0)
+            if simulated_robot:
+                odom = monitor.wait_for_odometry_after(graph, capture_stamp, timeout_s=30.0)
+            else:
+                # A real robot's true pose is nobody's to know: where the camera saw it last.
+                odom = (capture_stamp, float(status.get('measured_x_m', 'nan')),
+                        float(status.get('measured_y_m', 'nan')),
+                        float(status.get('measured_phi_rad', 'nan')))
         finally:
             monitor.close()
             graph.stop()
@@ -327,7 +342,9 @@ def run_graph(options: GraphOptions) -> GraphResult:
         outcome=status['outcome'], reason=status.get('reason', ''),
         periods=int(status.get('periods', '0')), final_x_m=odom[1], final_y_m=odom[2],
         final_phi_rad=odom[3], goal_m=goals[len(statuses) - 1],
-        sim_time_s=float(status.get('sim_time_s', 'nan')), wall_time_s=wall_time,
+        # On the wall clock (external parts) the robot's time is the wall's.
+        sim_time_s=(wall_time if options.external
+                    else float(status.get('sim_time_s', 'nan'))), wall_time_s=wall_time,
         log_dir=log_dir, domain_id=domain_id, status=status, route=monitor.route,
         captures=monitor.captures, goals=statuses, published=published, memory_kb=memory,
         respawns={p.name: p.starts - 1 for p in graph.processes if p.starts > 1})
@@ -363,8 +380,8 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
     from omni_micro_cli.orchestration.monitor import GraphMonitor
 
-    if options.params_file is not None:
-        check_params_file(options.params_file)
+    for path in options.params_files:
+        check_params_file(path)
     log_dir = _new_log_dir(options.log_dir)
     lease = DomainLease(options.domain_id)
     with lease as domain_id:
@@ -374,7 +391,10 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
             graph.start()
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,
                                      markers=options.markers,
-                                     images=streaming_cameras(options))
+                                     images=streaming_cameras(options),
+                                     subscriptions=ready_subscriptions(options),
+                                     publications=external_publications(options),
+                                     clock=simulates_robot(options))
             # Every endpoint seen, not only the readers wait_until_ready looks for.
             monitor.spin_for(GRAPH_SETTLE_S)
             node = monitor.node

@@ -74,6 +74,7 @@ class GraphMonitor:
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None) -> None:
         self.echo = echo
+        self.domain_id = domain_id
         # The graph's Fast DDS profile here too (its announcements are what makes discovery
         # quick), read when this process makes its first participant.
         os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
@@ -149,22 +150,36 @@ class GraphMonitor:
 
     def wait_until_ready(self, graph: Supervisor, timeout_s: float,
                          recording: bool = False, markers: bool = False,
-                         images: tuple[str, ...] = ()) -> None:
-        """Until every node listens (and, with ``images``, the tracker reads those cameras')."""
+                         images: tuple[str, ...] = (),
+                         subscriptions: list[tuple[str, ...]] | None = None,
+                         publications: dict[str, str] | None = None,
+                         clock: bool = True) -> None:
+        """Until every node listens (``subscriptions``: the topics someone must read, by
+        default the simulated graph's; with ``images``, the tracker reads those cameras'), the
+        bench's drivers publish (``publications``: topic -> whose) and, with ``clock``, the
+        simulated robot's clock can be started."""
         deadline = time.monotonic() + timeout_s
-        needed = [*READY_SUBSCRIBERS, *((f'/camera/{camera}/image_raw',) for camera in images)]
+        needed = [*(READY_SUBSCRIBERS if subscriptions is None else subscriptions),
+                  *((f'/camera/{camera}/image_raw',) for camera in images)]
         while True:
             graph.check_alive()
             missing = [' or '.join(topics) for topics in needed
                        if not any(self.node.count_subscribers(topic) for topic in topics)]
+            silent = [f'{topic} ({whose})' for topic, whose in (publications or {}).items()
+                      if not self.node.count_publishers(topic)]
             # markers_node makes its publisher after its subscriptions: seen, it is listening.
             if markers and not self.node.count_publishers('/markers'):
                 missing.append('(markers_node: no /markers publisher yet)')
             if recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher yet)')
-            if not missing and self.parameters.service_is_ready():
+            if not missing and not silent and (not clock or self.parameters.service_is_ready()):
                 break
             if time.monotonic() > deadline:
+                if silent and not missing:
+                    raise RunFailed(f'nobody publishes {", ".join(silent)} in ROS_DOMAIN_ID '
+                                    f'{self.domain_id} within {timeout_s:g} s: is it running, '
+                                    'in this domain, with ROS_AUTOMATIC_DISCOVERY_RANGE '
+                                    f'LOCALHOST?; logs in {graph.log_dir}')
                 raise RunFailed(f'the graph did not come up within {timeout_s:g} s: nobody '
                                 f'subscribes {missing or "(dynamics parameters service)"}; '
                                 f'logs in {graph.log_dir}')

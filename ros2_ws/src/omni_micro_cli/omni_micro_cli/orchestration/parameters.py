@@ -65,11 +65,11 @@ def dds_profile() -> Path:
     raise RunFailed('config/fastdds.xml of omni_micro_common is not installed')
 
 
-def node_parameters(package: str, node: str, params_file: Path | None,
+def node_parameters(package: str, node: str, params_files: tuple[Path, ...],
                     overrides: dict[str, object]) -> dict[str, object]:
-    """A node's parameters as it will have them: its package file, the user's --params file,
-    then the orchestration's overrides (dotted names, as -p gives them)."""
-    values = params_from_files(package, node, params_file)
+    """A node's parameters as it will have them: its package file, the user's --params files
+    in turn, then the orchestration's overrides (dotted names, as -p gives them)."""
+    values = params_from_files(package, node, *params_files)
     values.update(overrides)
     return values
 

@@ -9,15 +9,15 @@ from omni_micro_cli.errors import UsageError
 from omni_micro_cli.orchestration.parameters import params_from_files
 
 
-def controller_parameter(name: str, params_file: Path | None) -> Any:
+def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:
     """A controller_node parameter as the node will see it: package file, then --params."""
-    return params_from_files('omni_micro_control', 'controller_node', params_file).get(name)
+    return params_from_files('omni_micro_control', 'controller_node', *params_files).get(name)
 
 
-def check_goal(goal_m: tuple[float, float], params_file: Path | None) -> None:
+def check_goal(goal_m: tuple[float, float], params_files: tuple[Path, ...]) -> None:
     """Refuse a goal outside the platform before anything starts (exit 2, nothing written)."""
-    center = controller_parameter('platform.center_m', params_file)
-    size = controller_parameter('platform.size_m', params_file)
+    center = controller_parameter('platform.center_m', params_files)
+    size = controller_parameter('platform.size_m', params_files)
     x, y = goal_m
     if abs(x - center[0]) > size[0] / 2 or abs(y - center[1]) > size[1] / 2:
         raise UsageError(

@@ -32,14 +32,23 @@ DOMAIN_RANGE = range(1, 232)
 
 
 class DomainLease:
-    """A ROS_DOMAIN_ID no other omni-micro run on this machine holds (an flock per id)."""
+    """A ROS_DOMAIN_ID no other omni-micro run on this machine holds (an flock per id).
 
-    def __init__(self, requested: int | None = None) -> None:
+    ``joined``: the domain belongs to others (a real camera's or robot's drivers run in it): it
+    is used as it is, not leased.
+    """
+
+    def __init__(self, requested: int | None = None, joined: bool = False) -> None:
         self.requested = requested
+        self.joined = joined
         self.domain_id: int | None = None
         self._file: TextIO | None = None
 
     def __enter__(self) -> int:
+        if self.joined:
+            assert self.requested is not None, 'a joined domain is named'
+            self.domain_id = self.requested
+            return self.requested
         folder = Path(tempfile.gettempdir()) / f'omni-micro-domains-{os.getuid()}'
         folder.mkdir(exist_ok=True)
         candidates = ([self.requested] if self.requested is not None
@@ -56,8 +65,11 @@ class DomainLease:
         raise RunFailed(f'no free ROS_DOMAIN_ID among {candidates[:5]}...')
 
     @property
-    def fileno(self) -> int:
-        """The locked file: a child that inherits it holds the lease until it exits too."""
+    def fileno(self) -> int | None:
+        """The locked file: a child that inherits it holds the lease until it exits too (None
+        for a joined domain)."""
+        if self.joined:
+            return None
         assert self._file is not None, 'the lease is not held'
         return self._file.fileno()
 
