@@ -13,7 +13,7 @@ robot where /bench_truth/odom says it is (the stand-in robot's true pose), or a 
 lying on the platform. The grey frame becomes the sensor's encoding here, from the
 encoding's definition (a Bayer pattern keeps one colour per pixel), under a warm light.
 
-    python standin_camera.py NAMESPACE ENCODING SCENE [CLOCK_OFFSET_S]
+    python camera_driver.py NAMESPACE ENCODING SCENE [CLOCK_OFFSET_S]
     (SCENE: robot or chessboard; CLOCK_OFFSET_S: how far this machine's clock is off)
 """
 

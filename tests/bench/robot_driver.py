@@ -11,7 +11,7 @@ Its "hardware" is the slip core run on the wall clock at real time (omni_micro_s
 modules: the physics stands for the robot, not for its driver). It also publishes the pose it
 really has on /bench_truth/odom, which a real robot cannot: the stand-in camera renders it.
 
-    python standin_robot.py [x_m y_m phi_rad]
+    python robot_driver.py [x_m y_m phi_rad]
 """
 
 import math

@@ -39,7 +39,7 @@ def test_stamps_are_named_by_their_clock_and_a_mismatch_says_what_to_set():
 def test_the_controller_loses_a_goal_at_the_first_capture_from_another_clock(context):
     node = ControllerNode(context=context)
     try:
-        statuses = []
+        statuses: list = []
         node.status_pub.publish = statuses.append
         wheels = JointState(name=list(JOINT_NAMES), position=[0.0] * 4, velocity=[0.0] * 4)
         wheels.header.stamp.sec = 5
@@ -92,8 +92,8 @@ def test_the_simulated_robot_stamps_the_wall_clock_from_when_time_starts(context
         move = JointTrajectory(joint_names=list(JOINT_NAMES), points=[JointTrajectoryPoint(
             positions=[0.0] * 4, velocities=[0.0] * 4)])
         move.header.stamp.sec = 3
-        logged = []
-        node.get_logger().error = lambda message, **_: logged.append(message)  # type: ignore
+        logged: list[str] = []
+        node.get_logger().error = lambda message, **_: logged.append(message)
         node._schedule_trajectory(move)
         assert logged and logged[-1].startswith('rejected: a /wheel_trajectory is stamped '
                                                 '3.000 s (a clock from 0: simulated time) but '

@@ -8,6 +8,7 @@ closes the loop; a camera whose clock is hours off ends the run at once, naming 
 import dataclasses
 import json
 import math
+import runpy
 import signal
 import subprocess
 import sys
@@ -23,7 +24,7 @@ pytestmark = pytest.mark.slow
 
 BENCH = Path(__file__).resolve().parents[1] / 'bench'
 ROOT = Path(__file__).resolve().parents[2]
-# Where the stand-in camera's target lies (tests/bench/standin_camera.py, TARGET).
+# Where the stand-in camera's target lies (tests/bench/camera_driver.py, TARGET).
 TARGET = ['--target-center-mm', '100.1,0', '--target-yaw-deg', '10', '--pitch-mm', '0.12']
 GOAL_MM = (100.3, 0.2)
 
@@ -62,7 +63,7 @@ def stop(process: subprocess.Popen) -> None:
 def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro) -> Path:
     """As docs/images.md's bench procedure: the driver shows the target, a few seconds are
     recorded, calibrate-camera fits the camera (mirrored: the stand-in has a fold mirror)."""
-    camera = bench('standin_camera.py', '/camera/micro', 'bayer_rggb8', 'chessboard')
+    camera = bench('camera_driver.py', '/camera/micro', 'bayer_rggb8', 'chessboard')
     bag = tmp_path / 'target'
     recorder = subprocess.Popen(
         [str(ROOT / 'scripts' / 'omni-micro'), 'record', str(bag), '--topics',
@@ -92,8 +93,8 @@ def test_the_loop_closes_with_a_standin_camera_and_robot_on_the_wall_clock(
     calibration = calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro)
     truth: list[Odometry] = []
     probe.node.create_subscription(Odometry, '/bench_truth/odom', truth.append, 10)
-    bench('standin_robot.py', '0.1', '0.0', '0.0')
-    bench('standin_camera.py', '/bench/camera', 'bayer_rggb8', 'robot')
+    bench('robot_driver.py', '0.1', '0.0', '0.0')
+    bench('camera_driver.py', '/bench/camera', 'bayer_rggb8', 'robot')
     probe.spin_until(lambda: len(truth) > 5, 30.0, "the stand-in robot's truth")
     done = run_on_the_bench(omni_micro, domain_id, tmp_path, calibration)
     assert done.returncode == 0, done.stderr
@@ -111,16 +112,15 @@ def test_the_loop_closes_with_a_standin_camera_and_robot_on_the_wall_clock(
 def test_a_camera_on_a_clock_hours_off_ends_the_run_naming_both_clocks(
         bench, domain_id, tmp_path, omni_micro):
     # The stand-in camera's true map, as a calibration would find it (no need to fit one here).
-    sys.path.insert(0, str(BENCH))
-    from standin_camera import OPTICS
-
     from omni_micro_vision.calibration import Calibration
 
+    optics = runpy.run_path(str(BENCH / 'camera_driver.py'))['OPTICS']
+
     calibration = tmp_path / 'micro_calibration.yaml'
-    calibration.write_text(Calibration(dataclasses.replace(OPTICS.plane, name='micro'), 0, 0)
+    calibration.write_text(Calibration(dataclasses.replace(optics.plane, name='micro'), 0, 0)
                            .params_yaml(mirrored=True))
-    bench('standin_robot.py', '0.1', '0.0', '0.0')
-    bench('standin_camera.py', '/bench/camera', 'bayer_rggb8', 'robot', '7200')
+    bench('robot_driver.py', '0.1', '0.0', '0.0')
+    bench('camera_driver.py', '/bench/camera', 'bayer_rggb8', 'robot', '7200')
     started = time.monotonic()
     done = run_on_the_bench(omni_micro, domain_id, tmp_path, calibration)
     assert done.returncode == 1, done.stderr
