@@ -45,7 +45,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bench-images',
         description='Time render and track per frame for each camera at the default sizes '
-                    '(1280 x 1024, mono8), then run Fig. 11 through the node graph with '
+                    '(1280 x 1024, mono8), and what the tracker spends on a real camera\'s '
+                    '2448 x 2048 frames at 30 Hz (mono8 and Bayer) beside the frame period, '
+                    'then run Fig. 11 through the node graph with '
                     '--vision images and --vision model (lockstep, --rtf max; idle, and images '
                     'with one core busy), and record a short run with its images for their '
                     'size per simulated second. Target: rtf >= 5 with images on this 2-core '
@@ -118,6 +120,60 @@ def frame_costs(frames: int) -> list[dict[str, object]]:
     return rows
 
 
+# A real camera's large frames, as its driver sends them (the micro field at 1 um a pixel).
+DRIVER_RESOLUTION = (2448, 2048)
+DRIVER_RATE_HZ = 30.0
+DRIVER_ENCODINGS = ('mono8', 'bayer_rggb8')
+
+
+def driver_frame_costs(frames: int) -> list[dict[str, object]]:
+    """What tracker_node spends on each of a real camera's frames: its encoding made grey
+    (image_array) and the fiducial found near the last pose, beside the frame period."""
+    from sensor_msgs.msg import Image
+
+    from omni_micro_sim.state import RobotState
+    from omni_micro_vision.camera import CameraModel
+    from omni_micro_vision.geometry import PlaneMap
+    from omni_micro_vision.image_messages import image_array
+    from omni_micro_vision.rendering import Sensor, render
+    from omni_micro_vision.tracking import FrameTracker
+
+    columns, rows_px = DRIVER_RESOLUTION
+    camera = CameraModel('micro', (0.1, 0.0), (columns * 1e-6, rows_px * 1e-6),
+                         DRIVER_RESOLUTION)
+    plane = PlaneMap.nominal(camera)
+    grey = [render(camera, Sensor(), RobotState(0.1002, 0.0001, 0.3),
+                   np.random.default_rng([3, i])) for i in range(4)]
+    period_ms = 1e3 / DRIVER_RATE_HZ
+    rows = []
+    for encoding in DRIVER_ENCODINGS:
+        messages = []
+        for pixels in grey:
+            if encoding.startswith('bayer'):
+                # The pattern's definition: each pixel keeps one colour (here of a grey scene).
+                pixels = pixels.copy()
+                pixels[0::2, 1::2] = (pixels[0::2, 1::2] * 0.9).astype(np.uint8)
+                pixels[1::2, 1::2] = (pixels[1::2, 1::2] * 0.7).astype(np.uint8)
+            messages.append(Image(height=rows_px, width=columns, encoding=encoding,
+                                  step=columns, data=pixels.tobytes()))
+        tracker = FrameTracker(plane)
+
+        def read_frame(index: int, messages: list[Image] = messages,
+                       tracker: FrameTracker = tracker) -> object:
+            found = tracker(image_array(messages[index % len(messages)], DRIVER_RESOLUTION))
+            assert found.found, found.reason
+            return found
+
+        cost_ms = _median_ms(read_frame, frames)
+        rows.append({'encoding': encoding, 'resolution': list(DRIVER_RESOLUTION),
+                     'per_frame_ms': round(cost_ms, 2),
+                     'of_frame_period': round(cost_ms / period_ms, 3)})
+        print(f'{columns} x {rows_px} {encoding:12s} read and track {cost_ms:6.2f} ms a frame: '
+              f'{cost_ms / period_ms:.2f} of the {DRIVER_RATE_HZ:g} Hz period '
+              f'({"keeps up" if cost_ms < period_ms else "falls behind"})', flush=True)
+    return rows
+
+
 def _fig11(vision: str, busy: int, scratch: Path, composed: bool = False) -> GraphResult:
     from omni_micro_cli.orchestration.graph import run_graph
 
@@ -175,7 +231,8 @@ def loop_costs(scratch: Path) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace) -> int:
-    report: dict[str, object] = {'frames': frame_costs(args.frames)}
+    report: dict[str, object] = {'frames': frame_costs(args.frames),
+                                 'driver_frames': driver_frame_costs(args.frames)}
     if args.graph:
         with tempfile.TemporaryDirectory(prefix='omni-micro-bench-images-') as folder:
             report['loop'] = loop_costs(Path(folder))
