@@ -1,7 +1,8 @@
 """The contracts every omni-micro node shares, and nothing heavier.
 
 :mod:`conventions` (stamps, quaternions, node and joint names, capture uncertainty),
-:mod:`qos` (topic names and QoS), :mod:`lockstep` (the gate and its reports),
+:mod:`qos` (topic names and QoS), :mod:`lockstep` (the gate and its reports), :mod:`clocks`
+(which clock a stamp is on, and when two cannot share one),
 :mod:`node_runtime` (how a node process starts, spins and stops), :mod:`params` (the one reader
 of params files), :mod:`messages` (message classes by type name), :mod:`errors`.
 

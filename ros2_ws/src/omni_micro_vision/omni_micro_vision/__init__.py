@@ -2,7 +2,12 @@
 
 Plain modules (no rclpy): :mod:`camera` (the camera model and capture rule), :mod:`fiducial`
 (the printed pattern), :mod:`rendering` (frames of the robot), :mod:`tracking` (a pose per frame,
-stillness, which camera speaks), :mod:`image_messages` (sensor_msgs/Image to pixels),
-:mod:`scene` (what a viewer draws). Their nodes: ``vision_node``, ``camera_node``,
-``tracker_node``, ``markers_node``.
+stillness, which camera speaks), :mod:`encodings` (drivers' encodings made grey),
+:mod:`geometry` (a camera's pixels on the platform: lens and homography), :mod:`tracked_camera`
+(a camera as the tracker reads its settings, and the CameraInfo it accepts), :mod:`optics` (a
+simulated camera's mount and lens), :mod:`targets` (a chessboard calibration target),
+:mod:`calibration` (a camera's map fitted from frames of it), :mod:`scene` (what a viewer
+draws). At the message boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
+:mod:`camera_frames` (a simulated camera's frames as a driver sends them). Their nodes:
+``vision_node``, ``camera_node``, ``tracker_node``, ``markers_node``.
 """
