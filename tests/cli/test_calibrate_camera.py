@@ -17,7 +17,7 @@ from omni_micro_vision.calibration import CalibrationError, calibrate
 from omni_micro_vision.camera_frames import CameraFrames, camera_settings
 from omni_micro_vision.geometry import Lens
 from omni_micro_vision.rendering import Sensor
-from omni_micro_vision.targets import Chessboard
+from omni_micro_vision.targets import Chessboard, CircleGrid, Target
 from omni_micro_vision.tracked_camera import tracked_camera
 from omni_micro_vision.tracking import track
 
@@ -85,7 +85,7 @@ def test_the_procedure_finds_the_mount_and_the_tracker_reads_the_robot_where_it_
 TARGET_ON_MICRO = Chessboard((9, 6), 0.12e-3, (0.1001, 0.0), math.radians(10))
 
 
-def target_frames(target: Chessboard, settings: dict) -> tuple[list[np.ndarray], Lens]:
+def target_frames(target: Target, settings: dict) -> tuple[list[np.ndarray], Lens]:
     optics, sensor = camera_settings('micro', settings.get)
     frames = CameraFrames(1, optics, sensor, 0, target)
     return [frames.pixels(i, RobotState(0.0, 0.0, 0.0)) for i in range(4)], optics.lens
@@ -105,7 +105,7 @@ def test_a_lens_the_camera_info_does_not_state_makes_a_poor_fit_refused():
     strong = {**MOUNT, 'micro.yaw_rad': 0.3, 'micro.working_distance_m': 0.003}
     frames, lens = target_frames(TARGET_ON_MICRO, strong)
     assert calibrate('micro', frames, lens, TARGET_ON_MICRO, True).plane.residual_px < 0.1
-    with pytest.raises(CalibrationError, match=r'a poor fit: the corners miss by [0-9.]+ px RMS '
+    with pytest.raises(CalibrationError, match=r'a poor fit: the points miss by [0-9.]+ px RMS '
                                                r'\(at most 0.5 px\)'):
         calibrate('micro', frames, Lens(), TARGET_ON_MICRO, True)
 
@@ -130,3 +130,21 @@ def test_the_frames_are_what_camera_node_publishes():
     again = CameraFrames(1, optics, Sensor(), 0, TARGET_ON_MICRO)
     assert again.messages(2, 0, 66_666_667, RobotState(0.0, 0.0, 0.0)) == (info, image)
     assert b'micro_optical_frame' in info and b'plumb_bob' in info
+
+
+CIRCLES_ON_MICRO = CircleGrid((4, 11), 0.06e-3, (0.10005, 0.0), math.radians(20))
+
+
+def test_an_asymmetric_circle_grid_calibrates_the_mounted_camera():
+    """OpenCV's other standard target: its staggered rows tell which way it lies, so of the
+    readings with the stated handedness only the true one fits."""
+    frames, lens = target_frames(CIRCLES_ON_MICRO, MOUNT)
+    fitted = calibrate('micro', frames, lens, CIRCLES_ON_MICRO, True).plane
+    optics, _ = camera_settings('micro', MOUNT.get)
+    pixels = np.array([[400.0, 300.0], [639.5, 511.5], [900.0, 700.0]])
+    np.testing.assert_allclose(fitted.to_platform(pixels), optics.plane.to_platform(pixels),
+                               atol=0.05e-6)
+    assert fitted.mirrored and fitted.residual_px < 0.1
+    with pytest.raises(CalibrationError, match='a circle grid of 4x10 with an even number of '
+                                               'rows looks the same turned half a turn'):
+        calibrate('micro', frames, lens, CircleGrid((4, 10), 0.06e-3, (0.1, 0.0)), True)

@@ -188,16 +188,20 @@ def pattern(text: str) -> tuple[int, int]:
 
 
 def add_target_arguments(parser: argparse.ArgumentParser) -> None:
-    """Where a chessboard calibration target lies on the platform (record-target,
+    """Which calibration target lies where on the platform (record-target,
     calibrate-camera): the same words for both."""
-    parser.add_argument('--target', choices=('chessboard',), default='chessboard',
-                        help='the calibration target (a chessboard; the square at its own '
-                             'lowest x and y black)')
+    parser.add_argument('--target', choices=('chessboard', 'circles'), default='chessboard',
+                        help='chessboard (the square at its own lowest x and y black; the '
+                             'default) or circles (an asymmetric grid of dark circles, as '
+                             "OpenCV's findCirclesGrid reads it)")
     parser.add_argument('--pattern', type=pattern, default=(9, 6), metavar='COLSxROWS',
-                        help='inner corners, as OpenCV counts them; one count odd, one even '
-                             '(default 9x6)')
+                        help="as OpenCV counts it: a chessboard's inner corners, one count odd "
+                             "and one even (default 9x6); a circle grid's circles per row and "
+                             'rows, an odd number of rows (4x11, say)')
     parser.add_argument('--pitch-mm', type=positive_float, default=0.15, metavar='MM',
-                        help="a square's side (default 0.15, for the micro camera)")
+                        help="a square's side; for circles, OpenCV's square size: half the "
+                             'spacing along a row, the spacing between rows (default 0.15, for '
+                             'the micro camera)')
     parser.add_argument('--target-center-mm', type=float_list(2, 'millimetres'),
                         default=(100.0, 0.0), metavar='X,Y',
                         help="the target's centre on the platform (default 100,0: the micro "
@@ -207,9 +211,9 @@ def add_target_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def target_from(args: argparse.Namespace) -> Any:
-    """The :class:`omni_micro_vision.targets.Chessboard` the target arguments describe."""
-    from omni_micro_vision.targets import Chessboard
+    """The target (:mod:`omni_micro_vision.targets`) the target arguments describe."""
+    from omni_micro_vision.targets import TARGET_KINDS
 
-    return Chessboard(args.pattern, args.pitch_mm * 1e-3,
+    return TARGET_KINDS[args.target](args.pattern, args.pitch_mm * 1e-3,
                       (args.target_center_mm[0] * 1e-3, args.target_center_mm[1] * 1e-3),
                       math.radians(args.target_yaw_deg))

@@ -50,7 +50,7 @@ COMMANDS: dict[str, Command] = {
     'record-target': Command('record_target', "a simulated camera's frames of a calibration "
                                               'target, to rehearse calibrate-camera'),
     'calibrate-camera': Command('calibrate_camera', "a camera's map to the platform from its "
-                                                    'frames of a chessboard (for tracker_node)'),
+                                                    'frames of a target (for tracker_node)'),
     'analyze': Command('analyze', 'figures and a summary of a recorded bag', ('analyse',)),
     'identify': Command('identify', "the robot's wheel offsets (and friction) from a recorded "
                                     'run'),

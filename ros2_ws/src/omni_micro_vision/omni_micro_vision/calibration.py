@@ -1,16 +1,18 @@
-"""A camera's map to the platform, fitted from its frames of a chessboard lying on it.
+"""A camera's map to the platform, fitted from its frames of a target lying on it.
 
 As image_pipeline divides the work: the driver's CameraInfo carries the lens (K, D, from
 camera_calibration), and this fits what is left, one homography from the undistorted image to
-the platform plane. OpenCV finds the inner corners (``findChessboardCorners``, refined by
-``cornerSubPix`` on the mean of the frames) and fits the homography (``findHomography`` on
+the platform plane. OpenCV finds the target's points on the mean of the frames (a chessboard's
+inner corners with ``findChessboardCorners`` refined by ``cornerSubPix``; an asymmetric circle
+grid's centres with ``findCirclesGrid``) and fits the homography (``findHomography`` on
 ``undistortPoints``). Without a lens in the CameraInfo (K all zero) the homography is fitted to
 the frame's own pixels, and a lens that distorts shows as a poor fit.
 
-Which corner is which: OpenCV returns the corners along the pattern's rows from one end or the
-other. A mirrored image is told apart only by the user (a chessboard cannot show it), so the
-fit keeps the orderings whose handedness agrees with ``mirrored``; of those two, half a turn
-apart, the one whose corner square at the board's lowest x and y is black. No rclpy.
+Which point is which: OpenCV returns them along the pattern's rows from one end or the other.
+A mirrored image is told apart only by the user (a target cannot show it), so the fit keeps the
+orderings whose handedness agrees with ``mirrored``; of those two, half a turn apart, a
+chessboard's is the one whose corner square at its lowest x and y is black, a circle grid's the
+one that fits (its rows are staggered: the other cannot be a homography of it). No rclpy.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.geometry import Lens, PlaneMap
-from omni_micro_vision.targets import Chessboard
+from omni_micro_vision.targets import Target
 
 # A fit whose corners miss by more than this (RMS, pixels) is refused: a target that is not
 # flat or not where it was said to be, or a lens the CameraInfo does not state.
@@ -65,7 +67,7 @@ class Calibration:
                 f'        residual_m: {plane.residual_m!r}\n')
 
 
-def calibrate(name: str, frames: list[np.ndarray], lens: Lens, target: Chessboard,
+def calibrate(name: str, frames: list[np.ndarray], lens: Lens, target: Target,
               mirrored: bool) -> Calibration:
     """Camera ``name``'s map from ``frames`` (grey, all of one size) of ``target``.
 
@@ -75,7 +77,6 @@ def calibrate(name: str, frames: list[np.ndarray], lens: Lens, target: Chessboar
         No frames, a target that looks the same turned half a turn, a target not found or
         found ambiguously, or a poor fit; the message says which and what to do.
     """
-    import cv2
 
     if not frames:
         raise CalibrationError('no frames to calibrate from')
@@ -84,29 +85,26 @@ def calibrate(name: str, frames: list[np.ndarray], lens: Lens, target: Chessboar
         raise CalibrationError(
             f'a chessboard of {columns}x{rows} inner corners looks the same turned half a '
             'turn, so no image can say which way it lies: use one with an odd and an even '
-            'count (9x6, say)')
+            'count (9x6, say)' if target.kind == 'chessboard' else
+            f'a circle grid of {columns}x{rows} with an even number of rows looks the same '
+            'turned half a turn, so no image can say which way it lies: use an odd number '
+            'of rows (4x11, say)')
     height, width = frames[0].shape
     full_scale = float(np.iinfo(frames[0].dtype).max) if frames[0].dtype.kind == 'u' else 1.0
     # The mean of the frames: the target is still, the noise averages out.
     mean = np.mean(np.stack(frames).astype(np.float32), axis=0) / np.float32(full_scale)
     image8 = np.clip(mean * 255.0 / max(float(mean.max()), 1e-6), 0, 255).astype(np.uint8)
-    found, detected = cv2.findChessboardCorners(
-        image8, (columns, rows), flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-    if not found:
-        raise CalibrationError(f'no chessboard of {columns}x{rows} inner corners found in the '
-                               f'{len(frames)} frames: check --pattern (inner corners, '
-                               'COLSxROWS) and that the whole board and its white border are '
-                               'in the image')
-    refined = cv2.cornerSubPix(mean, np.asarray(detected, np.float32), (5, 5), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
-    grid = np.asarray(refined, np.float64).reshape(rows, columns, 2)
-    truth = target.corners_m()
+    grid = _detect(target, image8, mean, len(frames))
+    truth = target.points_m()
     fits = []
     for row_step in (1, -1):
         for column_step in (1, -1):
             corners = grid[::row_step, ::column_step]
             plane = _fit(name, (width, height), corners, truth, lens)
-            if plane.mirrored == mirrored and _corner_square_is_black(mean, corners):
+            if plane.mirrored != mirrored:
+                continue
+            if (_corner_square_is_black(mean, corners) if target.kind == 'chessboard'
+                    else plane.residual_px <= MAX_RESIDUAL_PX):
                 fits.append((plane, corners))
     if len(fits) != 1:
         raise CalibrationError(
@@ -116,10 +114,35 @@ def calibrate(name: str, frames: list[np.ndarray], lens: Lens, target: Chessboar
     plane, corners = fits[0]
     if plane.residual_px > MAX_RESIDUAL_PX:
         raise CalibrationError(
-            f'a poor fit: the corners miss by {plane.residual_px:.3g} px RMS (at most '
+            f'a poor fit: the points miss by {plane.residual_px:.3g} px RMS (at most '
             f'{MAX_RESIDUAL_PX} px): check --pitch-mm and that the target lies flat, or give '
             "the camera's lens (K, D) in its CameraInfo")
     return Calibration(plane, corners.size // 2, len(frames))
+
+
+def _detect(target: Target, image8: np.ndarray, mean: np.ndarray, frames: int) -> np.ndarray:
+    """The target's points as OpenCV finds them, rows x columns x 2 pixels."""
+    import cv2
+
+    columns, rows = target.pattern
+    if target.kind == 'chessboard':
+        found, detected = cv2.findChessboardCorners(
+            image8, (columns, rows),
+            flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        what = f'chessboard of {columns}x{rows} inner corners'
+    else:
+        found, detected = cv2.findCirclesGrid(image8, (columns, rows),
+                                              flags=cv2.CALIB_CB_ASYMMETRIC_GRID)
+        what = f'asymmetric circle grid of {columns}x{rows}'
+    if not found:
+        raise CalibrationError(f'no {what} found in the {frames} frames: check --pattern '
+                               '(COLSxROWS, as OpenCV counts them) and that the whole target '
+                               'and its white border are in the image')
+    points: np.ndarray = np.asarray(detected, np.float32)
+    if target.kind == 'chessboard':
+        points = cv2.cornerSubPix(mean, points, (5, 5), (-1, -1),
+                                  (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
+    return np.asarray(points, np.float64).reshape(rows, columns, 2)
 
 
 def _fit(name: str, resolution: tuple[int, int], corners: np.ndarray, truth: np.ndarray,

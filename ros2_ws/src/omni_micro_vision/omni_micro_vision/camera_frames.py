@@ -18,10 +18,10 @@ from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
 from omni_micro_vision.image_messages import ImageWriter
 from omni_micro_vision.optics import WORKING_DISTANCE_M, CameraOptics
 from omni_micro_vision.rendering import Sensor, expose, render, warm_up
-from omni_micro_vision.targets import DEFAULT_TARGET, Chessboard, render_target
+from omni_micro_vision.targets import DEFAULT_TARGET, TARGET_KINDS, Target, render_target
 
-# What the cameras show: the robot, or a chessboard target lying on the platform.
-SCENES = ('robot', 'chessboard')
+# What the cameras show: the robot, or a calibration target lying on the platform.
+SCENES = ('robot', *TARGET_KINDS)
 
 
 class CameraFrames:
@@ -29,7 +29,7 @@ class CameraFrames:
     (seed, index, frame number)), showing the robot or, with ``target``, that target."""
 
     def __init__(self, index: int, optics: CameraOptics, sensor: Sensor, seed: int,
-                 target: Chessboard | None = None) -> None:
+                 target: Target | None = None) -> None:
         self.index = index
         self.optics = optics
         self.sensor = sensor
@@ -99,9 +99,12 @@ def camera_settings(name: str, setting: Setting) -> tuple[CameraOptics, Sensor]:
     return optics, sensor
 
 
-def target_settings(setting: Setting) -> Chessboard:
-    """The calibration target from camera_node's ``target.*`` parameters."""
-    return Chessboard(tuple(setting('target.pattern', list(DEFAULT_TARGET.pattern))),
-                      setting('target.pitch_m', DEFAULT_TARGET.pitch_m),
-                      tuple(setting('target.center_m', list(DEFAULT_TARGET.center_m))),
-                      setting('target.yaw_rad', DEFAULT_TARGET.yaw_rad))
+def target_settings(kind: str, setting: Setting) -> Target:
+    """The calibration target of ``kind`` (chessboard, circles) from camera_node's
+    ``target.*`` parameters."""
+    target: Target = TARGET_KINDS[kind](
+        tuple(setting('target.pattern', list(DEFAULT_TARGET.pattern))),
+        setting('target.pitch_m', DEFAULT_TARGET.pitch_m),
+        tuple(setting('target.center_m', list(DEFAULT_TARGET.center_m))),
+        setting('target.yaw_rad', DEFAULT_TARGET.yaw_rad))
+    return target

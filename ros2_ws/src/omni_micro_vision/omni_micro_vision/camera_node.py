@@ -12,8 +12,8 @@ shows is :func:`omni_micro_vision.rendering.render`'s; this node only moves numb
 Each camera is mounted as a real one is (:class:`omni_micro_vision.optics.CameraOptics`): where
 it looks (``center_m``), its pixels (``resolution_px`` over ``field_m``), any turn
 (``yaw_rad``), a mirrored image (``mirrored``), a lens (``working_distance_m`` sets K,
-``distortion`` is [k1, k2]); the CameraInfo states K, D, R and P. With ``scene: chessboard`` the
-cameras show a calibration target (``target.*``) instead of the robot: the frames
+``distortion`` is [k1, k2]); the CameraInfo states K, D, R and P. With ``scene: chessboard`` or
+``circles`` the cameras show a calibration target (``target.*``) instead of the robot: the frames
 ``omni-micro calibrate-camera`` reads (``omni-micro record-target`` records them).
 
 ``image_readers`` (node names; empty by default) are the nodes that must not miss a frame: the
@@ -71,13 +71,13 @@ class CameraNode(Node):
         chosen = checked_cameras(list(self.declare_parameter('cameras',
                                                              ['macro', 'micro']).value))
         scene = self.declare_parameter('scene', 'robot').value
-        target = target_settings(self._setting)
         if scene not in SCENES:
             raise CameraConfigError(f'scene must be one of {list(SCENES)}, got {scene!r}')
+        target = target_settings('chessboard' if scene == 'robot' else scene, self._setting)
         self.streams: list[_Stream] = []
         for index, name in enumerate(CAPTURE_TOPICS):
             frames = CameraFrames(index, *camera_settings(name, self._setting), self.seed,
-                                  target if scene == 'chessboard' else None)
+                                  None if scene == 'robot' else target)
             if name not in chosen:
                 continue
             self.streams.append(_Stream(

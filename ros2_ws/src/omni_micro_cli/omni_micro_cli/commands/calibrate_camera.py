@@ -17,12 +17,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'calibrate-camera',
         description="Find where a camera's pixels lie on the platform from its recorded frames "
-                    'of a chessboard lying there (where you say: --target-center-mm, '
-                    "--target-yaw-deg): OpenCV finds the corners, takes the lens out with the "
-                    "CameraInfo's K and D (from camera_calibration; all zero: none), and fits "
+                    'of a chessboard or a circle grid lying there (where you say: '
+                    '--target-center-mm, --target-yaw-deg): OpenCV finds its points, takes the '
+                    "lens out with the CameraInfo's K and D (from camera_calibration; all zero: "
+                    'none), and fits '
                     'one homography. Prints the RMS residual in pixels and micrometres and '
                     'writes a params file for tracker_node holding the calibration (give it '
-                    'beside your own: --params-file yours.yaml --params-file OUT). A chessboard '
+                    'beside your own: --params-file yours.yaml --params-file OUT). A target '
                     'cannot show a mirrored image: say --mirrored if the camera mirrors (a '
                     "mirror in the optics, a driver's flip). Exit 0; 1 when the target is not "
                     'found, is ambiguous or fits poorly; 2 for a bad argument.')
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     atomic_text(args.out, calibration.params_yaml(args.mirrored))
     px, py = plane.pixel_size_m
     through = "through the CameraInfo's lens" if lens.calibrated else 'no lens given'
-    print(f'{args.camera}: {calibration.corners} corners in {calibration.frames} frames '
+    print(f'{args.camera}: {calibration.corners} points in {calibration.frames} frames '
           f'({through}); '
           f'RMS residual {plane.residual_px:.3g} px, {plane.residual_m * 1e6:.3g} um on the '
           f'platform; pixel {px * 1e6:.4g} x {py * 1e6:.4g} um at the centre, which sees '

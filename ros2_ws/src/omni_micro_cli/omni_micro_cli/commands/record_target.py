@@ -15,8 +15,9 @@ from omni_micro_cli.outputs import check_output_path, output_folder
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'record-target',
-        description="Record a simulated camera's frames of a chessboard lying on the platform "
-                    "(camera_node's scene: chessboard: the same frames, bytes and CameraInfo), "
+        description="Record a simulated camera's frames of a calibration target lying on the "
+                    "platform (camera_node's scene: chessboard or circles: the same frames, "
+                    'bytes and CameraInfo), '
                     'with the mount and lens its params give (--params: any of camera_node\'s '
                     '<camera>.* settings: yaw_rad, mirrored, resolution_px, field_m, '
                     'distortion, ...). Then calibrate-camera finds the mount from the bag as it '
@@ -72,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
                   flush=True)
     finally:
         writer.close()
-    print(f'\n{args.frames} frames of a {args.pattern[0]}x{args.pattern[1]} chessboard from the '
-          f'{args.camera} camera in {args.out} ({image_topic}, {info_topic})', file=sys.stderr)
+    print(f'\n{args.frames} frames of a {args.pattern[0]}x{args.pattern[1]} {args.target} target '
+          f'from the {args.camera} camera in {args.out} ({image_topic}, {info_topic})',
+          file=sys.stderr)
     return 0
