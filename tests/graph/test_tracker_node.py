@@ -41,7 +41,10 @@ def frame_messages(pixels: np.ndarray, stamp_s: float) -> tuple[Image, CameraInf
 
 def test_a_still_robot_is_captured_where_it_is_and_bad_frames_are_refused(
         start_node, probe):
-    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]')
+    # Reliable, as the publisher here: every frame counts (best effort may drop a megabyte
+    # frame under load; the QoS tests below are about that).
+    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+                         'image_reliability:=reliable')
     images = probe.node.create_publisher(Image, '/camera/macro/image_raw', CAPTURE_QOS)
     infos = probe.node.create_publisher(CameraInfo, '/camera/macro/camera_info', CAPTURE_QOS)
     captures: list[PoseStamped] = []
@@ -115,7 +118,9 @@ def test_camera_node_frames_through_tracker_node_give_captures_of_the_odometry(
     """The image path end to end: /odom -> camera_node -> Image + CameraInfo -> tracker_node ->
     captures where the odometry put the robot, stamped with the frames."""
     start_node('omni_micro_vision', 'camera_node', 'cameras:=[macro]', 'seed:=4')
-    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]')
+    # camera_node offers reliable, and every frame counts here, as in the lockstep graph.
+    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+               'image_reliability:=reliable')
     odometry = probe.node.create_publisher(Odometry, '/odom', DATA_QOS)
     frames: list[Image] = []
     captures: list[PoseStamped] = []
