@@ -1,14 +1,19 @@
-"""Round 2 of hostile inputs: what still ended in a traceback, runaway memory or a half-written
-file. Each case exits 2 with one line naming the value (or 1 saying why the work failed) and
-leaves nothing behind. In-process: nothing here starts a graph."""
+"""Rounds 2 and 3 of hostile inputs: what still ended in a traceback, runaway memory or a
+half-written file; paths the system refuses, a mistyped command or flag, angles no float can
+hold, numbers YAML 1.1 takes for strings. Each case exits 2 with one line naming the value (or
+1 saying why the work failed) and leaves nothing behind. In-process: nothing here starts a
+graph."""
 
 from __future__ import annotations
 
+import math
+import os
 from pathlib import Path
 
 import pytest
 
 from omni_micro_cli.cli import main
+from omni_micro_common.params import read_yaml
 
 
 def exit_code_and_error(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
@@ -158,3 +163,59 @@ def test_track_on_a_topic_that_is_not_an_image_names_its_type(tmp_path, capsys):
     code, err = exit_code_and_error(['track', str(bag), '--image-topic', '/odom'], capsys)
     assert code == 2
     assert_one_line_naming(err, '/odom', 'nav_msgs/msg/Odometry', 'not sensor_msgs/msg/Image')
+
+
+# -- round 3 --------------------------------------------------------------------------------------
+LONG = 'x' * 300
+
+
+@pytest.mark.parametrize(('argv', 'named'), [
+    (['graph', '--out', f'{LONG}.svg'], ['--out', 'File name too long']),
+    (['run', '--goal-mm', '1,0', '--record', LONG], ['--record', 'File name too long']),
+    (['study', 'S', '--out', LONG], ['--out', 'File name too long']),
+    (['run', '--goal-mm', '1,0', '--params', f'{LONG}.yaml'],
+     ['params file', 'cannot be read: File name too long']),
+    (['identify', LONG], ['cannot be read: File name too long']),
+    (['run', '--goal-mm', '1,0', '--record', 'LOOP'], ['--record', 'loop of links']),
+    (['compare-controllers', '--out', 'LOOP'], ['--out', 'loop of links']),
+])
+def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path, capsys,
+                                                         monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    os.symlink('LOOP2', 'LOOP')
+    os.symlink('LOOP', 'LOOP2')
+    code, err = exit_code_and_error(argv, capsys)
+    assert code == 2, err
+    assert len(err.splitlines()) == 1, err
+    assert_one_line_naming(err, *named)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['LOOP', 'LOOP2']
+
+
+@pytest.mark.parametrize(('argv', 'line'), [
+    (['rn'], "omni-micro: error: 'rn' is not a command; did you mean run? (omni-micro --help "
+             'lists them)'),
+    (['run', '--goal', '100,0'], 'omni-micro run: error: the following arguments are required: '
+                                 '--goal-mm (omni-micro run --help lists the arguments)'),
+    (['simulate', '--theta-deg', '1e20', '--duration', '1'],
+     "omni-micro simulate: error: argument --theta-deg: expected a number in [-360, 360], got "
+     "'1e20' (omni-micro simulate --help lists the arguments)"),
+    (['simulate', '--theta-deg', '90', '--duration', '1', '--steer-from-deg', '1e20'],
+     "omni-micro simulate: error: argument --steer-from-deg: expected a number in [-360, 360], "
+     "got '1e20' (omni-micro simulate --help lists the arguments)"),
+])
+def test_a_mistake_on_the_command_line_is_one_line_without_the_usage(argv, line, capsys):
+    """argparse printed up to 11 lines of usage before the line that matters, and took
+    ``--goal`` for ``--goal-mm`` by prefix."""
+    code, err = exit_code_and_error(argv, capsys)
+    assert code == 2
+    assert err == line
+
+
+def test_params_files_read_numbers_as_ros_does(tmp_path):
+    """YAML 1.1 reads 3e0 and 1.0e300 as strings; ROS's parser and -p read numbers."""
+    path = tmp_path / 'p.yaml'
+    path.write_text('a: 3e0\nb: 1.0e300\nc: 3\nd: -2.5E-3\ne: .5\nf: 1e\ng: e3\n')
+    values = read_yaml(path)
+    assert values == {'a': 3.0, 'b': 1.0e300, 'c': 3, 'd': -2.5e-3, 'e': 0.5, 'f': '1e',
+                      'g': 'e3'}
+    assert isinstance(values['a'], float) and math.isfinite(values['b'])

@@ -3,6 +3,7 @@ import math
 import pytest
 
 from omni_micro_sim import CommandError, MotorLimits, ParameterError, RobotParameters, move_profile
+from omni_micro_sim.parameters import STEERING_PRESETS
 
 
 def test_defaults_are_the_papers_robot():
@@ -65,3 +66,24 @@ def test_finite_values_whose_inertia_overflows_are_refused():
     # Found by the property test: R = 1e200 m is finite, m R^2 / 2 is not.
     with pytest.raises(ParameterError, match='moment of inertia'):
         RobotParameters(chassis_radius_m=1e200)
+
+
+@pytest.mark.parametrize(('name', 'value'), [('gear_ratio', 1.0e300),
+                                             ('motor_speed_rad_s', 1.0e-300),
+                                             ('motor_speed_rad_s', 1.0e300),
+                                             ('motor_acceleration_rad_s2', 1.0e-9)])
+def test_steering_the_model_cannot_integrate_is_refused_at_the_start(name, value):
+    """A half turn of the wheels beyond a minute (1e299 s with a 1e300 gear ratio) is refused
+    where the values are defined, so no node or planner meets it mid-run."""
+    with pytest.raises(ParameterError, match=r'steering: a half turn of the wheels would take '
+                                             r'[0-9.e+]+ s with .* at most 60 s'):
+        STEERING_PRESETS['realistic'].replace(**{name: value})
+    slow_but_fine = STEERING_PRESETS['realistic'].replace(gear_ratio=100.0)
+    assert math.pi / slow_but_fine.rate_rad_s < 60.0
+
+
+def test_a_contact_patch_wider_than_the_wheel_is_refused():
+    steering = STEERING_PRESETS['realistic'].replace(contact_radius_m=1.0)
+    with pytest.raises(ParameterError, match=r'steering.contact_radius_m must be below the '
+                                             r'wheel radius 0.00165 m, got 1.0'):
+        RobotParameters(steering=steering)

@@ -127,3 +127,19 @@ def test_rejected_command_leaves_nothing_queued():
     with pytest.raises(CommandError):
         grid.schedule(WheelCommand(0.0, 0.0, too_fast))
     assert grid.pending is None
+
+
+def test_the_wheel_contract_refuses_a_trajectory_too_long_or_an_angle_no_float_holds():
+    """10,000 valid points once slowed dynamics_node from 50 ticks a second to one; 1e20 rad
+    of steering was taken without a word (no float holds it to a fraction of a turn)."""
+    from omni_micro_sim.wheel_trajectory import MAX_POINTS
+
+    move = points_from_profile(0.3, move_profile(1.0))
+    assert command_from_points(JOINT_NAMES, move, 0.0, 0.0, MotorLimits()).steering_rad == 0.3
+    many = [TrajectoryPoint(k * 1e-3, [0.0] * 4, [0.0] * 4) for k in range(MAX_POINTS + 1)]
+    with pytest.raises(CommandError, match=r'a trajectory of 1001 points: at most 1000'):
+        command_from_points(JOINT_NAMES, many, 0.0, 0.0, MotorLimits())
+    far = [TrajectoryPoint(p.time_from_start_s, [1e20, *p.positions[1:]], p.velocities)
+           for p in move]
+    with pytest.raises(CommandError, match=r'steering angle 1e\+20 rad: expected within \+-2 pi'):
+        command_from_points(JOINT_NAMES, far, 0.0, 0.0, MotorLimits())

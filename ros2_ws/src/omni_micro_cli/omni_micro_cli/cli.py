@@ -14,8 +14,10 @@ foresaw is one line too, with the file its traceback was written to (``--debug``
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import os
+import re
 import signal
 import sys
 import tempfile
@@ -23,7 +25,7 @@ import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from omni_micro_common.errors import OmniMicroError
 
@@ -77,6 +79,27 @@ COMMANDS: dict[str, Command] = {
 ALIASES = {alias: name for name, command in COMMANDS.items() for alias in command.aliases}
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a bad argument said in one line (the usage is --help's, not printed before
+    every mistake) and no abbreviations (``run --goal`` would be taken for ``--goal-mm``, and a
+    typo of a future flag for another flag)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault('allow_abbrev', False)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        unknown = re.search(r"argument COMMAND: invalid choice: '([^']*)'", message)
+        if unknown:
+            close = difflib.get_close_matches(unknown.group(1), [*COMMANDS, *ALIASES], n=1)
+            message = (f'{unknown.group(1)!r} is not a command'
+                       + (f'; did you mean {close[0]}?' if close else '')
+                       + f' ({self.prog} --help lists them)')
+        else:
+            message += f' ({self.prog} --help lists the arguments)'
+        self.exit(2, f'{self.prog}: error: {message}\n')
+
+
 class _CommandSubparsers:
     """What a command module's ``add_parser`` is given: argparse's sub-parser action, with the
     command's summary and aliases taken from :data:`COMMANDS` (one place for each)."""
@@ -93,7 +116,7 @@ class _CommandSubparsers:
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser, with every command's own arguments, or only ``only``'s (the others are
     listed with their summary, their modules not imported; ``''``: none imported)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog='omni-micro',
         description='Simulation of the tri-wheeled omnidirectional microrobot of Jin, Chen and '
                     'Li (ICIRA 2008): slip dynamics, overhead cameras, vision-feedback control. '
@@ -103,7 +126,8 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
                'use (one line names it), 130 interrupted.')
     parser.add_argument('--debug', action='store_true',
                         help=f'print the traceback of an unexpected error (or set {DEBUG_ENV}=1)')
-    subparsers = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
+    subparsers = parser.add_subparsers(dest='command', metavar='COMMAND', required=True,
+                                       parser_class=_Parser)
     registrar = _CommandSubparsers(subparsers)
     for name, command in COMMANDS.items():
         if only is None or name == only:
@@ -149,7 +173,12 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     arguments = sys.argv[1:] if argv is None else argv
     # No command named (--help, or a typo): list the commands, import none of them.
-    args = build_parser(command_named(arguments) or '').parse_args(arguments)
+    try:
+        args = build_parser(command_named(arguments) or '').parse_args(arguments)
+    except (OmniMicroError, OSError) as error:
+        # A check inside an argument's type (a path the system refuses, say): still one line.
+        print(f'omni-micro: error: {error}', file=sys.stderr)
+        return 2
     debug = args.debug or os.environ.get(DEBUG_ENV, '') not in ('', '0')
     try:
         return int(args.handler(args))

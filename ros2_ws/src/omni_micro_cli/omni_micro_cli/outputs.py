@@ -19,6 +19,15 @@ def output_problem(path: Path, kind: str) -> str | None:
 
     Nothing is created: the nearest existing folder on the way must be a folder we may write.
     """
+    try:
+        return _output_problem(path, kind)
+    except OSError as error:   # a name too long for the file system, a loop of links
+        return f'cannot be used: {error.strerror or error}'
+
+
+def _output_problem(path: Path, kind: str) -> str | None:
+    if os.path.lexists(path) and not path.exists():
+        return 'is a symbolic link to nothing (broken, or a loop of links)'
     if path.exists():
         if kind == 'folder' and not path.is_dir():
             return 'exists and is a file (expected a folder)'

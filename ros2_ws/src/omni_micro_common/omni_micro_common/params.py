@@ -7,6 +7,7 @@ A params file is UTF-8 YAML mapping node names (``controller_node``, ``/controll
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,18 @@ from typing import Any
 import yaml
 
 from omni_micro_common.errors import ParamsFileError
+
+
+class _RosLoader(yaml.SafeLoader):
+    """YAML as ROS 2 reads a params file: ``3e0`` and ``1.0e300`` are numbers (YAML 1.2, and
+    rcl's parser), where YAML 1.1 takes a float without a dot or an exponent's sign for a
+    string."""
+
+
+_RosLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$'),
+    list('-+0123456789.'))
 
 # Sections that apply to every node.
 WILDCARD_SECTIONS = ('/**', '**')
@@ -28,9 +41,9 @@ def read_yaml(path: Path | str) -> Any:
         The file is missing or unreadable, not UTF-8 or not YAML.
     """
     where = f'params file {str(path)!r}'
-    if not Path(path).is_file():
-        raise ParamsFileError(f'{where} does not exist')
     try:
+        if not Path(path).is_file():
+            raise ParamsFileError(f'{where} does not exist')
         text = Path(path).read_text(encoding='utf-8')
     except UnicodeDecodeError as error:
         raise ParamsFileError(f'{where} is not UTF-8 text (byte {error.start}): '
@@ -38,7 +51,7 @@ def read_yaml(path: Path | str) -> Any:
     except OSError as error:
         raise ParamsFileError(f'{where} cannot be read: {error.strerror}') from None
     try:
-        content = yaml.safe_load(text)
+        content = yaml.load(text, Loader=_RosLoader)
     except yaml.YAMLError as error:
         raise ParamsFileError(f'{where} does not parse as YAML: {error}') from None
     return content

@@ -80,6 +80,10 @@ KERNEL_FIELDS = (
 KERNEL_INDEX = {name: index for index, name in enumerate(KERNEL_FIELDS)}
 
 
+# The slowest steering the model integrates: a half turn of the wheels within a minute.
+MAX_HALF_TURN_S = 60.0
+
+
 @dataclass(frozen=True)
 class SteeringParameters:
     """The steering motion (the paper's future work): motor, gear train and wheel pivot.
@@ -134,6 +138,16 @@ class SteeringParameters:
         if self.pivot_coefficient > 1.0:
             raise ParameterError(f'steering.pivot_coefficient must be in [0, 1] (2/3 for a '
                                  f'uniform patch), got {self.pivot_coefficient!r}')
+        # What the steering model can integrate: a half turn of the wheels at the limits (a
+        # trapezoid: the travel at the top speed, and the ramps) in at most a minute; 1e300
+        # for a gear ratio made it 1e299 s, and the knots of the move no longer increased.
+        half_turn_s = math.pi / self.rate_rad_s + self.rate_rad_s / self.acceleration_rad_s2
+        if not half_turn_s <= MAX_HALF_TURN_S:
+            raise ParameterError(
+                f'steering: a half turn of the wheels would take {half_turn_s:.3g} s with '
+                f'motor_speed_rad_s {self.motor_speed_rad_s!r}, motor_acceleration_rad_s2 '
+                f'{self.motor_acceleration_rad_s2!r} and gear_ratio {self.gear_ratio!r}: at '
+                f'most {MAX_HALF_TURN_S:g} s (the realistic preset takes 1.1 s)')
 
     @property
     def rate_rad_s(self) -> float:
@@ -265,6 +279,11 @@ class RobotParameters:
         if not isinstance(self.steering, SteeringParameters):
             raise ParameterError(
                 f'steering must be SteeringParameters, got {self.steering!r}')
+        # A contact patch wider than the wheel is not a wheel's: 1 m made the robot slide 20 mm.
+        if self.steering.contact_radius_m >= self.wheel_radius_m:
+            raise ParameterError(
+                f'steering.contact_radius_m must be below the wheel radius '
+                f'{self.wheel_radius_m!r} m, got {self.steering.contact_radius_m!r}')
         # Each value finite is not enough: I = m R^2 / 2 can still overflow (found by
         # tests/sim/test_properties.py with R = 1e154 m).
         try:

@@ -7,7 +7,10 @@ A command is a trajectory_msgs/JointTrajectory over :data:`JOINT_NAMES` (any ord
   the steering angle (rad, the same at every point: steering is set once, before the wheels turn)
   and the wheel rotations since the start (rad), and ``velocities`` with the wheel spin speeds
   (rad/s, linear in between, the last all zero so that the robot ends at rest);
-* no points at all: stop now (the wheels ramp down at the motors' deceleration).
+* no points at all: stop now (the wheels ramp down at the motors' deceleration);
+* at most :data:`MAX_POINTS` points (a move has four: 10,000 once slowed the robot's node
+  from 50 ticks a second to one), the steering angle within +-2 pi (beyond that a float no
+  longer holds the angle to a fraction of a turn: 1e20 rad is no direction at all).
 
 :func:`command_from_points` checks a received command and :func:`points_from_profile` builds
 one; the nodes only move numbers between these and the messages.
@@ -25,6 +28,9 @@ from omni_micro_common.conventions import JOINT_NAMES
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import MotorLimits
 from omni_micro_sim.profile import WHEEL_COUNT, WheelCommand, WheelSpeedProfile
+
+MAX_POINTS = 1000
+MAX_STEERING_RAD = 2.0 * math.pi
 
 
 @dataclass(frozen=True)
@@ -60,6 +66,8 @@ def command_from_points(joint_names: Sequence[str], points: Sequence[TrajectoryP
     start = now_s if start_s <= 0.0 else start_s
     if not points:
         return WheelCommand(start_s=now_s)
+    if len(points) > MAX_POINTS:
+        raise CommandError(f'a trajectory of {len(points)} points: at most {MAX_POINTS}')
     order = [names.index(name) for name in JOINT_NAMES]
     times = np.empty(len(points))
     speeds = np.empty((len(points), WHEEL_COUNT))
@@ -76,6 +84,9 @@ def command_from_points(joint_names: Sequence[str], points: Sequence[TrajectoryP
             raise CommandError(f'point {index} has a non-finite value: {values.tolist()}')
         if steering is None:
             steering = float(positions[0])
+            if abs(steering) > MAX_STEERING_RAD:
+                raise CommandError(f'steering angle {steering!r} rad: expected within +-2 pi '
+                                   f'(+-{MAX_STEERING_RAD:.4f} rad)')
         elif positions[0] != steering:
             raise CommandError(
                 f'steering must stay {steering!r} rad for the whole move, point {index} has '

@@ -219,6 +219,13 @@ class BagMessages:
 
 def check_readable_bag(path: Path) -> None:
     """Raises BagPathError saying why ``path`` is not a bag that can be read, and what to do."""
+    try:
+        _check_readable_bag(path)
+    except OSError as error:   # a name too long for the file system, a folder not readable
+        raise BagPathError(f'{str(path)!r} cannot be read: {error.strerror or error}') from None
+
+
+def _check_readable_bag(path: Path) -> None:
     if not path.exists():
         raise BagPathError(f'{str(path)!r} does not exist')
     if not path.is_dir():

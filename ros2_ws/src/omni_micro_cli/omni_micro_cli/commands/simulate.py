@@ -9,12 +9,16 @@ import time
 
 from omni_micro_cli.arguments import (
     add_steering_argument,
-    finite_float,
     float_list,
     non_negative_float,
+    number_in,
 )
 from omni_micro_cli.errors import UsageError
 from omni_micro_sim.parameters import RobotParameters, steering_preset
+
+# A steering angle as the wheel contract bounds it (omni_micro_sim.wheel_trajectory): beyond a
+# turn or two a float holds no direction (1e20 deg "steered" in no time and drifted 17 mm).
+steering_degrees = number_in(-360.0, 360.0)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -27,8 +31,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'With --steering realistic and --steer-from-deg the wheels first steer '
                     'from that angle (the chassis turns against the steering); --duration 0 '
                     'is then a steering-only move.')
-    parser.add_argument('--theta-deg', type=finite_float, required=True, metavar='DEG',
-                        help='steering (direction) angle theta in the robot frame, degrees')
+    parser.add_argument('--theta-deg', type=steering_degrees, required=True, metavar='DEG',
+                        help='steering (direction) angle theta in the robot frame, degrees '
+                             '(within +-360, the wheel contract\'s +-2 pi)')
     parser.add_argument('--duration', type=non_negative_float, required=True, metavar='S',
                         help='move time t in seconds (wheel rotation = 8.7 rad/s * t); 0 with '
                              '--steer-from-deg: steer only')
@@ -39,7 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--passive-wheel1', action='store_true',
                         help='wheel 1 rolls freely instead of being driven (section 3.5.1)')
     add_steering_argument(parser)
-    parser.add_argument('--steer-from-deg', type=finite_float, metavar='A',
+    parser.add_argument('--steer-from-deg', type=steering_degrees, metavar='A',
                         help='the wheels\' steering angle before the move, degrees (default: '
                              'already at theta, as the paper has it)')
     parser.add_argument('--json', action='store_true',
