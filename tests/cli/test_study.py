@@ -304,6 +304,14 @@ BAD_STUDIES = [
      'point 0: timer1_near_s 0.5 s is longer than timer1_far_s 0.2 s'),
     ('scenario: closed_loop\nsweep: {}\n', 'sweep: unknown key'),
     ('[1, 2]\n', 'expected a mapping of keys to values'),
+    # A billion steps grew memory at 250 MB/s: refused before any value is made.
+    ('scenario: open_loop\ngrid: {xi2_deg: {from: -10, to: 10, steps: 1000000000}}\n',
+     'grid.xi2_deg.steps: 1000000000 steps make the grid more than 10,000,000 runs (the '
+     'limit; this axis has room for 10,000,000)'),
+    ('scenario: open_loop\ngrid: {xi2_deg: {from: -10, to: 10, steps: 10000}, '
+     'xi3_deg: {from: -10, to: 10, steps: 10000}}\n',
+     'grid.xi3_deg.steps: 10000 steps make the grid more than 10,000,000 runs (the limit; this '
+     'axis has room for 1,000)'),
 ]
 
 

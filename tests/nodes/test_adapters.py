@@ -297,6 +297,31 @@ def test_tracker_node_reads_images_only_once_the_capture_readers_are_matched(con
         covariance_readers, input_topic='/camera/macro/image_raw')
 
 
+def test_tracker_node_refuses_odd_frames_and_camera_infos_and_keeps_serving(context, spy):
+    """A message is never a reason to stop a node: a 0x0 frame before any CameraInfo once
+    exited the node as 'an invalid parameter'; a CameraInfo with a NaN in K is refused too."""
+    node = TrackerNode(context=context, parameter_overrides=overrides(cameras=['macro']))
+    try:
+        reader = node.readers[0]
+        statuses = spy(reader.status_pub)
+        reader.on_image(serialize_message(Image(height=0, width=0, encoding='mono8')))
+        assert statuses.messages[-1].message == ('frame refused: image is 0 x 0, expected 1280 '
+                                                 'x 1024')
+        broken = CameraInfo(height=1024, width=1280)
+        broken.k[0], broken.k[4], broken.k[8] = float('nan'), 1.0, 1.0
+        reader.on_info(broken)
+        assert reader.info_refusal is not None and 'must be finite' in reader.info_refusal
+        pixels = render(DEFAULT_RIG.macro, Sensor(), RobotState(0.05, 0.0, 0.0),
+                        np.random.default_rng(1))
+        reader.on_image(serialize_message(frame(pixels, 0)[0]))
+        assert statuses.messages[-1].message.startswith('frame refused: CameraInfo is not usable')
+        reader.on_info(frame(pixels, 0)[1])     # an uncalibrated driver's: accepted again
+        reader.on_image(serialize_message(frame(pixels, 1)[0]))
+        assert statuses.messages[-1].message == 'moving'
+    finally:
+        node.destroy_node()
+
+
 def test_camera_node_refuses_a_frame_rate_of_zero(context):
     with pytest.raises(CameraConfigError, match='frame_rate_hz'):
         CameraNode(context=context, parameter_overrides=overrides(frame_rate_hz=0.0))

@@ -146,3 +146,13 @@ def test_each_capture_carries_its_uncertainty_through_a_covariance():
 def test_a_broken_covariance_is_refused_naming_the_problem(matrix, message):
     with pytest.raises(ValueError, match=message):
         CaptureUncertainty.from_covariance(matrix)
+
+
+@pytest.mark.parametrize('resolution', [[100000, 100000], [20000, 10], [6000, 5000]])
+def test_a_frame_larger_than_a_camera_is_refused_before_any_memory_is_taken(resolution):
+    """camera_node -p 'macro.resolution_px:=[100000,100000]' asked 74.5 GiB of a MemoryError."""
+    with pytest.raises(CameraConfigError, match=r'macro.resolution_px \[\d+, \d+\] is larger '
+                                                r'than a camera: at most 16384 a side and 25 '
+                                                r'megapixels'):
+        CameraModel('macro', (0.05, 0.0), (0.15, 0.15), resolution)
+    CameraModel('macro', (0.05, 0.0), (0.15, 0.15), (5472, 3648))   # a 20-megapixel sensor

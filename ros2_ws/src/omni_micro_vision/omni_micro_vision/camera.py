@@ -45,6 +45,20 @@ def _pair(name: str, values: object, **checks: bool) -> tuple[float, float]:
     return (_finite(f'{name}[0]', items[0], **checks), _finite(f'{name}[1]', items[1], **checks))
 
 
+# The largest frame a camera may have: machine-vision sensors reach about 20-25 megapixels, and
+# a rendered frame takes 55-90 bytes a pixel while it is drawn (100000 x 100000 asked 74.5 GiB).
+MAX_SIDE_PX = 16384
+MAX_PIXELS = 25_000_000
+
+
+def check_resolution(name: str, resolution: tuple[float, float]) -> None:
+    """Raises CameraConfigError naming ``name`` if the frame is larger than a camera's."""
+    columns, rows = resolution
+    if max(columns, rows) > MAX_SIDE_PX or columns * rows > MAX_PIXELS:
+        raise CameraConfigError(f'{name} {[int(columns), int(rows)]} is larger than a camera: at '
+                                f'most {MAX_SIDE_PX} a side and {MAX_PIXELS / 1e6:g} megapixels')
+
+
 @dataclass(frozen=True)
 class CameraModel:
     """One overhead camera: where it looks, its pixels and its tracker's accuracy."""
@@ -65,6 +79,7 @@ class CameraModel:
         if any(value != int(value) for value in resolution):
             raise CameraConfigError(
                 f'{self.name}.resolution_px must be whole pixels, got {self.resolution_px!r}')
+        check_resolution(f'{self.name}.resolution_px', resolution)
         object.__setattr__(self, 'resolution_px', resolution)
         object.__setattr__(self, 'noise_px',
                            _finite(f'{self.name}.noise_px', self.noise_px, non_negative=True))

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_vision.camera import CameraModel
+from omni_micro_vision.camera import CameraModel, check_resolution
 from omni_micro_vision.errors import CameraConfigError
 
 UNCALIBRATED_K = (0.0,) * 9
@@ -135,6 +135,7 @@ class PlaneMap:
         if len(resolution) != 2 or any(v < 1 or v != int(v) for v in resolution):
             raise CameraConfigError(f'{self.name}.resolution_px must be two whole numbers of '
                                     f'pixels >= 1, got {list(self.resolution_px)}')
+        check_resolution(f'{self.name}.resolution_px', (resolution[0], resolution[1]))
         object.__setattr__(self, 'resolution_px', (int(resolution[0]), int(resolution[1])))
         matrix = _numbers(f'{self.name}.homography', self.homography)
         if len(matrix) != 9:

@@ -41,18 +41,19 @@ class ImageLike(Protocol):
 
 
 def image_array(msg: ImageLike, expected: tuple[int, int] | None) -> np.ndarray:
-    """The pixels of ``msg`` (a sensor_msgs/Image, from rclpy or read from a bag) as one grey
-    channel, rows x columns (:mod:`omni_micro_vision.encodings`: every encoding a driver
-    commonly sends); a native little-endian mono frame without row padding is not copied.
+    """The pixels of ``msg`` (a sensor_msgs/Image, from rclpy or read from a bag) in any
+    encoding a driver commonly sends (:mod:`omni_micro_vision.encodings`) as one grey channel,
+    rows x columns; a native little-endian mono frame without row padding is not copied.
+    ``expected``: its (width, height), if known (the camera's geometry, or its CameraInfo).
 
     Raises
     ------
     CameraConfigError
-        Naming what is wrong: the encoding, the size against the CameraInfo, the data length.
+        Naming what is wrong: the encoding, the size against ``expected``, the data length.
     """
     encoding = encoding_of(msg.encoding)
     if expected is not None and (msg.width, msg.height) != expected:
-        raise CameraConfigError(f'image is {msg.width} x {msg.height}, its CameraInfo says '
+        raise CameraConfigError(f'image is {msg.width} x {msg.height}, expected '
                                 f'{expected[0]} x {expected[1]}')
     if encoding.channels == 2 and msg.width % 2:
         raise CameraConfigError(f'a {msg.encoding} image of odd width {msg.width} (two pixels '
