@@ -72,3 +72,30 @@ def test_a_wildcard_section_may_hold_what_any_node_declares(tmp_path, omni_micro
     result = omni_micro('run', '--goal-mm', '100.5,0.3', '--rtf', 'max', '--params', str(path),
                         '--log-dir', str(tmp_path / 'logs'), '--quiet')
     assert result.returncode == 0, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize(('args', 'line'), [
+    (['--params-file', 'MISSING'], "tracker_node: invalid parameter: params file 'MISSING' does "
+                                   'not exist'),
+    (['--params-file', 'LIST'], "tracker_node: invalid parameter: params file 'LIST' must map "
+                                'node names to {ros__parameters: {...}}, got [1, 2]'),
+    (['-p', 'cameras:=[]'], "tracker_node: invalid parameter: cameras must name at least one of "
+                            "['macro', 'micro']"),
+    (['-p', 'micro.image_topic:=not_a_topic!'],
+     "tracker_node: invalid parameter: micro.image_topic: Invalid topic name: topic name must "
+     "not contain characters other than alphanumerics, '_', '~', '{', or '}': 'not_a_topic!'"),
+], ids=['missing-file', 'yaml-list', 'empty-cameras', 'bad-topic'])
+def test_a_node_alone_refuses_what_rcl_or_rclpy_would_raise_in_one_line(args, line, tmp_path,
+                                                                        domain_id):
+    """Round 3: these were an RCLError, a TypeError and an InvalidTopicNameException traceback
+    from the node started alone."""
+    listed = params(tmp_path, '[1, 2]\n')
+    argv = [a.replace('MISSING', str(tmp_path / 'none.yaml')).replace('LIST', str(listed))
+            for a in args]
+    done = subprocess.run([str(resolve_executable('omni_micro_vision', 'tracker_node')),
+                           '--ros-args', *argv], env=node_environment(domain_id, tmp_path),
+                          timeout=60, capture_output=True, text=True)
+    assert done.returncode == 2
+    expected = line.replace('MISSING', str(tmp_path / 'none.yaml')).replace('LIST', str(listed))
+    assert done.stdout.strip().splitlines()[-1] == expected
+    assert 'Traceback' not in done.stdout + done.stderr

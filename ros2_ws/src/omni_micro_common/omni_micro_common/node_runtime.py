@@ -56,9 +56,9 @@ from omni_micro_common.conventions import (
     OPTIONAL_NODE_NAMES,
     PUBLISHED_MARKER,
 )
-from omni_micro_common.errors import LockstepError, ParameterError
+from omni_micro_common.errors import LockstepError, ParameterError, ParamsFileError
 from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-from omni_micro_common.params import WILDCARD_SECTIONS, flatten, read_yaml
+from omni_micro_common.params import WILDCARD_SECTIONS, flatten, load_params_file, read_yaml
 from omni_micro_common.qos import PER_TICK_PUBLISHER_EVENTS
 
 NodeT = TypeVar('NodeT', bound=Node)
@@ -470,6 +470,16 @@ def run_components(hosted: list[Hosted], *, args: list[str] | None = None,
     # A crash in the C layers (rmw, DDS) prints the Python stack it came from into the log.
     faulthandler.enable(all_threads=True)
     argv = list(sys.argv if args is None else args)
+    program = argv[0].rsplit('/', 1)[-1] if argv else 'node'
+    # rcl refuses a params file it cannot read with a traceback from inside rclpy.init: read
+    # each first with the one reader of params files, which names the file and the problem.
+    for entry in hosted:
+        for path in params_files(argv if entry.node_args is None else entry.node_args):
+            try:
+                load_params_file(path)
+            except ParamsFileError as error:
+                print(f'{program}: invalid parameter: {error}', flush=True)
+                raise SystemExit(2) from None
     rclpy.init(args=args, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     shutdown = _Shutdown()
     signal.signal(signal.SIGINT, shutdown.on_signal)
@@ -477,7 +487,6 @@ def run_components(hosted: list[Hosted], *, args: list[str] | None = None,
     nodes: list[tuple[Hosted, Node]] = []
     refused = False   # its parameters: then it leaves without a word
     waker: _Waker | None = None
-    program = argv[0].rsplit('/', 1)[-1] if argv else 'node'
     config_errors = tuple(error for entry in hosted for error in entry.component.config_errors)
     current = hosted[0]
     try:

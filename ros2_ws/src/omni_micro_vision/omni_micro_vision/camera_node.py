@@ -69,7 +69,7 @@ class CameraNode(Node):
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise CameraConfigError(f'frame_rate_hz must be > 0, got {self.rate_hz}')
         chosen = checked_cameras(list(self.declare_parameter('cameras',
-                                                             ['macro', 'micro']).value))
+                                                             ['macro', 'micro']).value or []))
         scene = self.declare_parameter('scene', 'robot').value
         if scene not in SCENES:
             raise CameraConfigError(f'scene must be one of {list(SCENES)}, got {scene!r}')

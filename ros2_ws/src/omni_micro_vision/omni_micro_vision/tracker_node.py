@@ -30,8 +30,10 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.qos import QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
@@ -60,13 +62,23 @@ RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
 
 
 
+def checked_topic(name: str, topic: object) -> str:
+    """A topic name parameter, checked now (rclpy would raise only once it subscribes)."""
+    try:
+        validate_topic_name(str(topic))
+    except InvalidTopicNameException as error:
+        raise CameraConfigError(f'{name}: {str(error).splitlines()[0]} {topic!r}') from None
+    return str(topic)
+
+
 class TrackerNode(Node):
     def __init__(self, **node_options: Any) -> None:
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('tracker_node', **node_options)
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
-        cameras = list(self.declare_parameter('cameras', ['macro', 'micro']).value)
+        # An empty list reaches rclpy as no value at all.
+        cameras = list(self.declare_parameter('cameras', ['macro', 'micro']).value or [])
         self.still_frames = int(self.declare_parameter('still_frames', 3).value)
         self.still_px = float(self.declare_parameter('still_tolerance_px', 0.2).value)
         if self.still_frames < 2 or not self.still_px > 0:
@@ -88,10 +100,10 @@ class TrackerNode(Node):
         # Every camera's parameters are declared (one params file serves any choice of cameras);
         # only those in ``cameras`` are read.
         for name in CAPTURE_TOPICS:
-            image_topic = self.declare_parameter(f'{name}.image_topic',
-                                                 f'/camera/{name}/image_raw').value
-            info_topic = self.declare_parameter(f'{name}.info_topic',
-                                                f'/camera/{name}/camera_info').value
+            image_topic = checked_topic(f'{name}.image_topic', self.declare_parameter(
+                f'{name}.image_topic', f'/camera/{name}/image_raw').value)
+            info_topic = checked_topic(f'{name}.info_topic', self.declare_parameter(
+                f'{name}.info_topic', f'/camera/{name}/camera_info').value)
             # Checks the parameters now, whichever cameras are used.
             camera = tracked_camera(name, self._setting)
             if name not in cameras:
