@@ -196,6 +196,10 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
              'lists them)'),
     (['run', '--goal', '100,0'], 'omni-micro run: error: the following arguments are required: '
                                  '--goal-mm (omni-micro run --help lists the arguments)'),
+    (['run', '--goal-mm', '1,0', '--seed', '100000000000000000000000'],
+     "omni-micro run: error: argument --seed: expected a whole number in [0, "
+     "9223372036854775807] (a seed: a ROS integer parameter), got '100000000000000000000000' "
+     '(omni-micro run --help lists the arguments)'),
     (['simulate', '--theta-deg', '1e20', '--duration', '1'],
      "omni-micro simulate: error: argument --theta-deg: expected a number in [-360, 360], got "
      "'1e20' (omni-micro simulate --help lists the arguments)"),

@@ -304,6 +304,12 @@ BAD_STUDIES = [
      'point 0: timer1_near_s 0.5 s is longer than timer1_far_s 0.2 s'),
     ('scenario: closed_loop\nsweep: {}\n', 'sweep: unknown key'),
     ('[1, 2]\n', 'expected a mapping of keys to values'),
+    # An OverflowError that left study.yaml and an empty parts/ behind.
+    ('scenario: open_loop\nseed: 100000000000000000000000\n',
+     "seed: expected a whole number in [0, 9223372036854775807] (each run's seed is a ROS "
+     'integer parameter), got 100000000000000000000000'),
+    ('scenario: open_loop\nseed: 9223372036854775807\ngrid: {xi2_deg: [0, 1]}\n',
+     "seed: 9223372036854775807 + the runs' 2 seeds passes 9223372036854775807"),
     # A billion steps grew memory at 250 MB/s: refused before any value is made.
     ('scenario: open_loop\ngrid: {xi2_deg: {from: -10, to: 10, steps: 1000000000}}\n',
      'grid.xi2_deg.steps: 1000000000 steps make the grid more than 10,000,000 runs (the '

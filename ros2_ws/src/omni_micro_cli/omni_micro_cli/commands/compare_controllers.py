@@ -27,8 +27,8 @@ import numpy as np
 
 from omni_micro_cli.arguments import (
     add_steering_argument,
-    non_negative_int,
     positive_float,
+    seed_number,
     whole_number_in,
 )
 from omni_micro_cli.outputs import output_folder, staged_directory
@@ -54,7 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--cases',
                         type=whole_number_in(0, 1_000_000), default=100, metavar='N',
                         help='number of seeded cases (default 100)')
-    parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
+    parser.add_argument('--seed', type=seed_number, default=0, metavar='N',
                         help='seed of the cases (robots, starts, goals, camera noise)')
     parser.add_argument('--tolerance-um', type=positive_float, default=0.5, metavar='UM',
                         help='tolerance of both modes (default 0.5 um)')

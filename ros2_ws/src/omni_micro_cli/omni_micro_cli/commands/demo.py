@@ -20,7 +20,7 @@ from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
     check_timing,
-    non_negative_int,
+    seed_number,
     steering_overrides,
 )
 from omni_micro_cli.commands.record import add_storage_arguments
@@ -57,7 +57,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_steering_argument(parser, scope=". Here: the model-based and image runs' steering; "
                           "the paper's rows stay ideal (their numbers are the point), and the "
                           "last row is always the paper's rule with realistic steering")
-    parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
+    parser.add_argument('--seed', type=seed_number, default=0, metavar='N',
                         help='camera noise seed (default 0)')
     parser.add_argument('--verbose', action='store_true', help="echo the nodes' logs")
     parser.add_argument('--record', type=output_folder, metavar='DIR',

@@ -15,9 +15,9 @@ from omni_micro_cli.arguments import (
     domain_id,
     float_list,
     non_negative_float,
-    non_negative_int,
     positive_float,
     probability,
+    seed_number,
     steering_overrides,
 )
 from omni_micro_cli.commands.record import add_storage_arguments
@@ -39,7 +39,7 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'files win, as with --params-file')
     add_timing_arguments(parser, default_rtf='1')
     add_steering_argument(parser)
-    parser.add_argument('--seed', type=non_negative_int, default=0, metavar='N',
+    parser.add_argument('--seed', type=seed_number, default=0, metavar='N',
                         help='camera noise seed (default 0); the same seed gives the same run '
                              'at any --rtf and any load')
     parser.add_argument('--timeout', type=positive_float, default=600.0, metavar='S',

@@ -15,7 +15,7 @@ from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
     check_timing,
-    non_negative_int,
+    seed_number,
     steering_overrides,
     whole_number_in,
 )
@@ -46,7 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='how many random goals, one after the other (default 50)')
     add_timing_arguments(parser, default_rtf='max')
     add_steering_argument(parser)
-    parser.add_argument('--seed', type=non_negative_int, default=1, metavar='N',
+    parser.add_argument('--seed', type=seed_number, default=1, metavar='N',
                         help='seed of the goals and of the camera noise (default 1)')
     parser.add_argument('--out', type=output_folder, default='out/soak', metavar='DIR',
                         help='the bag, logs and report go into a new folder here')

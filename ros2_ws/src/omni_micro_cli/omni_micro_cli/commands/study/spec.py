@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from omni_micro_cli.arguments import MAX_SEED
 from omni_micro_cli.errors import StudyError
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
@@ -381,6 +382,9 @@ def parse_study(text: str, source: str = 'study') -> Study:
 
     seeds_per_point = _whole('seeds_per_point', data.get('seeds_per_point', 1), 1)
     seed = _whole('seed', data.get('seed', 0), 0)
+    if seed > MAX_SEED:
+        raise StudyError(f'seed: expected a whole number in [0, {MAX_SEED}] (each run\'s seed is '
+                         f'a ROS integer parameter), got {seed}')
     modes_value = data.get('modes', ['paper'])
     if scenario == 'open_loop':
         if 'modes' in data:
@@ -421,6 +425,10 @@ def _check_runs(study: Study) -> None:
     if study.run_count > MAX_RUNS:
         raise StudyError(f'the study expands to {study.run_count} runs; the limit is '
                          f'{MAX_RUNS:,}')
+    last_seed = study.seed + study.points * study.seeds_per_point
+    if last_seed > MAX_SEED:
+        raise StudyError(f'seed: {study.seed} + the runs\' {study.points * study.seeds_per_point} '
+                         f'seeds passes {MAX_SEED} (a ROS integer parameter)')
     described = {p.name: f'random.parameters.{p.name} ({p.description})' for p in study.random}
     checked: set[int] = set()
     for row in study.runs():
