@@ -60,6 +60,10 @@ class Phase(enum.Enum):
     DONE = 'done'
 
 
+# The longest open-loop move: the paper's is 7 s (100 mm); a minute runs off any platform.
+MAX_OPEN_LOOP_S = 60.0
+
+
 def _number(name: str, value: float, *, minimum: float | None = None,
             strictly: bool = True) -> float:
     try:
@@ -109,6 +113,11 @@ class FeedbackConfig:
         for name in ('settle_wait_s', 'command_lead_s', 'open_loop_duration_s'):
             object.__setattr__(self, name, _number(name, getattr(self, name), minimum=0.0,
                                                    strictly=False))
+        if self.open_loop_duration_s > MAX_OPEN_LOOP_S:
+            raise ControllerConfigError(
+                f'open_loop_duration_s must be at most {MAX_OPEN_LOOP_S:g} s (at cruise speed '
+                f'{MAX_OPEN_LOOP_S * self.speed_m_s * 1e3:.0f} mm, past any platform), got '
+                f'{self.open_loop_duration_s!r}')
         if self.captures_per_stop == 0:
             object.__setattr__(self, 'captures_per_stop',
                                MODEL_CAPTURES_PER_STOP if self.mode == 'model' else 1)

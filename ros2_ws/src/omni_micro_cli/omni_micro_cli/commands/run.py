@@ -72,6 +72,17 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     add_view_arguments(parser, flag=True)
 
 
+def open_loop_seconds(text: str) -> float:
+    """An open-loop move's duration: > 0 and at most the controller's limit."""
+    from omni_micro_control.feedback import MAX_OPEN_LOOP_S
+
+    value = positive_float(text)
+    if value > MAX_OPEN_LOOP_S:
+        raise argparse.ArgumentTypeError(f'expected at most {MAX_OPEN_LOOP_S:g} s (a minute at '
+                                         f'cruise speed runs off any platform), got {text!r}')
+    return value
+
+
 def image_topic(text: str) -> tuple[str, str]:
     """``CAMERA=TOPIC``: which tracker camera reads a driver's image topic."""
     camera, _, topic = text.partition('=')
@@ -136,7 +147,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     '(nothing is started).')
     parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'), required=True,
                         metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0')
-    parser.add_argument('--open-loop', type=positive_float, metavar='S',
+    parser.add_argument('--open-loop', type=open_loop_seconds, metavar='S',
                         help='no feedback: one move of S seconds toward the goal (the paper '
                              'uses 7 s for 100 mm)')
     parser.add_argument('--json', action='store_true',

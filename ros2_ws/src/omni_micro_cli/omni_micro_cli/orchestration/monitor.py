@@ -404,11 +404,22 @@ class GraphMonitor:
                 if status['message'] in OUTCOME_NAMES and not replaced:
                     return dict(status, outcome=status['message'])
             if time.monotonic() > deadline:
-                sim = self.latest_odometry[0] if self.latest_odometry else 0.0
                 raise RunFailed(f'no outcome from controller_node within {timeout_s:g} s of '
-                                f'wall time (simulated time reached {sim:.2f} s); logs in '
+                                f'wall time ({self._robot_time_said()}); logs in '
                                 f'{graph.log_dir}')
             self.spin_for(0.05)
+
+    def _robot_time_said(self) -> str:
+        """Where the robot's time stands now, read from /odom (which a plain run does not
+        follow: a short look), for a message."""
+        if not self._following:
+            reader = self.node.create_subscription(Odometry, '/odom', self._on_odometry,
+                                                   DATA_QOS)
+            self.spin_for(1.0)
+            self.node.destroy_subscription(reader)
+        if self.latest_odometry is None:
+            return 'the robot published no /odom'
+        return f"the robot's time reached {self.latest_odometry[0]:.2f} s"
 
     def wait_for_odometry_after(self, graph: Supervisor, stamp_s: float,
                                 timeout_s: float) -> tuple[float, float, float, float]:
