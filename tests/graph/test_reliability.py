@@ -346,8 +346,9 @@ def test_the_loop_in_one_process_records_the_same_bag(same_seed_run):
 def test_a_run_that_times_out_says_how_far_the_robots_time_really_went(tmp_path):
     """Round 3: the message said 'simulated time reached 0.00 s' while the robot had run on
     (the monitor only follows /odom when asked to): it now reads where time stands."""
-    with pytest.raises(RunFailed, match=r"no outcome from controller_node within 3 s of wall "
-                                        r"time \(the robot's time reached (\d+\.\d+) s\)") as caught:
+    expected = (r"no outcome from controller_node within 3 s of wall time \(the robot's time "
+                r"reached (\d+\.\d+) s\)")
+    with pytest.raises(RunFailed, match=expected) as caught:
         run_graph(GraphOptions(goal_m=(0.1, 0.0), real_time_factor=1.0, timeout_s=3.0,
                                log_dir=tmp_path, markers=False))
     reached = float(str(caught.value).split("time reached ")[1].split(' s')[0])
