@@ -77,6 +77,14 @@ def test_the_container_refuses_bad_input_in_one_line_and_starts_nothing():
     assert refused.returncode == 2 and 'Traceback' not in refused.stderr + refused.stdout
     assert 'omni_micro_vision.vision_node: invalid parameter: seed must be a whole number' \
         in refused.stdout
+    # Two nodes of one name: rcl only warned, and each answered the other's parameters.
+    twice = subprocess.run(
+        [sys.executable, '-m', 'omni_micro_common.container', 'omni_micro_sim.dynamics_node',
+         'omni_micro_sim.dynamics_node'], capture_output=True, text=True, env=env, timeout=60)
+    assert twice.returncode == 2 and 'Traceback' not in twice.stderr + twice.stdout
+    assert twice.stdout.strip().splitlines()[-1].endswith(
+        ': invalid parameter: two nodes named /dynamics_node in one process: give one another '
+        'name (--ros-args -r __node:=NAME --)')
 
 
 def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():

@@ -493,6 +493,12 @@ def run_components(hosted: list[Hosted], *, args: list[str] | None = None,
         try:
             for current in hosted:
                 nodes.append((current, _make_node(current, argv)))
+            names = [node.get_fully_qualified_name() for _, node in nodes]
+            twice = sorted({name for name in names if names.count(name) > 1})
+            if twice:
+                # rcl only warns, and the two would answer each other's parameters and topics.
+                raise ParameterError(f'two nodes named {twice[0]} in one process: give one '
+                                     f'another name (--ros-args -r __node:=NAME --)')
             executor = make_executor()
             for _, node in nodes:
                 executor.add_node(node)
