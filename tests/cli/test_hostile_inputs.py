@@ -226,3 +226,22 @@ def test_params_files_read_numbers_as_ros_does(tmp_path):
     assert values == {'a': 3.0, 'b': 1.0e300, 'c': 3, 'd': -2.5e-3, 'e': 0.5, 'f': '1e',
                       'g': 'e3'}
     assert isinstance(values['a'], float) and math.isfinite(values['b'])
+
+
+def test_identify_on_a_bag_without_a_move_fails_with_exit_1_as_its_help_says(tmp_path, capsys):
+    """A valid bag with too little in it is a failed identification (1), not a bad argument
+    (2, what it exited with)."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+
+    from omni_micro_tools.bags import open_writer
+    from omni_micro_tools.topics import GRAPH_TOPICS
+
+    bag = tmp_path / 'still'
+    writer, connections = open_writer(bag, 'mcap', {'/odom': GRAPH_TOPICS['/odom']})
+    writer.write(connections['/odom'], 0, serialize_message(Odometry()))
+    writer.close()
+    code, err = exit_code_and_error(['identify', str(bag)], capsys)
+    assert code == 1
+    assert err == (f"omni-micro identify: failed: '{bag}' has no move on /wheel_trajectory: "
+                   'nothing to identify')

@@ -292,6 +292,8 @@ def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -
             result.timestamps.setdefault(connection.topic, [])
             result.messages.setdefault(connection.topic, [])
             result.raw.setdefault(connection.topic, [])
+        if not connections:
+            return result   # none of those topics: rosbags would read every topic instead
         for connection, timestamp, rawdata in reader.messages(connections=connections):
             result.timestamps[connection.topic].append(timestamp)
             result.raw[connection.topic].append(bytes(rawdata))

@@ -71,7 +71,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         'identify',
         description="Least-squares fit of the robot's unknown parameters to a recorded run: "
                     'the moves on /wheel_trajectory and the stationary captures on the '
-                    'camera topics, nothing else. Prints each parameter with its 95 %% '
+                    'camera topics, nothing else. Prints each parameter with its 95 % '
                     'interval, or says it is not identifiable from this bag, and the '
                     "residual of every stop. Exit 0 when xi2 and xi3 were identified, 1 when "
                     'the bag holds too little motion, 2 for a bad argument.')
@@ -177,11 +177,13 @@ def read_run(bag: Path, steering: SteeringParameters | None = None) -> RecordedR
             commanded = tracker.move(command.steering_rad, command.profile)
             steering_s = tracker.steering_time_s
         moves.append((start_s, start_s + steering_s + command.profile.end_time_s, commanded))
+    # Too little in the bag to identify anything: the work fails (exit 1), as --help says; the
+    # bag itself is a valid argument.
     if not moves:
-        raise UsageError(f'{str(bag)!r} has no move on /wheel_trajectory: nothing to identify')
+        raise RunFailed(f'{str(bag)!r} has no move on /wheel_trajectory: nothing to identify')
     if not observations:
-        raise UsageError(f'{str(bag)!r} has no capture on the camera topics: nothing to '
-                         f'identify')
+        raise RunFailed(f'{str(bag)!r} has no capture on the camera topics: nothing to '
+                        f'identify')
     # Stop k holds the captures after move k-1's wheels stopped and before move k starts (the
     # camera may still count the robot as still in the first milliseconds of a move).
     windows = ([(-math.inf, moves[0][0])]
