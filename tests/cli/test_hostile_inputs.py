@@ -245,3 +245,16 @@ def test_identify_on_a_bag_without_a_move_fails_with_exit_1_as_its_help_says(tmp
     assert code == 1
     assert err == (f"omni-micro identify: failed: '{bag}' has no move on /wheel_trajectory: "
                    'nothing to identify')
+
+
+def test_a_platform_of_no_size_is_refused_before_anything_starts(tmp_path, capsys):
+    """platform.size_m [0, 0] was accepted: every goal then lay outside it."""
+    params = tmp_path / 'p.yaml'
+    params.write_text('controller_node:\n  ros__parameters:\n    platform:\n'
+                      '      size_m: [0.0, 0.0]\n')
+    code, err = exit_code_and_error(['run', '--goal-mm', '100,0', '--params', str(params),
+                                     '--log-dir', str(tmp_path / 'logs')], capsys)
+    assert code == 2
+    assert err == ('omni-micro run: error: platform.size_m must be two finite numbers > 0 '
+                   '(metres), got [0.0, 0.0]')
+    assert not (tmp_path / 'logs').exists()

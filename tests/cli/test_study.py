@@ -304,6 +304,10 @@ BAD_STUDIES = [
      'point 0: timer1_near_s 0.5 s is longer than timer1_far_s 0.2 s'),
     ('scenario: closed_loop\nsweep: {}\n', 'sweep: unknown key'),
     ('[1, 2]\n', 'expected a mapping of keys to values'),
+    # Recorded without a word: backlash plays no part when the wheels take each angle at once.
+    ('scenario: open_loop\nsteering: ideal\ngrid: {backlash_deg: [0, 1]}\n',
+     'grid.backlash_deg: plays no part with steering: ideal (the wheels take each angle at '
+     'once); set steering: realistic'),
     # An OverflowError that left study.yaml and an empty parts/ behind.
     ('scenario: open_loop\nseed: 100000000000000000000000\n',
      "seed: expected a whole number in [0, 9223372036854775807] (each run's seed is a ROS "

@@ -46,4 +46,8 @@ def test_a_study_steering_is_a_preset_and_the_flag_may_not_contradict_the_file()
     assert {row['steering'] for row in realistic.runs()} == {'realistic'}
     assert parse_study(realistic.text).steering == 'realistic'   # what --resume reads back
     with pytest.raises(UsageError, match='disagrees'):
-        with_steering(parse_study(plain + 'steering: ideal\n'), 'realistic', parse_study)
+        with_steering(parse_study('scenario: closed_loop\nsteering: ideal\n'), 'realistic',
+                      parse_study)
+    # The file alone, saying ideal, cannot vary what ideal steering does not have.
+    with pytest.raises(StudyError, match=r'grid.backlash_deg: plays no part with steering: ideal'):
+        parse_study(plain + 'steering: ideal\n')

@@ -88,6 +88,24 @@ STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: Diagno
 TIMEOUT_CHECK_S = 0.05
 
 
+def checked_platform(center: list[float], size: list[float]) -> None:
+    """The platform goals must lie on: a centre and a size, two finite numbers each, the size
+    > 0 (a platform of [0, 0] took every goal for outside it, or none).
+
+    Raises
+    ------
+    ControllerConfigError
+        Naming the value.
+    """
+    for name, values, positive in (('platform.center_m', center, False),
+                                   ('platform.size_m', size, True)):
+        if len(values) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v)
+                                       and (v > 0 or not positive) for v in values):
+            raise ControllerConfigError(f'{name} must be two finite numbers'
+                                        f'{" > 0" if positive else ""} (metres), got '
+                                        f'{list(values)}')
+
+
 def goal_error(x_m: float, y_m: float, center: list[float], size: list[float]) -> str | None:
     """Why a goal cannot be accepted, or None."""
     if not (math.isfinite(x_m) and math.isfinite(y_m)):
@@ -119,6 +137,7 @@ class ControllerNode(Node):
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         self.platform_center = list(self.declare_parameter('platform.center_m', [0.05, 0.0]).value)
         self.platform_size = list(self.declare_parameter('platform.size_m', [0.15, 0.15]).value)
+        checked_platform(self.platform_center, self.platform_size)
         goal = list(self.declare_parameter('goal_m', [0.0]).value)
         self.uncertainty_source = self._declare_uncertainty()
         self.controller = VisionFeedbackController(

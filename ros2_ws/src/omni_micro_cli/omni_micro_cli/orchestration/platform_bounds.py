@@ -16,8 +16,11 @@ def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:
 
 def check_goal(goal_m: tuple[float, float], params_files: tuple[Path, ...]) -> None:
     """Refuse a goal outside the platform before anything starts (exit 2, nothing written)."""
+    from omni_micro_control.controller_node import checked_platform
+
     center = controller_parameter('platform.center_m', params_files)
     size = controller_parameter('platform.size_m', params_files)
+    checked_platform(list(center), list(size))   # as the node will: a size of 0 is no platform
     x, y = goal_m
     if abs(x - center[0]) > size[0] / 2 or abs(y - center[1]) > size[1] / 2:
         raise UsageError(

@@ -82,7 +82,11 @@ def _check(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     from omni_micro_cli.commands.study import execute as execution
     from omni_micro_cli.commands.study.report import write_figure, write_summary
-    from omni_micro_cli.commands.study.spec import load_study, parse_study
+    from omni_micro_cli.commands.study.spec import (
+        check_steering_parameters,
+        load_study,
+        parse_study,
+    )
 
     _check(args)
     if args.example:
@@ -100,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
                      else load_study(args.study))
             if args.steering and args.steering != study.steering:
                 study = with_steering(study, args.steering, parse_study)
+            check_steering_parameters(study)
             created = not out.exists()
             execution.prepare_directory(study, out)
     except StudyError as error:

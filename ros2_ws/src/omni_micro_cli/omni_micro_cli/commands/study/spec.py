@@ -176,6 +176,9 @@ def _finite(where: str, value: object) -> float:
     return number
 
 
+# The parameters of the steering motion: only a study with ``steering: realistic`` varies them.
+STEERING_MOTION_PARAMETERS = ('backlash_deg', 'contact_radius_um', 'steering_rate_deg_s')
+
 # The most runs a study may expand to (grid points x draws x seeds x modes).
 MAX_RUNS = 10_000_000
 
@@ -413,11 +416,33 @@ def parse_study(text: str, source: str = 'study') -> Study:
     if steering not in STEERING_PRESETS:
         raise StudyError(f'steering: expected one of {", ".join(STEERING_PRESETS)}, got '
                          f'{steering!r}')
-
     study = Study(name.strip(), description.strip(), scenario, fixed, grid, draws, random,
                   seeds_per_point, seed, modes, metrics, text, steering)
     _check_runs(study)
+    if 'steering' in data:
+        # Else --steering may still set it: the command checks the study it will run.
+        check_steering_parameters(study)
     return study
+
+
+def check_steering_parameters(study: Study) -> None:
+    """With ideal steering the steering motion's parameters play no part: a study varying them
+    would record rows that differ only in a number nothing read.
+
+    Raises
+    ------
+    StudyError
+        Naming the first such parameter and where it is set.
+    """
+    if not STEERING_PRESETS[study.steering].instantaneous:
+        return
+    for where, names in (('fixed', list(study.fixed)), ('grid', list(study.grid)),
+                         ('random.parameters', [p.name for p in study.random])):
+        moot = [name for name in names if name in STEERING_MOTION_PARAMETERS]
+        if moot:
+            raise StudyError(f'{where}.{moot[0]}: plays no part with steering: '
+                             f'{study.steering} (the wheels take each angle at once); set '
+                             'steering: realistic')
 
 
 def _check_runs(study: Study) -> None:
