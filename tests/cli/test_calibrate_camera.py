@@ -77,8 +77,8 @@ def test_the_procedure_finds_the_mount_and_the_tracker_reads_the_robot_where_it_
     assert missing.returncode == 1
     assert missing.stderr.strip().splitlines() == [
         'omni-micro calibrate-camera: no chessboard of 7x4 inner corners found in the 10 '
-        'frames: check --pattern (inner corners, COLSxROWS) and that the whole board and its '
-        'white border are in the image']
+        'frames: check --pattern (COLSxROWS, as OpenCV counts them) and that the whole target '
+        'and its white border are in the image']
     assert not (tmp_path / 'none.yaml').exists()
 
 
