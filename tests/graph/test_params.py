@@ -33,6 +33,9 @@ def params(tmp_path: Path, text: str) -> Path:
       'expected a number with a decimal point']),
     ('dynamics_node:\n  ros__parameters:\n    robot:\n      mass_g: 2.8\n',
      ["unknown parameter 'robot.mass_g'", "did you mean 'robot.mass_kg'?"]),
+    # Round 3: it was markers_node (given the value too) that refused it, and was named.
+    ('controller_node:\n  ros__parameters:\n    tolerance_m: 5\n',
+     ['controller_node refused its parameters', "'tolerance_m' to '5' of type 'INTEGER'"]),
 ])
 def test_run_refuses_a_params_file_mistake_before_anything_moves(text, expected, tmp_path,
                                                                   omni_micro):

@@ -213,17 +213,33 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                                    options.dynamics_overrides)
         controller = node_parameters('omni_micro_control', 'controller_node',
                                      options.params_files, options.controller_overrides)
-        overrides.update({name: vision[name] for name in MARKERS_FROM_VISION if name in vision})
-        for name, source in (('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
-                             ('capture_uncertainty', controller)):
-            if name in source:
-                overrides[name] = source[name]
+        sources = [*((name, vision) for name in MARKERS_FROM_VISION),
+                   ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
+                   ('capture_uncertainty', controller)]
+        for name, source in sources:
+            value = passed_on(source.get(name))
+            if value is not None:
+                overrides[name] = value
     elif spec.executable == 'controller_node':
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)
     overrides.update(spec.overrides)
     return overrides
+
+
+def passed_on(value: object) -> object | None:
+    """A value of another node's params as markers_node declares it (numbers as floats, the
+    way ROS types them), or None when it is not of that kind: its own node then refuses it,
+    naming it (tolerance_m: 5 was blamed on markers_node, which refused the integer first)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                       for v in value):
+        return [float(v) for v in value]
+    return None
 
 
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
