@@ -258,3 +258,14 @@ def test_a_platform_of_no_size_is_refused_before_anything_starts(tmp_path, capsy
     assert err == ('omni-micro run: error: platform.size_m must be two finite numbers > 0 '
                    '(metres), got [0.0, 0.0]')
     assert not (tmp_path / 'logs').exists()
+
+
+def test_a_second_sigterm_does_not_interrupt_the_first_ones_clean_up():
+    """timeout signals a process and its group: the pair raised two KeyboardInterrupts, the
+    second inside the first's clean-up (a traceback, 1 run in 6)."""
+    from omni_micro_cli.cli import _Interrupt
+
+    handler = _Interrupt()
+    with pytest.raises(KeyboardInterrupt):
+        handler(15, None)
+    handler(15, None)   # the second of the pair: no new interruption

@@ -150,8 +150,19 @@ def command_named(argv: list[str]) -> str | None:
     return None
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
+class _Interrupt:
+    """SIGTERM unwinds like Ctrl-C, once: ``timeout`` signals a process and its group, and the
+    second of the pair raised another KeyboardInterrupt inside the first's clean-up (a traceback
+    while a study parsed its file; its "K of N runs kept" line lost). A flag, not SIG_IGN,
+    which the processes started during the clean-up would inherit."""
+
+    def __init__(self) -> None:
+        self.raised = False
+
+    def __call__(self, signum: int, frame: object) -> None:
+        if not self.raised:
+            self.raised = True
+            raise KeyboardInterrupt
 
 
 def _report_unexpected(command: str, error: BaseException) -> str:
@@ -166,7 +177,7 @@ def _report_unexpected(command: str, error: BaseException) -> str:
 def main(argv: list[str] | None = None) -> int:
     # SIGTERM (e.g. from `timeout` or CI) must unwind like Ctrl-C, so that a running graph is
     # shut down instead of orphaned.
-    signal.signal(signal.SIGTERM, _interrupt)
+    signal.signal(signal.SIGTERM, _Interrupt())
     # DDS stays on loopback however the command is started (the installed script needs no
     # wrapper): the orchestrator's own node must discover as its children do.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -179,6 +190,9 @@ def main(argv: list[str] | None = None) -> int:
         # A check inside an argument's type (a path the system refuses, say): still one line.
         print(f'omni-micro: error: {error}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:   # while the command's modules load
+        print('omni-micro: interrupted', file=sys.stderr)
+        return 130
     debug = args.debug or os.environ.get(DEBUG_ENV, '') not in ('', '0')
     try:
         return int(args.handler(args))
