@@ -30,6 +30,31 @@ def shm_files() -> set[str]:
     return {name for name in os.listdir('/dev/shm') if name.startswith('fastrtps')}
 
 
+def shm_files_in_use() -> set[str]:
+    """The Fast DDS shared-memory files some living process uses: maps (its segments and
+    ports) or holds open (their ``_el`` lock files)."""
+    in_use = set()
+    for process in Path('/proc').glob('[0-9]*'):
+        try:
+            in_use.update(line.rsplit('/', 1)[-1]
+                          for line in (process / 'maps').read_text().splitlines()
+                          if '/dev/shm/fastrtps' in line)
+            for fd in (process / 'fd').iterdir():
+                target = os.readlink(fd)
+                if target.startswith('/dev/shm/fastrtps'):
+                    in_use.add(target.rsplit('/', 1)[-1])
+        except OSError:   # the process ended while we looked, or is not ours to read
+            continue
+    return in_use
+
+
+def leftovers_since(before: set[str]) -> set[str]:
+    """The shared-memory files this test's run left: new since ``before`` and used by no
+    living process. Another ROS graph on the machine (other domains) makes and removes its own
+    files meanwhile, in use while they exist: they are not this run's."""
+    return shm_files() - before - shm_files_in_use()
+
+
 def run(tmp_path: Path, **options: Any) -> GraphResult:
     options.setdefault('real_time_factor', 5.0)
     return run_graph(GraphOptions(goal_m=options.pop('goal_m', GOAL), log_dir=tmp_path / 'logs',
@@ -100,7 +125,7 @@ def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_pat
     assert noticed and noticed[0] - events['killed_at'] < 1.0
     bag = read_bag(tmp_path / 'bag', topics=['/odom'])
     assert len(bag.messages['/odom']) > 10
-    assert shm_files() <= before   # no shared-memory leftovers
+    assert leftovers_since(before) == set()   # no shared-memory leftovers of this run
 
 
 @pytest.mark.parametrize('node', ['vision_node', 'controller_node'])
@@ -279,7 +304,8 @@ def test_bad_flags_exit_2_and_start_nothing(args, message, tmp_path, omni_micro)
 def test_soak_fifty_goals_flat_memory_and_a_complete_bag(tmp_path, omni_micro):
     import json
 
-    result = omni_micro('soak', '--goals', '50', '--rtf', '5', '--out', str(tmp_path),
+    # As fast as the lockstep lets it: 50 goals are over 200 s of simulated time.
+    result = omni_micro('soak', '--goals', '50', '--rtf', 'max', '--out', str(tmp_path),
                         '--json', '--quiet')
     assert result.returncode == 0, result.stderr[-3000:]
     report = json.loads(result.stdout.strip().splitlines()[-1])
