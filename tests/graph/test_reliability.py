@@ -33,7 +33,7 @@ def shm_files() -> set[str]:
 def shm_files_in_use() -> set[str]:
     """The Fast DDS shared-memory files some living process uses: maps (its segments and
     ports) or holds open (their ``_el`` lock files)."""
-    in_use = set()
+    in_use: set[str] = set()
     for process in Path('/proc').glob('[0-9]*'):
         try:
             in_use.update(line.rsplit('/', 1)[-1]
