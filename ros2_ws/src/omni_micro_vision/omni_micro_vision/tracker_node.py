@@ -14,9 +14,13 @@ the ``platform`` frame:
 A capture is published only while the robot is still, decided from the images alone: the
 fiducial's pose in the last ``still_frames`` frames agrees within ``still_tolerance_px`` pixels;
 and only from the finest camera that sees the robot (:mod:`omni_micro_vision.tracking`).
-Where the camera looks is a parameter (``<name>.center_m``, ``<name>.field_m``: the platform
-point under the image's centre and the field the image spans; the pixel size follows from the
-image's size). The image processing is :mod:`omni_micro_vision.rendering`'s.
+Where each camera's pixels lie on the platform is its calibration (``<name>.calibration.*``,
+written by ``omni-micro calibrate-camera``) or, without one, its nominal geometry
+(``<name>.center_m``, ``field_m``, ``resolution_px``, ``yaw_rad``, ``mirrored``):
+:mod:`omni_micro_vision.tracked_camera`. Frames in any common encoding are read
+(:mod:`omni_micro_vision.encodings`), best effort by default (``image_reliability``), and
+refused, with the reason in ``tracker_status``, when their size or their CameraInfo
+contradicts that geometry. The image processing is :mod:`omni_micro_vision.tracking`'s.
 It reads images only once its capture writers have matched the readers of the nodes named in
 ``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
 that none of them misses the first captures.
