@@ -70,13 +70,20 @@ def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro) -> Path
          '/camera/micro/image_raw', '/camera/micro/camera_info', '--domain-id', str(domain_id)],
         env=node_environment(domain_id, tmp_path), stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT, text=True)
-    time.sleep(6.0)
-    stop(recorder)
+    assert recorder.stdout is not None
+    said = []
+    for line in recorder.stdout:     # until it records (a first start may install first)
+        said.append(line)
+        if 'recording 2 topics' in line:
+            break
+    time.sleep(4.0)                  # a few seconds of the target, as a user would record
+    recorder.send_signal(signal.SIGINT)
+    said.append(recorder.communicate(timeout=60)[0])
     stop(camera)
     calibration = tmp_path / 'micro_calibration.yaml'
     fitted = omni_micro('calibrate-camera', str(bag), '--camera', 'micro', '--mirrored', *TARGET,
                         '--out', str(calibration))
-    assert fitted.returncode == 0, fitted.stderr + recorder.communicate()[0]
+    assert fitted.returncode == 0, fitted.stderr + ''.join(said)
     assert 'RMS residual' in fitted.stdout
     return calibration
 
