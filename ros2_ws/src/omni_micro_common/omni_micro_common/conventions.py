@@ -62,7 +62,7 @@ class CaptureUncertainty:
     """One capture's standard deviations: x and y of the position, and the heading.
 
     A camera publishes them beside each PoseStamped capture as a PoseWithCovarianceStamped
-    (README, "Camera contract"); the covariance layout is :meth:`covariance`.
+    (docs/graph.md, "The camera contract"); the covariance layout is :meth:`covariance`.
     """
 
     x_sigma_m: float

@@ -1,9 +1,9 @@
 """The robot and its motors: one validated, immutable parameter object each, in SI units.
 
 Defaults are the paper's section 3.5 robot. Three values the paper does not state are pinned by
-its two published results (README, "Unstated parameters"): wheel 1 sits at 45 deg from the robot's
-X axis, its cantilever is on the left of its rolling direction, and the chassis radius used for
-the moment of inertia is 4.5 mm (the 9 mm chassis).
+its two published results (docs/model.md, "Unstated parameters"): wheel 1 sits at 45 deg from
+the robot's X axis, its cantilever is on the left of its rolling direction, and the chassis
+radius used for the moment of inertia is 4.5 mm (the 9 mm chassis).
 """
 
 from __future__ import annotations

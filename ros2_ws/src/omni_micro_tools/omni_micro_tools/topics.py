@@ -40,7 +40,7 @@ class TopicSpec:
                    zero, zero, QosLiveliness.AUTOMATIC, zero, False)
 
 
-# Every topic of the graph (README, "The node graph"), but /odom_throttle and
+# Every topic of the graph (docs/graph.md, "The node graph"), but /odom_throttle and
 # /joint_states_throttle: copies of /odom and /joint_states for markers_node, not recorded.
 # What markers_node draws (a run without --no-markers records it too).
 MARKERS_TOPIC = '/markers'

@@ -55,7 +55,7 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                         help='model: vision_node measures the pose with the cameras\' noise '
                              'model (default); images: camera_node renders each camera\'s '
                              'images and tracker_node finds the robot in them, as a real '
-                             'camera and its tracker would (README, "Images and a tracker")')
+                             'camera and its tracker would (docs/images.md)')
     parser.add_argument('--record-images', action='store_true',
                         help='with --record and --vision images: the images and camera infos '
                              'too (about 80 MB per simulated second at the default sizes)')
@@ -117,7 +117,7 @@ def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--controller', choices=MODES, default='paper',
                         help="paper: section 4.1's rule (default); model: plan each move "
                              "through the slip model and identify the robot's offsets as it "
-                             'goes (README, "Model-based control")')
+                             'goes (docs/control.md)')
     parser.add_argument('--tolerance-um', type=positive_float, metavar='UM',
                         help="reached when a capture's distance to the goal plus its 95 %% "
                              'uncertainty is within this (default 3, from the params)')
