@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 import pytest
 
@@ -23,10 +24,18 @@ def test_every_flag_has_help(name):
     assert not missing, f'{name}: {missing} have no help text'
 
 
-@pytest.mark.parametrize('name', ['run', 'demo', 'soak'])
-def test_help_gives_the_exit_codes(name):
-    text = subcommands()[name].format_help()
-    assert 'Exit 0' in text and '2' in text.split('Exit 0', 1)[1]
+@pytest.mark.parametrize(('name', 'codes'), [
+    ('run', (0, 1, 2)), ('demo', (0, 1, 2)), ('soak', (0, 1, 2)), ('track', (0, 1, 2)),
+    ('identify', (0, 1, 2)), ('calibrate-camera', (0, 1, 2)), ('record-target', (0, 2))])
+def test_help_gives_the_exit_codes(name, codes):
+    """Each code the command can end with, said as the README says them: 0 when done, 1 when
+    the work failed, 2 for a bad argument."""
+    text = ' '.join(subcommands()[name].format_help().split())
+    stated = text.split('Exit 0', 1)[1] if 'Exit 0' in text else ''
+    assert stated, f'{name}: no "Exit 0" in its help'
+    said = {1: re.search(r'\b1 (when|otherwise)\b', stated) is not None,
+            2: re.search(r'\b2 for a bad argument\b', stated) is not None}
+    assert {code for code, found in said.items() if found} == set(codes) - {0}, stated[:200]
 
 
 def test_analyse_is_analyze():

@@ -43,7 +43,6 @@ _COM_X = KERNEL_INDEX['center_of_mass_x_m']
 _COM_Y = KERNEL_INDEX['center_of_mass_y_m']
 _A = KERNEL_INDEX['contact_radius_m']
 _PIVOT = KERNEL_INDEX['pivot_coefficient']
-STEER_KNOT_SIZE = 4
 _TWO_OVER_PI = 2.0 / math.pi
 _WHEEL_SPACING = 2.0 * math.pi / 3.0
 
