@@ -5,13 +5,17 @@ Checked in a fresh interpreter each (an import, unlike a time, does not flake)."
 
 from __future__ import annotations
 
+import ast
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from omni_micro_cli.cli import COMMANDS
+
+ROOT = Path(__file__).resolve().parents[2]
 
 HEAVY = ('numba', 'llvmlite', 'scipy', 'matplotlib', 'pyarrow', 'dask', 'distributed', 'cv2',
          'rosbags', 'rclpy')
@@ -77,3 +81,16 @@ def test_the_shared_contracts_load_no_sibling_package():
             'omni_micro_common.params, omni_micro_common.messages')
     assert loaded_after(code, ('omni_micro_sim', 'omni_micro_vision', 'omni_micro_control',
                                'omni_micro_tools', 'omni_micro_cli', *PHYSICS, 'numpy')) == []
+
+
+@pytest.mark.parametrize('package', sorted(path.parent.name for path in
+                                           (ROOT / 'ros2_ws' / 'src').glob('*/*/__init__.py')))
+def test_every_module_is_named_in_its_packages_docstring(package):
+    """Each package's __init__ says what its modules are (the convention the packages keep):
+    ten were left out, so the docstring no longer showed the package."""
+    folder = next((ROOT / 'ros2_ws' / 'src').glob(f'*/{package}'))
+    docstring = ast.get_docstring(ast.parse((folder / '__init__.py').read_text())) or ''
+    unnamed = [path.stem for path in sorted(folder.glob('*.py'))
+               if path.stem not in ('__init__', '__main__')
+               and f':mod:`{path.stem}`' not in docstring and f'``{path.stem}``' not in docstring]
+    assert unnamed == [], f'{package}/__init__.py does not name {unnamed}'

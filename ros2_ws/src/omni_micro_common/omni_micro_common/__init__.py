@@ -3,8 +3,10 @@
 :mod:`conventions` (stamps, quaternions, node and joint names, capture uncertainty),
 :mod:`qos` (topic names and QoS), :mod:`lockstep` (the gate and its reports), :mod:`clocks`
 (which clock a stamp is on, and when two cannot share one),
-:mod:`node_runtime` (how a node process starts, spins and stops), :mod:`params` (the one reader
-of params files), :mod:`messages` (message classes by type name), :mod:`errors`.
+:mod:`node_runtime` (how a node process starts, spins and stops), :mod:`container` (several
+nodes in one process), :mod:`params` (the one reader of params files), :mod:`messages` (message
+classes by type name), :mod:`cdr` (messages serialized once and patched in place),
+:mod:`tick_messages` (the robot's per-tick messages as such templates), :mod:`errors`.
 
 A camera driver, a tracker or a recorder that follows these contracts depends on this package
 alone: it imports no physics (no numba, no scipy).

@@ -2,8 +2,11 @@
 
 The physics lives in plain modules (no rclpy import) so it can be used and tested without ROS:
 :mod:`parameters` (the robot), :mod:`state` (its pose and velocity), :mod:`profile` (wheel
-commands), :mod:`kernels` (eqs. 1-13, numba), :mod:`simulator` (the stepping API and open-loop
-runs), :mod:`stepper` (the grid the node publishes on). :mod:`dynamics_node` is the ROS adapter.
+commands), :mod:`steering` (the steering motion) and :mod:`knots` (both between knots, plain
+Python), :mod:`kernels` (eqs. 1-13, numba), :mod:`simulator` (the stepping API and open-loop
+runs), :mod:`stepper` (the grid the node publishes on), :mod:`wheel_trajectory` (the wheel
+command contract), :mod:`paper` (the paper's scenarios and numbers), :mod:`reference` (a
+solve_ivp check of the integrator), :mod:`errors`. :mod:`dynamics_node` is the ROS adapter.
 
 The names below load on first use (PEP 562), so that importing a light module of this package
 (parameters, state, profile) does not compile the slip kernels.

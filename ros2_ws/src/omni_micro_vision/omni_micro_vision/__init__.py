@@ -7,7 +7,9 @@ stillness, which camera speaks), :mod:`encodings` (drivers' encodings made grey)
 (a camera as the tracker reads its settings, and the CameraInfo it accepts), :mod:`optics` (a
 simulated camera's mount and lens), :mod:`targets` (a chessboard calibration target),
 :mod:`calibration` (a camera's map fitted from frames of it), :mod:`scene` (what a viewer
-draws). At the message boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
-:mod:`camera_frames` (a simulated camera's frames as a driver sends them). Their nodes:
+draws) and :mod:`scene_kernel` (the frames' reflectance, numba), :mod:`errors`. At the message
+boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
+:mod:`camera_frames` (a simulated camera's frames as a driver sends them),
+:mod:`marker_messages` (the scene as a serialized MarkerArray). Their nodes:
 ``vision_node``, ``camera_node``, ``tracker_node``, ``markers_node``.
 """
