@@ -48,6 +48,23 @@ def test_metadata_is_rosbag2_version_9_with_types_counts_and_qos(recorded):
     assert summary['sim_time_s'] * 1e9 < info['duration']['nanoseconds'] < 10**11
 
 
+def test_the_recorded_qos_is_what_the_graphs_publishers_offer(tmp_path):
+    """The metadata above is written from omni_micro_tools.topics' table; this checks the table
+    against the publishers a running graph really has (read from the ROS graph, as rqt_graph
+    would), so that a publisher whose QoS changes makes the bag's metadata fail here."""
+    from omni_micro_cli.orchestration.composition import GraphOptions
+    from omni_micro_cli.orchestration.graph import describe_graph
+
+    described = describe_graph(GraphOptions(goal_m=(0.1, 0.0), log_dir=tmp_path / 'logs',
+                                            record=tmp_path / 'bag'))
+    offered = {topic.topic: topic.publishers for topic in described}
+    for name, spec in GRAPH_TOPICS.items():
+        assert offered.get(name), f'nobody publishes {name}'
+        expected = ('reliable', 'transient_local' if spec.latched else 'volatile')
+        for publisher in offered[name]:
+            assert (publisher.reliability, publisher.durability) == expected, (name, publisher)
+
+
 def test_an_independent_mcap_reader_decodes_the_same_messages(recorded):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
