@@ -169,9 +169,14 @@ class PlaneMap:
         matrix = to_platform @ to_camera @ (flip if mirrored else np.eye(3))
         return cls(camera.name, (columns, rows), tuple(matrix.ravel()), lens)
 
-    @property
+    @functools.cached_property
     def matrix(self) -> np.ndarray:
         return np.array(self.homography).reshape(3, 3)
+
+    @functools.cached_property
+    def inverse(self) -> np.ndarray:
+        """From the platform to undistorted pixels."""
+        return np.linalg.inv(self.matrix)
 
     def to_platform(self, pixels: np.ndarray) -> np.ndarray:
         """Platform points (N x 2, m) seen at ``pixels`` (N x 2, as the frame shows them)."""
@@ -181,7 +186,7 @@ class PlaneMap:
     def to_pixels(self, points: np.ndarray) -> np.ndarray:
         """Where the frame shows platform ``points`` (N x 2, m): the inverse of
         :meth:`to_platform`."""
-        ideal = _apply(np.linalg.inv(self.matrix), np.asarray(points, np.float64).reshape(-1, 2))
+        ideal = _apply(self.inverse, np.asarray(points, np.float64).reshape(-1, 2))
         return self.lens.distorted(ideal)
 
     @functools.cached_property
@@ -204,7 +209,7 @@ class PlaneMap:
     def pixels_per_metre(self) -> tuple[float, float]:
         """How many pixels along u and along v a platform disc of 1 m radius spans (at the
         centre, through the homography alone): a search window's half-size per metre."""
-        inverse = np.linalg.inv(self.matrix)
+        inverse = self.inverse
         # The linear part at the image centre of the inverse homography.
         x, y = self.to_platform_undistorted(np.array([self.resolution_px]) / 2 - 0.5)[0]
         w = inverse[2, 0] * x + inverse[2, 1] * y + inverse[2, 2]
@@ -224,6 +229,11 @@ class PlaneMap:
     def mirrored(self) -> bool:
         """Whether the image is mirrored (the map keeps the plane's handedness)."""
         return bool(np.linalg.det(self.matrix[:2, :2]) > 0)
+
+    @functools.cached_property
+    def field_camera(self) -> CameraModel:
+        """The camera as a field and a resolution (what picks the fiducial it tracks)."""
+        return self.camera_model(0.0, 0.0)
 
     def camera_model(self, noise_px: float, quantisation_px: float) -> CameraModel:
         """The measurement model of this camera (its field and pixel at the centre), for the

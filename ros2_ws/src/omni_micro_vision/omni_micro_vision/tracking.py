@@ -81,7 +81,7 @@ def track(image: np.ndarray, plane: PlaneMap, near: tuple[float, float] | None =
                                 f'shape {image.shape}')
     scale = int(np.iinfo(image.dtype).max) if full_scale is None else full_scale
     pixel_m = plane.pixel_size_m
-    fiducial = fiducial_for(plane.camera_model(0.0, 0.0))
+    fiducial = fiducial_for(plane.field_camera)
     if near is not None:
         column, row = plane.to_pixels(np.array([near]))[0]
         reach = ((0.5 + SEARCH_MARGIN_BASELINES) * fiducial.baseline_m
