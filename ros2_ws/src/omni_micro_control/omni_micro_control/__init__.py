@@ -3,5 +3,6 @@
 Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, the distance
 comparator, the outcome), :mod:`model_based` (plans through the slip model, learns the robot)
 and :mod:`identification` (the least-squares fit it and ``omni-micro identify`` use), and
-:mod:`errors`. Its node: ``controller_node``.
+:mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
+``controller_node``.
 """

@@ -16,7 +16,7 @@ def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:
 
 def check_goal(goal_m: tuple[float, float], params_files: tuple[Path, ...]) -> None:
     """Refuse a goal outside the platform before anything starts (exit 2, nothing written)."""
-    from omni_micro_control.controller_node import checked_platform
+    from omni_micro_control.platform import checked_platform
 
     center = controller_parameter('platform.center_m', params_files)
     size = controller_parameter('platform.size_m', params_files)
