@@ -29,8 +29,8 @@ VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
 LOOP_CONTAINER = 'loop_container'
 # What may come from the bench instead of the simulation (run --camera / --robot).
 SOURCES = ('simulated', 'external')
-# What a robot's driver must publish and read, and a camera driver publish, for the loop.
-EXTERNAL_ROBOT_TOPICS = {'publishes': ('/joint_states',), 'reads': ('/wheel_trajectory',)}
+# What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
+EXTERNAL_ROBOT_PUBLISHES = ('/joint_states',)
 
 
 @dataclass(frozen=True)
@@ -281,7 +281,8 @@ def simulates_robot(options: GraphOptions) -> bool:
 
 def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
     """The topics someone must read before time may start (of alternatives, any one): the
-    robot its trajectories, the controller the wheels and the captures, a simulated camera the
+    robot its trajectories, the controller the wheels and the captures (bare or with their
+    covariance, as its capture_uncertainty says: either will do), a simulated camera the
     robot's /odom."""
     from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
 
@@ -297,8 +298,7 @@ def external_publications(options: GraphOptions) -> dict[str, str]:
     and names the one missing)."""
     needed = {}
     if options.robot == 'external':
-        needed.update({topic: "the robot's driver"
-                       for topic in EXTERNAL_ROBOT_TOPICS['publishes']})
+        needed.update({topic: "the robot's driver" for topic in EXTERNAL_ROBOT_PUBLISHES})
     if options.camera == 'external':
         if options.image_topics:
             topics = list(options.image_topics.values())

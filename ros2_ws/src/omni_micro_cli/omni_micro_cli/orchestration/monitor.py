@@ -25,7 +25,6 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.parameters import dds_profile
 from omni_micro_common.conventions import LOCKSTEP_INPUTS, join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import (
-    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
     DATA_QOS,
@@ -48,12 +47,6 @@ class Supervisor(Protocol):
         """Wait until the node's current process says it is ready."""
         ...
 
-# Topic -> how many subscribers it needs before time may start (the monitor's own included).
-# The graph is up once each of these is heard by someone; the controller reads a camera's
-# captures with their uncertainty, or bare (capture_uncertainty: fixed): either will do.
-READY_SUBSCRIBERS: list[tuple[str, ...]] = [
-    ('/wheel_trajectory',), ('/joint_states',), ('/odom',),
-    *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera]) for camera in CAPTURE_TOPICS)]
 # The orchestrator's own node (it publishes goals and reads statuses; not part of the graph).
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
@@ -154,12 +147,12 @@ class GraphMonitor:
                          subscriptions: list[tuple[str, ...]] | None = None,
                          publications: dict[str, str] | None = None,
                          clock: bool = True) -> None:
-        """Until every node listens (``subscriptions``: the topics someone must read, by
-        default the simulated graph's; with ``images``, the tracker reads those cameras'), the
-        bench's drivers publish (``publications``: topic -> whose) and, with ``clock``, the
-        simulated robot's clock can be started."""
+        """Until every node listens (``subscriptions``: the topics someone must read, of
+        alternatives any one, as the composition says; with ``images``, the tracker reads those
+        cameras'), the bench's drivers publish (``publications``: topic -> whose) and, with
+        ``clock``, the simulated robot's clock can be started."""
         deadline = time.monotonic() + timeout_s
-        needed = [*(READY_SUBSCRIBERS if subscriptions is None else subscriptions),
+        needed = [*(subscriptions or []),
                   *((f'/camera/{camera}/image_raw',) for camera in images)]
         while True:
             graph.check_alive()
