@@ -72,13 +72,18 @@ def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro) -> Path
         stderr=subprocess.STDOUT, text=True)
     assert recorder.stdout is not None
     said = []
-    for line in recorder.stdout:     # until it records (a first start may install first)
-        said.append(line)
-        if 'recording 2 topics' in line:
-            break
-    time.sleep(4.0)                  # a few seconds of the target, as a user would record
-    recorder.send_signal(signal.SIGINT)
-    said.append(recorder.communicate(timeout=60)[0])
+    try:
+        for line in recorder.stdout:     # until it records (a first start may install first)
+            said.append(line)
+            if 'recording 2 topics' in line:
+                break
+        time.sleep(4.0)                  # a few seconds of the target, as a user would record
+        recorder.send_signal(signal.SIGINT)
+        said.append(recorder.communicate(timeout=60)[0])
+    finally:
+        if recorder.poll() is None:      # never left running, whatever failed above
+            recorder.kill()
+            recorder.wait()
     stop(camera)
     calibration = tmp_path / 'micro_calibration.yaml'
     fitted = omni_micro('calibrate-camera', str(bag), '--camera', 'micro', '--mirrored', *TARGET,
