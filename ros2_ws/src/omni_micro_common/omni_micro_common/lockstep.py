@@ -13,7 +13,12 @@ step; this does the same with a bounded lead. Every node that takes part reports
   ``frame_handled_ns``: the latest image stamp up to which it has handled every camera's frame
   (a tracker; a recorder that must keep every frame);
 - ``command_ns``: the stamp of the last command it published, and ``command_lead_ns``, how long
-  after their capture its moves start (a controller).
+  after their capture its moves start (a controller);
+- ``command_handled_ns``: the stamp of the command it has just handled, and with it
+  ``capture_handled_ns``: a *watcher*, a node that reads no odometry but must see every capture
+  and command before time goes on (markers_node, so that what it draws for a tick never depends
+  on which message reached it first). A watcher holds time at most one period past a capture
+  it has not handled, and holds it still while a command it has not handled is on its way.
 
 A plain "processed up to" stamp is not enough: a capture, a command and a report travel on
 different topics, and DDS orders messages per writer only. So the robot also waits until the
@@ -42,7 +47,9 @@ DEFAULT_MAX_LEAD_S = 0.04
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
-           'frame_handled_ns')
+           'frame_handled_ns', 'command_handled_ns')
+# What a watcher reports before it has handled any capture or command.
+NOTHING_HANDLED_NS = -1
 
 
 @dataclass(frozen=True)
@@ -57,13 +64,19 @@ class Ack:
     command_lead_ns: int | None = None
     frames_ns: tuple[int, int] | None = None
     frame_handled_ns: int | None = None
+    command_handled_ns: int | None = None
+
+    @property
+    def watcher(self) -> bool:
+        return self.command_handled_ns is not None
 
     def to_values(self) -> list[tuple[str, str]]:
         values = [] if self.processed_ns is None else [('processed_ns', str(self.processed_ns))]
         for kind, span in (('capture', self.captures_ns), ('frame', self.frames_ns)):
             if span is not None:
                 values += [(f'{kind}_first_ns', str(span[0])), (f'{kind}_last_ns', str(span[1]))]
-        for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns'):
+        for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns',
+                     'command_handled_ns'):
             value = getattr(self, name)
             if value is not None:
                 values.append((name, str(value)))
@@ -81,9 +94,13 @@ class Ack:
             except ValueError:
                 raise LockstepError(f'lockstep report of {node!r}: {key} must be a whole '
                                     f'number of nanoseconds, got {text!r}') from None
-        if 'processed_ns' not in fields and 'frame_handled_ns' not in fields:
-            raise LockstepError(f'lockstep report of {node!r} has neither processed_ns nor '
-                                f'frame_handled_ns')
+        if not {'processed_ns', 'frame_handled_ns', 'command_handled_ns'} & set(fields):
+            raise LockstepError(f'lockstep report of {node!r} has none of processed_ns, '
+                                f'frame_handled_ns and command_handled_ns')
+        if ('command_handled_ns' in fields) != ('capture_handled_ns' in fields) \
+                and 'processed_ns' not in fields:
+            raise LockstepError(f'lockstep report of {node!r}: a watcher reports '
+                                f'command_handled_ns and capture_handled_ns together')
         spans: dict[str, tuple[int, int] | None] = {}
         for kind in ('capture', 'frame'):
             first, last = fields.get(f'{kind}_first_ns'), fields.get(f'{kind}_last_ns')
@@ -93,7 +110,8 @@ class Ack:
             spans[kind] = None if first is None or last is None else (first, last)
         return cls(node, fields.get('processed_ns'), spans['capture'],
                    fields.get('capture_handled_ns'), fields.get('command_ns'),
-                   fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'))
+                   fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'),
+                   fields.get('command_handled_ns'))
 
 
 class LockstepGate:
@@ -130,6 +148,14 @@ class LockstepGate:
         self._frame_handled: dict[str, int] = {}
         self._pending_frames: list[tuple[int, int]] = []
         self._received_commands: deque[int] = deque(maxlen=self.RECEIVED_COMMANDS_KEPT)
+        # Watchers (see the module docstring): the captures each has handled up to, the
+        # commands each has handled, and the captures some watcher has still to handle.
+        self._watched_up_to: dict[str, int] = {}
+        self._watched_commands: dict[str, deque[int]] = {}
+        self._unwatched_captures: list[tuple[int, int]] = []
+        # Nodes known to report without processed_ns: a reset does not wait for their stamp
+        # (a watcher reports when a throttled sample comes, maybe beyond the lead).
+        self._reads_no_odometry: set[str] = set()
         self.reset(0)
 
     @property
@@ -143,12 +169,16 @@ class LockstepGate:
     def reset(self, now_ns: int) -> None:
         """Every node counts as caught up at ``now_ns`` (start, or resuming after a pause in
         which a node may have been replaced: a new process knows nothing of the old one's)."""
-        self._processed = dict.fromkeys(self.nodes, now_ns)
+        self._processed = dict.fromkeys(
+            (node for node in self.nodes if node not in self._reads_no_odometry), now_ns)
         self._capture_handled.clear()
         self._awaited_commands.clear()
         self._pending_captures.clear()
         self._frame_handled.clear()
         self._pending_frames.clear()
+        self._watched_up_to.clear()
+        self._watched_commands.clear()
+        self._unwatched_captures.clear()
 
     def on_ack(self, ack: Ack) -> None:
         if ack.node not in self.nodes:
@@ -158,11 +188,24 @@ class LockstepGate:
         else:
             # It reads no odometry: its frames to handle hold time back, not its stamp.
             self._processed.pop(ack.node, None)
+            self._reads_no_odometry.add(ack.node)
         if ack.captures_ns is not None:
             self._pending_captures.append(ack.captures_ns)
             if not self._capture_handled:
                 # Nobody who handles captures has reported (yet): keep a bounded memory.
                 del self._pending_captures[:-self.RECEIVED_COMMANDS_KEPT]
+            self._unwatched_captures.append(ack.captures_ns)
+            if not self._watched_up_to:
+                del self._unwatched_captures[:-self.RECEIVED_COMMANDS_KEPT]
+        if ack.watcher:
+            assert ack.command_handled_ns is not None
+            self._watched_up_to[ack.node] = max(
+                self._watched_up_to.get(ack.node, NOTHING_HANDLED_NS),
+                NOTHING_HANDLED_NS if ack.capture_handled_ns is None else ack.capture_handled_ns)
+            self._watched_commands.setdefault(
+                ack.node, deque(maxlen=self.RECEIVED_COMMANDS_KEPT)).append(
+                    ack.command_handled_ns)
+            return
         if ack.frames_ns is not None:
             self._pending_frames.append(ack.frames_ns)
             if not self._frame_handled:
@@ -187,6 +230,14 @@ class LockstepGate:
                    if ns not in self._received_commands]
         if missing:
             return ', '.join(missing)
+        unwatched = [f'{watcher} to handle the command at {ns} ns'
+                     for watcher, handled in self._watched_commands.items()
+                     for ns in self._awaited_commands.values() if ns not in handled]
+        if unwatched:
+            return ', '.join(unwatched)
+        if self._watched_up_to and self._unwatched_captures:
+            watcher = min(self._watched_up_to, key=self._watched_up_to.__getitem__)
+            return f'{watcher} to handle the capture at {self._unwatched_captures[0][0]} ns'
         if self._frame_handled and self._pending_frames:
             tracker = min(self._frame_handled, key=self._frame_handled.__getitem__)
             return f'{tracker} to handle the frame at {self._pending_frames[0][0]} ns'
@@ -205,6 +256,9 @@ class LockstepGate:
             return math.inf
         if any(ns not in self._received_commands for ns in self._awaited_commands.values()):
             return -math.inf   # a command is on its way: wait for it, whatever its stamp
+        if any(ns not in handled for handled in self._watched_commands.values()
+               for ns in self._awaited_commands.values()):
+            return -math.inf   # ... and for every watcher to have it
         reachable = min(self._processed.values(), default=math.inf)
         if not math.isinf(reachable):
             reachable += self.lead_ticks * self.period_ns
@@ -222,6 +276,13 @@ class LockstepGate:
                 # The move a capture causes starts a lead after it: no further than that.
                 reachable = min(reachable, min(first for first, _ in self._pending_captures)
                                 + self._move_lead_ns)
+        if self._watched_up_to:
+            watched = min(self._watched_up_to.values())
+            self._unwatched_captures = [c for c in self._unwatched_captures if c[1] > watched]
+            if self._unwatched_captures:
+                # A watcher must have a capture before any later sample can reach it.
+                reachable = min(reachable, min(first for first, _ in self._unwatched_captures)
+                                + self.period_ns)
         if math.isinf(reachable):
             return -math.inf   # only trackers take part, and no camera: nothing to go by
         return reachable

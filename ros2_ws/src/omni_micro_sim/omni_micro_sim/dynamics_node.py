@@ -339,7 +339,8 @@ class DynamicsNode(Node):
                       else reachable)
         # Never more than 50 periods per callback: if the machine cannot keep up, simulated time
         # slows down rather than the node starving its subscriptions.
-        steps = int(min(due - self.grid.tick, 50))
+        # (-inf: the lockstep holds time still, a command being on its way.)
+        steps = 0 if due == -math.inf else int(min(due - self.grid.tick, 50))
         for _ in range(steps):
             try:
                 sample = self.grid.advance()
