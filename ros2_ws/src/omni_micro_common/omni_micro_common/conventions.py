@@ -112,6 +112,13 @@ class CaptureUncertainty:
         return cls(*sigmas)
 
 
+# The key of the simulated time (s, repr of a float) every /controller/status and /camera/status
+# carries: the time of what it says (a decision's capture, a goal's arrival), not of its
+# publication. A recorder writes the status at that time, so the same run records the same bag.
+STATUS_TIME_KEY = 'sim_time_s'
+# The key a /controller/status that ends a goal carries (its value: the outcome's name).
+OUTCOME_KEY = 'outcome'
+
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
 PUBLISHED_MARKER = 'published message counts: '
 

@@ -39,6 +39,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
     JOINT_NAMES,
+    OUTCOME_KEY,
+    STATUS_TIME_KEY,
     STEERING_JOINT,
     WHEEL_JOINTS,
     CaptureUncertainty,
@@ -148,7 +150,7 @@ class ControllerNode(Node):
                                  STATUS_QOS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0
-        self._publish_status(DiagnosticStatus.OK, 'idle')
+        self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         self.get_logger().info(
             f'controller ready ({config.mode} mode): timer2 {config.settle_wait_s:g} s, timer1 '
             f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
@@ -207,7 +209,8 @@ class ControllerNode(Node):
         if msg.header.frame_id not in (self.frame_id, ''):
             problem = f'goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}'
             self.get_logger().warning(f'rejected {problem}; staying as it was')
-            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', reason=problem)
+            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
+                                 reason=problem)
             return
         self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.now_s())
 
@@ -215,13 +218,14 @@ class ControllerNode(Node):
         problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
         if problem:
             self.get_logger().warning(f'rejected goal: {problem}; staying idle')
-            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', reason=problem)
+            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
+                                 reason=problem)
             return
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
         if replaced is not None:
             self.report(replaced)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm')
-        self._publish_status(DiagnosticStatus.OK, 'settling')
+        self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
 
     # -- events ------------------------------------------------------------------------------
     def _on_joint_state(self, data: bytes) -> None:
@@ -303,7 +307,8 @@ class ControllerNode(Node):
             if mismatch != self._said_mismatch:
                 self._said_mismatch = mismatch
                 self.get_logger().error(mismatch)
-                self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch', reason=mismatch)
+                self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch',
+                                     at_s=self.robot_time_s, reason=mismatch)
             self._act(self.controller.on_foreign_capture(mismatch))
             return
         observation = Observation(
@@ -393,19 +398,16 @@ class ControllerNode(Node):
             self.get_logger().warning(line)
         else:
             self.get_logger().info(line)
-        self._publish_status(DiagnosticStatus.OK, 'moving', **values)
+        self._publish_status(DiagnosticStatus.OK, 'moving', at_s=move.observation.stamp_s,
+                             **values)
 
     def report(self, finished: Finished | None) -> None:
         if finished is None:
             return
         if self.controller.phase is Phase.DONE:
             self.watcher.forget()   # a replaced goal keeps watching the move still running
-        values = {'outcome': finished.outcome.value, 'periods': str(finished.periods),
-                  'reason': finished.reason,
-                  # The decision's own time (its capture, else the robot's last report), not
-                  # the arrival time: the same run then records the same status.
-                  'sim_time_s': repr(finished.observation.stamp_s if finished.observation
-                                     else self.robot_time_s)}
+        values = {OUTCOME_KEY: finished.outcome.value, 'periods': str(finished.periods),
+                  'reason': finished.reason}
         if finished.observation is not None:
             seen = finished.observation
             values.update(measured_x_m=repr(seen.x_m), measured_y_m=repr(seen.y_m),
@@ -424,11 +426,18 @@ class ControllerNode(Node):
             self.get_logger().info(line)
         else:
             self.get_logger().warning(line)
-        self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, **values)
+        # The decision's own time (its capture, else the robot's last report).
+        at_s = finished.observation.stamp_s if finished.observation else self.robot_time_s
+        self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, at_s=at_s,
+                             **values)
 
-    def _publish_status(self, level: int, message: str, **values: str) -> None:
+    def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
+        """``at_s``: the simulated time of what the status says (a decision's capture, a goal's
+        arrival), not of its publication: a bag records it at that time (STATUS_TIME_KEY), so
+        that the same run records the same statuses in the same place."""
         status = DiagnosticStatus(level=level, name='omni_micro_controller', message=message,
                                   hardware_id='omni_micro')
+        values = {STATUS_TIME_KEY: repr(float(at_s)), **values}
         status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
         self.status_pub.publish(status)
 

@@ -28,6 +28,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from omni_micro_common.conventions import (
+    STATUS_TIME_KEY,
     join_stamp,
     quaternion_to_yaw,
     split_stamp,
@@ -122,7 +123,7 @@ class VisionNode(Node):
                                      self.covariance_pubs.values(), self._read_odometry)
         # Last: from here on only faults.* may change (the parameters above are declared).
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop')
+        self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop', at_s=0.0)
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
@@ -151,12 +152,14 @@ class VisionNode(Node):
         self.get_logger().warning(f'camera faults now: {faults}')
         return SetParametersResult(successful=True)
 
-    def _publish_status(self, level: int, message: str, **values: str) -> None:
+    def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
+        """``at_s``: the simulated time of the sample or capture it is about (STATUS_TIME_KEY)."""
         if self._status == (level, message):
             return
         self._status = (level, message)
         status = DiagnosticStatus(level=level, name='omni_micro_vision', message=message,
                                   hardware_id='overhead_cameras')
+        values = {STATUS_TIME_KEY: repr(float(at_s)), **values}
         status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
         self.status_pub.publish(status)
 
@@ -182,7 +185,7 @@ class VisionNode(Node):
                 self.faults.submit(event)
             else:
                 self._publish_status(DiagnosticStatus.WARN, 'robot outside the macro field',
-                                     x_m=repr(x), y_m=repr(y))
+                                     at_s=join_stamp(sec, nanosec), x_m=repr(x), y_m=repr(y))
                 self.get_logger().warning(
                     f'robot at ({x * 1e3:.3f}, {y * 1e3:.3f}) mm '
                     f'is outside the macro field: no capture', throttle_duration_sec=5.0)
@@ -205,7 +208,7 @@ class VisionNode(Node):
         self.covariance_pubs[capture.camera].publish(with_covariance)
         self.capture_pubs[capture.camera].publish(msg)
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
-                             camera=capture.camera)
+                             at_s=capture.stamp_s, camera=capture.camera)
         return stamp_ns(msg.header.stamp)
 
 
