@@ -96,9 +96,9 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
     assert (loop.package, loop.executable) == ('omni_micro_common', 'container')
     assert [spec.name for spec in loop.hosts] == ['dynamics_node', 'vision_node',
                                                   'controller_node']
-    # The dynamics waits for the same reports as with separate processes.
+    # The dynamics waits for the same reports as with separate processes, the markers' too.
     assert node_overrides(loop.hosts[0], options)['lockstep_nodes'] == [
-        'vision_node', 'controller_node']
+        'vision_node', 'controller_node', 'markers_node']
     images = all_specs(GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False,
                                     vision='images'))
     assert [spec.name for spec in images[0].hosts] == [

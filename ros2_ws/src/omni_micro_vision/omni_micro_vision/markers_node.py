@@ -1,10 +1,17 @@
 """ROS 2 adapter of the scene: visualization_msgs/MarkerArray on /markers, for RViz 2 and Foxglove.
 
-Only listens (/odom_throttle, /joint_states_throttle, /wheel_slip, /wheel_trajectory, /goal_pose
-and the cameras' captures) and publishes /markers in the ``platform`` frame, stamped with the
-simulated time of the odometry it draws. It takes no part in the lockstep, so the graph runs the
-same with or without it. What is drawn is :class:`omni_micro_vision.scene.Scene`'s; this node only
-moves numbers.
+Listens (/odom_throttle, /joint_states_throttle, /wheel_slip, /wheel_trajectory, /goal_pose and
+the cameras' captures) and publishes /markers in the ``platform`` frame, stamped with the
+simulated time of the odometry it draws. What is drawn is
+:class:`omni_micro_vision.scene.Scene`'s; this node only moves numbers.
+
+What an array holds depends on the stamps of what it draws, never on which message arrived
+first: every input is applied in stamp order (ties: goal, move, macro capture, micro capture),
+and an array is drawn only once the odometry has gone two arrays past it. In a lockstep graph
+the node is a *watcher* (:mod:`omni_micro_common.lockstep`): it reports each capture and command
+it has handled on /lockstep, and time does not go more than a period past a capture, nor on at
+all past a command, that it has not handled; so every event of an array is in before the
+odometry that draws it (measured cost: docs/time.md). Started alone, nobody waits for it.
 
 The robot's pose and wheels come from the throttled streams dynamics_node publishes for who only
 watches (10 Hz of simulated time): at ``--rtf max`` the loop fills both cores, and each message
@@ -41,7 +48,8 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
     stamp_ns,
 )
-from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.lockstep import NOTHING_HANDLED_NS, Ack
+from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -65,11 +73,12 @@ def header_stamp_ns(data: bytes) -> int:
             + int.from_bytes(data[8:12], order))
 
 
-# An array is drawn once the odometry has gone this many arrays further, so that every event
-# stamped up to it (a capture, a move) has arrived, although it comes from another publisher:
-# at --rtf max with a viewer running, one array's time (5 ticks, a few ms of wall time) was
-# not always enough, and a capture fell into the next array in one run of two.
+# An array is drawn once the odometry has gone this many arrays further: in the lockstep every
+# event stamped up to it (a capture, a move) has then been handled (the gate holds time a period
+# past an unhandled capture, and still while a command is unhandled).
 DRAW_LAG_ARRAYS = 2
+# Ties between events of one stamp, applied in this order whatever order they arrived in.
+EVENT_ORDER = {'goal': 0, 'move': 1, 'macro': 2, 'micro': 3}
 
 
 def _period_ns(name: str, value: object) -> int:
@@ -132,6 +141,10 @@ class MarkersNode(Node):
         self._due: deque[tuple[int, bool]] = deque()
         self._last_periods: tuple[int, int] | None = None   # (publish, refresh) of the last due
         self._sequence = 0
+        # What it reports as a watcher: the latest capture and command stamps it has handled.
+        self.lockstep = LockstepReporter(self)
+        self._capture_handled_ns = NOTHING_HANDLED_NS
+        self._command_handled_ns = NOTHING_HANDLED_NS
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self._odometry = odometry_template()
         self.create_subscription(Odometry, '/odom_throttle', self._on_odometry, DATA_QOS,
@@ -166,12 +179,21 @@ class MarkersNode(Node):
         self.publisher = self.create_publisher(MarkerArray, '/markers', DATA_QOS)
 
     # -- inputs ------------------------------------------------------------------------------
-    def _at(self, stamp: Time, order: int, apply: Callable[[], None]) -> None:
-        """Apply ``apply`` when the drawing reaches ``stamp`` (``order`` breaks ties: a
-        goal or a move before a capture)."""
+    def _at(self, stamp: Time, kind: str, apply: Callable[[], None]) -> None:
+        """Apply ``apply`` when the drawing reaches ``stamp`` (``kind`` breaks ties, as
+        EVENT_ORDER says; two of one kind and stamp come from one publisher, in its order)."""
         self.handled += 1
         self._sequence += 1
-        heapq.heappush(self._events, (stamp_ns(stamp), order, self._sequence, apply))
+        heapq.heappush(self._events, (stamp_ns(stamp), EVENT_ORDER[kind], self._sequence, apply))
+
+    def _report(self) -> None:
+        self.lockstep.report(Ack(self.get_name(), None,
+                                 capture_handled_ns=self._capture_handled_ns,
+                                 command_handled_ns=self._command_handled_ns))
+
+    def _handled_capture(self, stamp: Time) -> None:
+        self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(stamp))
+        self._report()
 
     def _on_odometry(self, data: bytes) -> None:
         sec, nanosec, x, y, qz, qw, *_ = self._odometry.decode(data)
@@ -179,6 +201,7 @@ class MarkersNode(Node):
         at = stamp_ns(stamp)
         self._poses.append((at, stamp, (x, y, quaternion_to_yaw(qz, qw))))
         self.handled += 1
+        self._report()   # the first says, at time 0, that this node watches
         # A sample is drawn when it is the first of a publish period (a whole number of
         # periods from time 0), whatever the rate of the stream.
         periods = (at // self.publish_ns, at // self.refresh_ns)
@@ -233,6 +256,13 @@ class MarkersNode(Node):
         self._joint_states[header_stamp_ns(data)] = data
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
+        self._command_handled_ns = stamp_ns(msg.header.stamp)
+        try:
+            self._take_trajectory(msg)
+        finally:
+            self._report()
+
+    def _take_trajectory(self, msg: JointTrajectory) -> None:
         if len(msg.points) < 2 or STEERING_JOINT not in msg.joint_names:
             self.handled += 1
             return    # a stop: nothing to draw
@@ -244,20 +274,21 @@ class MarkersNode(Node):
             # turn as /joint_states says they do.
             self.scene.on_move(steering, length)
             self._changed.add('moves')
-        self._at(msg.header.stamp, 0, start_move)
+        self._at(msg.header.stamp, 'move', start_move)
 
     def _on_goal(self, msg: PoseStamped) -> None:
         def set_goal() -> None:
             self.scene.on_goal(msg.pose.position.x, msg.pose.position.y)
             self._changed.add('goal')
-        self._at(msg.header.stamp, 0, set_goal)
+        self._at(msg.header.stamp, 'goal', set_goal)
 
     def _capture_reader(self, camera: str) -> Callable[[PoseStamped], None]:
         def on_capture(msg: PoseStamped) -> None:
             def add() -> None:
                 self.scene.on_capture(camera, msg.pose.position.x, msg.pose.position.y)
                 self._changed.add('captures')
-            self._at(msg.header.stamp, 1, add)
+            self._at(msg.header.stamp, camera, add)
+            self._handled_capture(msg.header.stamp)
         return on_capture
 
     def _capture_with_uncertainty_reader(
@@ -270,13 +301,15 @@ class MarkersNode(Node):
                 self.get_logger().warning(f'not drawn: {camera} capture: {error}',
                                           throttle_duration_sec=5.0)
                 self.handled += 1
+                self._handled_capture(msg.header.stamp)
                 return
 
             def add() -> None:
                 self.scene.on_capture(camera, x, y)
                 self.scene.on_capture_uncertainty(camera, x, y, radius)
                 self._changed.add('captures')
-            self._at(msg.header.stamp, 1, add)
+            self._at(msg.header.stamp, camera, add)
+            self._handled_capture(msg.header.stamp)
         return on_capture
 
     def _publish(self, shapes: list[Shape]) -> None:
@@ -291,7 +324,7 @@ class MarkersNode(Node):
             shapes, (self._stamp.sec, self._stamp.nanosec), clear_first=cleared))
 
 
-# Not in the lockstep, it may lag at --rtf max: it draws what is queued before it leaves.
+# It may lag behind the odometry: it draws what is queued before it leaves.
 COMPONENT = NodeComponent(MarkersNode, config_errors=(CameraConfigError,),
                           drain=lambda node: node.handled, on_shutdown=MarkersNode.finish)
 

@@ -18,8 +18,10 @@ from omni_micro_common.conventions import GRAPH_NODE_NAMES
 if TYPE_CHECKING:
     from omni_micro_cli.orchestration.graph import Graph
 
-# Nodes that report to the dynamics in lockstep (a stand-in started by command does not).
-LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node')
+# Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
+# markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
+LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
+                  'markers_node')
 # What stands for the cameras: vision_node's measurement model, or rendered images and the
 # tracker that turns them into captures (what a real camera and its tracker would do).
 VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
