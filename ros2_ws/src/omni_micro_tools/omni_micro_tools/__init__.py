@@ -3,6 +3,8 @@
 :mod:`recorder_node` (``bag_recorder``: the graph's topics into a rosbag2 bag, what
 ``ros2 bag record`` would do), :mod:`viewer_node` (``viewer``: the topics over the Foxglove
 WebSocket protocol), :mod:`bags` (writing, recovering and reading bags through the rosbags
-library), :mod:`topics` (what is recorded: each topic's type and offered QoS), :mod:`errors`.
+library), :mod:`bag_order` (the order a finished bag holds its messages in: simulated time,
+so that the same run gives the same file), :mod:`topics` (what is recorded: each topic's type
+and offered QoS), :mod:`errors`.
 The command line starts them; so does ``ros2 run omni_micro_tools ...``.
 """

@@ -1,17 +1,20 @@
 """rosbag2 bags of the graph through the `rosbags` library (no rosbag2 on this machine).
 
 What is recorded, with which offered QoS, how a bag is opened for writing without clobbering
-anything, how a bag whose recorder was killed is recovered, and how a bag is read back.
+anything, how a recorded bag is finished in the order of simulated time
+(:mod:`omni_micro_tools.bag_order`), how a bag whose recorder was killed is recovered, and how
+a bag is read back.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
 import sqlite3
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
@@ -21,6 +24,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from omni_micro_common.errors import OmniMicroError
+from omni_micro_tools.bag_order import Ordered, Stored, in_bag_order
 from omni_micro_tools.errors import BagDamagedError, BagPathError
 from omni_micro_tools.topics import (
     GRAPH_TOPICS,
@@ -108,6 +112,7 @@ class Recovery:
     dropped: int = 0                # messages of damaged chunks, or that did not decode
     damaged_chunks: int = 0
     cut_short: bool = False         # the file ends inside a record (a kill, a copy cut short)
+    unsure_tail: int = 0            # whole messages of the last RECOVERY_WINDOW_S, left out
 
     @property
     def kept(self) -> int:
@@ -183,10 +188,89 @@ def _sqlite_messages(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
         connection.close()
 
 
+def _stored_file(folder: Path) -> Path:
+    mcaps, databases = sorted(folder.glob('*.mcap')), sorted(folder.glob('*.db3'))
+    if not mcaps and not databases:
+        raise BagPathError(f'{str(folder)!r} holds no .mcap or .db3 file')
+    return mcaps[0] if mcaps else databases[0]
+
+
+def _reader_of(file: Path, report: Recovery) -> Callable[[], Iterator[Stored]]:
+    """Reads ``file``'s messages in stored order; the first reading counts what is damaged."""
+    readings = 0
+
+    def read() -> Iterator[Stored]:
+        nonlocal readings
+        readings += 1
+        if file.suffix == '.db3':
+            return _sqlite_messages(file)
+        return _mcap_messages(file, report if readings == 1 else Recovery({}))
+    return read
+
+
+def _write_in_order(source: Path, target: Path, storage: str, end: str,
+                    topics: dict[str, TopicSpec] | None) -> tuple[Ordered, Recovery]:
+    """Write the messages of the bag folder ``source`` into a new bag at ``target`` in bag
+    order (omni_micro_tools.bag_order); with ``topics``, every one of them gets its connection
+    in that order, as the recorder opened them, whether or not it has messages. Nothing is left
+    at ``target`` if this raises."""
+    report = Recovery({})
+    messages, ordered = in_bag_order(_reader_of(_stored_file(source), report), TYPESTORE, end)
+    writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    writer.open()
+    try:
+        if hasattr(writer.storage, 'close_chunk'):
+            _write_chunk_crcs(writer.storage)
+        connections = {} if topics is None else {
+            topic: writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE,
+                                         offered_qos_profiles=[spec.qos()])
+            for topic, spec in topics.items()}
+        for topic, msgtype, timestamp, data in messages:
+            if topic not in connections:
+                spec = GRAPH_TOPICS.get(topic, TopicSpec(msgtype, 1000))
+                connections[topic] = writer.add_connection(
+                    topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
+            writer.write(connections[topic], timestamp, data)
+        writer.close()
+    except BaseException:
+        with contextlib.suppress(OSError):   # a full disk fails the close too
+            writer.close()
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+    report.counts = dict(ordered.counts)
+    report.dropped += ordered.undecodable
+    return ordered, report
+
+
+def finish_in_order(bag: Path, storage: str, topics: dict[str, TopicSpec],
+                    whole: bool = False) -> Ordered:
+    """Rewrite a closed bag the recorder wrote in arrival order as a finished bag: in the order
+    of simulated time, ending BAG_TAIL_S after the run's last outcome (``whole``: at its last
+    message). The bag is replaced only once the new one is complete; until then it stays as it
+    was (a failure raises OSError and leaves it so)."""
+    work = bag.parent / f'.{bag.name}.ordering'
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir()
+    try:
+        ordered, _ = _write_in_order(bag, work / bag.name, storage,
+                                     'all' if whole else 'outcome', topics)
+        # Without metadata.yaml for a moment: a kill here leaves a bag that bag-recover reads.
+        (bag / 'metadata.yaml').unlink()
+        # The metadata last: with it, the bag is whole again.
+        for finished in sorted((work / bag.name).iterdir(),
+                               key=lambda path: path.name == 'metadata.yaml'):
+            os.replace(finished, bag / finished.name)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return ordered
+
+
 def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
     """Write every intact message of a bag whose recorder died, or whose file was cut short or
-    damaged, into a new readable bag; a message that does not decode as its type is dropped
-    (the recorder writes no checksums, so this is how damaged bytes are found).
+    damaged, into a new readable bag, in bag order; a message that does not decode as its type
+    is dropped (damaged bytes that the chunk's CRC did not catch), and so are the messages of
+    the last RECOVERY_WINDOW_S of simulated time, which may have been incomplete when the
+    recorder died: what is kept is a prefix of the bag the run would have recorded.
 
     Raises
     ------
@@ -197,37 +281,12 @@ def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
     """
     if not source.is_dir():
         raise BagPathError(f'{str(source)!r} is not a bag folder')
-    mcaps, databases = sorted(source.glob('*.mcap')), sorted(source.glob('*.db3'))
-    if not mcaps and not databases:
-        raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover')
-    report = Recovery({})
-    messages = _mcap_messages(mcaps[0], report) if mcaps else _sqlite_messages(databases[0])
-    writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
-    writer.open()
-    connections = {}
     try:
-        for topic, msgtype, timestamp, data in messages:
-            try:
-                TYPESTORE.deserialize_cdr(data, msgtype)
-            except Exception:
-                report.dropped += 1
-                continue
-            if topic not in connections:
-                spec = GRAPH_TOPICS.get(topic, TopicSpec(msgtype, 1000))
-                connections[topic] = writer.add_connection(
-                    topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
-            writer.write(connections[topic], timestamp, data)
-            report.counts[topic] = report.counts.get(topic, 0) + 1
-    except BaseException:
-        with contextlib.suppress(OSError):   # a full disk fails the close too
-            writer.close()
-        shutil.rmtree(target, ignore_errors=True)
-        raise
-    try:
-        writer.close()
-    except OSError:
-        shutil.rmtree(target, ignore_errors=True)
-        raise
+        _stored_file(source)
+    except BagPathError:
+        raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover') from None
+    ordered, report = _write_in_order(source, target, storage, 'recovered', None)
+    report.unsure_tail = ordered.after_end
     if not report.counts:
         shutil.rmtree(target, ignore_errors=True)
         raise BagDamagedError(f'no complete message could be recovered from {str(source)!r}')

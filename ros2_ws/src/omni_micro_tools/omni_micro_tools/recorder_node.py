@@ -1,14 +1,18 @@
 """``bag_recorder``: raw messages of the graph's topics into a rosbag2 bag.
 
-It is what ``ros2 bag record --use-sim-time`` would be: raw (still serialized) messages, each
-stamped with the simulated time at which it arrived, into an mcap (default) or sqlite3 bag with
-metadata version 9. Every 0.5 s of wall time the data written so far is pushed to the file, so a
-SIGKILL loses at most that much (recover with ``omni-micro bag-recover``).
+While the run goes it is what ``ros2 bag record --use-sim-time`` would be: raw (still
+serialized) messages, each stamped with the simulated time at which it arrived, into an mcap
+(default) or sqlite3 bag with metadata version 9. Every 0.5 s of wall time the data written so
+far is pushed to the file, so a SIGKILL loses at most that much (recover with
+``omni-micro bag-recover``). When it stops it finishes the bag (:mod:`omni_micro_tools.bag_order`):
+each message at the simulated time it belongs to, in one order, serialized canonically, ending
+0.2 s after the run's last outcome; so the same run records the same file, byte for byte.
 
 Parameters (``config/bag_recorder.yaml``): ``bag`` (the folder to create; required, must not
 exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic of the graph but the
 images), ``lockstep_frames`` (report written frames on /lockstep, so that a graph in lockstep
-waits for the disk as for its tracker). ``omni-micro record`` and ``run --record`` start it.
+waits for the disk as for its tracker), ``end_at_outcome`` (false: keep every message received,
+for a soak that counts them). ``omni-micro record`` and ``run --record`` start it.
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
 from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
-from omni_micro_tools.bags import STORAGES, flush, open_writer
+from omni_micro_tools.bag_order import Ordered
+from omni_micro_tools.bags import STORAGES, finish_in_order, flush, open_writer
 from omni_micro_tools.errors import BagPathError
 from omni_micro_tools.topics import GRAPH_TOPICS, IMAGE_TOPICS, RECORDABLE_TOPICS
 
@@ -53,6 +58,7 @@ class BagRecorder(Node):
         storage = self.declare_parameter('storage', 'mcap').value
         names = list(self.declare_parameter('topics', list(GRAPH_TOPICS)).value)
         lockstep_frames = bool(self.declare_parameter('lockstep_frames', False).value)
+        self.end_at_outcome = bool(self.declare_parameter('end_at_outcome', True).value)
         if str(bag) in ('', '.'):
             raise ParameterError('bag must name the folder to record into, got none')
         if storage not in STORAGES:
@@ -65,6 +71,11 @@ class BagRecorder(Node):
             raise ParameterError(f'bag {str(bag)!r} exists already: not recording over it')
         topics = {name: RECORDABLE_TOPICS[name] for name in names}
         self.bag = bag
+        self.storage = storage
+        self.topics = topics
+        # What finishing the bag kept (None: not finished; it stays in arrival order).
+        self.finished: Ordered | None = None
+        self.finish_failure: str | None = None
         self.writer, self.connections = open_writer(bag, storage, topics)
         self.counts = dict.fromkeys(topics, 0)
         self._closed = False
@@ -182,6 +193,14 @@ class BagRecorder(Node):
             self.writer.close()
         except OSError as error:
             self._writing_failed(error)
+            return
+        try:
+            self.finished = finish_in_order(self.bag, self.storage, self.topics,
+                                            whole=not self.end_at_outcome)
+        except OSError as error:
+            # The bag stays complete, in arrival order: readable, only not the same every run.
+            self.finish_failure = (f'could not put {str(self.bag)!r} in the order of simulated '
+                                   f'time ({error.strerror or error}): it stays as received')
 
 
 def report_and_close(recorder: BagRecorder) -> None:
@@ -191,8 +210,16 @@ def report_and_close(recorder: BagRecorder) -> None:
               'before it: what reached the disk can be recovered with omni-micro bag-recover '
               f'{recorder.bag} --out DIR', file=sys.stderr)
         return
-    print(f'recorded {sum(recorder.counts.values())} messages into {recorder.bag}: '
-          + ', '.join(f'{topic} {count}' for topic, count in recorder.counts.items()),
+    if recorder.finish_failure is not None:
+        print(recorder.finish_failure, file=sys.stderr)
+    finished = recorder.finished
+    counts = recorder.counts if finished is None else finished.counts
+    tail = ''
+    if finished is not None and finished.after_end and finished.end_ns is not None:
+        tail = (f' ({finished.after_end} received after its end, '
+                f'{finished.end_ns * 1e-9:.3f} s, left out)')
+    print(f'recorded {sum(counts.values())} messages into {recorder.bag}{tail}: '
+          + ', '.join(f'{topic} {counts.get(topic, 0)}' for topic in recorder.counts),
           file=sys.stderr)
 
 

@@ -68,3 +68,18 @@ IMAGE_TOPICS: dict[str, TopicSpec] = {
     for camera in ('macro', 'micro')
     for stream, kind in (('image_raw', 'Image'), ('camera_info', 'CameraInfo'))}
 RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
+
+# Within one instant of simulated time a finished bag holds its topics in this order: what
+# causes before what it causes (the robot's sample, the frames, the captures, the controller's
+# answer, the drawing). Topics not named here come last. See omni_micro_tools.bag_order.
+TOPIC_ORDER: tuple[str, ...] = (
+    '/clock', '/goal_pose', '/odom', '/joint_states', '/wheel_slip',
+    *(topic for camera in ('macro', 'micro')
+      for topic in (f'/camera/{camera}/camera_info', f'/camera/{camera}/image_raw')),
+    *(topic for camera in ('macro', 'micro')
+      for topic in (f'/camera/{camera}/pose_with_covariance', f'/camera/{camera}/pose')),
+    '/camera/status', '/controller/status', '/wheel_trajectory', MARKERS_TOPIC)
+assert set(TOPIC_ORDER) == set(RECORDABLE_TOPICS)
+# A run's bag ends this long (simulated time) after its last outcome: the stop command and the
+# samples of the robot coming to rest, the same in every run of the same seed.
+BAG_TAIL_S = 0.2

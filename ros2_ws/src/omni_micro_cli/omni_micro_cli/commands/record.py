@@ -34,6 +34,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='report on /lockstep which image frames are written, so that a '
                              'graph in lockstep waits for the recorder as for its tracker and '
                              'no frame is lost however slow the disk')
+    parser.add_argument('--whole', action='store_true',
+                        help="keep every message received until stopped (default: when "
+                             "stopped, the bag is put in the order of simulated time and ends "
+                             "0.2 s after the run's last outcome, so the same run gives the "
+                             'same file; docs/graph.md, "Same seed, same bag")')
     parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help='DDS domain to record from (default: $ROS_DOMAIN_ID or 0)')
     add_storage_arguments(parser)
@@ -49,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.bag, args.force)
     overrides = [Parameter('bag', value=str(args.bag)), Parameter('storage', value=args.storage),
                  Parameter('topics', value=list(args.topics or GRAPH_TOPICS)),
-                 Parameter('lockstep_frames', value=bool(args.lockstep_frames))]
+                 Parameter('lockstep_frames', value=bool(args.lockstep_frames)),
+                 Parameter('end_at_outcome', value=not args.whole)]
     run_node(lambda: BagRecorder(parameter_overrides=overrides), config_errors=(),
              on_shutdown=report_and_close, domain_id=args.domain_id)
     return 0

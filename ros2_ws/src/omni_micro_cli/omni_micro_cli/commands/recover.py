@@ -19,7 +19,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'message into a new bag (default BAG-recovered), skipping damaged chunks '
                     'and messages that do not decode, and says how many it dropped. The '
                     'recorder pushes its data to the file every 0.5 s, so a kill loses at most '
-                    'that much.')
+                    'that much. The copy is in the order of simulated time, as a finished bag '
+                    'is, without its last 1 s (which may have been incomplete): a prefix of '
+                    'the bag the run would have recorded.')
     parser.add_argument('bag', type=Path, metavar='BAG',
                         help='the folder of a damaged bag, or of one whose recorder was killed '
                              '(an .mcap or .db3 file, with or without metadata.yaml)')
@@ -31,6 +33,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_tools.bag_order import RECOVERY_WINDOW_S
     from omni_micro_tools.bags import recover
 
     target = args.out or args.bag.with_name(args.bag.name + '-recovered')
@@ -44,4 +47,9 @@ def run(args: argparse.Namespace) -> int:
               'and messages that did not decode)'
               + ('; the file ends mid-record (cut short): what followed is lost'
                  if report.cut_short else ''), file=sys.stderr)
+    if report.unsure_tail:
+        print(f'left out the last {RECOVERY_WINDOW_S:g} s of simulated time '
+              f'({report.unsure_tail} messages), which may have been incomplete when the '
+              'recorder stopped: what is kept is a prefix of the bag the run would have recorded',
+              file=sys.stderr)
     return 0

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_graph(GraphOptions(
         goal_m=goals[0], more_goals_m=goals[1:], seed=args.seed, real_time_factor=args.rtf,
         lockstep=not args.free_running,
-        log_dir=folder / 'logs', record=bag, timeout_s=600.0,
+        log_dir=folder / 'logs', record=bag, record_whole=True, timeout_s=600.0,
         dynamics_overrides={'initial_pose': [*DEFAULT_RIG.micro.center_m, 0.0],
                             **steering_overrides(args.steering)},
         echo=None if args.quiet else echo_to_stderr, view=view_from_args(args)))

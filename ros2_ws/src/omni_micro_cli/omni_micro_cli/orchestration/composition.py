@@ -91,10 +91,12 @@ def default_nodes(vision: str = 'model') -> list[NodeSpec]:
 
 
 def recorder_spec(bag: Path, storage: str, markers: bool = True,
-                  images: tuple[str, ...] = (), without: tuple[str, ...] = ()) -> NodeSpec:
+                  images: tuple[str, ...] = (), without: tuple[str, ...] = (),
+                  whole: bool = False) -> NodeSpec:
     """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
     takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
-    nobody in this graph publishes (it waits for a publisher of each before the clock starts)."""
+    nobody in this graph publishes (it waits for a publisher of each before the clock starts).
+    ``whole``: the bag keeps every message received, not only up to the outcome's tail."""
     from omni_micro_tools.topics import GRAPH_TOPICS, MARKERS_TOPIC
 
     topics = [topic for topic in GRAPH_TOPICS
@@ -103,7 +105,7 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
                for stream in ('image_raw', 'camera_info')]
     return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
         'bag': str(bag), 'storage': storage, 'topics': topics,
-        'lockstep_frames': bool(images)}, lockstep=bool(images))
+        'lockstep_frames': bool(images), 'end_at_outcome': not whole}, lockstep=bool(images))
 
 
 def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
@@ -134,6 +136,9 @@ class GraphOptions:
     follow_route: bool = False
     record: Path | None = None
     storage: str = 'mcap'
+    # The bag keeps every message received, not only up to its last outcome and a tail (the
+    # soak counts them against what was published).
+    record_whole: bool = False
     force: bool = False
     # More goals after the first, each sent once the previous one is reached (the soak).
     more_goals_m: list[tuple[float, float]] = field(default_factory=list)
@@ -351,7 +356,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         if options.robot == 'external':
             unpublished += ('/clock', '/odom', '/wheel_slip')
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
-                                   unpublished))
+                                   unpublished, whole=options.record_whole))
     if options.view is not None:
         specs.append(viewer_spec(*options.view, options.markers))
     return specs

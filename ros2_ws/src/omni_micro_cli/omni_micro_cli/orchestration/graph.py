@@ -48,12 +48,15 @@ from omni_micro_cli.orchestration.processes import (
     shared_memory_files,
     stop_together,
 )
-from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER
+from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER, STATUS_TIME_KEY
 from omni_micro_common.errors import OmniMicroError
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
 SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
+# A recorded run goes on this far (simulated time) past the bag's end before it is stopped:
+# markers_node draws an array once the odometry is two arrays (0.2 s) past it.
+RUN_ON_PAST_BAG_END_S = 0.4
 
 
 @dataclass
@@ -283,6 +286,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
         message names the node and where its log is.
     """
     from omni_micro_cli.orchestration.monitor import GraphMonitor  # rclpy only where a graph runs
+    from omni_micro_tools.topics import BAG_TAIL_S
 
     for path in options.params_files:
         check_params_file(path)
@@ -310,8 +314,9 @@ def run_graph(options: GraphOptions) -> GraphResult:
                                      publications=external_publications(options),
                                      clock=simulated_robot)
             wall_start = time.monotonic()
+            goal_stamp_s = 0.0
             for index, goal in enumerate(goals):
-                monitor.send_goal(graph, goal, recording)
+                monitor.send_goal(graph, goal, recording, stamp_s=goal_stamp_s)
                 if index == 0:
                     wall_start = time.monotonic()
                     if simulated_robot:
@@ -320,6 +325,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
                         options.on_running(graph)
                 status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)
                 statuses.append(status)
+                goal_stamp_s = float(status.get(STATUS_TIME_KEY, goal_stamp_s))
                 for name, size in graph.memory_kb().items():
                     memory.setdefault(name, []).append(size)
                 if status['outcome'] not in ('reached', 'completed'):
@@ -328,6 +334,11 @@ def run_graph(options: GraphOptions) -> GraphResult:
             capture_stamp = float(status.get('capture_stamp_s', '0'))
             if simulated_robot:
                 odom = monitor.wait_for_odometry_after(graph, capture_stamp, timeout_s=30.0)
+                if recording:
+                    # The bag ends BAG_TAIL_S after the outcome; everything up to there, the
+                    # markers' arrays included, is published before the graph stops.
+                    monitor.wait_for_odometry_after(
+                        graph, goal_stamp_s + BAG_TAIL_S + RUN_ON_PAST_BAG_END_S, timeout_s=30.0)
             else:
                 # A real robot's true pose is nobody's to know: where the camera saw it last.
                 odom = (capture_stamp, float(status.get('measured_x_m', 'nan')),

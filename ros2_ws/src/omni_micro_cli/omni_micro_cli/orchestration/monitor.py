@@ -18,12 +18,18 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.parameters import dds_profile
-from omni_micro_common.conventions import LOCKSTEP_INPUTS, join_stamp, quaternion_to_yaw
+from omni_micro_common.conventions import (
+    LOCKSTEP_INPUTS,
+    join_stamp,
+    quaternion_to_yaw,
+    split_stamp,
+)
 from omni_micro_common.qos import (
     CAPTURE_QOS,
     CAPTURE_TOPICS,
@@ -51,6 +57,9 @@ class Supervisor(Protocol):
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
+# How long a goal waits for its readers to match it and then to acknowledge it (a dead
+# process's reader, still in the ROS graph, never does: the goal goes on without it).
+GOAL_READERS_MATCH_S = 5.0
 # How long an unanswered request to dynamics_node's parameter service waits before it goes again.
 SERVICE_RESEND_S = 2.0
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
@@ -86,6 +95,7 @@ class GraphMonitor:
         self.known_endpoints: dict[str, set[bytes]] = {}
         self.goals_sent = 0
         self.goal_sent_at = 0
+        self.goal_stamp_s = 0.0
         self.camera_statuses: list[str] = []
         self.node.create_subscription(DiagnosticStatus, '/camera/status',
                                       self._on_camera_status, STATUS_QOS)
@@ -93,6 +103,7 @@ class GraphMonitor:
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
+        self._odometry_reader: object | None = None
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
         if follow_route:
@@ -182,10 +193,14 @@ class GraphMonitor:
         self.remember_endpoints()
 
     def send_goal(self, graph: Supervisor, goal_m: tuple[float, float],
-                  recording: bool = False, timeout_s: float = 30.0) -> None:
+                  recording: bool = False, timeout_s: float = 30.0, stamp_s: float = 0.0) -> None:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
-        goal is on /goal_pose for a recorder to keep."""
+        goal is on /goal_pose for a recorder to keep. It is stamped ``stamp_s`` (the first goal
+        0, a later one its predecessor's outcome): where a bag and the markers place it.
+
+        Every reader of /goal_pose has it before this returns (DDS acknowledged it), so that
+        markers_node draws it in the same array every run, whatever the machine's load."""
         publisher = self.goal_publisher
         # Wait for these readers by name: others (markers_node, a viewer) read /goal_pose too,
         # so a count would be reached before the controller listens and the goal would be lost.
@@ -198,12 +213,20 @@ class GraphMonitor:
                 raise RunFailed(f'/goal_pose is not read by {" and ".join(sorted(needed))} '
                                 f'within {timeout_s:g} s')
             self.spin_for(0.05)
+        readers_seen = time.monotonic() + GOAL_READERS_MATCH_S
+        while (publisher.get_subscription_count()
+               < len(self.node.get_subscriptions_info_by_topic('/goal_pose'))
+               and time.monotonic() < readers_seen):
+            self.spin_for(0.05)   # a reader seen but not matched yet would not get it
+        self.goal_stamp_s = stamp_s
         goal = PoseStamped()
+        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
         goal.header.frame_id = 'platform'
         goal.pose.position.x, goal.pose.position.y = float(goal_m[0]), float(goal_m[1])
         goal.pose.orientation.w = 1.0
         seen = len(self.statuses)
         publisher.publish(goal)
+        publisher.wait_for_all_acked(Duration(seconds=GOAL_READERS_MATCH_S))
         self.goals_sent += 1
         self.goal_sent_at = seen
         resend_at = time.monotonic() + 2.0
@@ -298,7 +321,7 @@ class GraphMonitor:
         graph.check_alive()
         # The goal again: a new controller knows nothing, and an old one may have counted its
         # capture timeout while the camera was gone. Either starts over from the next stop.
-        self.send_goal(graph, goal, recording)
+        self.send_goal(graph, goal, recording, stamp_s=self.goal_stamp_s)
         self.remember_endpoints()
         seen = len(self.camera_statuses)
         self.resume(graph, restarted)
@@ -315,7 +338,7 @@ class GraphMonitor:
             # ... and the controller's reader of captures may match the new writer later
             # still: give the goal again until the controller acts on a capture.
             for _ in range(20):
-                self.send_goal(graph, goal, recording)
+                self.send_goal(graph, goal, recording, stamp_s=self.goal_stamp_s)
                 acted_from = self.goal_sent_at
                 asked_at = time.monotonic()
                 while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
@@ -416,10 +439,11 @@ class GraphMonitor:
 
     def wait_for_odometry_after(self, graph: Supervisor, stamp_s: float,
                                 timeout_s: float) -> tuple[float, float, float, float]:
-        if not self._following:
+        if not self._following and self._odometry_reader is None:
             # Subscribed only now: following /odom all run long would slow a fast graph down,
             # and the robot is still once the controller has an outcome.
-            self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+            self._odometry_reader = self.node.create_subscription(
+                Odometry, '/odom', self._on_odometry, DATA_QOS)
         deadline = time.monotonic() + timeout_s
         while self.latest_odometry is None or self.latest_odometry[0] < stamp_s:
             graph.check_alive()
