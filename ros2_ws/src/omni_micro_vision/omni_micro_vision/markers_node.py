@@ -36,6 +36,7 @@ from typing import Any, Literal
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -77,6 +78,8 @@ def header_stamp_ns(data: bytes) -> int:
 # event stamped up to it (a capture, a move) has then been handled (the gate holds time a period
 # past an unhandled capture, and still while a command is unhandled).
 DRAW_LAG_ARRAYS = 2
+# How often (wall time) the node repeats its lockstep report without a new event.
+WATCHER_REPORT_PERIOD_S = 0.1
 # Ties between events of one stamp, applied in this order whatever order they arrived in.
 EVENT_ORDER = {'goal': 0, 'move': 1, 'macro': 2, 'micro': 3}
 
@@ -145,6 +148,11 @@ class MarkersNode(Node):
         self.lockstep = LockstepReporter(self)
         self._capture_handled_ns = NOTHING_HANDLED_NS
         self._command_handled_ns = NOTHING_HANDLED_NS
+        # Said again every WATCHER_REPORT_PERIOD_S of wall time: a report sent before the
+        # dynamics' reader of /lockstep matched this writer is lost, and until the gate has
+        # one it holds time at the lead, where no throttled sample comes to make another.
+        self.create_timer(WATCHER_REPORT_PERIOD_S, self._report,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self._odometry = odometry_template()
         self.create_subscription(Odometry, '/odom_throttle', self._on_odometry, DATA_QOS,
@@ -201,7 +209,6 @@ class MarkersNode(Node):
         at = stamp_ns(stamp)
         self._poses.append((at, stamp, (x, y, quaternion_to_yaw(qz, qw))))
         self.handled += 1
-        self._report()   # the first says, at time 0, that this node watches
         # A sample is drawn when it is the first of a publish period (a whole number of
         # periods from time 0), whatever the rate of the stream.
         periods = (at // self.publish_ns, at // self.refresh_ns)
