@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from bag_compare import recorded_until
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -314,59 +313,6 @@ def test_soak_fifty_goals_flat_memory_and_a_complete_bag(tmp_path, omni_micro):
     assert report['missing_from_bag'] == {}
     for name, memory in report['memory'].items():
         assert memory['growth_kb'] < 10_000, name
-
-
-@pytest.fixture
-def same_seed_run(tmp_path):
-    """A short run on the micro platform, recorded, with the default command lead."""
-    def run_once(name: str, real_time_factor: float, composed: bool = False):
-        bag = tmp_path / name
-        result = run(tmp_path, goal_m=(0.1005, 0.0004), real_time_factor=real_time_factor,
-                     seed=7, record=bag, dynamics_overrides={'initial_pose': [0.1, 0.0, 0.0]},
-                     composed=composed)
-        assert result.outcome == 'reached' and result.periods >= 2
-        log = 'loop_container.log' if composed else 'dynamics_node.log'
-        assert 'arrived' not in (result.log_dir / log).read_text()
-        return bag, result
-    return run_once
-
-
-def test_same_seed_same_bag_at_any_speed(same_seed_run):
-    slow_bag, slow = same_seed_run('rtf2', 2.0)
-    fast_bag, fast = same_seed_run('max', math.inf)
-    assert fast.sim_time_s == slow.sim_time_s
-    end = slow.sim_time_s
-    slow_messages, fast_messages = recorded_until(slow_bag, end), recorded_until(fast_bag, end)
-    assert set(slow_messages) == set(fast_messages)
-    for topic in slow_messages:
-        assert slow_messages[topic] == fast_messages[topic], topic
-
-
-def test_same_seed_same_bag_on_a_busy_machine(same_seed_run, busy_machine):
-    """Both cores kept busy by other programs: the run is slower, never different."""
-    idle_bag, idle = same_seed_run('idle', math.inf)
-    with busy_machine():
-        busy_bag, busy = same_seed_run('busy', math.inf)
-    assert busy.sim_time_s == idle.sim_time_s
-    end = idle.sim_time_s
-    idle_messages, busy_messages = recorded_until(idle_bag, end), recorded_until(busy_bag, end)
-    for topic in idle_messages:
-        assert idle_messages[topic] == busy_messages[topic], topic
-
-
-def test_the_loop_in_one_process_records_the_same_bag(same_seed_run):
-    """--composed (dynamics, vision and controller in one container process): faster, and the
-    same messages on every topic, byte for byte."""
-    separate_bag, separate = same_seed_run('separate', math.inf)
-    composed_bag, composed = same_seed_run('composed', math.inf, composed=True)
-    assert (composed.log_dir / 'loop_container.log').exists()
-    assert not (composed.log_dir / 'vision_node.log').exists()
-    assert composed.sim_time_s == separate.sim_time_s
-    end = separate.sim_time_s
-    ours, theirs = recorded_until(separate_bag, end), recorded_until(composed_bag, end)
-    assert set(ours) == set(theirs)
-    for topic in ours:
-        assert ours[topic] == theirs[topic], topic
 
 
 def test_a_run_that_times_out_says_how_far_the_robots_time_really_went(tmp_path):

@@ -1,0 +1,100 @@
+"""Same seed, same bag, byte for byte: the .mcap file and its metadata.yaml of a recorded run are
+the same whatever the real-time factor, the machine's load and the process layout; another seed
+gives another file; and a killed run's recovered bag is a prefix of the finished one
+(docs/graph.md, "Same seed, same bag")."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import threading
+from pathlib import Path
+
+import pytest
+from bag_compare import bag_digest, stored_messages
+
+from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.orchestration.composition import GraphOptions
+from omni_micro_cli.orchestration.graph import Graph, GraphResult, run_graph
+
+
+def record(folder: Path, real_time_factor: float = math.inf, seed: int = 7,
+           **options: object) -> tuple[Path, GraphResult]:
+    """Fig. 11's goal, recorded: 36 periods, 20 s of simulated time. Every bag is called 'bag'
+    (in a folder of its own): rosbag2 names the storage file after the bag's folder, and
+    metadata.yaml says so."""
+    bag = folder / 'bag'
+    result = run_graph(GraphOptions(
+        goal_m=(0.1, 0.0), seed=seed, real_time_factor=real_time_factor, record=bag,
+        log_dir=folder / 'logs', **options))  # type: ignore[arg-type]
+    assert result.outcome == 'reached' and result.periods >= 2, result.reason
+    return bag, result
+
+
+@pytest.fixture(scope='module')
+def reference(tmp_path_factory) -> tuple[Path, GraphResult]:
+    """As fast as the lockstep allows, on an idle machine, separate processes."""
+    return record(tmp_path_factory.mktemp('reference'))
+
+
+def test_same_seed_same_file_at_another_real_time_factor(reference, tmp_path):
+    bag, result = record(tmp_path, real_time_factor=4.0)
+    assert result.sim_time_s == reference[1].sim_time_s
+    assert bag_digest(bag) == bag_digest(reference[0])
+
+
+def test_same_seed_same_file_with_both_cores_kept_busy(reference, tmp_path, busy_machine):
+    with busy_machine():
+        bag, _ = record(tmp_path)
+    assert bag_digest(bag) == bag_digest(reference[0])
+
+
+def test_same_seed_same_file_with_the_loop_in_one_process(reference, tmp_path):
+    bag, result = record(tmp_path, composed=True)
+    assert (result.log_dir / 'loop_container.log').exists()
+    assert not (result.log_dir / 'vision_node.log').exists()
+    assert bag_digest(bag) == bag_digest(reference[0])
+
+
+def test_another_seed_another_file(reference, tmp_path):
+    bag, _ = record(tmp_path, seed=8)
+    assert bag_digest(bag) != bag_digest(reference[0])
+    # The same topics, both complete: what differs is the camera noise and what follows it.
+    ours, theirs = stored_messages(bag), stored_messages(reference[0])
+    assert {topic for topic, _, _ in ours} == {topic for topic, _, _ in theirs}
+    assert ours[0] == theirs[0]     # time 0's clock: the seed has changed nothing yet
+
+
+def test_the_finished_bag_ends_a_fixed_simulated_time_after_the_outcome(reference):
+    from omni_micro_tools.topics import BAG_TAIL_S
+
+    bag, result = reference
+    messages = stored_messages(bag)
+    outcome_ns = round(result.sim_time_s * 1e9)
+    assert max(time for _, time, _ in messages) == outcome_ns + round(BAG_TAIL_S * 1e9)
+    times = [time for _, time, _ in messages]
+    assert times == sorted(times)
+    # Every tick of the robot's 20 ms grid, none twice, none missing, up to the end.
+    clocks = [time for topic, time, _ in messages if topic == '/clock']
+    tick = 20_000_000
+    assert clocks[0] <= tick
+    assert clocks == list(range(clocks[0], outcome_ns + round(BAG_TAIL_S * 1e9) + 1, tick))
+
+
+def test_a_killed_recorder_leaves_a_prefix_of_the_finished_bag(reference, tmp_path):
+    """SIGKILL to the recorder mid-run: the run stops (a run without its bag is not what was
+    asked for) and its bag is recovered, in the finished bag's order, without its last second:
+    every message it keeps is the finished bag's, in the same place."""
+    def kill_the_recorder_soon(graph: Graph) -> None:
+        recorder = graph.process('bag_recorder').process
+        assert recorder is not None
+        threading.Timer(2.5, os.kill, (recorder.pid, signal.SIGKILL)).start()
+
+    # About 10 s of simulated time in when it is killed.
+    with pytest.raises(RunFailed, match='bag_recorder'):
+        record(tmp_path, real_time_factor=4.0, on_running=kill_the_recorder_soon)
+    recovered = stored_messages(tmp_path / 'bag')
+    finished = stored_messages(reference[0])
+    assert len(finished) / 4 < len(recovered) < len(finished)
+    assert recovered == finished[:len(recovered)]
