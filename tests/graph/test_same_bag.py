@@ -29,6 +29,9 @@ def record(folder: Path, real_time_factor: float = math.inf, seed: int = 7,
         goal_m=(0.1, 0.0), seed=seed, real_time_factor=real_time_factor, record=bag,
         log_dir=folder / 'logs', **options))  # type: ignore[arg-type]
     assert result.outcome == 'reached' and result.periods >= 2, result.reason
+    # By construction no command arrives after its start stamp; the dynamics would say so.
+    log = 'loop_container.log' if options.get('composed') else 'dynamics_node.log'
+    assert 'arrived' not in (result.log_dir / log).read_text()
     return bag, result
 
 
