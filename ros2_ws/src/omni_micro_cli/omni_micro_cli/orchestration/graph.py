@@ -54,6 +54,9 @@ from omni_micro_common.errors import OmniMicroError
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
 SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
+# How long the recorder may take to finish its bag once asked to stop (then SIGTERM; a bag
+# left unfinished is recovered: in the same order, without its last second).
+RECORDER_FINISH_S = 120.0
 # A recorded run goes on this far (simulated time) past the bag's end before it is stopped:
 # markers_node draws an array once the odometry is two arrays (0.2 s) past it.
 RUN_ON_PAST_BAG_END_S = 0.4
@@ -216,7 +219,10 @@ class Graph:
         for phase in SHUTDOWN_PHASES:
             members = [p for p in self.processes
                        if (p.name in phase if phase else p.name not in named)]
-            codes.update(stop_together(members))
+            # The recorder finishes its bag after its signal: it reads the bag back and writes
+            # it again in the order of simulated time (a gigabyte of images takes seconds).
+            recorder = phase is not None and 'bag_recorder' in phase
+            codes.update(stop_together(members, grace_s=RECORDER_FINISH_S if recorder else 5.0))
         self._cut_lifeline()
         if self.options.echo:
             self.options.echo(f'[orchestration] graph stopped in '
