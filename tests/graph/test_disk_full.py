@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from omni_micro_tools.bags import read_bag, recover
+from omni_micro_tools.errors import BagDamagedError
 
 
 @pytest.fixture
@@ -40,7 +41,10 @@ def test_a_full_disk_stops_the_run_in_one_line_and_leaves_one_bag(small_disk, tm
     assert 'bag-recover' in lines[-1]
     # One bag, as the recorder left it: what reached the disk, recoverable elsewhere.
     assert [path.name for path in small_disk.iterdir()] == ['bag']
-    report = recover(bag, tmp_path / 'recovered')
+    # Less than a second of simulated time fits: all of it is the unsure tail.
+    with pytest.raises(BagDamagedError, match='--keep-unsure-tail keeps them'):
+        recover(bag, tmp_path / 'recovered')
+    report = recover(bag, tmp_path / 'recovered', keep_unsure_tail=True)
     assert report.kept >= 1
     assert sum(len(messages) for messages in
                read_bag(tmp_path / 'recovered').messages.values()) == report.kept

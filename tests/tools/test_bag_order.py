@@ -14,6 +14,7 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
+from omni_micro_common.conventions import STATUS_TIME_KEY
 from omni_micro_tools.bags import TYPESTORE, finish_in_order, open_writer, read_bag
 from omni_micro_tools.topics import BAG_TAIL_S, GRAPH_TOPICS
 
@@ -36,7 +37,7 @@ def odometry(tick: int) -> bytes:
 
 
 def status(message: str, at_tick: int, outcome: bool = False) -> bytes:
-    values = [KeyValue(key='sim_time_s', value=repr(at_tick * TICK_NS * 1e-9))]
+    values = [KeyValue(key=STATUS_TIME_KEY, value=repr(at_tick * TICK_NS * 1e-9))]
     if outcome:
         values.append(KeyValue(key='outcome', value=message))
     return serialize_message(DiagnosticStatus(name='omni_micro_controller', message=message,

@@ -113,9 +113,11 @@ class CaptureUncertainty:
 
 
 # The key of the simulated time (s, repr of a float) every /controller/status and /camera/status
-# carries: the time of what it says (a decision's capture, a goal's arrival), not of its
-# publication. A recorder writes the status at that time, so the same run records the same bag.
-STATUS_TIME_KEY = 'sim_time_s'
+# carries: the time of the decision or observation it says (a capture, a timeout on the robot's
+# clock, a goal's arrival), not of its publication. A recorder writes the status at that time,
+# so that the same run records the same bag. (An outcome's sim_time_s is another number: the
+# run's time as reported, its last capture's.)
+STATUS_TIME_KEY = 'status_time_s'
 # The key a /controller/status that ends a goal carries (its value: the outcome's name).
 OUTCOME_KEY = 'outcome'
 

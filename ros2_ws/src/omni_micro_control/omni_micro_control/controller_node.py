@@ -223,7 +223,7 @@ class ControllerNode(Node):
             return
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
         if replaced is not None:
-            self.report(replaced)
+            self.report(replaced, at_s=stopped_at_s)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm')
         self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
 
@@ -256,7 +256,7 @@ class ControllerNode(Node):
         self.robot_time_s = max(self.robot_time_s, stamp)
         self._robot_time_ns = max(self._robot_time_ns, sec * 1_000_000_000 + nanosec)
         if self.watcher.on_wheel_state(rotations, speeds, steering_rate):
-            self._act(self.controller.on_wheels_stopped(stamp))
+            self._act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
         # The capture timeouts every TIMEOUT_CHECK_S of the robot's time, on its own wheel
         # states: no /clock subscription (one message less per tick).
         check = int(self.robot_time_s // TIMEOUT_CHECK_S)
@@ -309,25 +309,31 @@ class ControllerNode(Node):
                 self.get_logger().error(mismatch)
                 self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch',
                                      at_s=self.robot_time_s, reason=mismatch)
-            self._act(self.controller.on_foreign_capture(mismatch))
+            self._act(self.controller.on_foreign_capture(mismatch), at_s=self.robot_time_s)
             return
         observation = Observation(
             stamp,
             pose.position.x, pose.position.y,
             quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera, uncertainty)
-        self._act(self.controller.on_capture(observation))
+        self._act(self.controller.on_capture(observation), at_s=observation.stamp_s)
 
-    def _act(self, decision: Move | Finished | None) -> None:
+    def _act(self, decision: Move | Finished | None, at_s: float) -> None:
+        """``at_s``: the simulated time of what caused the decision (a capture's stamp, a wheel
+        state's, a camera status's), which a finished goal's status carries."""
         if isinstance(decision, Move):
             self._command(decision)
         elif isinstance(decision, Finished):
-            self.report(decision)
+            self.report(decision, at_s)
 
     def _on_camera_status(self, msg: DiagnosticStatus) -> None:
         # A camera that says it cannot see the robot ends the wait at once; one that says
         # nothing is caught by the capture timeout.
         if msg.level != DiagnosticStatus.OK and 'outside' in msg.message:
-            self._act(self.controller.on_out_of_field(self.robot_time_s))
+            # Decided at the camera's time: the robot's, as far as this node has it, depends on
+            # which message came first.
+            said = {item.key: item.value for item in msg.values}.get(STATUS_TIME_KEY)
+            at_s = float(said) if said is not None else self.robot_time_s
+            self._act(self.controller.on_out_of_field(self.robot_time_s), at_s=at_s)
             self._report_lockstep()
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
@@ -359,7 +365,7 @@ class ControllerNode(Node):
                 f'timer2; waiting again (try {tries + 1} of '
                 f'{self.controller.config.max_capture_tries})')
         if finished is not None:
-            self.report(finished)
+            self.report(finished, at_s=self.robot_time_s)
             self._report_lockstep()
 
     # -- outputs -----------------------------------------------------------------------------
@@ -368,7 +374,7 @@ class ControllerNode(Node):
             profile = move_profile(move.duration_s, self.limits)
         except CommandError as error:
             self.get_logger().error(f'cannot build the move: {error}')
-            self.report(self.controller.cancel(str(error)))
+            self.report(self.controller.cancel(str(error)), at_s=move.observation.stamp_s)
             return
         msg = JointTrajectory()
         msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(move.start_s)
@@ -401,13 +407,18 @@ class ControllerNode(Node):
         self._publish_status(DiagnosticStatus.OK, 'moving', at_s=move.observation.stamp_s,
                              **values)
 
-    def report(self, finished: Finished | None) -> None:
+    def report(self, finished: Finished | None, at_s: float) -> None:
+        """Publish a goal's end; ``at_s``: the simulated time of the decision."""
         if finished is None:
             return
         if self.controller.phase is Phase.DONE:
             self.watcher.forget()   # a replaced goal keeps watching the move still running
         values = {OUTCOME_KEY: finished.outcome.value, 'periods': str(finished.periods),
-                  'reason': finished.reason}
+                  'reason': finished.reason,
+                  # The run's time as reported: its decisive capture, else the robot's last
+                  # report (the status's own time, at_s, may be later: a timeout).
+                  'sim_time_s': repr(finished.observation.stamp_s if finished.observation
+                                     else self.robot_time_s)}
         if finished.observation is not None:
             seen = finished.observation
             values.update(measured_x_m=repr(seen.x_m), measured_y_m=repr(seen.y_m),
@@ -426,8 +437,6 @@ class ControllerNode(Node):
             self.get_logger().info(line)
         else:
             self.get_logger().warning(line)
-        # The decision's own time (its capture, else the robot's last report).
-        at_s = finished.observation.stamp_s if finished.observation else self.robot_time_s
         self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, at_s=at_s,
                              **values)
 
@@ -461,7 +470,7 @@ class ControllerNode(Node):
 def _stop_on_shutdown(node: ControllerNode) -> None:
     if not rclpy.ok():
         return   # the context is gone: nothing can be sent any more
-    node.report(node.controller.cancel('shutdown'))
+    node.report(node.controller.cancel('shutdown'), at_s=node.robot_time_s)
     node.stop_robot()
     time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
 

@@ -4,7 +4,7 @@ A recorder receives messages in the order the machine delivers them, and its clo
 depends on the machine's load. A finished bag instead holds each message
 
 - at the simulated time it belongs to (its *event time*): a stamped message's header stamp, a
-  /clock message's clock, a MarkerArray's first marker's stamp, a status's ``sim_time_s``
+  /clock message's clock, a MarkerArray's first marker's stamp, a status's ``status_time_s``
   (omni_micro_common.conventions.STATUS_TIME_KEY); a message without one keeps its arrival time;
   never earlier than the message before it on its topic (a topic keeps its publication order);
 - in one order: by event time, then by topic (``TOPIC_ORDER``), then by publication order;
@@ -13,7 +13,7 @@ depends on the machine's load. A finished bag instead holds each message
   a bag whose recorder died, ``RECOVERY_WINDOW_S`` before the latest message (what came later may
   be incomplete).
 
-Plain Python over rosbags and mcap (no rclpy): ``omni-micro bag-recover`` uses it too.
+Plain Python (no rclpy): ``omni-micro bag-recover`` uses it too.
 """
 
 from __future__ import annotations

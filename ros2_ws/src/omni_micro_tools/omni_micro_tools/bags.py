@@ -24,7 +24,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from omni_micro_common.errors import OmniMicroError
-from omni_micro_tools.bag_order import Ordered, Stored, in_bag_order
+from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, Stored, in_bag_order
 from omni_micro_tools.errors import BagDamagedError, BagPathError
 from omni_micro_tools.topics import (
     GRAPH_TOPICS,
@@ -231,10 +231,15 @@ def _write_in_order(source: Path, target: Path, storage: str, end: str,
                 connections[topic] = writer.add_connection(
                     topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
             writer.write(connections[topic], timestamp, data)
-        writer.close()
     except BaseException:
-        with contextlib.suppress(OSError):   # a full disk fails the close too
+        # A full disk fails the close too, and the storage may be closed already.
+        with contextlib.suppress(OSError, ValueError):
             writer.close()
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+    try:
+        writer.close()
+    except OSError:
         shutil.rmtree(target, ignore_errors=True)
         raise
     report.counts = dict(ordered.counts)
@@ -265,12 +270,14 @@ def finish_in_order(bag: Path, storage: str, topics: dict[str, TopicSpec],
     return ordered
 
 
-def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
+def recover(source: Path, target: Path, storage: str = 'mcap',
+            keep_unsure_tail: bool = False) -> Recovery:
     """Write every intact message of a bag whose recorder died, or whose file was cut short or
     damaged, into a new readable bag, in bag order; a message that does not decode as its type
     is dropped (damaged bytes that the chunk's CRC did not catch), and so are the messages of
     the last RECOVERY_WINDOW_S of simulated time, which may have been incomplete when the
-    recorder died: what is kept is a prefix of the bag the run would have recorded.
+    recorder died: what is kept is a prefix of the bag the run would have recorded
+    (``keep_unsure_tail``: those are kept too, and it may not be).
 
     Raises
     ------
@@ -285,10 +292,16 @@ def recover(source: Path, target: Path, storage: str = 'mcap') -> Recovery:
         _stored_file(source)
     except BagPathError:
         raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover') from None
-    ordered, report = _write_in_order(source, target, storage, 'recovered', None)
+    ordered, report = _write_in_order(source, target, storage,
+                                      'all' if keep_unsure_tail else 'recovered', None)
     report.unsure_tail = ordered.after_end
     if not report.counts:
         shutil.rmtree(target, ignore_errors=True)
+        if report.unsure_tail:
+            raise BagDamagedError(
+                f'all {report.unsure_tail} messages of {str(source)!r} are within its last '
+                f'{RECOVERY_WINDOW_S:g} s of simulated time, which may be incomplete: '
+                'bag-recover --keep-unsure-tail keeps them')
         raise BagDamagedError(f'no complete message could be recovered from {str(source)!r}')
     return report
 

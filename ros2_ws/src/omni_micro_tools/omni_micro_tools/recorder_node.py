@@ -6,7 +6,7 @@ serialized) messages, each stamped with the simulated time at which it arrived, 
 far is pushed to the file, so a SIGKILL loses at most that much (recover with
 ``omni-micro bag-recover``). When it stops it finishes the bag (:mod:`omni_micro_tools.bag_order`):
 each message at the simulated time it belongs to, in one order, serialized canonically, ending
-0.2 s after the run's last outcome; so the same run records the same file, byte for byte.
+0.5 s after the run's last outcome; so the same run records the same file, byte for byte.
 
 Parameters (``config/bag_recorder.yaml``): ``bag`` (the folder to create; required, must not
 exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic of the graph but the

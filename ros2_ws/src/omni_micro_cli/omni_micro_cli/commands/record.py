@@ -37,7 +37,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--whole', action='store_true',
                         help="keep every message received until stopped (default: when "
                              "stopped, the bag is put in the order of simulated time and ends "
-                             "0.2 s after the run's last outcome, so the same run gives the "
+                             "0.5 s after the run's last outcome, so the same run gives the "
                              'same file; docs/graph.md, "Same seed, same bag")')
     parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help='DDS domain to record from (default: $ROS_DOMAIN_ID or 0)')

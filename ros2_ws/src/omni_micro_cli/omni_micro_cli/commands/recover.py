@@ -28,6 +28,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--out', type=output_folder, metavar='DIR', help='default: BAG-recovered')
     parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
                         help='storage of the recovered bag (default mcap)')
+    parser.add_argument('--keep-unsure-tail', action='store_true',
+                        help='keep the last 1 s of simulated time too (a short bag may be '
+                             'nothing else; then it may not be a prefix of the finished bag)')
     parser.add_argument('--force', action='store_true', help='replace an existing --out bag')
     parser.set_defaults(handler=run)
 
@@ -38,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
 
     target = args.out or args.bag.with_name(args.bag.name + '-recovered')
     check_output_path(target, args.force)
-    report = recover(args.bag, target, args.storage)
+    report = recover(args.bag, target, args.storage, keep_unsure_tail=args.keep_unsure_tail)
     print(f'recovered {report.kept} messages into {target}: '
           + ', '.join(f'{topic} {count}' for topic, count in sorted(report.counts.items())),
           file=sys.stderr)
