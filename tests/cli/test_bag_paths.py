@@ -8,9 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import check_output_path
-from omni_micro_tools.bags import check_readable_bag
+from omni_micro_tools.bags import check_bag_output, check_readable_bag
 from omni_micro_tools.errors import BagPathError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -18,15 +16,15 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_the_folders_of_a_new_bag_are_made(tmp_path):
     bag = tmp_path / 'out' / 'bags' / 'fig11'
-    check_output_path(bag, force=False)
+    check_bag_output(bag, force=False)
     assert bag.parent.is_dir() and not bag.exists()
 
 
 def test_an_existing_bag_is_still_refused_naming_it(tmp_path):
     bag = tmp_path / 'mine'
     bag.mkdir()
-    with pytest.raises(UsageError, match=f"'{bag}' exists already"):
-        check_output_path(bag, force=False)
+    with pytest.raises(BagPathError, match=f"'{bag}' exists already"):
+        check_bag_output(bag, force=False)
 
 
 def test_a_path_that_does_not_exist_says_so(tmp_path):

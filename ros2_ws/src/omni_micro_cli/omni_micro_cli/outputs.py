@@ -11,7 +11,6 @@ import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from omni_micro_cli.errors import UsageError
 
 
 def output_problem(path: Path, kind: str) -> str | None:
@@ -100,20 +99,3 @@ def atomic_bytes(target: Path, data: bytes) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
-
-
-def check_output_path(path: Path, force: bool) -> None:
-    """Refuse to overwrite, unless ``force`` and the path is a bag (never an arbitrary folder)."""
-    if not path.exists():
-        # Made here, as demo does: a newcomer's `--record out/bags/mine` should just work.
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return
-    if not force:
-        raise UsageError(f'{str(path)!r} exists already; give --force to replace it')
-    looks_like_bag = path.is_dir() and all(
-        child.name == 'metadata.yaml' or child.suffix in ('.mcap', '.db3')
-        for child in path.iterdir())
-    if not looks_like_bag:
-        raise UsageError(f'{str(path)!r} exists and is not a bag; not replacing it even with '
-                         f'--force')
-    shutil.rmtree(path)

@@ -53,6 +53,23 @@ def open_writer(path: Path, storage: str, topics: dict[str, TopicSpec]) -> tuple
     return writer, connections
 
 
+def check_bag_output(path: Path, force: bool) -> None:
+    """Refuse to overwrite, unless ``force`` and the path is a bag (never an arbitrary folder)."""
+    if not path.exists():
+        # Made here, as demo does: a newcomer's `--record out/bags/mine` should just work.
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return
+    if not force:
+        raise BagPathError(f'{str(path)!r} exists already; give --force to replace it')
+    looks_like_bag = path.is_dir() and all(
+        child.name == 'metadata.yaml' or child.suffix in ('.mcap', '.db3')
+        for child in path.iterdir())
+    if not looks_like_bag:
+        raise BagPathError(f'{str(path)!r} exists and is not a bag; not replacing it even with '
+                         f'--force')
+    shutil.rmtree(path)
+
+
 # In an mcap Chunk record: the opcode (1 byte), the record's length (8), the start and end
 # times and the uncompressed size (24), then the CRC32 of the uncompressed chunk (4).
 _CHUNK_CRC_OFFSET = 1 + 8 + 24

@@ -28,7 +28,7 @@ from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.outputs import check_output_path, output_folder, staged_directory
+from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:
@@ -75,12 +75,14 @@ def _progress(message: str) -> None:
 
 
 def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
+    from omni_micro_tools.bags import check_bag_output
+
     if args.record is None:
         return dict.fromkeys(RUNS)
     args.record.mkdir(parents=True, exist_ok=True)
     paths = {name: args.record / f'fig11_{name}' for name in RUNS}
     for path in paths.values():
-        check_output_path(path, args.force)   # refuse before anything runs
+        check_bag_output(path, args.force)   # refuse before anything runs
     return paths
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 
 from omni_micro_cli.arguments import domain_id
-from omni_micro_cli.outputs import check_output_path, output_folder
+from omni_micro_cli.outputs import output_folder
 from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGE_NAMES
 
 
@@ -49,9 +49,10 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.parameter import Parameter
 
     from omni_micro_common.node_runtime import run_node
+    from omni_micro_tools.bags import check_bag_output
     from omni_micro_tools.recorder_node import BagRecorder, report_and_close
 
-    check_output_path(args.bag, args.force)
+    check_bag_output(args.bag, args.force)
     overrides = [Parameter('bag', value=str(args.bag)), Parameter('storage', value=args.storage),
                  Parameter('topics', value=list(args.topics or GRAPH_TOPICS)),
                  Parameter('lockstep_frames', value=bool(args.lockstep_frames)),

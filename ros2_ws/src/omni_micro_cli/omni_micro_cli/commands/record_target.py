@@ -9,7 +9,7 @@ from pathlib import Path
 
 from omni_micro_cli.arguments import add_target_arguments, target_from, whole_number_in
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import check_output_path, output_folder
+from omni_micro_cli.outputs import output_folder
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_cli.orchestration.parameters import check_params_file, params_from_files
     from omni_micro_common.conventions import split_stamp
     from omni_micro_sim.state import RobotState
-    from omni_micro_tools.bags import open_writer
+    from omni_micro_tools.bags import check_bag_output, open_writer
     from omni_micro_tools.topics import IMAGE_TOPICS
     from omni_micro_vision.camera_frames import CameraFrames, camera_settings
     from omni_micro_vision.errors import CameraConfigError
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         seed = int(values.get('seed', 0))  # type: ignore[call-overload]
     except (CameraConfigError, TypeError, ValueError) as error:
         raise UsageError(f'camera params: {error}') from None
-    check_output_path(args.out, args.force)
+    check_bag_output(args.out, args.force)
     index = ('macro', 'micro').index(args.camera)
     frames = CameraFrames(index, optics, sensor, seed, target)
     topics = {f'/camera/{args.camera}/{stream}': IMAGE_TOPICS[f'/camera/{args.camera}/{stream}']

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from omni_micro_cli.outputs import check_output_path, output_folder
+from omni_micro_cli.outputs import output_folder
 from omni_micro_tools.topics import STORAGE_NAMES
 
 
@@ -37,10 +37,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.bag_order import RECOVERY_WINDOW_S
-    from omni_micro_tools.bags import recover
+    from omni_micro_tools.bags import check_bag_output, recover
 
     target = args.out or args.bag.with_name(args.bag.name + '-recovered')
-    check_output_path(target, args.force)
+    check_bag_output(target, args.force)
     report = recover(args.bag, target, args.storage, keep_unsure_tail=args.keep_unsure_tail)
     print(f'recovered {report.kept} messages into {target}: '
           + ', '.join(f'{topic} {count}' for topic, count in sorted(report.counts.items())),

@@ -297,9 +297,9 @@ def run_graph(options: GraphOptions) -> GraphResult:
     for path in options.params_files:
         check_params_file(path)
     if options.record is not None:
-        from omni_micro_cli.outputs import check_output_path
+        from omni_micro_tools.bags import check_bag_output
 
-        check_output_path(options.record, options.force)
+        check_bag_output(options.record, options.force)
     log_dir = _new_log_dir(options.log_dir)
     goals = [(float(x), float(y)) for x, y in [options.goal_m, *options.more_goals_m]]
     # With external parts the domain is the drivers': joined, not leased.
