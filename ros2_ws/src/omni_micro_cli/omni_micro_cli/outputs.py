@@ -12,7 +12,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 
-
 def output_problem(path: Path, kind: str) -> str | None:
     """What stops ``path`` from being written as a ``kind`` ('folder' or 'file'), or None.
 
