@@ -16,8 +16,8 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from omni_micro_cli.orchestration.machine_load import busy_cores
-from omni_micro_cli.orchestration.processes import DomainLease, node_environment
+from omni_micro_bringup.machine_load import busy_cores
+from omni_micro_bringup.processes import DomainLease, node_environment
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -87,7 +87,7 @@ def start_node(domain_id: int, tmp_path: Path):
     logs: list[IO[str]] = []
 
     def start(package: str, executable: str, *params: str) -> subprocess.Popen:
-        from omni_micro_cli.orchestration.parameters import package_params_file, resolve_executable
+        from omni_micro_bringup.parameters import package_params_file, resolve_executable
 
         argv = [str(resolve_executable(package, executable)), '--ros-args', '--params-file',
                 str(package_params_file(package, executable))]

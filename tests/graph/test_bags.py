@@ -14,7 +14,7 @@ import yaml
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from omni_micro_cli.orchestration.processes import node_environment
+from omni_micro_bringup.processes import node_environment
 from omni_micro_tools.bags import GRAPH_TOPICS, read_bag
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,8 +52,8 @@ def test_the_recorded_qos_is_what_the_graphs_publishers_offer(tmp_path):
     """The metadata above is written from omni_micro_tools.topics' table; this checks the table
     against the publishers a running graph really has (read from the ROS graph, as rqt_graph
     would), so that a publisher whose QoS changes makes the bag's metadata fail here."""
-    from omni_micro_cli.orchestration.composition import GraphOptions
-    from omni_micro_cli.orchestration.graph import describe_graph
+    from omni_micro_bringup.composition import GraphOptions
+    from omni_micro_bringup.graph import describe_graph
 
     described = describe_graph(GraphOptions(goal_m=(0.1, 0.0), log_dir=tmp_path / 'logs',
                                             record=tmp_path / 'bag'))

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from nav_msgs.msg import Odometry
 
-from omni_micro_cli.orchestration.processes import node_environment
+from omni_micro_bringup.processes import node_environment
 
 pytestmark = pytest.mark.slow
 

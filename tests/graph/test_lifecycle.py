@@ -15,10 +15,10 @@ from conftest import ROOT
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import run_graph
+from omni_micro_bringup.processes import DomainLease
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import run_graph
-from omni_micro_cli.orchestration.processes import DomainLease
 from omni_micro_common.node_runtime import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
 from omni_micro_tools.bags import read_bag
@@ -101,8 +101,8 @@ def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain
     closed) used to abort its teardown, and the interpreter's slow exit kept it alive up to
     1.2 s after the orchestrator on an idle machine. Now it exits through the fast path: code 0
     (an exception on the way out ends with 1)."""
-    from omni_micro_cli.orchestration.parameters import package_params_file, resolve_executable
-    from omni_micro_cli.orchestration.processes import node_environment
+    from omni_micro_bringup.parameters import package_params_file, resolve_executable
+    from omni_micro_bringup.processes import node_environment
     from omni_micro_common.conventions import LIFELINE_ENV
 
     bag = tmp_path / 'bag'

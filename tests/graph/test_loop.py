@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_cli.orchestration.composition import GraphOptions, NodeSpec, default_nodes
-from omni_micro_cli.orchestration.graph import run_graph
+from omni_micro_bringup.composition import GraphOptions, NodeSpec, default_nodes
+from omni_micro_bringup.graph import run_graph
 from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_cli.orchestration.parameters import package_params_file, resolve_executable
-from omni_micro_cli.orchestration.processes import node_environment
+from omni_micro_bringup.parameters import package_params_file, resolve_executable
+from omni_micro_bringup.processes import node_environment
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
             'controller_node': 'omni_micro_control'}

@@ -15,9 +15,9 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import GraphResult, run_graph
 from omni_micro_tools.bags import read_bag
 
 GOAL = (0.1, 0.0)
@@ -155,7 +155,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     from nav_msgs.msg import Odometry
     from rclpy.node import Node
 
-    from omni_micro_cli.orchestration.monitor import GraphMonitor
+    from omni_micro_bringup.monitor import GraphMonitor
     from omni_micro_common.lockstep import Ack
     from omni_micro_common.node_runtime import LockstepReporter
     from omni_micro_common.qos import DATA_QOS
@@ -206,7 +206,7 @@ def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_i
     answer is lost. The request goes again, and the clock starts."""
     from rclpy.task import Future
 
-    from omni_micro_cli.orchestration.monitor import GraphMonitor
+    from omni_micro_bringup.monitor import GraphMonitor
 
     start_node('omni_micro_sim', 'dynamics_node', 'paused:=true')
     monitor = GraphMonitor(domain_id)

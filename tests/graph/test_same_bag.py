@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 from bag_compare import bag_digest, stored_messages
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import Graph, GraphResult, run_graph
 from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import Graph, GraphResult, run_graph
 
 
 def record(folder: Path, real_time_factor: float = math.inf, seed: int = 7,

@@ -11,8 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_cli.errors import UsageError
-from omni_micro_cli.orchestration.composition import (
+from omni_micro_bringup.composition import (
     LOOP_CONTAINER,
     MARKERS_NODE,
     GraphOptions,
@@ -21,6 +20,7 @@ from omni_micro_cli.orchestration.composition import (
     capture_readers,
     node_overrides,
 )
+from omni_micro_cli.errors import UsageError
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
 from omni_micro_common.node_runtime import NodeComponent
 

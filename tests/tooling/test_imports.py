@@ -80,7 +80,8 @@ def test_the_shared_contracts_load_no_sibling_package():
             'omni_micro_common.lockstep, omni_micro_common.node_runtime, '
             'omni_micro_common.params, omni_micro_common.messages')
     assert loaded_after(code, ('omni_micro_sim', 'omni_micro_vision', 'omni_micro_control',
-                               'omni_micro_tools', 'omni_micro_cli', *PHYSICS, 'numpy')) == []
+                               'omni_micro_tools', 'omni_micro_bringup', 'omni_micro_cli',
+                               *PHYSICS, 'numpy')) == []
 
 
 @pytest.mark.parametrize('package', sorted(path.parent.name for path in

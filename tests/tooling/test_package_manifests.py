@@ -28,6 +28,13 @@ ROS_PACKAGES = {'rclpy', 'builtin_interfaces', 'diagnostic_msgs', 'geometry_msgs
                 'visualization_msgs', *PACKAGES}
 
 
+# A bringup package depends on the packages whose nodes it starts, imported or not (as
+# nav2_bringup exec_depends on the nav2 servers).
+RUNS_NODES_OF = {'omni_micro_bringup': {'omni_micro_sim', 'omni_micro_vision',
+                                        'omni_micro_control', 'omni_micro_tools',
+                                        'omni_micro_common'}}
+
+
 def imported_top_names(package: str) -> set[str]:
     names: set[str] = set()
     for path in (SRC / package / package).rglob('*.py'):
@@ -46,7 +53,7 @@ def declared(package: str, tags: tuple[str, ...] = ('exec_depend', 'depend')) ->
 
 def test_every_package_is_checked():
     assert {'omni_micro_common', 'omni_micro_sim', 'omni_micro_vision', 'omni_micro_control',
-            'omni_micro_tools', 'omni_micro_cli'} <= set(PACKAGES)
+            'omni_micro_tools', 'omni_micro_bringup', 'omni_micro_cli'} <= set(PACKAGES)
 
 
 @pytest.mark.parametrize('package', PACKAGES)
@@ -54,7 +61,7 @@ def test_package_xml_declares_what_the_code_imports(package):
     names = imported_top_names(package)
     unknown = sorted(names - ROS_PACKAGES - set(ROSDEP_KEYS))
     assert not unknown, f'{package} imports {unknown}: add their rosdep keys to ROSDEP_KEYS'
-    needed = {ROSDEP_KEYS.get(name, name) for name in names}
+    needed = {ROSDEP_KEYS.get(name, name) for name in names} | RUNS_NODES_OF.get(package, set())
     have = declared(package)
     assert not needed - have, f'{package}/package.xml lacks {sorted(needed - have)}'
     assert not have - needed, f'{package}/package.xml declares unused {sorted(have - needed)}'

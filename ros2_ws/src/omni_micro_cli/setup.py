@@ -15,8 +15,8 @@ setup(
     zip_safe=True,
     maintainer='omni-micro developers',
     maintainer_email='dev@omni-micro.invalid',
-    description=('The omni-micro command line: runs, studies, figures, bags and '
-                 'benchmarks, and the orchestration of the node graph.'),
+    description=('The omni-micro command line: runs (through omni_micro_bringup), studies, '
+                 'figures, bags and benchmarks.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -1,9 +1,8 @@
-"""The omni-micro command line: the user's commands and the orchestration of the node graph.
+"""The omni-micro command line: the user's commands, over omni_micro_bringup and the plain modules.
 
 :mod:`cli` (the ``omni-micro`` console script: one sub-command per user task, each in
 ``commands/``, loaded when it runs), :mod:`arguments` (command-line values in the user's units,
 checked), :mod:`outputs` (output paths checked before anything runs, written whole),
 :mod:`errors`, :mod:`plots` (the paper's figures from arrays), :mod:`animate` (a run as a GIF
-from its bag), :mod:`twin` (the closed loop in one process, for studies); ``orchestration/``
-starts and watches the graph, as a launch file would.
+from its bag), :mod:`twin` (the closed loop in one process, for studies).
 """

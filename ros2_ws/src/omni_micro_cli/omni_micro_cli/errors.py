@@ -1,14 +1,9 @@
-"""Errors of the command line. A UsageError exits with status 2 and names the bad value."""
+"""Errors of the command line. A UsageError exits with status 2 and names the bad value; a
+RunFailed exits with 1 (both are the bringup's, which the commands run)."""
 
-from omni_micro_common.errors import OmniMicroError
+from omni_micro_bringup.errors import RunFailed, UsageError
 
-
-class UsageError(OmniMicroError, ValueError):
-    """A command-line value is malformed or out of range."""
-
-
-class RunFailed(OmniMicroError, RuntimeError):  # noqa: N818 - an outcome, named as the CLI reports it
-    """A run did not reach its goal, or a node failed; the message names what failed."""
+__all__ = ['RunFailed', 'StudyError', 'UsageError']
 
 
 class StudyError(UsageError):

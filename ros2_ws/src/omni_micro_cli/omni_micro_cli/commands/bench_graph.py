@@ -18,10 +18,10 @@ import statistics
 import tempfile
 from pathlib import Path
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import GraphResult, run_graph
-from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_cli.outputs import output_folder
 from omni_micro_sim import paper
 

@@ -23,14 +23,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import whole_number_in
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.machine_load import busy_cores
 from omni_micro_sim import paper
 from omni_micro_tools.topics import IMAGE_TOPICS
 
 if TYPE_CHECKING:
-    from omni_micro_cli.orchestration.graph import GraphResult
+    from omni_micro_bringup.graph import GraphResult
 
 
 # Where the robot is for each per-frame case: (camera, label, x, y, heading, speed along x).
@@ -175,7 +175,7 @@ def driver_frame_costs(frames: int) -> list[dict[str, object]]:
 
 
 def _fig11(vision: str, busy: int, scratch: Path, composed: bool = False) -> GraphResult:
-    from omni_micro_cli.orchestration.graph import run_graph
+    from omni_micro_bringup.graph import run_graph
 
     with busy_cores(busy):
         return run_graph(GraphOptions(
@@ -184,7 +184,7 @@ def _fig11(vision: str, busy: int, scratch: Path, composed: bool = False) -> Gra
 
 
 def loop_costs(scratch: Path) -> dict[str, object]:
-    from omni_micro_cli.orchestration.graph import run_graph
+    from omni_micro_bringup.graph import run_graph
     from omni_micro_tools.bags import read_bag
 
     rows = []

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from omni_micro_bringup.composition import GraphOptions
 from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
@@ -27,12 +28,11 @@ from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.composition import GraphOptions
 from omni_micro_cli.outputs import output_folder, staged_directory
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:
-    from omni_micro_cli.orchestration.graph import GraphResult
+    from omni_micro_bringup.graph import GraphResult
 
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
@@ -89,7 +89,7 @@ def bag_paths(args: argparse.Namespace) -> dict[str, Path | None]:
 def graph_run(args: argparse.Namespace, open_loop_s: float | None, log_root: Path,
               bag: Path | None, mode: str = 'paper', vision: str = 'model',
               steering: str = 'ideal') -> GraphResult:
-    from omni_micro_cli.orchestration.graph import run_graph
+    from omni_micro_bringup.graph import run_graph
 
     return run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=args.seed, real_time_factor=args.rtf,

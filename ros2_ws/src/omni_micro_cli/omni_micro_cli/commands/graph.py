@@ -21,7 +21,7 @@ from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import atomic_bytes, output_file
 
 if TYPE_CHECKING:
-    from omni_micro_cli.orchestration.graph import TopicEndpoints
+    from omni_micro_bringup.graph import TopicEndpoints
 
 # What the picture calls the orchestrator's node: the command that started the graph.
 ORCHESTRATOR_LABEL = 'omni-micro (orchestration)'
@@ -45,8 +45,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.orchestration.composition import GraphOptions
-    from omni_micro_cli.orchestration.graph import describe_graph
+    from omni_micro_bringup.composition import GraphOptions
+    from omni_micro_bringup.graph import describe_graph
 
     if args.out is None and not args.json:
         raise UsageError('give --out FILE (.svg or .png) or --json: nothing to make')
@@ -71,7 +71,7 @@ def nodes_of(topics: list[TopicEndpoints]) -> list[str]:
 
 
 def _label(node: str) -> str:
-    from omni_micro_cli.orchestration.monitor import ORCHESTRATOR_NODE
+    from omni_micro_bringup.monitor import ORCHESTRATOR_NODE
 
     return ORCHESTRATOR_LABEL if node == ORCHESTRATOR_NODE else node
 

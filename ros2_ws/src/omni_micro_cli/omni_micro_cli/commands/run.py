@@ -8,6 +8,10 @@ import os
 import sys
 from pathlib import Path
 
+from omni_micro_bringup.composition import SOURCES, VISION_MODES, GraphOptions
+from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.parameters import check_params_file
+from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
@@ -23,10 +27,6 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.commands.record import add_storage_arguments
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.composition import SOURCES, VISION_MODES, GraphOptions
-from omni_micro_cli.orchestration.graph import GraphResult, run_graph
-from omni_micro_cli.orchestration.parameters import check_params_file
-from omni_micro_cli.orchestration.platform_bounds import check_goal
 from omni_micro_cli.outputs import output_folder
 from omni_micro_control.feedback import MODES
 

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import run_graph
 from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
@@ -22,8 +24,6 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.commands.run import echo_to_stderr
 from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.composition import GraphOptions
-from omni_micro_cli.orchestration.graph import run_graph
 from omni_micro_cli.outputs import output_folder
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG

@@ -56,7 +56,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
-    from omni_micro_cli.orchestration.parameters import check_params_file, params_from_files
+    from omni_micro_bringup.parameters import check_params_file, params_from_files
 
     for path in args.params:
         check_params_file(path)

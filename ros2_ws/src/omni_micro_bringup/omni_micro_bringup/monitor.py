@@ -22,8 +22,8 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.parameters import dds_profile
+from omni_micro_bringup.errors import RunFailed, UsageError
+from omni_micro_bringup.parameters import dds_profile
 from omni_micro_common.conventions import (
     LOCKSTEP_INPUTS,
     join_stamp,

@@ -11,12 +11,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from omni_micro_cli.errors import UsageError
-from omni_micro_cli.orchestration.parameters import node_parameters
+from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.conventions import GRAPH_NODE_NAMES
 
 if TYPE_CHECKING:
-    from omni_micro_cli.orchestration.graph import Graph
+    from omni_micro_bringup.graph import Graph
 
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.errors import UsageError
-from omni_micro_cli.orchestration.parameters import params_from_files
+from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.parameters import params_from_files
 
 
 def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:

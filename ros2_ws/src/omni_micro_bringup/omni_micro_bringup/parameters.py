@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from omni_micro_cli.errors import RunFailed
+from omni_micro_bringup.errors import RunFailed
 from omni_micro_common import params
 
 

@@ -23,8 +23,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.orchestration.composition import (
+from omni_micro_bringup.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
@@ -34,13 +33,14 @@ from omni_micro_cli.orchestration.composition import (
     simulates_robot,
     streaming_cameras,
 )
-from omni_micro_cli.orchestration.parameters import (
+from omni_micro_bringup.errors import RunFailed, UsageError
+from omni_micro_bringup.parameters import (
     check_params_file,
     format_parameter,
     package_params_file,
     resolve_executable,
 )
-from omni_micro_cli.orchestration.processes import (
+from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
     clean_shared_memory,
@@ -291,7 +291,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_cli.orchestration.monitor import GraphMonitor  # rclpy only where a graph runs
+    from omni_micro_bringup.monitor import GraphMonitor  # rclpy only where a graph runs
     from omni_micro_tools.topics import BAG_TAIL_S
 
     for path in options.params_files:
@@ -395,7 +395,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     """Bring the graph of ``options`` up (its clock paused, no goal), read from the ROS graph
     who publishes and who subscribes each topic with which type and QoS, as rqt_graph would,
     and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
-    from omni_micro_cli.orchestration.monitor import GraphMonitor
+    from omni_micro_bringup.monitor import GraphMonitor
 
     for path in options.params_files:
         check_params_file(path)

@@ -20,11 +20,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
-from omni_micro_cli.errors import RunFailed
-from omni_micro_cli.orchestration.parameters import dds_profile
+from omni_micro_bringup.errors import RunFailed
+from omni_micro_bringup.parameters import dds_profile
 
 if TYPE_CHECKING:
-    from omni_micro_cli.orchestration.composition import NodeSpec
+    from omni_micro_bringup.composition import NodeSpec
 
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
