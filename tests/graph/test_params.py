@@ -26,6 +26,7 @@ def params(tmp_path: Path, text: str) -> Path:
     ('controller_node:\n  ros__parameters:\n    tolerance_um: 5.0\n',
      ["node 'controller_node'", "unknown parameter 'tolerance_um' = 5.0",
       "did you mean 'tolerance_m'?"]),
+    # Refused by the bringup, which knows the graph's nodes, before any starts.
     ('controler_node:\n  ros__parameters:\n    tolerance_m: 5.0e-6\n',
      ["section 'controler_node' names no node of the graph", "did you mean 'controller_node'?"]),
     ('controller_node:\n  ros__parameters:\n    tolerance_m: "five"\n',
@@ -43,7 +44,8 @@ def test_run_refuses_a_params_file_mistake_before_anything_moves(text, expected,
     result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--params', str(path),
                         '--log-dir', str(tmp_path / 'logs'))
     assert result.returncode == 2, result.stderr[-2000:]
-    assert 'refused its parameters' in result.stderr and str(path) in result.stderr
+    assert str(path) in result.stderr
+    assert 'names no node' in result.stderr or 'refused its parameters' in result.stderr
     for words in expected:
         assert words in result.stderr, result.stderr[-2000:]
     # Nothing moved: the robot's clock never ran and no move was commanded.

@@ -4,6 +4,7 @@ into the plain modules' types and back, refusals that name the value."""
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections.abc import Callable
 
@@ -129,7 +130,9 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
     """The recorder says "recording" once its readers see the publishers, which is not that the
     publishers have matched its readers: a run's bag once lacked its first odometry."""
     node = DynamicsNode(context=context, parameter_overrides=overrides(
-        listening_nodes=['bag_recorder'], real_time_factor=100.0))
+        awaited_readers=[f'bag_recorder:{topic}' for topic in
+                         ('/clock', '/odom', '/joint_states', '/wheel_slip')],
+        real_time_factor=100.0))
     recorder = rclpy.create_node('bag_recorder', context=context)
     executor = SingleThreadedExecutor(context=context)
     try:
@@ -506,3 +509,14 @@ def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):
 def test_viewer_refuses_a_port_out_of_range(context):
     with pytest.raises(ParameterError, match='70000'):
         Viewer(context=context, parameter_overrides=overrides(port=70000))
+
+
+@pytest.mark.parametrize('entries, words', [
+    (['markers_node'], 'each entry must be NODE:/TOPIC'),
+    (['markers_node:odom'], 'each entry must be NODE:/TOPIC'),
+    (['markers_node:/markers'], "markers_node reads ['/markers'], which this node does not "
+                                'publish'),
+])
+def test_dynamics_node_refuses_awaited_readers_it_cannot_wait_for(context, entries, words):
+    with pytest.raises(ParameterError, match=re.escape(words)):
+        DynamicsNode(context=context, parameter_overrides=overrides(awaited_readers=entries))

@@ -105,13 +105,22 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
         'dynamics_node', 'camera_node', 'tracker_node', 'controller_node']
 
 
-def test_the_clock_waits_for_the_readers_of_whoever_draws_or_keeps_the_run():
+def test_the_clock_waits_for_the_readers_of_whoever_reports_draws_or_keeps_the_run():
     dynamics = NodeSpec('omni_micro_sim', 'dynamics_node')
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
-    assert node_overrides(dynamics, recorded)['listening_nodes'] == ['markers_node',
-                                                                     'bag_recorder']
+    assert node_overrides(dynamics, recorded)['awaited_readers'] == [
+        'vision_node:/odom', 'controller_node:/joint_states', 'markers_node:/odom_throttle',
+        'markers_node:/joint_states_throttle', 'markers_node:/wheel_slip',
+        'bag_recorder:/clock', 'bag_recorder:/odom', 'bag_recorder:/joint_states',
+        'bag_recorder:/wheel_slip']
     bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
-    assert node_overrides(dynamics, bare)['listening_nodes'] == []
+    assert node_overrides(dynamics, bare)['awaited_readers'] == [
+        'vision_node:/odom', 'controller_node:/joint_states']
+    # Free-running, nobody reports: only who draws the run is waited for.
+    free = GraphOptions(goal_m=(0.1, 0.0), lockstep=False)
+    assert node_overrides(dynamics, free)['awaited_readers'] == [
+        'markers_node:/odom_throttle', 'markers_node:/joint_states_throttle',
+        'markers_node:/wheel_slip']
 
 
 def test_markers_read_the_captures_where_the_controller_reads_them():

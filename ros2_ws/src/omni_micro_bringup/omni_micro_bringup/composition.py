@@ -13,11 +13,26 @@ from typing import TYPE_CHECKING
 
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.parameters import node_parameters
-from omni_micro_common.conventions import GRAPH_NODE_NAMES
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph import Graph
 
+# The nodes of the graph, by name (a params file's sections name them): the loop, and those a
+# graph may have besides (the rendered cameras and their tracker, the markers, the recorder, the
+# live view).
+GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
+OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recorder',
+                       'omni_micro_viewer')
+# What each node reads from the simulated robot that it must have from the first sample: the
+# robot's clock starts only once its publishers have matched these readers (dynamics_node's
+# awaited_readers). A lockstep node that missed a sample would never report it, and time would
+# stand still; markers_node draws and bag_recorder keeps the whole run. Seeing a reader in the
+# ROS graph from another process is not enough: discovery runs each way at its own pace, and a
+# bag once lacked a run's first odometry.
+READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
+    'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',),
+    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip'),
+    'bag_recorder': ('/clock', '/odom', '/joint_states', '/wheel_slip')}
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
 LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
@@ -180,11 +195,13 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
         taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
         overrides.update(lockstep_nodes=taking_part if options.in_lockstep else [])
-        # markers_node draws the run and the recorder keeps it from its first sample: time
-        # waits for their readers too.
-        overrides.update(listening_nodes=[
-            *(['markers_node'] if options.markers else []),
-            *(['bag_recorder'] if options.record is not None else [])])
+        # Time waits for the lockstep nodes' readers, and for those of who draws or keeps the
+        # run from its first sample.
+        waited = [*(taking_part if options.in_lockstep else []),
+                  *(['markers_node'] if options.markers else []),
+                  *(['bag_recorder'] if options.record is not None else [])]
+        overrides.update(awaited_readers=[f'{node}:{topic}' for node in dict.fromkeys(waited)
+                                          for topic in READS_FROM_ROBOT.get(node, ())])
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
             overrides.update(stamp_origin='wall', real_time_factor=1.0)

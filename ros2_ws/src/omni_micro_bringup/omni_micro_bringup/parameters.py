@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_common import params
+from omni_micro_common.errors import ParamsFileError
 
 
 def install_prefixes() -> list[Path]:
@@ -42,18 +45,35 @@ def format_parameter(value: object) -> str:
         return ('.inf' if value > 0 else '-.inf') if math.isinf(value) else repr(value)
     if isinstance(value, (list, tuple)):
         return '[' + ','.join(format_parameter(v) for v in value) + ']'
-    return str(value)
+    text = str(value)
+    if isinstance(value, str) and any(c in text for c in YAML_SPECIAL):
+        # rcl reads -p values as YAML: 'node:/topic' unquoted in a list does not parse.
+        return "'" + text.replace("'", "''") + "'"
+    return text
 
 
-def check_params_file(path: Path) -> None:
-    """Refuse a params file that would make a node die at start-up: say what is wrong with it.
+# Characters that make a plain YAML scalar mean something else, or not parse.
+YAML_SPECIAL = frozenset(':#,[]{}&*!|>\'"%@`')
+
+
+def check_params_file(path: Path, nodes: Sequence[str] = ()) -> None:
+    """Refuse a params file that would make a node die at start-up, or (with ``nodes``, those
+    of the graph) that has a section for a node the graph does not have, which ROS would pass
+    over in silence: say what is wrong with it.
 
     Raises
     ------
     omni_micro_common.errors.ParamsFileError
         Naming the file and what is wrong with it.
     """
-    params.load_params_file(path)
+    sections = params.load_params_file(path)
+    for section in sections if nodes else ():
+        bare = section.lstrip('/')
+        if section not in params.WILDCARD_SECTIONS and bare not in nodes:
+            close = difflib.get_close_matches(bare, nodes, n=1, cutoff=0.6)
+            raise ParamsFileError(
+                f'params file {str(path)!r}: section {section!r} names no node of the graph '
+                f'{list(nodes)}' + (f' (did you mean {close[0]!r}?)' if close else ''))
 
 
 def dds_profile() -> Path:

@@ -124,28 +124,5 @@ OUTCOME_KEY = 'outcome'
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
 PUBLISHED_MARKER = 'published message counts: '
 
-# The nodes of the graph, by name (a params file's sections name them).
-GRAPH_NODE_NAMES = ('dynamics_node', 'vision_node', 'controller_node')
-# Nodes a graph may have besides those three (a params file may have their sections too): the
-# markers, which only listen, the rendered cameras' images and the tracker that turns a
-# camera's images into captures.
-OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recorder',
-                       'omni_micro_viewer')
-
-# What each node that takes part in the lockstep reads from the robot. The robot's clock moves
-# only once its own publishers have matched these readers: a sample sent before would be lost to
-# that node (reliable, volatile), which would then never report it, and time would stand still.
-# (Seeing the reader in the ROS graph from another process is not enough: discovery between two
-# peers completes at its own pace, slower on a busy machine.)
-LOCKSTEP_INPUTS: dict[str, tuple[str, ...]] = {
-    'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',)}
-# What a node that only listens reads from the robot, for the same wait (dynamics_node's
-# listening_nodes): markers_node draws the whole run, and bag_recorder keeps it, from its first
-# sample. The recorder's own "recording" says that its readers see every publisher, not that the
-# publishers have matched its readers: discovery runs each way at its own pace, and a bag once
-# lacked a run's first odometry.
-LISTENER_INPUTS: dict[str, tuple[str, ...]] = {
-    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip'),
-    'bag_recorder': ('/clock', '/odom', '/joint_states', '/wheel_slip')}
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'

@@ -50,12 +50,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.timer import Timer
 
 from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
-from omni_micro_common.conventions import (
-    GRAPH_NODE_NAMES,
-    LIFELINE_ENV,
-    OPTIONAL_NODE_NAMES,
-    PUBLISHED_MARKER,
-)
+from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER
 from omni_micro_common.errors import LockstepError, ParameterError, ParamsFileError
 from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
 from omni_micro_common.params import WILDCARD_SECTIONS, flatten, load_params_file, read_yaml
@@ -337,8 +332,9 @@ def _suggestion(word: str, choices: list[str]) -> str:
 
 
 def check_given_parameters(node: Node, argv: list[str]) -> None:
-    """Refuse what rclpy would pass over in silence: a params-file section that names no node of
-    the graph, a key the node does not declare (from a file or -p), for this node.
+    """Refuse what rclpy would pass over in silence: a key this node does not declare (from a
+    params file or -p), a value of another type. (Sections for other nodes are theirs: the
+    bringup, which knows the graph, refuses one that names no node of it.)
 
     Raises
     ------
@@ -355,11 +351,6 @@ def check_given_parameters(node: Node, argv: list[str]) -> None:
                                  f'{{ros__parameters: ...}}, got {content!r:.100}')
         for section, body in content.items():
             bare = str(section).lstrip('/')
-            known = [*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES]
-            if section not in WILDCARD_SECTIONS and bare not in known:
-                raise ParameterError(
-                    f'params file {path!r}: section {section!r} names no node of the graph '
-                    f'{known}{_suggestion(bare, known)}')
             if not isinstance(body, dict) or not isinstance(body.get('ros__parameters'), dict):
                 raise ParameterError(f'params file {path!r}: section {section!r} must hold '
                                      f'ros__parameters: {{...}}, got {body!r:.100}')

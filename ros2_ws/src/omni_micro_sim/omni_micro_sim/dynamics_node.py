@@ -28,6 +28,11 @@ Lockstep (``lockstep_nodes``, see :mod:`omni_micro_common.lockstep`): simulated 
 further than the reports on /lockstep of the named nodes allow, so a busy machine slows a run
 down but never changes it. An empty list (the default for a node started alone) runs free, as
 a real camera driver that does not report would need.
+
+Time starts (and resumes) only once this node's publishers have matched the readers that must
+not miss a sample (a reliable, volatile reader matched later loses what came before; that node
+would then never report it, or a bag would lack it). ``awaited_readers`` names them as
+``NODE:TOPIC`` (the bringup knows who reads what: ``vision_node:/odom``, ...); none by default.
 """
 
 from __future__ import annotations
@@ -50,8 +55,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
-    LISTENER_INPUTS,
-    LOCKSTEP_INPUTS,
     body_twist,
     join_stamp,
     split_stamp,
@@ -150,8 +153,8 @@ class DynamicsNode(Node):
         self.paused = bool(self.declare_parameter('paused', False).value)
         # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
         lockstep_nodes = node_list_parameter(self, 'lockstep_nodes')
-        # Nodes that only listen (LISTENER_INPUTS) whose readers time waits for at its start.
-        self.listening_nodes = node_list_parameter(self, 'listening_nodes')
+        # The readers time waits for at its start, by node (see the module docstring).
+        self.awaited_readers = awaited_readers(node_list_parameter(self, 'awaited_readers'))
         max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
                                             _READ_ONLY).value
         # Raises ParameterError naming the value: main() reports it and exits non-zero.
@@ -191,7 +194,12 @@ class DynamicsNode(Node):
         self._publishers_of = {pub.topic_name: pub for pub in (
             self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub,
             self.odom_throttle_pub, self.joint_throttle_pub)}
-        # Time starts (and resumes) only once the lockstep nodes' readers are matched.
+        for node, topics in self.awaited_readers.items():
+            unknown = [topic for topic in topics if topic not in self._publishers_of]
+            if unknown:
+                raise ParameterError(f'awaited_readers: {node} reads {unknown}, which this '
+                                     f'node does not publish ({sorted(self._publishers_of)})')
+        # Time starts (and resumes) only once the awaited readers are matched.
         self._readers_pending = True
         self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
                                  DATA_QOS)
@@ -310,14 +318,10 @@ class DynamicsNode(Node):
         return self._tick_origin + int(elapsed / self.grid.period_s)
 
     def _unmatched_readers(self) -> list[str]:
-        """The lockstep and listening nodes' readers of this node's topics that its publishers
-        have not matched yet (see omni_micro_common.conventions.LOCKSTEP_INPUTS)."""
-        missing = []
-        inputs = {**LOCKSTEP_INPUTS, **LISTENER_INPUTS}
-        for node in (*self.lockstep.nodes, *self.listening_nodes):
-            for topic in inputs.get(node, ()):
-                missing += unmatched_readers(self, self._publishers_of[topic], [node])
-        return missing
+        """The awaited readers (``awaited_readers``) this node's publishers have not matched
+        yet."""
+        return [missing for node, topics in self.awaited_readers.items() for topic in topics
+                for missing in unmatched_readers(self, self._publishers_of[topic], [node])]
 
     def _advance(self) -> None:
         if self.paused:
@@ -426,6 +430,23 @@ class DynamicsNode(Node):
 
 
 COMPONENT = NodeComponent(DynamicsNode, config_errors=(ParameterError, CommandError))
+
+
+def awaited_readers(entries: list[str]) -> dict[str, tuple[str, ...]]:
+    """``['markers_node:/odom_throttle', 'markers_node:/wheel_slip']`` -> topics by node.
+
+    Raises
+    ------
+    ParameterError
+        An entry that is not NODE:/TOPIC, named.
+    """
+    readers: dict[str, tuple[str, ...]] = {}
+    for entry in entries:
+        node, _, topic = entry.partition(':')
+        if not node or not topic.startswith('/'):
+            raise ParameterError(f'awaited_readers: each entry must be NODE:/TOPIC, got {entry!r}')
+        readers[node] = (*readers.get(node, ()), topic)
+    return readers
 
 
 def main(args: list[str] | None = None) -> None:
