@@ -10,7 +10,7 @@ import math
 from pathlib import Path
 
 import pytest
-from bag_compare import bag_digest, recorded_until
+from bag_compare import bag_digest, recorded_until, stored_messages
 from geometry_msgs.msg import PoseStamped
 
 from omni_micro_bringup.composition import GraphOptions
@@ -57,11 +57,14 @@ def test_same_seed_same_file_with_images_idle_and_busy_and_no_frame_lost(
         busy_bag, busy = run_on_images(tmp_path, 'busy')
     assert busy.sim_time_s == idle.sim_time_s
     assert bag_digest(busy_bag) == bag_digest(idle_bag)
-    # Every frame up to the bag's end was recorded, however busy the recorder's disk and cores.
-    end = idle.sim_time_s + BAG_TAIL_S
-    idle_messages = recorded_until(idle_bag, end)
+    # Every frame up to the bag's end was recorded, however busy the recorder's disk and cores:
+    # one each 1/30 s from time 0, the last less than a frame period before the end.
+    end_ns = round(idle.sim_time_s * 1e9) + round(BAG_TAIL_S * 1e9)
     for topic in IMAGE_TOPICS:
-        assert len(idle_messages[topic]) == math.floor(end * FRAME_RATE_HZ + 1e-9) + 1, topic
+        stamps = [time for stored, time, _ in stored_messages(idle_bag) if stored == topic]
+        assert [round(k * 1e9 / FRAME_RATE_HZ) for k in range(len(stamps))] == stamps, topic
+        assert 0 <= end_ns - stamps[-1] < 1e9 / FRAME_RATE_HZ, topic
+    idle_messages = recorded_until(idle_bag, idle.sim_time_s)
     # The robot is in both fields; only the micro camera, the finer, captured.
     assert idle_messages['/camera/micro/pose'] and not idle_messages['/camera/macro/pose']
     assert 0.0 < idle.deviation_m < 3e-6

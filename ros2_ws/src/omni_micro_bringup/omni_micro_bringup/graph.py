@@ -24,6 +24,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from omni_micro_bringup.composition import (
+    GRAPH_NODE_NAMES,
+    OPTIONAL_NODE_NAMES,
     GraphOptions,
     NodeSpec,
     all_specs,
@@ -295,7 +297,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     from omni_micro_tools.topics import BAG_TAIL_S
 
     for path in options.params_files:
-        check_params_file(path)
+        check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
     if options.record is not None:
         from omni_micro_tools.bags import check_bag_output
 
@@ -343,8 +345,9 @@ def run_graph(options: GraphOptions) -> GraphResult:
                 if recording:
                     # The bag ends BAG_TAIL_S after the outcome; everything up to there, the
                     # markers' arrays included, is published before the graph stops.
-                    monitor.wait_for_odometry_after(
-                        graph, goal_stamp_s + BAG_TAIL_S + RUN_ON_PAST_BAG_END_S, timeout_s=30.0)
+                    run_to_s = goal_stamp_s + BAG_TAIL_S + RUN_ON_PAST_BAG_END_S
+                    monitor.wait_for_odometry_after(graph, run_to_s, timeout_s=30.0)
+                    monitor.wait_for_recorder_past(graph, run_to_s, timeout_s=60.0)
             else:
                 # A real robot's true pose is nobody's to know: where the camera saw it last.
                 odom = (capture_stamp, float(status.get('measured_x_m', 'nan')),
@@ -398,7 +401,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     from omni_micro_bringup.monitor import GraphMonitor
 
     for path in options.params_files:
-        check_params_file(path)
+        check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
     log_dir = _new_log_dir(options.log_dir)
     lease = DomainLease(options.domain_id)
     with lease as domain_id:

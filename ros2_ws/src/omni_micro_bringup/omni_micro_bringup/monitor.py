@@ -22,10 +22,10 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from omni_micro_bringup.composition import READS_FROM_ROBOT
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.parameters import dds_profile
 from omni_micro_common.conventions import (
-    LOCKSTEP_INPUTS,
     join_stamp,
     quaternion_to_yaw,
     split_stamp,
@@ -37,6 +37,7 @@ from omni_micro_common.qos import (
     STATUS_QOS,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
+from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
 
 class Supervisor(Protocol):
@@ -92,6 +93,7 @@ class GraphMonitor:
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
         self.goal_publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
         self.recorder_ready = False
+        self.recorder_received_s = -1.0   # how far the recorder has every tick topic
         self.known_endpoints: dict[str, set[bytes]] = {}
         self.goals_sent = 0
         self.goal_sent_at = 0
@@ -130,6 +132,9 @@ class GraphMonitor:
 
     def _on_recorder_status(self, msg: DiagnosticStatus) -> None:
         self.recorder_ready = self.recorder_ready or msg.message == 'recording'
+        received = {item.key: item.value for item in msg.values}.get(RECEIVED_UP_TO_KEY)
+        if received is not None:
+            self.recorder_received_s = max(self.recorder_received_s, float(received))
         if msg.level == DiagnosticStatus.ERROR:
             self.recorder_failure = {item.key: item.value for item in msg.values}.get(
                 'reason', msg.message)
@@ -277,10 +282,10 @@ class GraphMonitor:
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
     # controller reads captures with their covariance, or bare ones).
-    # What they read from the robot is the lockstep contract's (LOCKSTEP_INPUTS).
+    # What they read from the robot is the composition's (READS_FROM_ROBOT).
     INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
-        'vision_node': tuple((topic,) for topic in LOCKSTEP_INPUTS['vision_node']),
-        'controller_node': (*((topic,) for topic in LOCKSTEP_INPUTS['controller_node']),
+        'vision_node': tuple((topic,) for topic in READS_FROM_ROBOT['vision_node']),
+        'controller_node': (*((topic,) for topic in READS_FROM_ROBOT['controller_node']),
                             ('/goal_pose',),
                             ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
 
@@ -451,6 +456,20 @@ class GraphMonitor:
                 raise RunFailed(f'no odometry at or after t={stamp_s:.3f} s from dynamics_node')
             self.spin_for(0.05)
         return self.latest_odometry
+
+    def wait_for_recorder_past(self, graph: Supervisor, stamp_s: float,
+                               timeout_s: float) -> None:
+        """Until the recorder has received every tick topic up to ``stamp_s``: stopped sooner,
+        a recorder behind a busy graph would lose what was still on its way."""
+        deadline = time.monotonic() + timeout_s
+        while self.recorder_received_s < stamp_s:
+            graph.check_alive()
+            self.check_recorder()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'the recorder received the robot\'s streams only up to '
+                                f'{self.recorder_received_s:.3f} s, not {stamp_s:.3f} s, within '
+                                f'{timeout_s:g} s')
+            self.spin_for(0.05)
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -84,3 +84,6 @@ assert set(TOPIC_ORDER) == set(RECORDABLE_TOPICS)
 # samples of the robot coming to rest (a ramp down from cruise speed takes 0.17 s, from the tick
 # after the stop), the same in every run of the same seed.
 BAG_TAIL_S = 0.5
+# The key of /bag_recorder/status saying how far (simulated seconds) the recorder has received
+# every one of the robot's per-tick streams.
+RECEIVED_UP_TO_KEY = 'received_up_to_s'
