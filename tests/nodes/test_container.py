@@ -116,11 +116,10 @@ def test_the_clock_waits_for_the_readers_of_whoever_reports_draws_or_keeps_the_r
     bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
     assert node_overrides(dynamics, bare)['awaited_readers'] == [
         'vision_node:/odom', 'controller_node:/joint_states']
-    # Free-running, nobody reports: only who draws the run is waited for.
-    free = GraphOptions(goal_m=(0.1, 0.0), lockstep=False)
-    assert node_overrides(dynamics, free)['awaited_readers'] == [
-        'markers_node:/odom_throttle', 'markers_node:/joint_states_throttle',
-        'markers_node:/wheel_slip']
+    # Composed: the hosted nodes' readers, all the same.
+    composed = GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False)
+    assert node_overrides(dynamics, composed)['awaited_readers'] == [
+        'vision_node:/odom', 'controller_node:/joint_states']
 
 
 def test_markers_read_the_captures_where_the_controller_reads_them():

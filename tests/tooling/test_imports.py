@@ -95,3 +95,18 @@ def test_every_module_is_named_in_its_packages_docstring(package):
                if path.stem not in ('__init__', '__main__')
                and f':mod:`{path.stem}`' not in docstring and f'``{path.stem}``' not in docstring]
     assert unnamed == [], f'{package}/__init__.py does not name {unnamed}'
+
+
+def test_the_shared_contracts_name_no_node_of_the_graph():
+    """Which nodes make the graph, and what each reads, is the bringup's to know: a node added
+    to the graph (a user's own, a second robot's) touches omni_micro_bringup alone."""
+    import ast
+
+    from omni_micro_bringup.composition import GRAPH_NODE_NAMES, OPTIONAL_NODE_NAMES
+
+    names = {*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES}
+    common = ROOT / 'ros2_ws' / 'src' / 'omni_micro_common' / 'omni_micro_common'
+    named = sorted(f'{path.name}: {node.value!r}' for path in common.glob('*.py')
+                   for node in ast.walk(ast.parse(path.read_text()))
+                   if isinstance(node, ast.Constant) and node.value in names)
+    assert named == []

@@ -195,12 +195,11 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
         taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
         overrides.update(lockstep_nodes=taking_part if options.in_lockstep else [])
-        # Time waits for the lockstep nodes' readers, and for those of who draws or keeps the
-        # run from its first sample.
-        waited = [*(taking_part if options.in_lockstep else []),
-                  *(['markers_node'] if options.markers else []),
-                  *(['bag_recorder'] if options.record is not None else [])]
-        overrides.update(awaited_readers=[f'{node}:{topic}' for node in dict.fromkeys(waited)
+        # Time waits for the readers of every node of the graph that must have the robot's
+        # streams from the first sample (READS_FROM_ROBOT).
+        in_graph = [hosted.executable for other in all_specs(options)
+                    for hosted in (other.hosts or (other,))]
+        overrides.update(awaited_readers=[f'{node}:{topic}' for node in dict.fromkeys(in_graph)
                                           for topic in READS_FROM_ROBOT.get(node, ())])
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
