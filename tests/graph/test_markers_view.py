@@ -248,7 +248,7 @@ def test_a_slow_foxglove_client_watches_the_robot_approach_and_changes_nothing(
 
 
 def test_a_view_address_beyond_loopback_says_who_can_connect():
-    from omni_micro_cli.commands.view import check_view_host
+    from omni_micro_cli.arguments import check_view_host
     from omni_micro_cli.errors import UsageError
 
     assert check_view_host('127.0.0.1') is None

@@ -7,6 +7,7 @@ import argparse
 import contextlib
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -98,3 +99,7 @@ def atomic_bytes(target: Path, data: bytes) -> None:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def echo_to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

@@ -19,16 +19,16 @@ import numpy as np
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_cli.arguments import (
     add_steering_argument,
+    add_storage_arguments,
     add_timing_arguments,
+    add_view_arguments,
     check_timing,
     seed_number,
     steering_overrides,
+    view_from_args,
 )
-from omni_micro_cli.commands.record import add_storage_arguments
-from omni_micro_cli.commands.run import echo_to_stderr
-from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import output_folder, staged_directory
+from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:

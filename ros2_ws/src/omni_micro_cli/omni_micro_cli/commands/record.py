@@ -7,16 +7,9 @@ from __future__ import annotations
 
 import argparse
 
-from omni_micro_cli.arguments import domain_id
+from omni_micro_cli.arguments import add_storage_arguments, domain_id
 from omni_micro_cli.outputs import output_folder
-from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS, STORAGE_NAMES
-
-
-def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--storage', choices=sorted(STORAGE_NAMES), default='mcap',
-                        help="bag storage (default mcap, Jazzy's default)")
-    parser.add_argument('--force', action='store_true',
-                        help='replace an existing bag at the output path')
+from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

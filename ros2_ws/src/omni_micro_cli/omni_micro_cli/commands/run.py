@@ -14,7 +14,9 @@ from omni_micro_bringup.parameters import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
     add_steering_argument,
+    add_storage_arguments,
     add_timing_arguments,
+    add_view_arguments,
     check_timing,
     domain_id,
     float_list,
@@ -23,11 +25,10 @@ from omni_micro_cli.arguments import (
     probability,
     seed_number,
     steering_overrides,
+    view_from_args,
 )
-from omni_micro_cli.commands.record import add_storage_arguments
-from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import output_folder
+from omni_micro_cli.outputs import echo_to_stderr, output_folder
 from omni_micro_control.feedback import MODES
 
 
@@ -167,10 +168,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     faults.add_argument('--respawn', action='store_true',
                         help='restart a crashed vision_node or controller_node and go on')
     parser.set_defaults(handler=run)
-
-
-def echo_to_stderr(line: str) -> None:
-    print(line, file=sys.stderr, flush=True)
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:

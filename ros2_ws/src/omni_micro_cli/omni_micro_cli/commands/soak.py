@@ -16,15 +16,15 @@ from omni_micro_bringup.graph import run_graph
 from omni_micro_cli.arguments import (
     add_steering_argument,
     add_timing_arguments,
+    add_view_arguments,
     check_timing,
     seed_number,
     steering_overrides,
+    view_from_args,
     whole_number_in,
 )
-from omni_micro_cli.commands.run import echo_to_stderr
-from omni_micro_cli.commands.view import add_view_arguments, view_from_args
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import output_folder
+from omni_micro_cli.outputs import echo_to_stderr, output_folder
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG
 
