@@ -229,7 +229,7 @@ def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, doma
     from nav_msgs.msg import Odometry
 
     from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-    from omni_micro_common.node_runtime import LOCKSTEP_QOS
+    from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS
 
     bag, _ = recorded
     reports = probe.node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS)

@@ -19,7 +19,7 @@ from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import run_graph
 from omni_micro_bringup.processes import DomainLease
 from omni_micro_cli.errors import RunFailed
-from omni_micro_common.node_runtime import LOCKSTEP_QOS
+from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
 from omni_micro_tools.bags import read_bag
 

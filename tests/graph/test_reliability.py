@@ -157,7 +157,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
 
     from omni_micro_bringup.monitor import GraphMonitor
     from omni_micro_common.lockstep import Ack
-    from omni_micro_common.node_runtime import LockstepReporter
+    from omni_micro_common.lockstep_reporting import LockstepReporter
     from omni_micro_common.qos import DATA_QOS
 
     # A stand-in vision_node that lost the samples up to 40 ms (the lead's worth the robot sends

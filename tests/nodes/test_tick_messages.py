@@ -102,7 +102,7 @@ def test_a_report_round_trips_and_a_broken_one_is_named():
     from omni_micro_common.cdr import diagnostic_status_bytes
     from omni_micro_common.errors import LockstepError
     from omni_micro_common.lockstep import ACK_MESSAGE, Ack
-    from omni_micro_common.node_runtime import decode_ack_bytes
+    from omni_micro_common.lockstep_reporting import decode_ack_bytes
 
     ack = Ack('vision_node', 40_000_000, captures_ns=(20_000_000, 40_000_000))
     data = diagnostic_status_bytes(0, 'vision_node', ACK_MESSAGE, '', ack.to_values())

@@ -20,45 +20,30 @@ from __future__ import annotations
 
 import contextlib
 import cProfile
-import difflib
 import faulthandler
-import itertools
-import json
 import os
 import select
 import signal
-import struct
 import sys
 import threading
 import time
-from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
-from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
-from rclpy.timer import Timer
 
-from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
-from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER
-from omni_micro_common.errors import LockstepError, ParameterError, ParamsFileError
-from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
-from omni_micro_common.params import WILDCARD_SECTIONS, flatten, load_params_file, read_yaml
-from omni_micro_common.qos import PER_TICK_PUBLISHER_EVENTS
+from omni_micro_common.conventions import LIFELINE_ENV
+from omni_micro_common.errors import ParameterError, ParamsFileError
+from omni_micro_common.parameter_checks import check_given_parameters, params_files
+from omni_micro_common.params import load_params_file
 
 NodeT = TypeVar('NodeT', bound=Node)
 
-# Reports are small and every one counts: the robot waits for them.
 # Set to a folder: each node writes its cProfile statistics there at exit (the benchmark does).
 PROFILE_ENV = 'OMNI_MICRO_PROFILE'
 # Which rclpy executor spins a node: 'events' (rclpy.experimental.EventsExecutor, the default:
@@ -69,75 +54,6 @@ EXECUTOR_ENV = 'OMNI_MICRO_EXECUTOR'
 # another thread): a signal is seen within this long.
 SPIN_TIMEOUT_S = 0.05
 EXECUTORS = ('events', 'single')
-
-
-def node_list_parameter(node: Node, name: str) -> list[str]:
-    """A read-only list of node names (empty by default: ROS has no empty-list default)."""
-    descriptor = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
-    return [value for value in node.declare_parameter(name, [''], descriptor).value or []
-            if value]
-
-
-def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str]) -> list[str]:
-    """Which of ``reader_nodes``' readers of ``publisher``'s topic it has not matched yet.
-
-    A sample sent before a reliable, volatile reader is matched is lost to that reader; seeing
-    the reader in the ROS graph is not enough (discovery between two peers completes at its own
-    pace, slower on a busy machine), so the publisher must count it. Transient-local readers
-    (a user's tool, say) never match a volatile writer and are not waited for.
-    """
-    topic = publisher.topic_name
-    readers = [info for info in node.get_subscriptions_info_by_topic(topic)
-               if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
-    return [f"{name}'s reader of {topic}" for name in reader_nodes
-            if not any(info.node_name == name for info in readers)
-            or publisher.get_subscription_count() < len(readers)]
-
-
-# How often a node that waits for readers (when_readers_matched) looks again.
-MATCH_POLL_S = 0.02
-
-
-def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
-                         then: Callable[[], None]) -> None:
-    """Call ``then`` once each publisher has matched the readers of the nodes named beside it
-    (:func:`unmatched_readers`), at once if it already has. A node reads ``/odom`` only from
-    ``then`` on, so that the robot's clock, which waits for that reader, starts no sooner: a
-    sample of its own sent before would be lost to those readers. Polled on the steady clock,
-    since /clock does not run yet."""
-    def unmatched() -> list[str]:
-        return [missing for publisher, names in writers
-                for missing in unmatched_readers(node, publisher, names)]
-
-    if not unmatched():
-        then()
-        return
-    timer: Timer | None = None
-
-    def look_again() -> None:
-        nonlocal timer
-        if timer is None or unmatched():
-            return
-        timer.cancel()
-        node.destroy_timer(timer)
-        timer = None
-        then()
-    timer = node.create_timer(MATCH_POLL_S, look_again,
-                              clock=Clock(clock_type=ClockType.STEADY_TIME))
-
-
-def when_capture_readers_matched(node: Node, pose_publishers: Iterable[Publisher],
-                                 covariance_publishers: Iterable[Publisher],
-                                 then: Callable[[], None]) -> None:
-    """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node): the
-    readers of the nodes named in its ``capture_readers`` (bare PoseStamped captures) and
-    ``covariance_readers`` (their PoseWithCovarianceStamped) parameters, which the
-    orchestration sets from the nodes present and which are empty when it is started alone."""
-    pose_readers = node_list_parameter(node, 'capture_readers')
-    covariance_readers = node_list_parameter(node, 'covariance_readers')
-    when_readers_matched(
-        node, [(publisher, pose_readers) for publisher in pose_publishers]
-        + [(publisher, covariance_readers) for publisher in covariance_publishers], then)
 
 
 def make_executor() -> Any:
@@ -151,76 +67,6 @@ def make_executor() -> Any:
     from rclpy.experimental import EventsExecutor
 
     return EventsExecutor()
-LOCKSTEP_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-
-
-class PublicationCounter:
-    """Counts what a node publishes per topic; logged at shutdown, so that a bag's counts can be
-    checked against what was really sent (the soak test does)."""
-
-    def __init__(self) -> None:
-        self.counts: Counter[str] = Counter()
-
-    def wrap(self, publisher: Any) -> Any:
-        send = publisher.publish
-        topic = publisher.topic_name
-
-        def publish(msg: object) -> None:
-            send(msg)
-            self.counts[topic] += 1
-
-        publisher.publish = publish
-        return publisher
-
-    def report(self) -> str:
-        return PUBLISHED_MARKER + json.dumps(dict(sorted(self.counts.items())))
-
-
-class LockstepReporter:
-    """Publishes this node's lockstep reports (see :mod:`omni_micro_common.lockstep`).
-
-    Not counted among the node's publications: they are the graph's plumbing, not its data.
-    """
-
-    def __init__(self, node: Node) -> None:
-        self._name = node.get_name()
-        self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
-                                               event_callbacks=PER_TICK_PUBLISHER_EVENTS)
-
-    def report(self, ack: Ack) -> None:
-        # Serialized by hand (omni_micro_common.cdr): one report per tick per node.
-        self._publisher.publish(diagnostic_status_bytes(
-            0, self._name, ACK_MESSAGE, '', ack.to_values()))
-
-
-def decode_ack_bytes(data: bytes) -> Ack | None:
-    """:func:`decode_ack` of a raw /lockstep message.
-
-    Raises
-    ------
-    LockstepError
-        A report that does not parse, or with a missing, unknown or malformed field.
-    """
-    try:
-        _, name, message, _, values = read_diagnostic_status(data)
-    except (ValueError, IndexError, struct.error) as error:
-        raise LockstepError(f'a /lockstep message that does not parse: {error}') from None
-    if message != ACK_MESSAGE:
-        return None
-    return Ack.from_values(name, values)
-
-
-def decode_ack(msg: DiagnosticStatus) -> Ack | None:
-    """The lockstep report a /lockstep message carries (None for another kind of status).
-
-    Raises
-    ------
-    LockstepError
-        A report with a missing, unknown or malformed field, named.
-    """
-    if msg.message != ACK_MESSAGE:
-        return None
-    return Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))
 
 
 class _Shutdown:
@@ -315,93 +161,6 @@ def lifeline_fd() -> int | None:
 
 
 # -- parameters a node was given ---------------------------------------------------------------
-
-
-def params_files(argv: list[str]) -> list[str]:
-    """The --params-file paths of a ROS command line, in order."""
-    files = []
-    for flag, value in itertools.pairwise(argv):
-        if flag == '--params-file':
-            files.append(value)
-    return files
-
-
-def _suggestion(word: str, choices: list[str]) -> str:
-    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
-    return f' (did you mean {close[0]!r}?)' if close else ''
-
-
-def check_given_parameters(node: Node, argv: list[str]) -> None:
-    """Refuse what rclpy would pass over in silence: a key this node does not declare (from a
-    params file or -p), a value of another type. (Sections for other nodes are theirs: the
-    bringup, which knows the graph, refuses one that names no node of it.)
-
-    Raises
-    ------
-    ParameterError
-        Naming the file (or -p), the node, the key, the value and what was expected.
-    """
-    name = node.get_name()
-    wildcard_keys: set[str] = set()
-    origin: dict[str, str] = {}
-    for path in params_files(argv):
-        content = read_yaml(path) or {}
-        if not isinstance(content, dict):
-            raise ParameterError(f'params file {path!r} must map node names to '
-                                 f'{{ros__parameters: ...}}, got {content!r:.100}')
-        for section, body in content.items():
-            bare = str(section).lstrip('/')
-            if not isinstance(body, dict) or not isinstance(body.get('ros__parameters'), dict):
-                raise ParameterError(f'params file {path!r}: section {section!r} must hold '
-                                     f'ros__parameters: {{...}}, got {body!r:.100}')
-            keys = flatten(body['ros__parameters'])
-            if section in WILDCARD_SECTIONS:
-                wildcard_keys.update(keys)
-            elif bare == name:
-                origin.update(dict.fromkeys(keys, f'params file {path!r}'))
-            for key, value in keys.items():
-                if bare == name or (section in WILDCARD_SECTIONS and node.has_parameter(key)):
-                    _check_type(node, key, value, f'params file {path!r}')
-    # rclpy keeps no public list of what it was given, nor of what the node declared.
-    declared = sorted(node._parameters)
-    for key, parameter in node._parameter_overrides.items():
-        if key in declared or key in wildcard_keys:
-            continue
-        where = origin.get(key, 'given with -p')
-        raise ParameterError(
-            f'{where}, node {name!r}: unknown parameter {key!r} = {parameter.value!r}'
-            f'{_suggestion(key, declared)}; {name} declares: {", ".join(declared)}')
-
-
-_TYPE_NAMES = {Parameter.Type.BOOL: 'true or false', Parameter.Type.INTEGER: 'a whole number',
-               Parameter.Type.DOUBLE: 'a number with a decimal point (e.g. 5.0)',
-               Parameter.Type.STRING: 'a string',
-               Parameter.Type.BOOL_ARRAY: 'a list of true/false',
-               Parameter.Type.INTEGER_ARRAY: 'a list of whole numbers',
-               Parameter.Type.DOUBLE_ARRAY: 'a list of numbers with decimal points',
-               Parameter.Type.STRING_ARRAY: 'a list of strings'}
-
-
-def _check_type(node: Node, key: str, value: Any, where: str) -> None:
-    """A value whose type differs from the declared one: rclpy refuses it from a single file,
-    but from a second file rcl drops it without a word, so check it here for both."""
-    if not node.has_parameter(key):
-        return
-    expected = node.get_parameter(key).type_
-    if expected == Parameter.Type.NOT_SET:
-        return
-    if isinstance(value, list) and not value and expected in (
-            Parameter.Type.BOOL_ARRAY, Parameter.Type.INTEGER_ARRAY,
-            Parameter.Type.DOUBLE_ARRAY, Parameter.Type.STRING_ARRAY):
-        return   # [] has no element type: any array type takes it
-    try:
-        given = Parameter.Type.from_parameter_value(value)
-    except TypeError:
-        given = None
-    if given != expected:
-        raise ParameterError(
-            f'{where}, node {node.get_name()!r}: parameter {key!r} = {value!r} has the wrong '
-            f'type: expected {_TYPE_NAMES.get(expected, expected.name)}')
 
 
 @dataclass(frozen=True)

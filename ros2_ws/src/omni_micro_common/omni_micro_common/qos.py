@@ -9,6 +9,8 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+# /lockstep: reports are small and every one counts (the robot waits for them): as the data.
+LOCKSTEP_QOS = DATA_QOS
 CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 # Camera images: a megabyte each, so a short history (in lockstep no more than the lead's worth
 # are ever unhandled). camera_node offers reliable; tracker_node reads best effort by default

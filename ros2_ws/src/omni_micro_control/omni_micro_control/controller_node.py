@@ -50,12 +50,9 @@ from omni_micro_common.conventions import (
     stamp_ns,
 )
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import (
-    LockstepReporter,
-    NodeComponent,
-    PublicationCounter,
-    run_component,
-)
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,

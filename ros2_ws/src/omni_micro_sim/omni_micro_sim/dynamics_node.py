@@ -63,16 +63,11 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_TOPIC, DEFAULT_MAX_LEAD_S, LockstepGate
-from omni_micro_common.node_runtime import (
-    LOCKSTEP_QOS,
-    NodeComponent,
-    PublicationCounter,
-    decode_ack_bytes,
-    node_list_parameter,
-    run_component,
-    unmatched_readers,
-)
+from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack_bytes
+from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.reader_matching import node_list_parameter, unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_sim import paper
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError

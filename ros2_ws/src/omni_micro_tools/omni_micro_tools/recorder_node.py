@@ -33,8 +33,9 @@ from rosgraph_msgs.msg import Clock as ClockMessage
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
+from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.messages import message_class
-from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_tools.bag_order import Ordered
 from omni_micro_tools.bags import STORAGES, finish_in_order, flush, open_writer

@@ -34,14 +34,10 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_stamp
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import (
-    LockstepReporter,
-    NodeComponent,
-    node_list_parameter,
-    run_component,
-    when_readers_matched,
-)
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import checked_cameras

@@ -50,7 +50,8 @@ from omni_micro_common.conventions import (
     stamp_ns,
 )
 from omni_micro_common.lockstep import NOTHING_HANDLED_NS, Ack
-from omni_micro_common.node_runtime import LockstepReporter, NodeComponent, run_component
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,

@@ -42,12 +42,8 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import (
-    LockstepReporter,
-    NodeComponent,
-    run_component,
-    when_capture_readers_matched,
-)
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -55,6 +51,7 @@ from omni_micro_common.qos import (
     IMAGE_QOS,
     latched,
 )
+from omni_micro_common.reader_matching import when_capture_readers_matched
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image

@@ -36,13 +36,9 @@ from omni_micro_common.conventions import (
     yaw_to_quaternion,
 )
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.node_runtime import (
-    LockstepReporter,
-    NodeComponent,
-    PublicationCounter,
-    run_component,
-    when_capture_readers_matched,
-)
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
@@ -51,6 +47,7 @@ from omni_micro_common.qos import (
     PER_TICK_SUBSCRIPTION_EVENTS,
     latched,
 )
+from omni_micro_common.reader_matching import when_capture_readers_matched
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_vision.camera import (
     DEFAULT_RIG,

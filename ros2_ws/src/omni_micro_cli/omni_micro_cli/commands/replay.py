@@ -79,8 +79,8 @@ def run(args: argparse.Namespace) -> int:
 
     from omni_micro_common.errors import LockstepError
     from omni_micro_common.lockstep import ACK_TOPIC
+    from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack
     from omni_micro_common.messages import message_class
-    from omni_micro_common.node_runtime import LOCKSTEP_QOS, decode_ack
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     rclpy.init(domain_id=args.domain_id)

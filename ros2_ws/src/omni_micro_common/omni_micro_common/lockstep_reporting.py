@@ -1,0 +1,61 @@
+"""The lockstep reports on /lockstep as nodes publish and the robot reads them (the protocol
+itself is :mod:`omni_micro_common.lockstep`, plain Python)."""
+
+from __future__ import annotations
+
+import struct
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.node import Node
+
+from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
+from omni_micro_common.errors import LockstepError
+from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+from omni_micro_common.qos import LOCKSTEP_QOS, PER_TICK_PUBLISHER_EVENTS
+
+
+class LockstepReporter:
+    """Publishes this node's lockstep reports (see :mod:`omni_micro_common.lockstep`).
+
+    Not counted among the node's publications: they are the graph's plumbing, not its data.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._name = node.get_name()
+        self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
+                                               event_callbacks=PER_TICK_PUBLISHER_EVENTS)
+
+    def report(self, ack: Ack) -> None:
+        # Serialized by hand (omni_micro_common.cdr): one report per tick per node.
+        self._publisher.publish(diagnostic_status_bytes(
+            0, self._name, ACK_MESSAGE, '', ack.to_values()))
+
+
+def decode_ack_bytes(data: bytes) -> Ack | None:
+    """:func:`decode_ack` of a raw /lockstep message.
+
+    Raises
+    ------
+    LockstepError
+        A report that does not parse, or with a missing, unknown or malformed field.
+    """
+    try:
+        _, name, message, _, values = read_diagnostic_status(data)
+    except (ValueError, IndexError, struct.error) as error:
+        raise LockstepError(f'a /lockstep message that does not parse: {error}') from None
+    if message != ACK_MESSAGE:
+        return None
+    return Ack.from_values(name, values)
+
+
+def decode_ack(msg: DiagnosticStatus) -> Ack | None:
+    """The lockstep report a /lockstep message carries (None for another kind of status).
+
+    Raises
+    ------
+    LockstepError
+        A report with a missing, unknown or malformed field, named.
+    """
+    if msg.message != ACK_MESSAGE:
+        return None
+    return Ack.from_values(msg.name, ((kv.key, kv.value) for kv in msg.values))

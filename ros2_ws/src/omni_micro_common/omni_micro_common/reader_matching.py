@@ -1,0 +1,82 @@
+"""Readers a node must have matched before it acts: a sample sent to a reliable, volatile reader
+before the match is lost to it (discovery runs each way at its own pace)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy
+from rclpy.timer import Timer
+
+
+def node_list_parameter(node: Node, name: str) -> list[str]:
+    """A read-only list of node names (empty by default: ROS has no empty-list default)."""
+    descriptor = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_STRING_ARRAY)
+    return [value for value in node.declare_parameter(name, [''], descriptor).value or []
+            if value]
+
+
+def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str]) -> list[str]:
+    """Which of ``reader_nodes``' readers of ``publisher``'s topic it has not matched yet.
+
+    A sample sent before a reliable, volatile reader is matched is lost to that reader; seeing
+    the reader in the ROS graph is not enough (discovery between two peers completes at its own
+    pace, slower on a busy machine), so the publisher must count it. Transient-local readers
+    (a user's tool, say) never match a volatile writer and are not waited for.
+    """
+    topic = publisher.topic_name
+    readers = [info for info in node.get_subscriptions_info_by_topic(topic)
+               if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
+    return [f"{name}'s reader of {topic}" for name in reader_nodes
+            if not any(info.node_name == name for info in readers)
+            or publisher.get_subscription_count() < len(readers)]
+
+
+# How often a node that waits for readers (when_readers_matched) looks again.
+MATCH_POLL_S = 0.02
+
+
+def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
+                         then: Callable[[], None]) -> None:
+    """Call ``then`` once each publisher has matched the readers of the nodes named beside it
+    (:func:`unmatched_readers`), at once if it already has. A node reads ``/odom`` only from
+    ``then`` on, so that the robot's clock, which waits for that reader, starts no sooner: a
+    sample of its own sent before would be lost to those readers. Polled on the steady clock,
+    since /clock does not run yet."""
+    def unmatched() -> list[str]:
+        return [missing for publisher, names in writers
+                for missing in unmatched_readers(node, publisher, names)]
+
+    if not unmatched():
+        then()
+        return
+    timer: Timer | None = None
+
+    def look_again() -> None:
+        nonlocal timer
+        if timer is None or unmatched():
+            return
+        timer.cancel()
+        node.destroy_timer(timer)
+        timer = None
+        then()
+    timer = node.create_timer(MATCH_POLL_S, look_again,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def when_capture_readers_matched(node: Node, pose_publishers: Iterable[Publisher],
+                                 covariance_publishers: Iterable[Publisher],
+                                 then: Callable[[], None]) -> None:
+    """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node): the
+    readers of the nodes named in its ``capture_readers`` (bare PoseStamped captures) and
+    ``covariance_readers`` (their PoseWithCovarianceStamped) parameters, which the
+    orchestration sets from the nodes present and which are empty when it is started alone."""
+    pose_readers = node_list_parameter(node, 'capture_readers')
+    covariance_readers = node_list_parameter(node, 'covariance_readers')
+    when_readers_matched(
+        node, [(publisher, pose_readers) for publisher in pose_publishers]
+        + [(publisher, covariance_readers) for publisher in covariance_publishers], then)
