@@ -33,12 +33,13 @@ def image_transport(monkeypatch):
     gets (omni_micro_bringup.parameters.dds_profile)."""
     monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
-def run_on_images(folder: Path, name: str, composed: bool = False) -> tuple[Path, GraphResult]:
+def run_on_images(folder: Path, name: str, composed: bool = False,
+                  real_time_factor: float = math.inf) -> tuple[Path, GraphResult]:
     """A short run on the micro platform, images recorded, as fast as the lockstep allows.
     The bag is always called 'bag' (its file is named after it), in a folder ``name``."""
     bag = folder / name / 'bag'
     result = run_graph(GraphOptions(
-        goal_m=(0.1005, 0.0004), seed=7, real_time_factor=math.inf, vision='images',
+        goal_m=(0.1005, 0.0004), seed=7, real_time_factor=real_time_factor, vision='images',
         record=bag, record_images=True, log_dir=folder / 'logs', composed=composed,
         dynamics_overrides={'initial_pose': [0.1, 0.0, 0.0]}))
     assert result.outcome == 'reached' and result.periods >= 2, result.reason
@@ -68,6 +69,12 @@ def test_same_seed_same_file_with_images_idle_and_busy_and_no_frame_lost(
     # The robot is in both fields; only the micro camera, the finer, captured.
     assert idle_messages['/camera/micro/pose'] and not idle_messages['/camera/macro/pose']
     assert 0.0 < idle.deviation_m < 3e-6
+
+
+def test_same_seed_same_file_with_images_at_another_real_time_factor(idle_run, tmp_path):
+    slow_bag, slow = run_on_images(tmp_path, 'slow', real_time_factor=2.0)
+    assert slow.sim_time_s == idle_run[1].sim_time_s
+    assert bag_digest(slow_bag) == bag_digest(idle_run[0])
 
 
 def test_same_seed_same_file_with_images_and_the_loop_in_one_process(idle_run, tmp_path):
