@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import pytest
+from rclpy.parameter import Parameter
 
 from omni_micro_common.params import flatten, load_params_file
 
@@ -69,3 +70,16 @@ def test_a_shipped_params_file_holds_the_defaults_the_node_declares(name, contex
 def test_a_drifted_value_is_caught():
     assert not same([0.0, 0.0523598775598, 0.0349065850398866], [0.0, 0.05236, 0.0349])
     assert not same(3, 3.5) and not same('paper', 'model') and same(3.0, 3)
+
+
+def test_the_controllers_cruise_speed_is_the_motors_not_a_second_parameter(context):
+    """Derived, not checked for agreement: one number, motor.cruise_speed_rad_s."""
+    from omni_micro_control.controller_node import ControllerNode
+
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('motor.cruise_speed_rad_s', value=6.0)])
+    try:
+        assert not node.has_parameter('cruise_speed_rad_s')
+        assert node.controller.config.cruise_speed_rad_s == 6.0
+    finally:
+        node.destroy_node()

@@ -84,6 +84,8 @@ from omni_micro_sim.wheel_trajectory import points_from_profile
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
                  Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
+# FeedbackConfig fields that are no parameter of their own: derived (the motors' cruise speed).
+DERIVED_CONFIG = ('cruise_speed_rad_s',)
 # How often, in the robot's time, the capture timeouts are checked.
 TIMEOUT_CHECK_S = 0.05
 
@@ -93,18 +95,15 @@ class ControllerNode(Node):
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('controller_node', **node_options)
-        # The fields' own defaults, not a FeedbackConfig()'s: captures_per_stop 0 means "the
-        # mode's own", which an instance has already resolved.
-        config = FeedbackConfig(**{
-            name: self.declare_parameter(name, field.default).value
-            for name, field in FeedbackConfig.__dataclass_fields__.items()})
         self.limits = MotorLimits(**{
             name: self.declare_parameter(f'motor.{name}', getattr(MotorLimits(), name)).value
             for name in MotorLimits.__dataclass_fields__})
-        if self.limits.cruise_speed_rad_s != config.cruise_speed_rad_s:
-            raise ParameterError(
-                f'cruise_speed_rad_s ({config.cruise_speed_rad_s}) must equal '
-                f'motor.cruise_speed_rad_s ({self.limits.cruise_speed_rad_s})')
+        # The fields' own defaults, not a FeedbackConfig()'s: captures_per_stop 0 means "the
+        # mode's own", which an instance has already resolved. The cruise speed is the motors'.
+        config = FeedbackConfig(cruise_speed_rad_s=self.limits.cruise_speed_rad_s, **{
+            name: self.declare_parameter(name, field.default).value
+            for name, field in FeedbackConfig.__dataclass_fields__.items()
+            if name not in DERIVED_CONFIG})
         self.frame_id = self.declare_parameter('frame_id', 'platform').value
         self.platform_center = list(self.declare_parameter('platform.center_m', [0.05, 0.0]).value)
         self.platform_size = list(self.declare_parameter('platform.size_m', [0.15, 0.15]).value)

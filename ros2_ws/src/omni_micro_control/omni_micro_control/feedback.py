@@ -28,6 +28,7 @@ from typing import Protocol
 
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError
+from omni_micro_sim.parameters import MotorLimits, RobotParameters
 
 
 class Outcome(enum.Enum):
@@ -96,8 +97,9 @@ class FeedbackConfig:
     open_loop_duration_s: float = 0.0     # > 0: one move of this long, no feedback
     capture_timeout_s: float = 1.0        # wait this long for a capture before trying again
     max_capture_tries: int = 3
-    wheel_radius_m: float = 1.65e-3
-    cruise_speed_rad_s: float = 8.7
+    # The robot's and its motors' own (omni_micro_sim.parameters), defined there once.
+    wheel_radius_m: float = RobotParameters.wheel_radius_m
+    cruise_speed_rad_s: float = MotorLimits.cruise_speed_rad_s
     mode: str = 'paper'                   # 'paper' (section 4.1) or 'model' (model_based)
     # Average this many captures of each stop; 0 = the mode's own: 1 for the paper's rule
     # (section 4.1 takes one), MODEL_CAPTURES_PER_STOP for the model, whose plans are only as
