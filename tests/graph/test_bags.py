@@ -149,7 +149,8 @@ def test_a_killed_recorder_loses_at_most_its_last_flush_and_the_unsure_second(
         domain_id, probe, tmp_path, omni_micro):
     """SIGKILL: what the recorder had pushed to the file (every 0.5 s) comes back, but for the
     last second of the messages' own time, which bag-recover leaves out (it may have been
-    incomplete): at most 1.5 s is lost. Stamped on the wall clock, as a robot on the bench."""
+    incomplete): at most 2 s is lost (0.5 s left for a recorder behind a busy machine).
+    Stamped on the wall clock, as a robot on the bench."""
     bag = tmp_path / 'killed'
     recorder = start_recorder(bag, domain_id, '--topics', '/odom')
     publisher = probe.node.create_publisher(
@@ -177,7 +178,7 @@ def test_a_killed_recorder_loses_at_most_its_last_flush_and_the_unsure_second(
     assert 'left out the last 1 s of simulated time' in result.stderr
     recovered = read_bag(bag.with_name('killed-recovered'))
     kept = [m.pose.pose.position.x for m in recovered.messages['/odom']]
-    must_have = [i for t, i in sent if t < killed_at - 1.5]
+    must_have = [i for t, i in sent if t < killed_at - 2.0]
     assert kept[:len(must_have)] == [float(i) for i in must_have]
     assert kept == [float(i) for i in range(len(kept))]   # in order, nothing invented
 

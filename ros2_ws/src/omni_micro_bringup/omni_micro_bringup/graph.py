@@ -308,7 +308,8 @@ def run_graph(options: GraphOptions) -> GraphResult:
     lease = DomainLease(options.domain_id, joined=options.external)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = GraphMonitor(domain_id, follow_route=options.follow_route, echo=options.echo)
+        monitor = GraphMonitor(domain_id, follow_route=options.follow_route, echo=options.echo,
+                               markers=options.markers)
         recording = options.record is not None
         statuses = []
         memory: dict[str, list[int]] = {}

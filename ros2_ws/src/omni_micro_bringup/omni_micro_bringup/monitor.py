@@ -75,9 +75,10 @@ class GraphMonitor:
     costs a subscriber at the full sample rate, so plain runs only read /odom at the end."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
-                 echo: Callable[[str], None] | None = None) -> None:
+                 echo: Callable[[str], None] | None = None, markers: bool = False) -> None:
         self.echo = echo
         self.domain_id = domain_id
+        self.markers = markers   # markers_node is in the graph: it must have every goal
         # The graph's Fast DDS profile here too (its announcements are what makes discovery
         # quick), read when this process makes its first participant.
         os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
@@ -207,9 +208,11 @@ class GraphMonitor:
         Every reader of /goal_pose has it before this returns (DDS acknowledged it), so that
         markers_node draws it in the same array every run, whatever the machine's load."""
         publisher = self.goal_publisher
-        # Wait for these readers by name: others (markers_node, a viewer) read /goal_pose too,
-        # so a count would be reached before the controller listens and the goal would be lost.
-        needed = {'controller_node', *(('bag_recorder',) if recording else ())}
+        # Wait for these readers by name (a count would be reached by a viewer's before the
+        # controller listens): the controller, the recorder, and markers_node, which draws the
+        # goal (a goal sent before its reader was discovered never reached it).
+        needed = {'controller_node', *(('bag_recorder',) if recording else ()),
+                  *(('markers_node',) if self.markers else ())}
         deadline = time.monotonic() + timeout_s
         while not needed <= {info.node_name for info in
                              self.node.get_subscriptions_info_by_topic('/goal_pose')}:
