@@ -36,7 +36,7 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.qos import DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
 from omni_micro_tools.bag_order import Ordered
 from omni_micro_tools.bags import STORAGES, finish_in_order, flush, open_writer
 from omni_micro_tools.errors import BagPathError
@@ -119,15 +119,12 @@ class BagRecorder(Node):
         # without a second /clock subscription per tick).
         self._clock_ns = 0
         if CLOCK_TOPIC not in topics:
-            self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, QoSProfile(
-                depth=1000, reliability=ReliabilityPolicy.RELIABLE), raw=True,
-                event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
+            self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, DATA_QOS,
+                                     raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._watched = [sub for sub in self.subscriptions
                          if sub.topic_name in topics and sub.topic_name != '/goal_pose']
         self.status_pub = self.create_publisher(DiagnosticStatus, '/bag_recorder/status',
-                                                QoSProfile(
-            depth=1, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+                                                latched(1))
         self._announced = False
         # The latest stamp received per tick topic, and what was last said of their minimum.
         self._tick_stamps_ns = {topic: -1 for topic in TICK_TOPICS if topic in topics}
