@@ -138,7 +138,7 @@ def in_bag_order(read: Callable[[], Iterable[Stored]], typestore: Any,
                               None if image else canonical))
         finished_at = outcome_time_ns(msgtype, decoded)
         if finished_at is not None:
-            outcome_ns = max(finished_at, outcome_ns or finished_at)
+            outcome_ns = finished_at if outcome_ns is None else max(outcome_ns, finished_at)
     if end == 'outcome' and outcome_ns is not None:
         report.end_ns = outcome_ns + round(BAG_TAIL_S * 1e9)
     elif end == 'recovered' and entries:
