@@ -13,9 +13,9 @@ from omni_micro_control.errors import ControllerConfigError, IdentificationError
 from omni_micro_control.feedback import FeedbackConfig, Observation, Outcome
 from omni_micro_control.identification import Chain, RecordedMove, Stop, fit_parameters
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
+from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.simulator import simulate_open_loop
 from omni_micro_sim.state import RobotState
 
 MICRO = CaptureUncertainty(0.115e-6, 0.144e-6, 6e-5)

@@ -16,8 +16,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_common.conventions import JOINT_NAMES, split_stamp
 from omni_micro_sim import paper
+from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.simulator import simulate_open_loop
 from omni_micro_sim.wheel_trajectory import points_from_profile
 
 QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)

@@ -7,9 +7,10 @@ import pytest
 
 from omni_micro_sim import RobotParameters, SlipSimulator, kernels, simulate_open_loop
 from omni_micro_sim.errors import ParameterError
+from omni_micro_sim.open_loop import steering_motion
 from omni_micro_sim.parameters import STEERING_PRESETS, SteeringParameters
 from omni_micro_sim.reference import solve_ivp_reference
-from omni_micro_sim.simulator import STANDING, steering_motion, wheel_headings_rad
+from omni_micro_sim.simulator import STANDING, wheel_headings_rad
 from omni_micro_sim.steering import plan_steering
 
 REALISTIC = STEERING_PRESETS['realistic']

@@ -8,9 +8,10 @@ import pytest
 from omni_micro_common.conventions import JOINT_NAMES
 from omni_micro_sim import paper
 from omni_micro_sim.errors import CommandError
+from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import MotorLimits
 from omni_micro_sim.profile import WheelCommand, move_profile
-from omni_micro_sim.simulator import MotionStatus, simulate_open_loop
+from omni_micro_sim.simulator import MotionStatus
 from omni_micro_sim.stepper import GridSimulator
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,

@@ -216,7 +216,7 @@ def displacement(robot: RobotParameters, move: RecordedMove) -> np.ndarray:
     """Where ``move`` takes the robot from rest at the origin heading 0: (x, y, phi)."""
     # The slip core (numba) loads with the first prediction, not with the module: the paper's
     # mode of controller_node imports this module and never predicts.
-    from omni_micro_sim.simulator import run_to_rest
+    from omni_micro_sim.open_loop import run_to_rest
     from omni_micro_sim.steering import plan_steering
 
     motion = None

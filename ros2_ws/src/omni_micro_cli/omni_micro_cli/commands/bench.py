@@ -76,7 +76,7 @@ def _log(message: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_sim import simulate_open_loop
-    from omni_micro_sim.simulator import simulate_open_loop_batch
+    from omni_micro_sim.open_loop import simulate_open_loop_batch
 
     if args.batch < 1 or args.repeats < 1:
         raise UsageError(f'--batch and --repeats must be >= 1, got {args.batch}, {args.repeats}')

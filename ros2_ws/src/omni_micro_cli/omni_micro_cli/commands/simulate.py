@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         wheel1_active=not args.passive_wheel1, steering=steering_preset(args.steering))
     steer_from = None if args.steer_from_deg is None else math.radians(args.steer_from_deg)
     started = time.perf_counter()
-    from omni_micro_sim.simulator import simulate_open_loop  # numba: only when a move runs
+    from omni_micro_sim.open_loop import simulate_open_loop  # numba: only when a move runs
 
     result = simulate_open_loop(params, math.radians(args.theta_deg), args.duration,
                                 steer_from_rad=steer_from)

@@ -14,8 +14,8 @@ from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_sim import paper
+from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters, SteeringParameters, steering_preset
-from omni_micro_sim.simulator import simulate_open_loop
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig
 
