@@ -4,5 +4,6 @@ Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, 
 comparator, the outcome), :mod:`model_based` (plans through the slip model, learns the robot)
 and :mod:`identification` (the least-squares fit it and ``omni-micro identify`` use), and
 :mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
-``controller_node``.
+:mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
+and :mod:`controller_messages` (the trajectories and statuses it publishes).
 """

@@ -21,32 +21,28 @@ is told to stop.
 from __future__ import annotations
 
 import functools
-import math
 import time
 from typing import Any
 
 import rclpy
-from builtin_interfaces.msg import Duration
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
     JOINT_NAMES,
-    OUTCOME_KEY,
     STATUS_TIME_KEY,
     STEERING_JOINT,
     WHEEL_JOINTS,
     CaptureUncertainty,
     join_stamp,
     quaternion_to_yaw,
-    split_stamp,
     stamp_ns,
 )
 from omni_micro_common.lockstep import Ack
@@ -57,12 +53,21 @@ from omni_micro_common.qos import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_QOS,
     CAPTURE_TOPICS,
-    CAPTURE_UNCERTAINTY_SOURCES,
     DATA_QOS,
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
 from omni_micro_common.tick_messages import joint_state_template
+from omni_micro_control.controller_messages import (
+    STATUS_LEVELS,
+    move_line,
+    move_trajectory,
+    move_values,
+    outcome_values,
+    status_message,
+    stop_trajectory,
+)
+from omni_micro_control.controller_parameters import declare_controller_parameters
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
     FeedbackConfig,
@@ -74,18 +79,11 @@ from omni_micro_control.feedback import (
     Phase,
     VisionFeedbackController,
 )
-from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
-from omni_micro_control.platform import checked_platform, goal_error
+from omni_micro_control.model_based import planner_for
+from omni_micro_control.platform import goal_error
 from omni_micro_sim.errors import CommandError, ParameterError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.profile import move_profile
-from omni_micro_sim.wheel_trajectory import points_from_profile
 
-STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
-                 Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
-                 Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
-# FeedbackConfig fields that are no parameter of their own: derived (the motors' cruise speed).
-DERIVED_CONFIG = ('cruise_speed_rad_s',)
 # How often, in the robot's time, the capture timeouts are checked.
 TIMEOUT_CHECK_S = 0.05
 
@@ -95,24 +93,16 @@ class ControllerNode(Node):
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('controller_node', **node_options)
-        self.limits = MotorLimits(**{
-            name: self.declare_parameter(f'motor.{name}', getattr(MotorLimits(), name)).value
-            for name in MotorLimits.__dataclass_fields__})
-        # The fields' own defaults, not a FeedbackConfig()'s: captures_per_stop 0 means "the
-        # mode's own", which an instance has already resolved. The cruise speed is the motors'.
-        config = FeedbackConfig(cruise_speed_rad_s=self.limits.cruise_speed_rad_s, **{
-            name: self.declare_parameter(name, field.default).value
-            for name, field in FeedbackConfig.__dataclass_fields__.items()
-            if name not in DERIVED_CONFIG})
-        self.frame_id = self.declare_parameter('frame_id', 'platform').value
-        self.platform_center = list(self.declare_parameter('platform.center_m', [0.05, 0.0]).value)
-        self.platform_size = list(self.declare_parameter('platform.size_m', [0.15, 0.15]).value)
-        checked_platform(self.platform_center, self.platform_size)
-        goal = list(self.declare_parameter('goal_m', [0.0]).value)
-        self.uncertainty_source = self._declare_uncertainty()
+        settings = declare_controller_parameters(self)
+        config = settings.config
+        self.limits = settings.limits
+        self.frame_id = settings.frame_id
+        self.platform_center, self.platform_size = settings.platform_center, settings.platform_size
+        goal = settings.goal
+        self.uncertainty_source = settings.uncertainty_source
+        self.fixed_uncertainty = settings.fixed_uncertainty
         self.controller = VisionFeedbackController(
-            config, planner_for(config, self._declare_model_robot(), self.limits,
-                                self._declare_model_config()))
+            config, planner_for(config, settings.model_robot, self.limits, settings.model_config))
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
         self._said_mismatch: str | None = None   # the last clock mismatch logged
@@ -158,43 +148,6 @@ class ControllerNode(Node):
             self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)
         elif goal != [0.0]:
             raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
-
-    def _declare_uncertainty(self) -> str:
-        source = self.declare_parameter('capture_uncertainty', 'covariance').value
-        # The camera's PoseWithCovarianceStamped beside each capture, or (a driver that
-        # publishes bare PoseStamped captures) this node's parameters.
-        if source not in CAPTURE_UNCERTAINTY_SOURCES:
-            raise ParameterError(f'capture_uncertainty must be one of '
-                                 f'{list(CAPTURE_UNCERTAINTY_SOURCES)}, got {source!r}')
-        self.fixed_uncertainty: dict[str, CaptureUncertainty] = {}
-        for name in CAPTURE_TOPICS:
-            key = f'fixed_uncertainty.{name}'
-            values = list(self.declare_parameter(key, [0.0, 0.0, 0.0]).value)
-            if source != 'fixed':
-                continue
-            if len(values) != 3 or not all(math.isfinite(v) and v > 0.0 for v in values):
-                raise ParameterError(
-                    f'{key} must be [x_sigma_m, y_sigma_m, heading_sigma_rad], three numbers '
-                    f'> 0 (capture_uncertainty is fixed), got {values}')
-            self.fixed_uncertainty[name] = CaptureUncertainty(*map(float, values))
-        return str(source)
-
-    def _declare_model_robot(self) -> RobotParameters:
-        """The model mode's nominal robot: what it assumes of every parameter it does not
-        fit, and where the fitted ones start (no offsets by default)."""
-        return RobotParameters.from_mapping({
-            name: self.declare_parameter(f'model.robot.{name}', default).value
-            for name, default in robot_parameter_values(RobotParameters()).items()})
-
-    def _declare_model_config(self) -> ModelConfig:
-        defaults = ModelConfig()
-        return ModelConfig(
-            free_parameters=tuple(self.declare_parameter(
-                'model.free_parameters', list(defaults.free_parameters)).value),
-            prior_sigma_rad=self.declare_parameter('model.prior_sigma_rad',
-                                                   defaults.prior_sigma_rad).value,
-            max_chain_moves=self.declare_parameter('model.max_chain_moves',
-                                                   defaults.max_chain_moves).value)
 
     def now_s(self) -> float:
         """The robot's time, as far as its wheel states have come."""
@@ -372,29 +325,10 @@ class ControllerNode(Node):
             self.get_logger().error(f'cannot build the move: {error}')
             self.report(self.controller.cancel(str(error)), at_s=move.observation.stamp_s)
             return
-        msg = JointTrajectory()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(move.start_s)
-        msg.header.frame_id = 'base_link'
-        msg.joint_names = list(JOINT_NAMES)
-        for point in points_from_profile(move.steering_rad, profile):
-            sec, nanosec = split_stamp(point.time_from_start_s)
-            msg.points.append(JointTrajectoryPoint(
-                positions=list(point.positions), velocities=list(point.velocities),
-                time_from_start=Duration(sec=sec, nanosec=nanosec)))
         self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-        self._publish_trajectory(msg)
-        line = (f'period {move.period} ({move.rule}): {move.observation.camera} sees '
-                f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
-                f'{move.remaining_m * 1e3:.4f} mm to go; theta1 '
-                f'{math.degrees(move.steering_rad):.3f} deg for {move.duration_s:.4f} s'
-                + (f'; {move.note}' if move.note else ''))
-        values = {'periods': str(move.period), 'remaining_m': repr(move.remaining_m),
-                  'rule': move.rule}
-        planner = self.controller.planner
-        if isinstance(planner, ModelBasedPlanner):
-            values['plan_wall_s'] = f'{planner.log.plan_wall_s[-1]:.4f}'
-            values.update({f'estimate.{name}': repr(value)
-                           for name, value in planner.estimate().items()})
+        self._publish_trajectory(move_trajectory(move, profile))
+        line = move_line(move)
+        values = move_values(move, self.controller.planner)
         # A fall-back to the paper's rule in the model mode is worth a warning.
         if move.rule == 'paper' and self.controller.config.mode == 'model':
             self.get_logger().warning(line)
@@ -409,20 +343,7 @@ class ControllerNode(Node):
             return
         if self.controller.phase is Phase.DONE:
             self.watcher.forget()   # a replaced goal keeps watching the move still running
-        values = {OUTCOME_KEY: finished.outcome.value, 'periods': str(finished.periods),
-                  'reason': finished.reason,
-                  # The run's time as reported: its decisive capture, else the robot's last
-                  # report (the status's own time, at_s, may be later: a timeout).
-                  'sim_time_s': repr(finished.observation.stamp_s if finished.observation
-                                     else self.robot_time_s)}
-        if finished.observation is not None:
-            seen = finished.observation
-            values.update(measured_x_m=repr(seen.x_m), measured_y_m=repr(seen.y_m),
-                          measured_phi_rad=repr(seen.phi_rad), camera=seen.camera,
-                          capture_stamp_s=repr(seen.stamp_s))
-        if self.controller.goal_m is not None:
-            values.update(goal_x_m=repr(self.controller.goal_m[0]),
-                          goal_y_m=repr(self.controller.goal_m[1]))
+        values = outcome_values(finished, self.robot_time_s, self.controller.goal_m)
         # Lost: never move blind. A goal replaced mid-move lets the move finish (its end is
         # what starts timer2 for the new goal); a shutdown stops the robot in main().
         if finished.outcome is Outcome.LOST:
@@ -437,26 +358,13 @@ class ControllerNode(Node):
                              **values)
 
     def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
-        """``at_s``: the simulated time of what the status says (a decision's capture, a goal's
-        arrival), not of its publication: a bag records it at that time (STATUS_TIME_KEY), so
-        that the same run records the same statuses in the same place."""
-        status = DiagnosticStatus(level=level, name='omni_micro_controller', message=message,
-                                  hardware_id='omni_micro')
-        values = {STATUS_TIME_KEY: repr(float(at_s)), **values}
-        status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
+        """``at_s``: the simulated time of what the status says (controller_messages)."""
+        status = status_message(level, message, at_s, values)
         self.status_pub.publish(status)
 
     def stop_robot(self) -> None:
-        """An empty trajectory: the dynamics (or the real robot) ramps the wheels down now.
-
-        Stamped with the robot's time when it was decided, so that it can be told apart from
-        the moves (the lockstep waits for the last command by its stamp)."""
-        msg = JointTrajectory()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(self._robot_time_ns,
-                                                                1_000_000_000)
-        msg.header.frame_id = 'base_link'
-        msg.joint_names = list(JOINT_NAMES)
-        self._publish_trajectory(msg)
+        """Tell the robot to ramp its wheels down now (controller_messages.stop_trajectory)."""
+        self._publish_trajectory(stop_trajectory(self._robot_time_ns))
 
     def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
