@@ -189,7 +189,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     try:
         supervisor = _NoDeaths(tmp_path)
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
-        monitor.resume(supervisor, ['vision_node'], stall_s=1.0)
+        monitor.respawns.resume(supervisor, ['vision_node'], stall_s=1.0)
     finally:
         spinning = False
         spinner.join(5.0)

@@ -6,6 +6,8 @@ overrides; GraphOptions), :mod:`parameters` (the packages' params files and the 
 checked), :mod:`processes` (each node a child process on loopback, its log, the domain's lease,
 shared-memory clean-up), :mod:`graph` (start, supervise, stop in phases; run_graph and
 describe_graph), :mod:`monitor` (the orchestrator's own node: the goal, the clock, the outcome),
-:mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
-(other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`.
+:mod:`respawns` (a respawned node brought back mid-run), :mod:`supervisor` (what the monitor needs
+of whoever runs the processes), :mod:`platform_bounds` (goals checked against the cameras'
+platform), :mod:`machine_load` (other programs keeping the cores busy, for benchmarks and tests),
+:mod:`errors`.
 """

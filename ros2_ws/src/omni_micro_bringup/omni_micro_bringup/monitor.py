@@ -8,8 +8,6 @@ import functools
 import os
 import time
 from collections.abc import Callable
-from pathlib import Path
-from typing import ClassVar, Protocol
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -22,9 +20,10 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from omni_micro_bringup.composition import READS_FROM_ROBOT
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.respawns import Respawns
+from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
     quaternion_to_yaw,
@@ -39,21 +38,6 @@ from omni_micro_common.qos import (
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
-
-class Supervisor(Protocol):
-    """What the monitor needs of whoever runs the processes (graph.Graph): it watches the ROS
-    side and leaves the processes to its supervisor, so the dependency runs one way."""
-
-    log_dir: Path
-
-    def check_alive(self) -> list[str]:
-        """Raise if a node died for good; return the names of nodes just respawned."""
-        ...
-
-    def wait_ready(self, name: str, timeout_s: float) -> bool:
-        """Wait until the node's current process says it is ready."""
-        ...
-
 # The orchestrator's own node (it publishes goals and reads statuses; not part of the graph).
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Discovery shows an endpoint a little before every peer has matched it.
@@ -63,11 +47,6 @@ MATCH_GRACE_S = 0.5
 GOAL_READERS_MATCH_S = 5.0
 # How long an unanswered request to dynamics_node's parameter service waits before it goes again.
 SERVICE_RESEND_S = 2.0
-# After a respawn: wall seconds with no new sample before the clock is stopped and started
-# again, and how far simulated time must go (beyond the lockstep's lead) to show that the
-# new process reports.
-RESUME_STALL_S = 3.0
-RESUMED_AFTER_S = 0.2
 
 
 class GraphMonitor:
@@ -95,7 +74,6 @@ class GraphMonitor:
         self.goal_publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
         self.recorder_ready = False
         self.recorder_received_s = -1.0   # how far the recorder has every tick topic
-        self.known_endpoints: dict[str, set[bytes]] = {}
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
@@ -106,6 +84,7 @@ class GraphMonitor:
         self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
+        self.respawns = Respawns(self)
         self._odometry_reader: object | None = None
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
@@ -153,6 +132,10 @@ class GraphMonitor:
         values['message'] = msg.message
         self.statuses.append(values)
 
+    def let_matching_settle(self) -> None:
+        """Discovery shows an endpoint a little before every peer has matched it."""
+        self.spin_for(MATCH_GRACE_S)
+
     def spin_for(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
@@ -194,9 +177,9 @@ class GraphMonitor:
                                 f'subscribes {missing or "(dynamics parameters service)"}; '
                                 f'logs in {graph.log_dir}')
             self.spin_for(0.05)
-        self.spin_for(MATCH_GRACE_S)
+        self.let_matching_settle()
         graph.check_alive()
-        self.remember_endpoints()
+        self.respawns.remember_endpoints()
 
     def send_goal(self, graph: Supervisor, goal_m: tuple[float, float],
                   recording: bool = False, timeout_s: float = 30.0, stamp_s: float = 0.0) -> None:
@@ -283,136 +266,6 @@ class GraphMonitor:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
 
-    # What each respawnable node reads; of alternatives, whichever it subscribes (the
-    # controller reads captures with their covariance, or bare ones).
-    # What they read from the robot is the composition's (READS_FROM_ROBOT).
-    INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
-        'vision_node': tuple((topic,) for topic in READS_FROM_ROBOT['vision_node']),
-        'controller_node': (*((topic,) for topic in READS_FROM_ROBOT['controller_node']),
-                            ('/goal_pose',),
-                            ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
-
-    def _endpoints(self, name: str) -> set[bytes]:
-        return {bytes(info.endpoint_gid) for topics in self.INPUTS.get(name, ())
-                for topic in topics
-                for info in self.node.get_subscriptions_info_by_topic(topic)
-                if info.node_name == name}
-
-    def _has_new_endpoints(self, name: str) -> bool:
-        known = self.known_endpoints.get(name, set())
-        return all(any(info.node_name == name and bytes(info.endpoint_gid) not in known
-                       for topic in topics
-                       for info in self.node.get_subscriptions_info_by_topic(topic))
-                   for topics in self.INPUTS.get(name, ()))
-
-    def remember_endpoints(self) -> None:
-        """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
-        self.known_endpoints = {name: self._endpoints(name) for name in self.INPUTS}
-
-    def _bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
-                    recording: bool) -> None:
-        """A node was respawned: hold the clock while it comes back, then go on from there."""
-        self.set_paused(graph, True)
-        # The dead node's endpoints stay in the ROS graph until their lease runs out, so a
-        # count of subscribers cannot tell: wait for the new process to say it is ready and
-        # for endpoints of it that were not there before to appear on the topics it reads.
-        for name in restarted:
-            if not graph.wait_ready(name, 60.0):
-                raise RunFailed(f'respawned {name} did not come up within 60 s')
-            deadline = time.monotonic() + 60.0
-            while not self._has_new_endpoints(name):
-                graph.check_alive()
-                if time.monotonic() > deadline:
-                    raise RunFailed(f'respawned {name} was not discovered within 60 s')
-                self.spin_for(0.05)
-        self.spin_for(MATCH_GRACE_S)
-        graph.check_alive()
-        # The goal again: a new controller knows nothing, and an old one may have counted its
-        # capture timeout while the camera was gone. Either starts over from the next stop.
-        self.send_goal(graph, goal, recording, stamp_s=self.goal_stamp_s)
-        self.remember_endpoints()
-        seen = len(self.camera_statuses)
-        self.resume(graph, restarted)
-        if 'vision_node' in restarted:
-            # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
-            # for its first capture (its status names the camera), then give the controller
-            # the goal once more, so that no capture timeout ran while the camera was blind.
-            deadline = time.monotonic() + 60.0
-            while not any(message.endswith(' camera') for message in self.camera_statuses[seen:]):
-                graph.check_alive()
-                if time.monotonic() > deadline:
-                    raise RunFailed('respawned vision_node published no capture within 60 s')
-                self.spin_for(0.05)
-            # ... and the controller's reader of captures may match the new writer later
-            # still: give the goal again until the controller acts on a capture.
-            for _ in range(20):
-                self.send_goal(graph, goal, recording, stamp_s=self.goal_stamp_s)
-                acted_from = self.goal_sent_at
-                asked_at = time.monotonic()
-                while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
-                    graph.check_alive()
-                    self.spin_for(0.05)
-                if self._acted_since(acted_from):
-                    break
-            else:
-                raise RunFailed('controller_node receives no capture from the respawned '
-                                'vision_node')
-
-    def _acted_since(self, status_index: int) -> bool:
-        """Whether the controller moved the robot (or reached the goal) since that status."""
-        return any(status['message'] in ('moving', 'reached')
-                   for status in self.statuses[status_index:])
-
-    def resume(self, graph: Supervisor, restarted: list[str],
-               stall_s: float = RESUME_STALL_S) -> None:
-        """Start the clock held for the respawn of ``restarted`` and wait until simulated time
-        has gone well past where it stood; if it stands still instead, stop it and start it
-        again.
-
-        The robot starts time once its publishers have matched the readers it sees of the
-        respawned node. A dead process's reader stays in the ROS graph for a while and, in the
-        robot's view, can stand in for the new one not yet discovered there: the new process
-        then loses the first samples, never reports them, and the lockstep would wait for ever
-        (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
-        clock again levels every node at the time it stands at and looks at the readers anew.
-        """
-        odometry = None if self._following else self.node.create_subscription(
-            Odometry, '/odom', self._on_odometry, DATA_QOS)
-        try:
-            self.set_paused(graph, False)
-            self._wait_for_time_to_move(graph, restarted, stall_s)
-        finally:
-            if odometry is not None:
-                self.node.destroy_subscription(odometry)   # a reader per tick: only while needed
-
-    def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str],
-                               stall_s: float) -> None:
-        deadline = time.monotonic() + 60.0
-        first: float | None = None
-        latest = self.latest_odometry[0] if self.latest_odometry else None
-        moved_at = time.monotonic()
-        while True:
-            graph.check_alive()
-            self.spin_for(0.05)
-            stamp = self.latest_odometry[0] if self.latest_odometry else None
-            if stamp != latest:
-                latest, moved_at = stamp, time.monotonic()
-                first = stamp if first is None else first
-            if latest is not None and first is not None and latest - first >= RESUMED_AFTER_S:
-                return
-            if time.monotonic() > deadline:
-                raise RunFailed(f'simulated time stands still after respawning '
-                                f'{", ".join(restarted)}')
-            if time.monotonic() - moved_at >= stall_s:
-                if self.echo:
-                    self.echo(f'[orchestration] simulated time stands still at '
-                              f'{latest or 0.0:.2f} s after respawning {", ".join(restarted)}: '
-                              'stopping and starting the clock again')
-                self.set_paused(graph, True)
-                self.spin_for(MATCH_GRACE_S)
-                first, moved_at = None, time.monotonic()
-                self.set_paused(graph, False)
-
     def wait_for_outcome(self, graph: Supervisor, timeout_s: float, goal: tuple[float, float],
                          recording: bool = False) -> dict[str, str]:
         """The controller's outcome for the goal sent last (respawning nodes on the way)."""
@@ -422,7 +275,7 @@ class GraphMonitor:
             restarted = graph.check_alive()
             self.check_recorder()
             if restarted:
-                self._bring_back(graph, restarted, goal, recording)
+                self.respawns.bring_back(graph, restarted, goal, recording)
             for status in self.statuses[self.goal_sent_at:]:
                 replaced = status.get('reason') == REPLACED_REASON
                 if status['message'] in OUTCOME_NAMES and not replaced:

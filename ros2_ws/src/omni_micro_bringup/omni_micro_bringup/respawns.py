@@ -1,0 +1,164 @@
+"""A node respawned in the middle of a run, brought back: the clock held while it comes up, its
+new readers told from the dead process's, the goal given again, and time started anew if it
+stands still (GraphMonitor's part in supervision; graph.Graph respawns the process)."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, ClassVar
+
+from nav_msgs.msg import Odometry
+
+from omni_micro_bringup.composition import READS_FROM_ROBOT
+from omni_micro_bringup.errors import RunFailed
+from omni_micro_bringup.supervisor import Supervisor
+from omni_micro_common.qos import DATA_QOS
+
+if TYPE_CHECKING:
+    from omni_micro_bringup.monitor import GraphMonitor
+
+# After a respawn: wall seconds with no new sample before the clock is stopped and started
+# again, and how far simulated time must go (beyond the lockstep's lead) to show that the
+# new process reports.
+RESUME_STALL_S = 3.0
+RESUMED_AFTER_S = 0.2
+
+
+class Respawns:
+    """What the monitor does when its supervisor says nodes were respawned."""
+
+    def __init__(self, monitor: GraphMonitor) -> None:
+        self.monitor = monitor
+        self.known_endpoints: dict[str, set[bytes]] = {}
+
+    # What each respawnable node reads; of alternatives, whichever it subscribes (the
+    # controller reads captures with their covariance, or bare ones).
+    # What they read from the robot is the composition's (READS_FROM_ROBOT).
+    INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
+        'vision_node': tuple((topic,) for topic in READS_FROM_ROBOT['vision_node']),
+        'controller_node': (*((topic,) for topic in READS_FROM_ROBOT['controller_node']),
+                            ('/goal_pose',),
+                            ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
+
+    def _endpoints(self, name: str) -> set[bytes]:
+        return {bytes(info.endpoint_gid) for topics in self.INPUTS.get(name, ())
+                for topic in topics
+                for info in self.monitor.node.get_subscriptions_info_by_topic(topic)
+                if info.node_name == name}
+
+    def _has_new_endpoints(self, name: str) -> bool:
+        known = self.known_endpoints.get(name, set())
+        return all(any(info.node_name == name and bytes(info.endpoint_gid) not in known
+                       for topic in topics
+                       for info in self.monitor.node.get_subscriptions_info_by_topic(topic))
+                   for topics in self.INPUTS.get(name, ()))
+
+    def remember_endpoints(self) -> None:
+        """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
+        self.known_endpoints = {name: self._endpoints(name) for name in self.INPUTS}
+
+    def bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
+                    recording: bool) -> None:
+        """A node was respawned: hold the clock while it comes back, then go on from there."""
+        self.monitor.set_paused(graph, True)
+        # The dead node's endpoints stay in the ROS graph until their lease runs out, so a
+        # count of subscribers cannot tell: wait for the new process to say it is ready and
+        # for endpoints of it that were not there before to appear on the topics it reads.
+        for name in restarted:
+            if not graph.wait_ready(name, 60.0):
+                raise RunFailed(f'respawned {name} did not come up within 60 s')
+            deadline = time.monotonic() + 60.0
+            while not self._has_new_endpoints(name):
+                graph.check_alive()
+                if time.monotonic() > deadline:
+                    raise RunFailed(f'respawned {name} was not discovered within 60 s')
+                self.monitor.spin_for(0.05)
+        self.monitor.let_matching_settle()
+        graph.check_alive()
+        # The goal again: a new controller knows nothing, and an old one may have counted its
+        # capture timeout while the camera was gone. Either starts over from the next stop.
+        self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s)
+        self.remember_endpoints()
+        seen = len(self.monitor.camera_statuses)
+        self.resume(graph, restarted)
+        if 'vision_node' in restarted:
+            # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
+            # for its first capture (its status names the camera), then give the controller
+            # the goal once more, so that no capture timeout ran while the camera was blind.
+            deadline = time.monotonic() + 60.0
+            while not any(message.endswith(' camera')
+                          for message in self.monitor.camera_statuses[seen:]):
+                graph.check_alive()
+                if time.monotonic() > deadline:
+                    raise RunFailed('respawned vision_node published no capture within 60 s')
+                self.monitor.spin_for(0.05)
+            # ... and the controller's reader of captures may match the new writer later
+            # still: give the goal again until the controller acts on a capture.
+            for _ in range(20):
+                self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s)
+                acted_from = self.monitor.goal_sent_at
+                asked_at = time.monotonic()
+                while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
+                    graph.check_alive()
+                    self.monitor.spin_for(0.05)
+                if self._acted_since(acted_from):
+                    break
+            else:
+                raise RunFailed('controller_node receives no capture from the respawned '
+                                'vision_node')
+
+    def _acted_since(self, status_index: int) -> bool:
+        """Whether the controller moved the robot (or reached the goal) since that status."""
+        return any(status['message'] in ('moving', 'reached')
+                   for status in self.monitor.statuses[status_index:])
+
+    def resume(self, graph: Supervisor, restarted: list[str],
+               stall_s: float = RESUME_STALL_S) -> None:
+        """Start the clock held for the respawn of ``restarted`` and wait until simulated time
+        has gone well past where it stood; if it stands still instead, stop it and start it
+        again.
+
+        The robot starts time once its publishers have matched the readers it sees of the
+        respawned node. A dead process's reader stays in the ROS graph for a while and, in the
+        robot's view, can stand in for the new one not yet discovered there: the new process
+        then loses the first samples, never reports them, and the lockstep would wait for ever
+        (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
+        clock again levels every node at the time it stands at and looks at the readers anew.
+        """
+        odometry = None if self.monitor._following else self.monitor.node.create_subscription(
+            Odometry, '/odom', self.monitor._on_odometry, DATA_QOS)
+        try:
+            self.monitor.set_paused(graph, False)
+            self._wait_for_time_to_move(graph, restarted, stall_s)
+        finally:
+            if odometry is not None:
+                # A reader per tick: only while needed.
+                self.monitor.node.destroy_subscription(odometry)
+
+    def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str],
+                               stall_s: float) -> None:
+        deadline = time.monotonic() + 60.0
+        first: float | None = None
+        latest = self.monitor.latest_odometry[0] if self.monitor.latest_odometry else None
+        moved_at = time.monotonic()
+        while True:
+            graph.check_alive()
+            self.monitor.spin_for(0.05)
+            stamp = self.monitor.latest_odometry[0] if self.monitor.latest_odometry else None
+            if stamp != latest:
+                latest, moved_at = stamp, time.monotonic()
+                first = stamp if first is None else first
+            if latest is not None and first is not None and latest - first >= RESUMED_AFTER_S:
+                return
+            if time.monotonic() > deadline:
+                raise RunFailed(f'simulated time stands still after respawning '
+                                f'{", ".join(restarted)}')
+            if time.monotonic() - moved_at >= stall_s:
+                if self.monitor.echo:
+                    self.monitor.echo(f'[orchestration] simulated time stands still at '
+                              f'{latest or 0.0:.2f} s after respawning {", ".join(restarted)}: '
+                              'stopping and starting the clock again')
+                self.monitor.set_paused(graph, True)
+                self.monitor.let_matching_settle()
+                first, moved_at = None, time.monotonic()
+                self.monitor.set_paused(graph, False)
