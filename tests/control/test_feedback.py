@@ -12,13 +12,13 @@ from omni_micro_control.feedback import (
     FeedbackConfig,
     Finished,
     Move,
-    MoveWatcher,
-    Observation,
     Outcome,
     Phase,
     VisionFeedbackController,
     wrap_angle,
 )
+from omni_micro_control.move_watcher import MoveWatcher
+from omni_micro_control.observations import Observation
 
 GOAL = (0.1, 0.0)
 

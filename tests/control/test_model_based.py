@@ -10,9 +10,10 @@ import pytest
 from omni_micro_cli.twin import run_closed_loop
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
-from omni_micro_control.feedback import FeedbackConfig, Observation, Outcome
+from omni_micro_control.feedback import FeedbackConfig, Outcome
 from omni_micro_control.identification import Chain, RecordedMove, Stop, fit_parameters
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
+from omni_micro_control.observations import Observation
 from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import move_profile

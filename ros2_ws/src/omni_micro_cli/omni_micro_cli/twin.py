@@ -27,13 +27,13 @@ from omni_micro_control.feedback import (
     FeedbackConfig,
     Finished,
     Move,
-    MoveWatcher,
-    Observation,
     Outcome,
     PaperRule,
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
+from omni_micro_control.move_watcher import MoveWatcher
+from omni_micro_control.observations import Observation
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile

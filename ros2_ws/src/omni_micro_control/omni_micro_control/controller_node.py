@@ -73,13 +73,13 @@ from omni_micro_control.feedback import (
     FeedbackConfig,
     Finished,
     Move,
-    MoveWatcher,
-    Observation,
     Outcome,
     Phase,
     VisionFeedbackController,
 )
 from omni_micro_control.model_based import planner_for
+from omni_micro_control.move_watcher import MoveWatcher
+from omni_micro_control.observations import Observation
 from omni_micro_control.platform import goal_error
 from omni_micro_sim.errors import CommandError, ParameterError
 from omni_micro_sim.profile import move_profile

@@ -26,8 +26,8 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError
+from omni_micro_control.observations import Observation, mean_observation
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 
 
@@ -132,39 +132,6 @@ class FeedbackConfig:
     def speed_m_s(self) -> float:
         """Ground speed of a slip-free robot at cruise wheel speed."""
         return self.wheel_radius_m * self.cruise_speed_rad_s
-
-
-@dataclass(frozen=True)
-class Observation:
-    """A capture as the controller sees it (any camera that follows the contract)."""
-
-    stamp_s: float
-    x_m: float
-    y_m: float
-    phi_rad: float
-    camera: str = ''
-    # None: unknown, taken as exact (unit tests); the nodes and the twin always give one.
-    uncertainty: CaptureUncertainty | None = None
-    count: int = 1                        # captures averaged into this one
-
-    @property
-    def radius_95_m(self) -> float:
-        return 0.0 if self.uncertainty is None else self.uncertainty.radius_95_m
-
-
-def mean_observation(observations: list[Observation]) -> Observation:
-    """One observation of a still robot from several captures of the same camera: the mean
-    position, the circular mean heading, the last stamp, and the mean's (smaller) spread."""
-    if len(observations) == 1:
-        return observations[0]
-    count = len(observations)
-    heading = math.atan2(sum(math.sin(o.phi_rad) for o in observations),
-                         sum(math.cos(o.phi_rad) for o in observations))
-    last = observations[-1]
-    return Observation(last.stamp_s, math.fsum(o.x_m for o in observations) / count,
-                       math.fsum(o.y_m for o in observations) / count, heading, last.camera,
-                       None if last.uncertainty is None else last.uncertainty.averaged(count),
-                       count)
 
 
 @dataclass(frozen=True)
@@ -418,49 +385,3 @@ class VisionFeedbackController:
         return self.tries, None
 
 
-class MoveWatcher:
-    """Tells from the wheel joint states when a commanded move is over.
-
-    The move is over at the first state in which the driven wheel has turned by the commanded
-    rotation since the command and stands still, and the wheels no longer steer (the robot
-    steers before it rolls, so timer2 counts from the end of both). Wheel 2 is watched: it is
-    always driven (wheel 1 may be passive and roll freely).
-    """
-
-    WATCHED_WHEEL = 1
-
-    def __init__(self) -> None:
-        self._baseline_rad: float | None = None
-        self._target_rad = 0.0
-        self.latest_rotations: tuple[float, ...] | None = None
-
-    @property
-    def watching(self) -> bool:
-        return self._baseline_rad is not None
-
-    def expect(self, rotation_rad: float) -> None:
-        """A move that turns each wheel by ``rotation_rad`` was just commanded."""
-        if self.latest_rotations is None:
-            raise RuntimeError('no wheel state received yet; cannot watch a move')
-        self._baseline_rad = self.latest_rotations[self.WATCHED_WHEEL]
-        self._target_rad = abs(rotation_rad)
-
-    def forget(self) -> None:
-        self._baseline_rad = None
-
-    def on_wheel_state(self, rotations_rad: tuple[float, ...], speeds_rad_s: tuple[float, ...],
-                       steering_rate_rad_s: float = 0.0) -> bool:
-        """Feed one wheel state (three wheels, and the steering's rate); True once, when the
-        watched move is over."""
-        self.latest_rotations = tuple(rotations_rad)
-        if self._baseline_rad is None:
-            return False
-        turned = abs(rotations_rad[self.WATCHED_WHEEL] - self._baseline_rad)
-        # The receiver rebuilds the profile from nanosecond stamps, so the rotation it reports
-        # can differ from the commanded one in the ninth digit.
-        if (turned >= self._target_rad * (1.0 - 1e-6)
-                and speeds_rad_s[self.WATCHED_WHEEL] == 0.0
-                and speeds_rad_s[2] == 0.0 and steering_rate_rad_s == 0.0):
-            self._baseline_rad = None
-            return True
-        return False

@@ -25,13 +25,7 @@ import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
-from omni_micro_control.feedback import (
-    FeedbackConfig,
-    MovePlan,
-    Observation,
-    PaperRule,
-    wrap_angle,
-)
+from omni_micro_control.feedback import FeedbackConfig, MovePlan, PaperRule, wrap_angle
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
@@ -44,6 +38,7 @@ from omni_micro_control.identification import (
     displacement,
     fit_parameters,
 )
+from omni_micro_control.observations import Observation
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile

@@ -28,7 +28,6 @@ from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text, output_file
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
 from omni_micro_control.errors import IdentificationError
-from omni_micro_control.feedback import Observation, mean_observation
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
@@ -40,6 +39,7 @@ from omni_micro_control.identification import (
     Stop,
     fit_parameters,
 )
+from omni_micro_control.observations import Observation, mean_observation
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.parameters import (
     MotorLimits,

@@ -1,0 +1,41 @@
+"""A capture as the controllers see it, and several captures of a still robot made one."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from omni_micro_common.conventions import CaptureUncertainty
+
+
+@dataclass(frozen=True)
+class Observation:
+    """A capture as the controller sees it (any camera that follows the contract)."""
+
+    stamp_s: float
+    x_m: float
+    y_m: float
+    phi_rad: float
+    camera: str = ''
+    # None: unknown, taken as exact (unit tests); the nodes and the twin always give one.
+    uncertainty: CaptureUncertainty | None = None
+    count: int = 1                        # captures averaged into this one
+
+    @property
+    def radius_95_m(self) -> float:
+        return 0.0 if self.uncertainty is None else self.uncertainty.radius_95_m
+
+
+def mean_observation(observations: list[Observation]) -> Observation:
+    """One observation of a still robot from several captures of the same camera: the mean
+    position, the circular mean heading, the last stamp, and the mean's (smaller) spread."""
+    if len(observations) == 1:
+        return observations[0]
+    count = len(observations)
+    heading = math.atan2(sum(math.sin(o.phi_rad) for o in observations),
+                         sum(math.cos(o.phi_rad) for o in observations))
+    last = observations[-1]
+    return Observation(last.stamp_s, math.fsum(o.x_m for o in observations) / count,
+                       math.fsum(o.y_m for o in observations) / count, heading, last.camera,
+                       None if last.uncertainty is None else last.uncertainty.averaged(count),
+                       count)
