@@ -7,7 +7,7 @@ Python), :mod:`kernels` (eqs. 1-13, numba), :mod:`simulator` (the stepping API),
 (moves from rest, single and batched), :mod:`stepper` (the grid the node publishes on),
 :mod:`wheel_trajectory` (the wheel command contract), :mod:`paper` (the paper's scenarios and
 numbers), :mod:`reference` (a solve_ivp check of the integrator), :mod:`errors`.
-:mod:`dynamics_node` is the ROS adapter.
+:mod:`dynamics_node` is the ROS adapter, :mod:`dynamics_parameters` its parameters.
 
 The names below load on first use (PEP 562), so that importing a light module of this package
 (parameters, state, profile) does not compile the slip kernels.

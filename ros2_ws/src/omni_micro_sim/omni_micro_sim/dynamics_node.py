@@ -39,13 +39,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import fields
 from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
@@ -62,25 +61,22 @@ from omni_micro_common.conventions import (
     yaw_to_quaternion,
 )
 from omni_micro_common.errors import LockstepError
-from omni_micro_common.lockstep import ACK_TOPIC, DEFAULT_MAX_LEAD_S, LockstepGate
+from omni_micro_common.lockstep import ACK_TOPIC, LockstepGate
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack_bytes
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
-from omni_micro_common.reader_matching import node_list_parameter, unmatched_readers
+from omni_micro_common.reader_matching import unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
-from omni_micro_sim import paper
+from omni_micro_sim.dynamics_parameters import checked_rtf, declare_dynamics_parameters
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 from omni_micro_sim.state import RobotState
-from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator, Sample
+from omni_micro_sim.stepper import GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,
     command_from_points,
 )
 
-# Fixed at start-up: they define the robot, and changing them mid-run would change physics.
-_READ_ONLY = ParameterDescriptor(read_only=True)
 # With no lockstep and an unbounded factor the timer would spin; with lockstep, reports drive
 # time and the timer only restarts it after a pause.
 _KICK_PERIOD_S = 0.01
@@ -89,19 +85,6 @@ _KICK_PERIOD_S = 0.01
 def stamp_seconds(stamp: Time) -> float:
     return join_stamp(stamp.sec, stamp.nanosec)
 
-
-def _robot_defaults() -> dict[str, object]:
-    # The same robot as config/dynamics_node.yaml, so a run without the file behaves alike.
-    return robot_parameter_values(paper.FIG11_OPEN_LOOP.robot())
-
-
-# /wheel_slip, /odom_throttle and /joint_states_throttle at 10 Hz of simulated time by default
-# (the grid is 50 Hz).
-DEFAULT_SLIP_EVERY = 5
-DEFAULT_THROTTLE_EVERY = 5
-
-# Where stamps count from: 0, or the wall clock when time starts.
-STAMP_ORIGINS = ('zero', 'wall')
 
 # Wall seconds of simulated time standing still (unpaused) before the node says what it waits for.
 STALL_REPORT_S = 5.0
@@ -112,59 +95,26 @@ class DynamicsNode(Node):
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('dynamics_node', **node_options)
-        robot_values = {name: self.declare_parameter(f'robot.{name}', default,
-                                                     _READ_ONLY).value
-                        for name, default in _robot_defaults().items()}
-        limit_values = {f.name: self.declare_parameter(f'motor.{f.name}',
-                                                       getattr(MotorLimits(), f.name),
-                                                       _READ_ONLY).value
-                        for f in fields(MotorLimits)}
-        period = self.declare_parameter('publish_period_s', DEFAULT_PERIOD_S, _READ_ONLY).value
-        # Nothing in the loop reads the slip: one sample in this many ticks (1: every tick).
-        self.slip_every = self.declare_parameter('wheel_slip_every', DEFAULT_SLIP_EVERY,
-                                                 _READ_ONLY).value
-        # Who only watches the robot reads /odom and /joint_states at this fraction of ticks.
-        self.throttle_every = self.declare_parameter('throttle_every', DEFAULT_THROTTLE_EVERY,
-                                                     _READ_ONLY).value
-        for name, value in (('wheel_slip_every', self.slip_every),
-                            ('throttle_every', self.throttle_every)):
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ParameterError(f'{name} must be a whole number of ticks >= 1, got '
-                                     f'{value!r}')
-        initial = self.declare_parameter('initial_pose', [0.0, 0.0, 0.0], _READ_ONLY).value
-        self.odom_frame = self.declare_parameter('odom_frame', 'odom', _READ_ONLY).value
-        self.base_frame = self.declare_parameter('base_frame', 'base_link', _READ_ONLY).value
-        self.real_time_factor = self._checked_rtf(
-            self.declare_parameter('real_time_factor', 1.0).value)
-        self.stamp_origin = self.declare_parameter('stamp_origin', 'zero', _READ_ONLY).value
-        if self.stamp_origin not in STAMP_ORIGINS:
-            raise ParameterError(f'stamp_origin must be one of {list(STAMP_ORIGINS)}, got '
-                                 f'{self.stamp_origin!r}')
-        if self.stamp_origin == 'wall' and self.real_time_factor != 1.0:
-            raise ParameterError(f'stamp_origin wall needs real_time_factor 1 (the wall clock '
-                                 f'runs at 1), got {self.real_time_factor!r}')
+        # Raises ParameterError naming the value: main() reports it and exits non-zero.
+        settings = declare_dynamics_parameters(self)
+        period = settings.period_s
+        self.slip_every, self.throttle_every = settings.slip_every, settings.throttle_every
+        self.odom_frame, self.base_frame = settings.odom_frame, settings.base_frame
+        self.real_time_factor = settings.real_time_factor
+        self.stamp_origin = settings.stamp_origin
         # What a stamp adds to simulated time (set when time starts, with stamp_origin wall).
         self._origin_ns = 0
-        self.paused = bool(self.declare_parameter('paused', False).value)
-        # An empty list ([] in YAML or -p) reaches rclpy as no value at all: nobody takes part.
-        lockstep_nodes = node_list_parameter(self, 'lockstep_nodes')
+        self.paused = settings.paused
         # The readers time waits for at its start, by node (see the module docstring).
-        self.awaited_readers = awaited_readers(node_list_parameter(self, 'awaited_readers'))
-        max_lead_s = self.declare_parameter('lockstep_max_lead_s', DEFAULT_MAX_LEAD_S,
-                                            _READ_ONLY).value
-        # Raises ParameterError naming the value: main() reports it and exits non-zero.
-        if len(initial) != 3:
-            raise ParameterError(f'initial_pose must be [x_m, y_m, phi_rad], got {list(initial)}')
-        robot_values['wheel_offsets_rad'] = tuple(robot_values['wheel_offsets_rad'])
-        robot_values['center_of_mass_m'] = tuple(robot_values['center_of_mass_m'])
+        self.awaited_readers = settings.awaited_readers
+        initial = settings.initial_pose
         self.grid = GridSimulator(
-            RobotParameters.from_mapping(robot_values), period_s=period,
-            limits=MotorLimits(**limit_values),
+            settings.robot, period_s=period, limits=settings.limits,
             state=RobotState(x_m=initial[0], y_m=initial[1], phi_rad=initial[2]))
         self.grid.load_kernels()
         try:
-            self.lockstep = LockstepGate(lockstep_nodes, round(period * 1e9),
-                                         round(float(max_lead_s) * 1e9))
+            self.lockstep = LockstepGate(settings.lockstep_nodes, round(period * 1e9),
+                                         round(float(settings.max_lead_s) * 1e9))
         except (LockstepError, TypeError, ValueError) as error:
             raise ParameterError(f'lockstep_max_lead_s: {error}') from None
         if math.isinf(self.real_time_factor) and not self.lockstep.enabled:
@@ -217,23 +167,12 @@ class DynamicsNode(Node):
                else 'free-running') + (', paused' if self.paused else ''))
 
     # -- parameters --------------------------------------------------------------------------
-    @staticmethod
-    def _checked_rtf(value: Any) -> float:
-        try:
-            rtf = float(value)
-        except (TypeError, ValueError):
-            raise ParameterError(f'real_time_factor must be a number, got {value!r}') from None
-        if math.isnan(rtf) or rtf <= 0.0:
-            raise ParameterError(f'real_time_factor must be a number > 0 (.inf: as fast as the '
-                                 f'lockstep allows), got {value!r}')
-        return rtf
-
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         changes: dict[str, Any] = {}
         for param in params:
             if param.name == 'real_time_factor':
                 try:
-                    changes['rtf'] = self._checked_rtf(param.value)
+                    changes['rtf'] = checked_rtf(param.value)
                 except ParameterError as error:
                     return SetParametersResult(successful=False, reason=str(error))
                 if math.isinf(changes['rtf']) and not self.lockstep.enabled:
@@ -425,23 +364,6 @@ class DynamicsNode(Node):
 
 
 COMPONENT = NodeComponent(DynamicsNode, config_errors=(ParameterError, CommandError))
-
-
-def awaited_readers(entries: list[str]) -> dict[str, tuple[str, ...]]:
-    """``['markers_node:/odom_throttle', 'markers_node:/wheel_slip']`` -> topics by node.
-
-    Raises
-    ------
-    ParameterError
-        An entry that is not NODE:/TOPIC, named.
-    """
-    readers: dict[str, tuple[str, ...]] = {}
-    for entry in entries:
-        node, _, topic = entry.partition(':')
-        if not node or not topic.startswith('/'):
-            raise ParameterError(f'awaited_readers: each entry must be NODE:/TOPIC, got {entry!r}')
-        readers[node] = (*readers.get(node, ()), topic)
-    return readers
 
 
 def main(args: list[str] | None = None) -> None:
