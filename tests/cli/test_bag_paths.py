@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_tools.bags import check_bag_output, check_readable_bag
+from omni_micro_tools.bag_reading import check_readable_bag
+from omni_micro_tools.bags import check_bag_output
 from omni_micro_tools.errors import BagPathError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 
 
 def bag_digest(bag_path: Path) -> str:

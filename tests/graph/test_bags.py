@@ -15,7 +15,8 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from omni_micro_bringup.processes import node_environment
-from omni_micro_tools.bags import GRAPH_TOPICS, read_bag
+from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bags import GRAPH_TOPICS
 
 ROOT = Path(__file__).resolve().parents[2]
 

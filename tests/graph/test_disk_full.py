@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_tools.bags import read_bag, recover
+from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bags import recover
 from omni_micro_tools.errors import BagDamagedError
 
 

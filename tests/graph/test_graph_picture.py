@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 
 
 def graph_json(omni_micro, *flags: str) -> list[dict]:

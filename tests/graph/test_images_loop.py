@@ -18,7 +18,7 @@ from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.parameters import dds_profile
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.qos import CAPTURE_QOS
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.topics import BAG_TAIL_S
 
 IMAGE_TOPICS = ['/camera/macro/image_raw', '/camera/macro/camera_info',

@@ -21,7 +21,7 @@ from omni_micro_bringup.processes import DomainLease
 from omni_micro_cli.errors import RunFailed
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
             'controller_node': 'omni_micro_control'}

@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from websockets.typing import Subprotocol
 
 from omni_micro_common.conventions import quaternion_to_yaw
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import RobotGeometry
 

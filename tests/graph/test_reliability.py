@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_cli.errors import RunFailed
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 
 GOAL = (0.1, 0.0)
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,

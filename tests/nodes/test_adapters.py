@@ -31,7 +31,7 @@ from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_sim.dynamics_node import DynamicsNode
 from omni_micro_sim.state import RobotState
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.recorder_node import BagRecorder
 from omni_micro_tools.viewer_node import Viewer
 from omni_micro_vision.camera import DEFAULT_RIG

@@ -15,7 +15,8 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
 from omni_micro_common.conventions import STATUS_TIME_KEY
-from omni_micro_tools.bags import TYPESTORE, finish_in_order, open_writer, read_bag
+from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bags import TYPESTORE, finish_in_order, open_writer
 from omni_micro_tools.topics import BAG_TAIL_S, GRAPH_TOPICS
 
 TICK_NS = 20_000_000

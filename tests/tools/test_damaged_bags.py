@@ -11,7 +11,8 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
 from omni_micro_cli.cli import main
-from omni_micro_tools.bags import flush, open_writer, read_bag, recover
+from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bags import flush, open_writer, recover
 from omni_micro_tools.errors import BagDamagedError
 from omni_micro_tools.topics import GRAPH_TOPICS
 

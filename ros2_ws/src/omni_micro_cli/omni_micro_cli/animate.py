@@ -18,7 +18,7 @@ import numpy as np
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
-from omni_micro_tools.bags import read_bag
+from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
 

@@ -50,7 +50,7 @@ def _stamp(msg) -> float:
 
 def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The run's numbers and the arrays the figures need."""
-    from omni_micro_tools.bags import read_bag
+    from omni_micro_tools.bag_reading import read_bag
 
     data = read_bag(bag)
     odometry = data.messages.get('/odom', [])

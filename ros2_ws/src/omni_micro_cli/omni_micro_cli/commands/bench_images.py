@@ -185,7 +185,7 @@ def _fig11(vision: str, busy: int, scratch: Path, composed: bool = False) -> Gra
 
 def loop_costs(scratch: Path) -> dict[str, object]:
     from omni_micro_bringup.graph import run_graph
-    from omni_micro_tools.bags import read_bag
+    from omni_micro_tools.bag_reading import read_bag
 
     rows = []
     for label, vision, busy, composed in (('model, idle (reference)', 'model', 0, False),

@@ -45,7 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_tools.bags import check_readable_bag, reading
+    from omni_micro_tools.bag_reading import check_readable_bag, reading
     from omni_micro_vision.calibration import CalibrationError, calibrate
     from omni_micro_vision.errors import CameraConfigError
     from omni_micro_vision.geometry import Lens

@@ -133,7 +133,7 @@ def read_run(bag: Path, steering: SteeringParameters | None = None) -> RecordedR
     commands left the gear, and a move ends that much later.
     """
     tracker = None if steering is None or steering.instantaneous else SteeringTracker(steering)
-    from omni_micro_tools.bags import read_bag
+    from omni_micro_tools.bag_reading import read_bag
 
     topics = ['/wheel_trajectory'] + [f'/camera/{c}/pose' for c in CAMERAS] + \
         [f'/camera/{c}/pose_with_covariance' for c in CAMERAS]

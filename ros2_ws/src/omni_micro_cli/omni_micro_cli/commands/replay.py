@@ -53,7 +53,7 @@ def header_stamp_ns(msg: object) -> int | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_tools.bags import bag_topics, read_bag
+    from omni_micro_tools.bag_reading import bag_topics, read_bag
 
     available = bag_topics(args.bag)
     topics = args.topics or [t for t in available if t != '/clock']

@@ -67,7 +67,7 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_tools.bags import check_readable_bag, reading
+    from omni_micro_tools.bag_reading import check_readable_bag, reading
     from omni_micro_vision.errors import CameraConfigError
     from omni_micro_vision.image_messages import image_array
     from omni_micro_vision.tracked_camera import tracked_camera
