@@ -54,7 +54,7 @@ def test_the_recorded_qos_is_what_the_graphs_publishers_offer(tmp_path):
     against the publishers a running graph really has (read from the ROS graph, as rqt_graph
     would), so that a publisher whose QoS changes makes the bag's metadata fail here."""
     from omni_micro_bringup.composition import GraphOptions
-    from omni_micro_bringup.graph import describe_graph
+    from omni_micro_bringup.graph_description import describe_graph
 
     described = describe_graph(GraphOptions(goal_m=(0.1, 0.0), log_dir=tmp_path / 'logs',
                                             record=tmp_path / 'bag'))

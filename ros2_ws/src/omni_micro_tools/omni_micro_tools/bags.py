@@ -25,11 +25,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, Stored, in_bag_order
 from omni_micro_tools.errors import BagDamagedError, BagPathError
-from omni_micro_tools.topics import (
-    GRAPH_TOPICS,
-    STORAGE_NAMES,
-    TopicSpec,
-)
+from omni_micro_tools.topics import GRAPH_TOPICS, STORAGE_NAMES, TopicSpec
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}

@@ -21,7 +21,7 @@ from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import atomic_bytes, output_file
 
 if TYPE_CHECKING:
-    from omni_micro_bringup.graph import TopicEndpoints
+    from omni_micro_bringup.graph_description import TopicEndpoints
 
 # What the picture calls the orchestrator's node: the command that started the graph.
 ORCHESTRATOR_LABEL = 'omni-micro (orchestration)'
@@ -46,7 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_bringup.composition import GraphOptions
-    from omni_micro_bringup.graph import describe_graph
+    from omni_micro_bringup.graph_description import describe_graph
 
     if args.out is None and not args.json:
         raise UsageError('give --out FILE (.svg or .png) or --json: nothing to make')

@@ -1,0 +1,90 @@
+"""Who publishes and who subscribes each topic of the graph, with which type and QoS, as rqt_graph
+would show it: the graph brought up with its clock paused, read from discovery, and stopped."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from omni_micro_bringup.composition import (
+    GRAPH_NODE_NAMES,
+    OPTIONAL_NODE_NAMES,
+    GraphOptions,
+    external_publications,
+    ready_subscriptions,
+    simulates_robot,
+    streaming_cameras,
+)
+from omni_micro_bringup.graph import Graph, new_log_dir
+from omni_micro_bringup.parameters import check_params_file
+from omni_micro_bringup.processes import DomainLease
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """A publisher or subscriber as discovery shows it (the history depth is not discovered)."""
+
+    node: str
+    reliability: str      # reliable / best_effort
+    durability: str       # volatile / transient_local
+
+
+@dataclass(frozen=True)
+class TopicEndpoints:
+    topic: str
+    msgtype: str
+    publishers: tuple[Endpoint, ...]
+    subscribers: tuple[Endpoint, ...]
+
+
+# Discovery of the last endpoints after the readers the start waits for.
+GRAPH_SETTLE_S = 1.0
+
+
+# Every ROS 2 node has these; they say nothing about this graph.
+_INFRASTRUCTURE_TOPICS = ('/rosout', '/parameter_events')
+
+
+def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
+    """Bring the graph of ``options`` up (its clock paused, no goal), read from the ROS graph
+    who publishes and who subscribes each topic with which type and QoS, as rqt_graph would,
+    and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
+    from omni_micro_bringup.monitor import GraphMonitor
+
+    for path in options.params_files:
+        check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
+    log_dir = new_log_dir(options.log_dir)
+    lease = DomainLease(options.domain_id)
+    with lease as domain_id:
+        graph = Graph(options, domain_id, log_dir, lease.fileno)
+        monitor = GraphMonitor(domain_id, echo=options.echo)
+        try:
+            graph.start()
+            monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,
+                                     markers=options.markers,
+                                     images=streaming_cameras(options),
+                                     subscriptions=ready_subscriptions(options),
+                                     publications=external_publications(options),
+                                     clock=simulates_robot(options))
+            # Every endpoint seen, not only the readers wait_until_ready looks for.
+            monitor.spin_for(GRAPH_SETTLE_S)
+            node = monitor.node
+            described = []
+            for topic, types in sorted(node.get_topic_names_and_types()):
+                if topic in _INFRASTRUCTURE_TOPICS:
+                    continue
+
+                def endpoints(infos: list) -> tuple[Endpoint, ...]:
+                    return tuple(sorted(
+                        (Endpoint(info.node_name, info.qos_profile.reliability.name.lower(),
+                                  info.qos_profile.durability.name.lower())
+                         for info in infos),
+                        key=lambda e: e.node))
+
+                publishers = endpoints(node.get_publishers_info_by_topic(topic))
+                subscribers = endpoints(node.get_subscriptions_info_by_topic(topic))
+                if publishers or subscribers:
+                    described.append(TopicEndpoints(topic, types[0], publishers, subscribers))
+            return described
+        finally:
+            monitor.close()
+            graph.stop()
