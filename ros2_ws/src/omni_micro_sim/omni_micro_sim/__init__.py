@@ -3,11 +3,12 @@
 The physics lives in plain modules (no rclpy import) so it can be used and tested without ROS:
 :mod:`parameters` (the robot), :mod:`state` (its pose and velocity), :mod:`profile` (wheel
 commands), :mod:`steering` (the steering motion) and :mod:`knots` (both between knots, plain
-Python), :mod:`kernels` (eqs. 1-13, numba), :mod:`simulator` (the stepping API), :mod:`open_loop`
-(moves from rest, single and batched), :mod:`stepper` (the grid the node publishes on),
-:mod:`wheel_trajectory` (the wheel command contract), :mod:`paper` (the paper's scenarios and
-numbers), :mod:`reference` (a solve_ivp check of the integrator), :mod:`errors`.
-:mod:`dynamics_node` is the ROS adapter, :mod:`dynamics_parameters` its parameters.
+Python), :mod:`kernels` (eqs. 1-13, numba), :mod:`integrator` (RK4 through the knots, numba),
+:mod:`simulator` (the stepping API), :mod:`open_loop` (moves from rest, single and batched),
+:mod:`stepper` (the grid the node publishes on), :mod:`wheel_trajectory` (the wheel command
+contract), :mod:`paper` (the paper's scenarios and numbers), :mod:`reference` (a solve_ivp check of
+the integrator), :mod:`errors`. :mod:`dynamics_node` is the ROS adapter, :mod:`dynamics_parameters`
+its parameters.
 
 The names below load on first use (PEP 562), so that importing a light module of this package
 (parameters, state, profile) does not compile the slip kernels.

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_sim import kernels
+from omni_micro_sim import integrator
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import KERNEL_INDEX, MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
@@ -87,7 +87,7 @@ def run_to_rest(params: RobotParameters, steering_rad: float, profile: WheelSpee
     state = start.as_array()
     motion = motion or SteeringMotion.still(steering_rad)
     profile = delayed(profile, motion.duration_s)
-    rest_time = kernels.run_move(
+    rest_time = integrator.run_move(
         state, profile.knot_times_s, profile.knot_speeds_rad_s, profile.knot_times_s.size,
         motion.wheel_knots, motion.wheel_knots.shape[0], wheel_offsets(params),
         params.as_kernel_array(), check_step('max_step_s', max_step_s),
@@ -238,11 +238,11 @@ def simulate_open_loop_batch(params: RobotParameters | list[RobotParameters],
         ideal[i] = ideal_stop(robot, start, steer, float(profile.rotation_rad()[0]))
     states = np.tile(start.as_array(), (count, 1))
     rest_times = np.zeros(count)
-    kernels.run_batch(states, knot_times, knot_speeds, knot_counts, steer_knots, steer_counts,
-                      offsets, kernel_params,
-                      check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
-                      check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S,
-                      rest_times)
+    integrator.run_batch(states, knot_times, knot_speeds, knot_counts, steer_knots, steer_counts,
+                         offsets, kernel_params,
+                         check_step('max_step_s', max_step_s), DEFAULT_REST_SPEED_M_S,
+                         check_step('max_settle_s', max_settle_s), _SETTLE_CHECK_INTERVAL_S,
+                         rest_times)
     for i in range(count):
         _raise_unless_settled(rest_times[i], states[i], max_settle_s,
                               f'move {i} (steering {steering[i]!r} rad, duration '

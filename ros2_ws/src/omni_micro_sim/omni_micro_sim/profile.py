@@ -67,10 +67,10 @@ class WheelSpeedProfile:
         speeds = np.empty(WHEEL_COUNT)
         # The kernel the integrator uses: no per-wheel Python loop in the closed loop's per-tick
         # path. Imported here: building a command (rotation_until) must not load numba.
-        from omni_micro_sim import kernels
+        from omni_micro_sim import integrator
 
-        kernels.speeds_at(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
-                          self.knot_times_s.size, speeds)
+        integrator.speeds_at(float(time_s), self.knot_times_s, self.knot_speeds_rad_s,
+                             self.knot_times_s.size, speeds)
         return speeds
 
     def rotation_rad(self) -> np.ndarray:

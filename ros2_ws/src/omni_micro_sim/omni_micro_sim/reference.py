@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from omni_micro_sim import kernels
+from omni_micro_sim import integrator, kernels
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
@@ -46,7 +46,7 @@ def solve_ivp_reference(params: RobotParameters, steering_rad: float,
         nonlocal calls
         calls += 1
         out = np.empty(6)
-        kernels.speeds_at(time_s, knot_times, knot_speeds, knot_count, speeds)
+        integrator.speeds_at(time_s, knot_times, knot_speeds, knot_count, speeds)
         rate = 0.0
         wheels = geometry
         if motion is not None:

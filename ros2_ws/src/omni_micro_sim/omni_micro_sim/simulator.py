@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_sim import kernels
+from omni_micro_sim import integrator, kernels
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import KERNEL_INDEX, MotorLimits, RobotParameters, require_finite
 from omni_micro_sim.profile import WHEEL_COUNT, WheelSpeedProfile, move_profile
@@ -139,7 +139,7 @@ class SlipSimulator:
     def status(self) -> MotionStatus:
         if self.move_time_s < self._profile.end_time_s or not self._profile.ends_at_rest:
             return MotionStatus.MOVING
-        if kernels.is_at_rest(self._state, self._kernel_params, self._rest_speed):
+        if integrator.is_at_rest(self._state, self._kernel_params, self._rest_speed):
             return MotionStatus.IDLE
         return MotionStatus.SETTLING
 
@@ -242,9 +242,10 @@ class SlipSimulator:
         saved = self._state.copy()
         profile = self._profile
         steer = self._motion.wheel_knots
-        ok = kernels.advance(self._state, start, start + dt, profile.knot_times_s,
-                             profile.knot_speeds_rad_s, profile.knot_times_s.size, steer,
-                             steer.shape[0], self._offsets, self._kernel_params, self._max_step)
+        ok = integrator.advance(self._state, start, start + dt, profile.knot_times_s,
+                                profile.knot_speeds_rad_s, profile.knot_times_s.size, steer,
+                                steer.shape[0], self._offsets, self._kernel_params,
+                                self._max_step)
         if not ok:
             self._state = saved
             raise SimulationError(
