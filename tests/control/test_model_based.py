@@ -9,9 +9,10 @@ import pytest
 
 from omni_micro_cli.twin import run_closed_loop
 from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.chains import Chain, RecordedMove, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
 from omni_micro_control.feedback import FeedbackConfig, Outcome
-from omni_micro_control.identification import Chain, RecordedMove, Stop, fit_parameters
+from omni_micro_control.identification import fit_parameters
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
 from omni_micro_control.observations import Observation
 from omni_micro_sim.open_loop import simulate_open_loop
@@ -127,7 +128,7 @@ def test_a_wrong_model_falls_back_to_the_paper_rule_and_still_reaches():
 
 
 def test_the_play_operator_puts_the_wheels_where_the_robot_has_them():
-    from omni_micro_control.identification import SteeringTracker, wheels_after
+    from omni_micro_control.chains import SteeringTracker, wheels_after
     from omni_micro_sim.parameters import steering_preset
     from omni_micro_sim.simulator import STANDING, SlipSimulator
 

@@ -68,7 +68,8 @@ def node_start(module: str, node: str, overrides: dict[str, object]) -> str:
 
 def test_the_model_mode_loads_the_slip_core_when_it_first_predicts():
     """The control is real: the same probe sees numba once a prediction is made."""
-    code = ('from omni_micro_control.identification import RecordedMove, displacement\n'
+    code = ('from omni_micro_control.chains import RecordedMove\n'
+            'from omni_micro_control.identification import displacement\n'
             'from omni_micro_sim.parameters import RobotParameters\n'
             'from omni_micro_sim.profile import move_profile\n'
             'displacement(RobotParameters(), RecordedMove(0.0, move_profile(0.1)))')

@@ -24,16 +24,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
 from omni_micro_control.feedback import FeedbackConfig, MovePlan, PaperRule, wrap_angle
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
-    Chain,
     Prior,
-    RecordedMove,
-    SteeringTracker,
-    Stop,
     compose,
     displacement,
     fit_parameters,

@@ -27,16 +27,13 @@ from omni_micro_cli.arguments import add_steering_argument
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text, output_file
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
+from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
 from omni_micro_control.errors import IdentificationError
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
     STEERING_FITS,
-    Chain,
     Fit,
-    RecordedMove,
-    SteeringTracker,
-    Stop,
     fit_parameters,
 )
 from omni_micro_control.observations import Observation, mean_observation
