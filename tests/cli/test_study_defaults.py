@@ -3,8 +3,8 @@ and a run left at every default builds exactly the default robot, cameras and co
 
 from __future__ import annotations
 
+from omni_micro_cli.commands.study.inputs import PARAMETERS
 from omni_micro_cli.commands.study.runs import config_of, rig_of, robot_of
-from omni_micro_cli.commands.study.spec import PARAMETERS
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_vision.camera import DEFAULT_RIG

@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from omni_micro_cli.commands.study.spec import CLOSED_LOOP, PARAMETERS, Study
+from omni_micro_cli.commands.study.inputs import CLOSED_LOOP, PARAMETERS
+from omni_micro_cli.commands.study.spec import Study
 
 MODE_LABELS = {'paper': "paper's rule", 'model': 'model-based', 'open_loop': 'open loop'}
 MODE_COLOURS = {'paper': 'tab:orange', 'model': 'tab:blue', 'open_loop': 'tab:green'}
