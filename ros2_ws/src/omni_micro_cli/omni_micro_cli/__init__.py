@@ -2,7 +2,8 @@
 
 :mod:`cli` (the ``omni-micro`` console script: one sub-command per user task, each in
 ``commands/``, loaded when it runs), :mod:`arguments` (command-line values in the user's units,
-checked), :mod:`outputs` (output paths checked before anything runs, written whole),
-:mod:`errors`, :mod:`plots` (the paper's figures from arrays), :mod:`animate` (a run as a GIF
-from its bag), :mod:`twin` (the closed loop in one process, for studies).
+checked), :mod:`outputs` (output paths checked before anything runs, written whole), :mod:`errors`,
+:mod:`plots` (the paper's figures from arrays), :mod:`animate` (a run as a GIF from its bag),
+:mod:`twin` (the closed loop in one process, for studies); :mod:`__main__` (``python -m
+omni_micro_cli``).
 """

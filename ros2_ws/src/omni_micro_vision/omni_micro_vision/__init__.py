@@ -11,5 +11,7 @@ draws) and :mod:`scene_kernel` (the frames' reflectance, numba), :mod:`errors`. 
 boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
 :mod:`camera_frames` (a simulated camera's frames as a driver sends them),
 :mod:`marker_messages` (the scene as a serialized MarkerArray). Their nodes:
-``vision_node``, ``camera_node``, ``tracker_node``, ``markers_node``.
+:mod:`vision_node` (captures from the camera model), :mod:`camera_node` (rendered frames, as a
+camera driver streams them), :mod:`tracker_node` (captures from any driver's frames),
+:mod:`markers_node` (the scene for a viewer).
 """
