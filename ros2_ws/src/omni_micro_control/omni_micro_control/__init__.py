@@ -4,8 +4,8 @@ Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, 
 comparator, the outcome), :mod:`observations` (a capture as the controllers see it),
 :mod:`move_watcher` (a move's end, from the wheel states), :mod:`model_based` (plans through the
 slip model, learns the robot) and :mod:`identification` (the least-squares fit it and ``omni-micro
-identify`` use, over the :mod:`chains` of stops and moves), and :mod:`platform` (the rectangle
-goals must lie on), :mod:`errors`. Its node: :mod:`controller_node`, with
-:mod:`controller_parameters` (its parameters, declared and checked) and :mod:`controller_messages`
-(the trajectories and statuses it publishes).
+identify`` use, over the :mod:`chains` of stops and moves that :mod:`recorded_runs` reads from a
+run's messages), and :mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
+:mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
+and :mod:`controller_messages` (the trajectories and statuses it publishes).
 """

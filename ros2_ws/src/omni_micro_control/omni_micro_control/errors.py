@@ -9,3 +9,7 @@ class ControllerConfigError(OmniMicroError, ValueError):
 
 class IdentificationError(OmniMicroError, ValueError):
     """The data cannot give the parameters asked for; the message says why."""
+
+
+class RecordingError(OmniMicroError, ValueError):
+    """A recorded message cannot be read as what its topic promises; the message says which."""

@@ -325,3 +325,50 @@ def fit_parameters(chains: Sequence[Chain], base: RobotParameters, names: Sequen
     return Fit(tuple(names), problem.robot(values), values, covariance,
                Z_95 * np.sqrt(np.clip(np.diag(covariance), 0.0, None)),
                residuals, normalised, chi_square, cost, dof, iterations)
+
+
+def identify(chains: Sequence[Chain], names: Sequence[str],
+             base: RobotParameters) -> tuple[Fit, dict[str, float]]:
+    """Fit ``names``: the offsets first, then each other parameter added alone and kept only
+    if the data pin it down (fitting all at once lets the poorly determined ones wander and
+    drag the rest). Returns the fit of the identifiable ones and, for the others, the 95 %
+    half-width they would have had.
+
+    Raises
+    ------
+    IdentificationError
+        If none of ``names`` is identifiable (the message says how far from it each was).
+    """
+    dropped: dict[str, float] = {}
+    kept: list[str] = []
+    fit: Fit | None = None
+    ordered = [n for n in names if n in OFFSETS] + [n for n in names if n not in OFFSETS]
+    first = [n for n in ordered if n in OFFSETS] or ordered[:1]
+    for batch in [first] + [[n] for n in ordered if n not in first]:
+        trial_names = kept + batch
+        initial = None
+        if fit is not None:
+            initial = np.concatenate([fit.values, [PARAMETERS[n].get(base) for n in batch]])
+        trial = fit_parameters(chains, base, trial_names, initial=initial)
+        vague = trial.unidentifiable()
+        if any(name in vague for name in kept):
+            vague = batch   # the newcomer made the others vague: it is not pinned down either
+        for name in batch:
+            if name in vague:
+                dropped[name] = float(trial.half_widths_95[trial.names.index(name)])
+        if not set(batch) <= set(vague):
+            kept += [name for name in batch if name not in vague]
+            fit = trial if not vague else fit_parameters(chains, base, kept)
+    if fit is None:
+        raise IdentificationError(vague_text(dropped))
+    return fit, dropped
+
+
+def vague_text(dropped: dict[str, float]) -> str:
+    parts = []
+    for name, width in dropped.items():
+        spec = PARAMETERS[name]
+        parts.append(f'{spec.label} (its 95 % interval would be +-{width * spec.display_scale:.3g}'
+                     f' {spec.unit})'.replace(' )', ')'))
+    return ('not identifiable from this bag, too little motion to pin down: '
+            + ', '.join(parts))

@@ -1,22 +1,19 @@
 """`omni-micro identify BAG`: the robot's offsets (and friction, cantilever) from a recorded run.
 
 From the bag alone: the commanded moves on /wheel_trajectory and the stationary captures on the
-camera topics. The captures of each stop are averaged (their uncertainty from the camera's
-/camera/<name>/pose_with_covariance, or, for a bag of bare PoseStamped captures, from the
-scatter of each stop's frames); the stops and the moves between them are fitted by
-:mod:`omni_micro_control.identification`. What the data do not pin down is reported as not
-identifiable instead of as a number, and is left at its nominal value.
+camera topics, made into chains of stops and moves by :mod:`omni_micro_control.recorded_runs` (the
+captures of each stop averaged, their uncertainty from the camera's
+/camera/<name>/pose_with_covariance, or, for a bag of bare PoseStamped captures, from the scatter
+of each stop's frames) and fitted by :mod:`omni_micro_control.identification`. What the data do not
+pin down is reported as not identifiable instead of as a number, and is left at its nominal value.
 """
 
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import math
 import sys
-from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,25 +23,22 @@ import yaml
 from omni_micro_cli.arguments import add_steering_argument
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import atomic_text, output_file
-from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
-from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
-from omni_micro_control.errors import IdentificationError
+from omni_micro_control import recorded_runs
+from omni_micro_control.errors import IdentificationError, RecordingError
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
     STEERING_FITS,
     Fit,
-    fit_parameters,
+    identify,
+    vague_text,
 )
-from omni_micro_control.observations import Observation, mean_observation
-from omni_micro_sim.errors import CommandError
+from omni_micro_control.recorded_runs import RUN_TOPICS, RecordedRun, TooLittleRecordedError
 from omni_micro_sim.parameters import (
-    MotorLimits,
     RobotParameters,
     SteeringParameters,
     steering_preset,
 )
-from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points
 
 CAMERAS = ('macro', 'micro')
 DEFAULT_FIT = ('xi2', 'xi3', 'mu_longitudinal', 'mu_transverse', 'cantilever_offset_m')
@@ -91,186 +85,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-@dataclass
-class RecordedRun:
-    chains: list[Chain]
-    moves: int
-    captures: int
-
-
-def _stop(observations: list[Observation]) -> Stop:
-    """One stop from its captures: their mean, with the camera's spread over sqrt(n), or, with
-    no covariance recorded, the frames' own scatter."""
-    mean = mean_observation(observations)
-    if mean.uncertainty is None:
-        if len(observations) < 3:
-            raise UsageError(
-                f'a stop at {mean.stamp_s:.3f} s has {len(observations)} bare capture(s) and no '
-                f'covariance topic: at least 3 frames are needed to estimate their spread')
-        xs = np.array([o.x_m for o in observations])
-        ys = np.array([o.y_m for o in observations])
-        phis = np.array([o.phi_rad - mean.phi_rad for o in observations])
-        count = len(observations)
-        mean_spread = CaptureUncertainty(
-            max(float(np.std(xs, ddof=1)), 1e-12) / math.sqrt(count),
-            max(float(np.std(ys, ddof=1)), 1e-12) / math.sqrt(count),
-            max(float(np.std(np.remainder(phis + math.pi, 2 * math.pi) - math.pi, ddof=1)),
-                1e-12) / math.sqrt(count))
-    else:
-        mean_spread = mean.uncertainty
-    return Stop(mean.x_m, mean.y_m, mean.phi_rad, mean_spread, mean.stamp_s, mean.camera)
-
-
 def read_run(bag: Path, steering: SteeringParameters | None = None) -> RecordedRun:
-    """The chains of stops and moves a bag holds.
-
-    A move's stop is every capture after its start and before the next move's start; a move
-    with no capture after it (the run ended, or the robot left every field) ends a chain.
-    With a steering motion (``steering``) each move first steers: its moves carry where the
-    commands left the gear, and a move ends that much later.
-    """
-    tracker = None if steering is None or steering.instantaneous else SteeringTracker(steering)
+    """The chains of stops and moves ``bag`` holds (:func:`.recorded_runs.read_run`)."""
     from omni_micro_tools.bag_reading import read_bag
 
-    topics = ['/wheel_trajectory'] + [f'/camera/{c}/pose' for c in CAMERAS] + \
-        [f'/camera/{c}/pose_with_covariance' for c in CAMERAS]
-    data = read_bag(bag, topics)
-    with_covariance = any(data.messages.get(f'/camera/{c}/pose_with_covariance')
-                          for c in CAMERAS)
-    observations: list[Observation] = []
-    for camera in CAMERAS:
-        if with_covariance:
-            for msg in data.messages.get(f'/camera/{camera}/pose_with_covariance', []):
-                try:
-                    uncertainty = CaptureUncertainty.from_covariance(msg.pose.covariance)
-                except ValueError as error:
-                    raise UsageError(f'{str(bag)!r}: a {camera} capture at '
-                                     f'{stamp_ns(msg.header.stamp)} ns: {error}') from None
-                observations.append(_observation(msg.header, msg.pose.pose, camera,
-                                                 uncertainty))
-        else:
-            observations += [_observation(msg.header, msg.pose, camera, None)
-                             for msg in data.messages.get(f'/camera/{camera}/pose', [])]
-    observations.sort(key=lambda o: o.stamp_s)
-    # (start, end, move); a move cut short by a stop command is None: it breaks the chain.
-    moves: list[tuple[float, float, RecordedMove | None]] = []
-    for msg in data.messages.get('/wheel_trajectory', []):
-        start_s = stamp_ns(msg.header.stamp) * 1e-9
-        if not msg.points:
-            if moves and start_s < moves[-1][1]:
-                moves[-1] = (moves[-1][0], moves[-1][1], None)
-            continue
-        points = [TrajectoryPoint(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9,
-                                  list(p.positions), list(p.velocities)) for p in msg.points]
-        try:
-            command = command_from_points(msg.joint_names, points, start_s, start_s,
-                                          MotorLimits(max_speed_rad_s=1e9))
-        except CommandError as error:
-            raise UsageError(f'{str(bag)!r}: the move at {start_s:.3f} s: {error}') from None
-        assert command.profile is not None
-        if tracker is None:
-            commanded, steering_s = RecordedMove(command.steering_rad, command.profile), 0.0
-        else:
-            commanded = tracker.move(command.steering_rad, command.profile)
-            steering_s = tracker.steering_time_s
-        moves.append((start_s, start_s + steering_s + command.profile.end_time_s, commanded))
-    # Too little in the bag to identify anything: the work fails (exit 1), as --help says; the
-    # bag itself is a valid argument.
-    if not moves:
-        raise RunFailed(f'{str(bag)!r} has no move on /wheel_trajectory: nothing to identify')
-    if not observations:
-        raise RunFailed(f'{str(bag)!r} has no capture on the camera topics: nothing to '
-                        f'identify')
-    # Stop k holds the captures after move k-1's wheels stopped and before move k starts (the
-    # camera may still count the robot as still in the first milliseconds of a move).
-    windows = ([(-math.inf, moves[0][0])]
-               + [(end, following[0]) for (_, end, _), following in itertools.pairwise(moves)]
-               + [(moves[-1][1], math.inf)])
-    groups: list[list[Observation]] = [[] for _ in windows]
-    for observation in observations:
-        for index, (after, before) in enumerate(windows):
-            if after < observation.stamp_s < before:
-                group = groups[index]
-                if not group or group[0].camera == observation.camera:
-                    group.append(observation)   # one camera per stop: the first to see it
-                break
-    chains: list[Chain] = []
-    chain = Chain()
-    for index, group in enumerate(groups):
-        move = moves[index][2] if index < len(moves) else None
-        if not group:
-            chain = _close(chain, chains)
-            continue
-        chain.stops.append(_stop(group))
-        if move is None:
-            chain = _close(chain, chains)
-        else:
-            chain.moves.append(move)
-    _close(chain, chains)
-    return RecordedRun(chains, sum(len(c.moves) for c in chains), len(observations))
-
-
-def _observation(header: Any, pose: Any, camera: str,
-                 uncertainty: CaptureUncertainty | None) -> Observation:
-    return Observation(stamp_ns(header.stamp) * 1e-9, pose.position.x, pose.position.y,
-                       quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera,
-                       uncertainty)
-
-
-def _close(chain: Chain, chains: list[Chain]) -> Chain:
-    """Keep ``chain``, without a last move no stop followed, if it links at least one move
-    between two stops; return a new empty chain."""
-    del chain.moves[max(0, len(chain.stops) - 1):]
-    if chain.moves:
-        chains.append(Chain(chain.stops, chain.moves))
-    return Chain()
-
-
-def identify(run: RecordedRun, names: Sequence[str],
-             base: RobotParameters) -> tuple[Fit, dict[str, float]]:
-    """Fit ``names``: the offsets first, then each other parameter added alone and kept only
-    if the data pin it down (fitting all at once lets the poorly determined ones wander and
-    drag the rest). Returns the fit of the identifiable ones and, for the others, the 95 %
-    half-width they would have had.
-
-    Raises
-    ------
-    IdentificationError
-        If none of ``names`` is identifiable (the message says how far from it each was).
-    """
-    dropped: dict[str, float] = {}
-    kept: list[str] = []
-    fit: Fit | None = None
-    ordered = [n for n in names if n in OFFSETS] + [n for n in names if n not in OFFSETS]
-    first = [n for n in ordered if n in OFFSETS] or ordered[:1]
-    for batch in [first] + [[n] for n in ordered if n not in first]:
-        trial_names = kept + batch
-        initial = None
-        if fit is not None:
-            initial = np.concatenate([fit.values, [PARAMETERS[n].get(base) for n in batch]])
-        trial = fit_parameters(run.chains, base, trial_names, initial=initial)
-        vague = trial.unidentifiable()
-        if any(name in vague for name in kept):
-            vague = batch   # the newcomer made the others vague: it is not pinned down either
-        for name in batch:
-            if name in vague:
-                dropped[name] = float(trial.half_widths_95[trial.names.index(name)])
-        if not set(batch) <= set(vague):
-            kept += [name for name in batch if name not in vague]
-            fit = trial if not vague else fit_parameters(run.chains, base, kept)
-    if fit is None:
-        raise IdentificationError(_vague_text(dropped))
-    return fit, dropped
-
-
-def _vague_text(dropped: dict[str, float]) -> str:
-    parts = []
-    for name, width in dropped.items():
-        spec = PARAMETERS[name]
-        parts.append(f'{spec.label} (its 95 % interval would be +-{width * spec.display_scale:.3g}'
-                     f' {spec.unit})'.replace(' )', ')'))
-    return ('not identifiable from this bag, too little motion to pin down: '
-            + ', '.join(parts))
+    data = read_bag(bag, list(RUN_TOPICS))
+    try:
+        return recorded_runs.read_run(data.messages, str(bag), steering)
+    except RecordingError as error:
+        raise UsageError(str(error)) from None
+    except TooLittleRecordedError as error:
+        # The bag is a valid argument: the work fails (exit 1), as --help says.
+        raise RunFailed(str(error)) from None
 
 
 def report(fit: Fit, dropped: dict[str, float], run: RecordedRun) -> str:
@@ -359,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
                         f'identify (not identifiable)')
     print(f'identify: fitting {", ".join(args.fit)} to {recorded.moves} moves', file=sys.stderr)
     try:
-        fit, dropped = identify(recorded, args.fit, RobotParameters(steering=steering))
+        fit, dropped = identify(recorded.chains, args.fit, RobotParameters(steering=steering))
     except IdentificationError as error:
         raise RunFailed(str(error)) from None
     print(report(fit, dropped, recorded))
@@ -374,5 +200,5 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary_json(fit, dropped)))
     if missing_offsets:
-        raise RunFailed(_vague_text({name: dropped[name] for name in missing_offsets}))
+        raise RunFailed(vague_text({name: dropped[name] for name in missing_offsets}))
     return 0

@@ -1,0 +1,78 @@
+"""A run's messages made into identification's chains without a bag: rclpy's own message types
+(what a live subscriber holds), the moves exactly as controller_node publishes them."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from geometry_msgs.msg import PoseWithCovarianceStamped
+
+from omni_micro_common.conventions import CaptureUncertainty, split_stamp
+from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS
+from omni_micro_control.controller_messages import move_trajectory
+from omni_micro_control.errors import RecordingError
+from omni_micro_control.feedback import Move
+from omni_micro_control.observations import Observation
+from omni_micro_control.recorded_runs import (
+    WHEEL_TRAJECTORY_TOPIC,
+    TooLittleRecordedError,
+    read_run,
+)
+from omni_micro_sim.profile import move_profile
+
+SPREAD = CaptureUncertainty(2e-6, 2e-6, 1e-3)
+
+
+def capture(stamp_s: float, x_m: float, covariance: list[float] | None = None
+            ) -> PoseWithCovarianceStamped:
+    msg = PoseWithCovarianceStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(stamp_s)
+    msg.header.frame_id = 'platform'
+    msg.pose.pose.position.x = x_m
+    msg.pose.pose.orientation.w = 1.0
+    msg.pose.covariance = covariance or SPREAD.covariance()
+    return msg
+
+
+def move_at(start_s: float, duration_s: float):
+    seen = Observation(start_s, 0.0, 0.0, 0.0, 'macro')
+    return move_trajectory(Move(start_s, 0.0, duration_s, 1, 0.01, seen),
+                           move_profile(duration_s))
+
+
+def test_two_moves_between_three_seen_stops_make_one_chain():
+    profile_s = move_profile(0.2).end_time_s
+    messages = {
+        WHEEL_TRAJECTORY_TOPIC: [move_at(1.0, 0.2), move_at(3.0, 0.2)],
+        CAPTURE_COVARIANCE_TOPICS['macro']: [
+            capture(0.5, 0.0), capture(0.6, 0.0),                      # before the first move
+            capture(1.0 + profile_s + 0.5, 0.00029),                   # after it
+            capture(3.0 + profile_s + 0.5, 0.00058)],                  # after the second
+    }
+    run = read_run(messages, 'live')
+    assert run.moves == 2 and run.captures == 4 and len(run.chains) == 1
+    chain = run.chains[0]
+    assert [round(stop.x_m, 6) for stop in chain.stops] == [0.0, 0.00029, 0.00058]
+    # Two captures of the first stop: their mean, with the spread of a mean of two.
+    assert math.isclose(chain.stops[0].uncertainty.x_sigma_m, 2e-6 / math.sqrt(2))
+    assert [move.profile.end_time_s for move in chain.moves] == [profile_s, profile_s]
+
+
+def test_a_capture_with_a_broken_covariance_is_named_with_its_source():
+    bad = [0.0] * 36
+    bad[0] = -1.0
+    messages = {WHEEL_TRAJECTORY_TOPIC: [move_at(1.0, 0.2)],
+                CAPTURE_COVARIANCE_TOPICS['macro']: [capture(0.5, 0.0, bad)]}
+    with pytest.raises(RecordingError, match=r"^'run 7': a macro capture at 500000000 ns: "
+                                             r'the x variance'):
+        read_run(messages, 'run 7')
+
+
+@pytest.mark.parametrize('messages, said', [
+    ({CAPTURE_COVARIANCE_TOPICS['macro']: [capture(0.5, 0.0)]}, 'has no move'),
+    ({WHEEL_TRAJECTORY_TOPIC: [move_at(1.0, 0.2)]}, 'has no capture'),
+])
+def test_too_little_recorded_is_not_a_malformed_recording(messages, said):
+    with pytest.raises(TooLittleRecordedError, match=said):
+        read_run(messages, 'live')
