@@ -29,10 +29,19 @@ CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
 CAPTURE_UNCERTAINTY_SOURCES = ('covariance', 'fixed')
 
 
+def profile(depth: int, latched: bool = False, best_effort: bool = False) -> QoSProfile:
+    """Keep-last ``depth``, reliable unless ``best_effort`` (a reader that meets any writer,
+    REP-2003), transient-local when ``latched``: every profile of the graph and its tools."""
+    return QoSProfile(depth=depth,
+                      reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
+                                   else ReliabilityPolicy.RELIABLE),
+                      durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
+                                  else DurabilityPolicy.VOLATILE))
+
+
 def latched(depth: int) -> QoSProfile:
     """Transient-local: a subscriber that comes later still gets the last ``depth`` messages."""
-    return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    return profile(depth, latched=True)
 
 
 STATUS_QOS = latched(10)

@@ -28,7 +28,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMessage
 
 from omni_micro_common.errors import ParameterError
@@ -106,11 +105,7 @@ class BagRecorder(Node):
             # meets a reliable and a best-effort driver alike (REP-2003), as rosbag2 adapts to
             # what a publisher offers. In the lockstep no frame may be lost: reliable.
             best_effort = topic in IMAGE_TOPICS and not lockstep_frames
-            qos = QoSProfile(depth=max(spec.depth, RECORDER_DEPTH),
-                             reliability=(ReliabilityPolicy.BEST_EFFORT if best_effort
-                                          else ReliabilityPolicy.RELIABLE),
-                             durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
-                                         else DurabilityPolicy.VOLATILE))
+            qos = spec.reader_profile(max(spec.depth, RECORDER_DEPTH), best_effort)
             # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_common.qos).
             quiet = PER_TICK_SUBSCRIPTION_EVENTS if spec.depth >= 1000 else None
             self.create_subscription(message_class(spec.msgtype), topic, self._writer_of(topic),

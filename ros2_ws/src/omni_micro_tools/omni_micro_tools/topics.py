@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from rclpy.qos import QoSProfile
     from rosbags.interfaces import Qos
 
 # rosbag2 storage plugins the recorder can write (mcap is Jazzy's default).
@@ -21,6 +22,13 @@ class TopicSpec:
     msgtype: str
     depth: int
     latched: bool = False
+
+    def reader_profile(self, depth: int | None = None, best_effort: bool = False) -> QoSProfile:
+        """A reader's (or a replaying writer's) rclpy profile for the topic: its durability,
+        the topic's depth unless ``depth``, reliable unless ``best_effort``."""
+        from omni_micro_common.qos import profile
+
+        return profile(self.depth if depth is None else depth, self.latched, best_effort)
 
     def qos(self) -> Qos:
         """The QoS the graph's publisher offers, as metadata.yaml records it (zero durations:

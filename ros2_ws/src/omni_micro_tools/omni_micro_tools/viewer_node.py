@@ -18,7 +18,6 @@ from typing import Any
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.messages import message_class
@@ -64,9 +63,7 @@ class Viewer(Node):
                 topic, message_encoding='cdr',
                 schema=foxglove.Schema(name=spec.msgtype, encoding='ros2msg',
                                        data=ros2msg_schema(spec.msgtype)))
-            qos = QoSProfile(depth=spec.depth, reliability=ReliabilityPolicy.BEST_EFFORT,
-                             durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec.latched
-                                         else DurabilityPolicy.VOLATILE))
+            qos = spec.reader_profile(best_effort=True)
             self.create_subscription(message_class(spec.msgtype), topic,
                                      self._forwarder(topic), qos, raw=True)
         self.get_logger().info(f'live view on ws://{host}:{self.server.port}')
