@@ -44,6 +44,9 @@ ACK_MESSAGE = 'lockstep'
 # The most the robot runs ahead of the slowest node taking part (two 20 ms ticks); a controller
 # whose moves start sooner after their capture (command_lead_s) lowers it to that.
 DEFAULT_MAX_LEAD_S = 0.04
+# A replay that keeps pace with nodes (omni-micro replay --sync) sends no more than this many
+# stamped messages beyond what the slowest has reported handled.
+REPLAY_SYNC_WINDOW = 10
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',

@@ -13,3 +13,7 @@ class BagPathError(BagError, ValueError):
 
 class BagDamagedError(BagError, RuntimeError):
     """A bag that exists but cannot be read whole (truncated, corrupt, or empty)."""
+
+
+class ReplayError(OmniMicroError, RuntimeError):
+    """A replay that cannot go on: nobody subscribes, or a node it keeps pace with is silent."""
