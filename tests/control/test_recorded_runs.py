@@ -9,7 +9,7 @@ import pytest
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from omni_micro_common.conventions import CaptureUncertainty, split_stamp
-from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS
+from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS
 from omni_micro_control.controller_messages import move_trajectory
 from omni_micro_control.errors import RecordingError
 from omni_micro_control.feedback import Move

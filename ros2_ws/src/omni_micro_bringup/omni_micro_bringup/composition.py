@@ -13,6 +13,19 @@ from typing import TYPE_CHECKING
 
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.parameters import node_parameters
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    CLOCK_TOPIC,
+    JOINT_STATES_THROTTLE_TOPIC,
+    JOINT_STATES_TOPIC,
+    MARKERS_TOPIC,
+    ODOM_THROTTLE_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph import Graph
@@ -30,9 +43,10 @@ OPTIONAL_NODE_NAMES = ('markers_node', 'camera_node', 'tracker_node', 'bag_recor
 # ROS graph from another process is not enough: discovery runs each way at its own pace, and a
 # bag once lacked a run's first odometry.
 READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
-    'vision_node': ('/odom',), 'camera_node': ('/odom',), 'controller_node': ('/joint_states',),
-    'markers_node': ('/odom_throttle', '/joint_states_throttle', '/wheel_slip'),
-    'bag_recorder': ('/clock', '/odom', '/joint_states', '/wheel_slip')}
+    'vision_node': (ODOM_TOPIC,), 'camera_node': (ODOM_TOPIC,),
+    'controller_node': (JOINT_STATES_TOPIC,),
+    'markers_node': (ODOM_THROTTLE_TOPIC, JOINT_STATES_THROTTLE_TOPIC, WHEEL_SLIP_TOPIC),
+    'bag_recorder': (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)}
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
 LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
@@ -47,7 +61,7 @@ LOOP_CONTAINER = 'loop_container'
 # What may come from the bench instead of the simulation (run --camera / --robot).
 SOURCES = ('simulated', 'external')
 # What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
-EXTERNAL_ROBOT_PUBLISHES = ('/joint_states',)
+EXTERNAL_ROBOT_PUBLISHES = (JOINT_STATES_TOPIC,)
 
 
 @dataclass(frozen=True)
@@ -112,7 +126,7 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
     takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
     nobody in this graph publishes (it waits for a publisher of each before the clock starts).
     ``whole``: the bag keeps every message received, not only up to the outcome's tail."""
-    from omni_micro_tools.topics import GRAPH_TOPICS, MARKERS_TOPIC
+    from omni_micro_tools.topics import GRAPH_TOPICS
 
     topics = [topic for topic in GRAPH_TOPICS
               if (markers or topic != MARKERS_TOPIC) and topic not in without]
@@ -307,11 +321,9 @@ def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
     robot its trajectories, the controller the wheels and the captures (bare or with their
     covariance, as its capture_uncertainty says: either will do), a simulated camera the
     robot's /odom."""
-    from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
-
     names = {spec.executable for spec in graph_nodes(options)}
-    return [('/wheel_trajectory',), ('/joint_states',),
-            *((('/odom',),) if names & {'vision_node', 'camera_node'} else ()),
+    return [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
+            *(((ODOM_TOPIC,),) if names & {'vision_node', 'camera_node'} else ()),
             *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera])
               for camera in CAPTURE_TOPICS)]
 
@@ -368,9 +380,10 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         # /camera/status is vision_node's (the tracker says why per camera, not recorded);
         # a real robot's driver publishes its wheels, not the simulation's clock, pose or slip.
         unpublished: tuple[str, ...] = (
-            () if any(spec.executable == 'vision_node' for spec in loop) else ('/camera/status',))
+            () if any(spec.executable == 'vision_node' for spec in loop)
+            else (CAMERA_STATUS_TOPIC,))
         if options.robot == 'external':
-            unpublished += ('/clock', '/odom', '/wheel_slip')
+            unpublished += (CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC)
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
                                    unpublished, whole=options.record_whole))
     if options.view is not None:

@@ -52,6 +52,7 @@ from omni_micro_bringup.processes import (
 )
 from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER, STATUS_TIME_KEY
 from omni_micro_common.errors import OmniMicroError
+from omni_micro_common.topic_names import GOAL_TOPIC
 
 # Stopped phase by phase, each phase at once: the controller first (its stop command is its last
 # word), the recorder last (it keeps the stop and the final samples); anyone else in between.
@@ -358,7 +359,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
             monitor.close()
             graph.stop()
     published = graph.published()
-    published['/goal_pose'] = monitor.goals_sent
+    published[GOAL_TOPIC] = monitor.goals_sent
     return GraphResult(
         outcome=status['outcome'], reason=status.get('reason', ''),
         periods=int(status.get('periods', '0')), final_x_m=odom[1], final_y_m=odom[2],

@@ -29,11 +29,15 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
     split_stamp,
 )
-from omni_micro_common.qos import (
-    CAPTURE_QOS,
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
     CAPTURE_TOPICS,
-    DATA_QOS,
-    STATUS_QOS,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    MARKERS_TOPIC,
+    ODOM_TOPIC,
+    RECORDER_STATUS_TOPIC,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
@@ -68,20 +72,20 @@ class GraphMonitor:
         self.executor.add_node(self.node)
         self.latest_odometry: tuple[float, float, float, float] | None = None
         self.statuses: list[dict[str, str]] = []
-        self.node.create_subscription(DiagnosticStatus, '/controller/status', self._on_status,
+        self.node.create_subscription(DiagnosticStatus, CONTROLLER_STATUS_TOPIC, self._on_status,
                                       STATUS_QOS)
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
-        self.goal_publisher = self.node.create_publisher(PoseStamped, '/goal_pose', 10)
+        self.goal_publisher = self.node.create_publisher(PoseStamped, GOAL_TOPIC, 10)
         self.recorder_ready = False
         self.recorder_received_s = -1.0   # how far the recorder has every tick topic
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
         self.camera_statuses: list[str] = []
-        self.node.create_subscription(DiagnosticStatus, '/camera/status',
+        self.node.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC,
                                       self._on_camera_status, STATUS_QOS)
         self.recorder_failure: str | None = None
-        self.node.create_subscription(DiagnosticStatus, '/bag_recorder/status',
+        self.node.create_subscription(DiagnosticStatus, RECORDER_STATUS_TOPIC,
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
         self.respawns = Respawns(self)
@@ -89,7 +93,7 @@ class GraphMonitor:
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
         if follow_route:
-            self.node.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS)
+            self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
             for camera, topic in CAPTURE_TOPICS.items():
                 self.node.create_subscription(
                     PoseStamped, topic, functools.partial(self._on_capture, camera=camera),
@@ -161,7 +165,7 @@ class GraphMonitor:
             silent = [f'{topic} ({whose})' for topic, whose in (publications or {}).items()
                       if not self.node.count_publishers(topic)]
             # markers_node makes its publisher after its subscriptions: seen, it is listening.
-            if markers and not self.node.count_publishers('/markers'):
+            if markers and not self.node.count_publishers(MARKERS_TOPIC):
                 missing.append('(markers_node: no /markers publisher yet)')
             if recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher yet)')
@@ -198,7 +202,7 @@ class GraphMonitor:
                   *(('markers_node',) if self.markers else ())}
         deadline = time.monotonic() + timeout_s
         while not needed <= {info.node_name for info in
-                             self.node.get_subscriptions_info_by_topic('/goal_pose')}:
+                             self.node.get_subscriptions_info_by_topic(GOAL_TOPIC)}:
             graph.check_alive()
             if time.monotonic() > deadline:
                 raise RunFailed(f'/goal_pose is not read by {" and ".join(sorted(needed))} '
@@ -206,7 +210,7 @@ class GraphMonitor:
             self.spin_for(0.05)
         readers_seen = time.monotonic() + GOAL_READERS_MATCH_S
         while (publisher.get_subscription_count()
-               < len(self.node.get_subscriptions_info_by_topic('/goal_pose'))
+               < len(self.node.get_subscriptions_info_by_topic(GOAL_TOPIC))
                and time.monotonic() < readers_seen):
             self.spin_for(0.05)   # a reader seen but not matched yet would not get it
         self.goal_stamp_s = stamp_s
@@ -290,7 +294,7 @@ class GraphMonitor:
         """Where the robot's time stands now, read from /odom (which a plain run does not
         follow: a short look), for a message."""
         if not self._following:
-            reader = self.node.create_subscription(Odometry, '/odom', self._on_odometry,
+            reader = self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry,
                                                    DATA_QOS)
             self.spin_for(1.0)
             self.node.destroy_subscription(reader)
@@ -304,7 +308,7 @@ class GraphMonitor:
             # Subscribed only now: following /odom all run long would slow a fast graph down,
             # and the robot is still once the controller has an outcome.
             self._odometry_reader = self.node.create_subscription(
-                Odometry, '/odom', self._on_odometry, DATA_QOS)
+                Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
         deadline = time.monotonic() + timeout_s
         while self.latest_odometry is None or self.latest_odometry[0] < stamp_s:
             graph.check_alive()

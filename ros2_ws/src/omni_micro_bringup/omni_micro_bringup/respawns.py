@@ -13,6 +13,12 @@ from omni_micro_bringup.composition import READS_FROM_ROBOT
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.qos import DATA_QOS
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    GOAL_TOPIC,
+    ODOM_TOPIC,
+)
 
 if TYPE_CHECKING:
     from omni_micro_bringup.monitor import GraphMonitor
@@ -37,8 +43,8 @@ class Respawns:
     INPUTS: ClassVar[dict[str, tuple[tuple[str, ...], ...]]] = {
         'vision_node': tuple((topic,) for topic in READS_FROM_ROBOT['vision_node']),
         'controller_node': (*((topic,) for topic in READS_FROM_ROBOT['controller_node']),
-                            ('/goal_pose',),
-                            ('/camera/macro/pose_with_covariance', '/camera/macro/pose'))}
+                            (GOAL_TOPIC,),
+                            (CAPTURE_COVARIANCE_TOPICS['macro'], CAPTURE_TOPICS['macro']))}
 
     def _endpoints(self, name: str) -> set[bytes]:
         return {bytes(info.endpoint_gid) for topics in self.INPUTS.get(name, ())
@@ -126,7 +132,7 @@ class Respawns:
         clock again levels every node at the time it stands at and looks at the readers anew.
         """
         odometry = None if self.monitor._following else self.monitor.node.create_subscription(
-            Odometry, '/odom', self.monitor._on_odometry, DATA_QOS)
+            Odometry, ODOM_TOPIC, self.monitor._on_odometry, DATA_QOS)
         try:
             self.monitor.set_paused(graph, False)
             self._wait_for_time_to_move(graph, restarted, stall_s)

@@ -18,21 +18,29 @@ import numpy as np
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
 DPI = 100                      # frames of 1000 x 450 pixels
-TOPICS = ('/odom', '/joint_states', '/wheel_slip', '/wheel_trajectory', '/goal_pose',
-          '/camera/macro/pose', '/camera/micro/pose', '/camera/macro/pose_with_covariance',
-          '/camera/micro/pose_with_covariance')
+TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
+          *CAPTURE_TOPICS.values(), *CAPTURE_COVARIANCE_TOPICS.values())
 
 
 def _events(bag: Path) -> list[tuple[int, str, Any]]:
     """Every message that changes the scene, with the simulated time it was recorded at."""
     data = read_bag(bag, list(TOPICS))
-    if not data.messages.get('/odom'):
+    if not data.messages.get(ODOM_TOPIC):
         raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to animate')
     events = [(stamp, topic, message)
               for topic in TOPICS
@@ -44,18 +52,18 @@ def _events(bag: Path) -> list[tuple[int, str, Any]]:
 
 
 def _apply(scene: Scene, topic: str, message: Any) -> None:
-    if topic == '/odom':
+    if topic == ODOM_TOPIC:
         pose = message.pose.pose
         scene.on_odometry(pose.position.x, pose.position.y,
                           quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
-    elif topic == '/joint_states' and STEERING_JOINT in message.name:
+    elif topic == JOINT_STATES_TOPIC and STEERING_JOINT in message.name:
         scene.on_steering(message.position[message.name.index(STEERING_JOINT)])
-    elif topic == '/wheel_slip':
+    elif topic == WHEEL_SLIP_TOPIC:
         scene.on_slip(*slip_of(message.name, message.velocity))
-    elif topic == '/wheel_trajectory' and len(message.points) >= 2:
+    elif topic == WHEEL_TRAJECTORY_TOPIC and len(message.points) >= 2:
         scene.on_move(*move_of(message.joint_names, message.points[0].positions,
                                message.points[-1].positions, scene.robot.wheel_radius_m))
-    elif topic == '/goal_pose':
+    elif topic == GOAL_TOPIC:
         scene.on_goal(message.pose.position.x, message.pose.position.y)
     elif topic.endswith('/pose'):
         scene.on_capture(topic.split('/')[2], message.pose.position.x, message.pose.position.y)

@@ -1,4 +1,5 @@
-"""QoS and names of the graph's topics, in one place for every node and tool so they match.
+"""QoS of the graph's topics, in one place for every node and tool so they match (their names:
+:mod:`omni_micro_common.topic_names`).
 
 All reliable: a lost sample would change what the camera and the controller decide. Sample
 streams keep 1000 (20 s of simulated time at the default grid) so that a reader a few hundred
@@ -7,26 +8,6 @@ samples behind at a high real-time factor loses none; statuses are latched.
 
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-DATA_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-# /lockstep: reports are small and every one counts (the robot waits for them): as the data.
-LOCKSTEP_QOS = DATA_QOS
-CAPTURE_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-# Camera images: a megabyte each, so a short history (in lockstep no more than the lead's worth
-# are ever unhandled). camera_node offers reliable; tracker_node reads best effort by default
-# (REP-2003: it then meets any driver) and reliable in the lockstep graph.
-IMAGE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
-# Beside each capture, the same pose with its uncertainty (geometry_msgs/PoseWithCovarianceStamped,
-# same stamp): the captures stay PoseStamped, so a driver that cannot estimate its own
-# uncertainty still fits the contract (the controller then takes a fixed one from its params).
-CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
-                             'micro': '/camera/micro/pose_with_covariance'}
-# Where a reader of the captures takes their uncertainty from (controller_node's and
-# markers_node's capture_uncertainty): 'covariance' reads each capture from its
-# CAPTURE_COVARIANCE_TOPICS message alone, which has the pose too; 'fixed' reads CAPTURE_TOPICS,
-# for a camera driver that publishes bare PoseStamped captures.
-CAPTURE_UNCERTAINTY_SOURCES = ('covariance', 'fixed')
 
 
 def profile(depth: int, latched: bool = False, best_effort: bool = False) -> QoSProfile:
@@ -45,6 +26,14 @@ def latched(depth: int) -> QoSProfile:
 
 
 STATUS_QOS = latched(10)
+DATA_QOS = profile(1000)
+# /lockstep: reports are small and every one counts (the robot waits for them): as the data.
+LOCKSTEP_QOS = DATA_QOS
+CAPTURE_QOS = profile(100)
+# Camera images: a megabyte each, so a short history (in lockstep no more than the lead's worth
+# are ever unhandled). camera_node offers reliable; tracker_node reads best effort by default
+# (REP-2003: it then meets any driver) and reliable in the lockstep graph.
+IMAGE_QOS = profile(10)
 
 
 # For the endpoints used every tick: rclpy gives each publisher and subscription two QoS event

@@ -49,15 +49,17 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
-from omni_micro_common.qos import (
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_QOS,
-    CAPTURE_TOPICS,
-    DATA_QOS,
-    PER_TICK_SUBSCRIPTION_EVENTS,
-    STATUS_QOS,
-)
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, STATUS_QOS
 from omni_micro_common.tick_messages import joint_state_template
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_control.controller_messages import (
     STATUS_LEVELS,
     move_line,
@@ -111,14 +113,14 @@ class ControllerNode(Node):
         self._command_ns: int | None = None
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
-        self.trajectory_pub = count(self.create_publisher(JointTrajectory, '/wheel_trajectory',
+        self.trajectory_pub = count(self.create_publisher(JointTrajectory, WHEEL_TRAJECTORY_TOPIC,
                                                           DATA_QOS))
-        self.status_pub = count(self.create_publisher(DiagnosticStatus, '/controller/status',
+        self.status_pub = count(self.create_publisher(DiagnosticStatus, CONTROLLER_STATUS_TOPIC,
                                                       STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._joint_state = joint_state_template()
-        self.create_subscription(JointState, '/joint_states', self._on_joint_state, DATA_QOS,
+        self.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, DATA_QOS,
                                  raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         for name in CAPTURE_TOPICS:
@@ -131,8 +133,8 @@ class ControllerNode(Node):
                 self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
                                          functools.partial(self._on_capture, camera=name),
                                          CAPTURE_QOS)
-        self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
-        self.create_subscription(DiagnosticStatus, '/camera/status', self._on_camera_status,
+        self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
+        self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0

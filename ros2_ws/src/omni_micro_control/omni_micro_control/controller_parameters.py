@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from rclpy.node import Node
 
 from omni_micro_common.conventions import CaptureUncertainty
-from omni_micro_common.qos import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
+from omni_micro_common.topic_names import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelConfig
 from omni_micro_control.platform import checked_platform

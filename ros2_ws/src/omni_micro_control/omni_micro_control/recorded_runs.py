@@ -19,7 +19,11 @@ from typing import Any
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty, quaternion_to_yaw, stamp_ns
-from omni_micro_common.qos import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
 from omni_micro_control.errors import IdentificationError, RecordingError
 from omni_micro_control.observations import Observation, mean_observation
@@ -28,7 +32,6 @@ from omni_micro_sim.parameters import MotorLimits, SteeringParameters
 from omni_micro_sim.wheel_trajectory import TrajectoryPoint, command_from_points
 
 CAMERAS = tuple(CAPTURE_TOPICS)
-WHEEL_TRAJECTORY_TOPIC = '/wheel_trajectory'
 # What read_run reads: the moves, and the captures with their covariance or bare.
 RUN_TOPICS = (WHEEL_TRAJECTORY_TOPIC, *CAPTURE_TOPICS.values(),
               *CAPTURE_COVARIANCE_TOPICS.values())

@@ -68,6 +68,15 @@ from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.reader_matching import unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
+from omni_micro_common.topic_names import (
+    CLOCK_TOPIC,
+    JOINT_STATES_THROTTLE_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_THROTTLE_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_sim.dynamics_parameters import checked_rtf, declare_dynamics_parameters
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_sim.state import RobotState
@@ -130,12 +139,12 @@ class DynamicsNode(Node):
             return count(self.create_publisher(msg_type, topic, DATA_QOS,
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS))
 
-        self.clock_pub = per_tick(Clock, '/clock')
-        self.odom_pub = per_tick(Odometry, '/odom')
-        self.joint_pub = per_tick(JointState, '/joint_states')
-        self.slip_pub = per_tick(JointState, '/wheel_slip')
-        self.odom_throttle_pub = per_tick(Odometry, '/odom_throttle')
-        self.joint_throttle_pub = per_tick(JointState, '/joint_states_throttle')
+        self.clock_pub = per_tick(Clock, CLOCK_TOPIC)
+        self.odom_pub = per_tick(Odometry, ODOM_TOPIC)
+        self.joint_pub = per_tick(JointState, JOINT_STATES_TOPIC)
+        self.slip_pub = per_tick(JointState, WHEEL_SLIP_TOPIC)
+        self.odom_throttle_pub = per_tick(Odometry, ODOM_THROTTLE_TOPIC)
+        self.joint_throttle_pub = per_tick(JointState, JOINT_STATES_THROTTLE_TOPIC)
         self._publishers_of = {pub.topic_name: pub for pub in (
             self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub,
             self.odom_throttle_pub, self.joint_throttle_pub)}
@@ -146,7 +155,7 @@ class DynamicsNode(Node):
                                      f'node does not publish ({sorted(self._publishers_of)})')
         # Time starts (and resumes) only once the awaited readers are matched.
         self._readers_pending = True
-        self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
+        self.create_subscription(JointTrajectory, WHEEL_TRAJECTORY_TOPIC, self._on_trajectory,
                                  DATA_QOS)
         if self.lockstep.enabled:
             self.create_subscription(DiagnosticStatus, ACK_TOPIC, self._on_ack, LOCKSTEP_QOS,

@@ -36,6 +36,14 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
+from omni_micro_common.topic_names import (
+    CLOCK_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_TOPIC,
+    RECORDER_STATUS_TOPIC,
+    WHEEL_SLIP_TOPIC,
+)
 from omni_micro_tools.bag_order import Ordered
 from omni_micro_tools.bags import STORAGES, finish_in_order, flush, open_writer
 from omni_micro_tools.errors import BagPathError
@@ -50,12 +58,11 @@ from omni_micro_tools.topics import (
 FLUSH_PERIOD_S = 0.5
 
 
-CLOCK_TOPIC = '/clock'
 RECORDER_DEPTH = 1000
 # The robot's per-tick streams: the recorder says how far it has received all of them
 # (RECEIVED_UP_TO_KEY of /bag_recorder/status), so that whoever stops the graph knows the bag
 # has everything up to a time. Each comes from one writer, in order.
-TICK_TOPICS = ('/clock', '/odom', '/joint_states', '/wheel_slip')
+TICK_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)
 
 
 class BagRecorder(Node):
@@ -117,8 +124,8 @@ class BagRecorder(Node):
             self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, DATA_QOS,
                                      raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         self._watched = [sub for sub in self.subscriptions
-                         if sub.topic_name in topics and sub.topic_name != '/goal_pose']
-        self.status_pub = self.create_publisher(DiagnosticStatus, '/bag_recorder/status',
+                         if sub.topic_name in topics and sub.topic_name != GOAL_TOPIC]
+        self.status_pub = self.create_publisher(DiagnosticStatus, RECORDER_STATUS_TOPIC,
                                                 latched(1))
         self._announced = False
         # The latest stamp received per tick topic, and what was last said of their minimum.

@@ -9,6 +9,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    CLOCK_TOPIC,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    MARKERS_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
+
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
     from rosbags.interfaces import Qos
@@ -50,23 +64,19 @@ class TopicSpec:
 
 # Every topic of the graph (docs/graph.md, "The node graph"), but /odom_throttle and
 # /joint_states_throttle: copies of /odom and /joint_states for markers_node, not recorded.
-# What markers_node draws (a run without --no-markers records it too).
-MARKERS_TOPIC = '/markers'
 GRAPH_TOPICS: dict[str, TopicSpec] = {
-    '/clock': TopicSpec('rosgraph_msgs/msg/Clock', 1000),
-    '/odom': TopicSpec('nav_msgs/msg/Odometry', 1000),
-    '/joint_states': TopicSpec('sensor_msgs/msg/JointState', 1000),
-    '/wheel_slip': TopicSpec('sensor_msgs/msg/JointState', 1000),
-    '/wheel_trajectory': TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
-    '/camera/macro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
-    '/camera/micro/pose': TopicSpec('geometry_msgs/msg/PoseStamped', 100),
-    '/camera/macro/pose_with_covariance': TopicSpec(
-        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
-    '/camera/micro/pose_with_covariance': TopicSpec(
-        'geometry_msgs/msg/PoseWithCovarianceStamped', 100),
-    '/camera/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
-    '/goal_pose': TopicSpec('geometry_msgs/msg/PoseStamped', 10),
-    '/controller/status': TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
+    CLOCK_TOPIC: TopicSpec('rosgraph_msgs/msg/Clock', 1000),
+    ODOM_TOPIC: TopicSpec('nav_msgs/msg/Odometry', 1000),
+    JOINT_STATES_TOPIC: TopicSpec('sensor_msgs/msg/JointState', 1000),
+    WHEEL_SLIP_TOPIC: TopicSpec('sensor_msgs/msg/JointState', 1000),
+    WHEEL_TRAJECTORY_TOPIC: TopicSpec('trajectory_msgs/msg/JointTrajectory', 1000),
+    **{topic: TopicSpec('geometry_msgs/msg/PoseStamped', 100)
+       for topic in CAPTURE_TOPICS.values()},
+    **{topic: TopicSpec('geometry_msgs/msg/PoseWithCovarianceStamped', 100)
+       for topic in CAPTURE_COVARIANCE_TOPICS.values()},
+    CAMERA_STATUS_TOPIC: TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 1, latched=True),
+    GOAL_TOPIC: TopicSpec('geometry_msgs/msg/PoseStamped', 10),
+    CONTROLLER_STATUS_TOPIC: TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True),
     MARKERS_TOPIC: TopicSpec('visualization_msgs/msg/MarkerArray', 1000),
 }
 # The rendered cameras' streams (run --vision images): recorded only when asked
@@ -81,12 +91,12 @@ RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
 # causes before what it causes (the robot's sample, the frames, the captures, the controller's
 # answer, the drawing). Topics not named here come last. See omni_micro_tools.bag_order.
 TOPIC_ORDER: tuple[str, ...] = (
-    '/clock', '/goal_pose', '/odom', '/joint_states', '/wheel_slip',
+    CLOCK_TOPIC, GOAL_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC,
     *(topic for camera in ('macro', 'micro')
       for topic in (f'/camera/{camera}/camera_info', f'/camera/{camera}/image_raw')),
     *(topic for camera in ('macro', 'micro')
       for topic in (f'/camera/{camera}/pose_with_covariance', f'/camera/{camera}/pose')),
-    '/camera/status', '/controller/status', '/wheel_trajectory', MARKERS_TOPIC)
+    CAMERA_STATUS_TOPIC, CONTROLLER_STATUS_TOPIC, WHEEL_TRAJECTORY_TOPIC, MARKERS_TOPIC)
 assert set(TOPIC_ORDER) == set(RECORDABLE_TOPICS)
 # A run's bag ends this long (simulated time) after its last outcome: the stop command and the
 # samples of the robot coming to rest (a ramp down from cruise speed takes 0.17 s, from the tick

@@ -22,14 +22,27 @@ from rclpy.parameter import Parameter
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    CLOCK_TOPIC,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    MARKERS_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_tools.bags import TYPESTORE
 from omni_micro_tools.topics import GRAPH_TOPICS, TopicSpec
 
 # Topics a viewer needs, in the order a layout reads them.
-VIEW_TOPICS = ('/markers', '/odom', '/camera/macro/pose', '/camera/micro/pose',
-               '/camera/macro/pose_with_covariance', '/camera/micro/pose_with_covariance',
-               '/controller/status', '/camera/status', '/wheel_slip', '/joint_states',
-               '/wheel_trajectory', '/goal_pose', '/clock')
+VIEW_TOPICS = (MARKERS_TOPIC, ODOM_TOPIC, *CAPTURE_TOPICS.values(),
+               *CAPTURE_COVARIANCE_TOPICS.values(),
+               CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, WHEEL_SLIP_TOPIC, JOINT_STATES_TOPIC,
+               WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC, CLOCK_TOPIC)
 # A client this many messages behind loses the oldest: the graph never waits for a viewer.
 BACKLOG_MESSAGES = 1024
 
@@ -99,4 +112,4 @@ if __name__ == '__main__':
 
 def view_topics(markers: bool = True) -> dict[str, TopicSpec]:
     return {topic: GRAPH_TOPICS[topic] for topic in VIEW_TOPICS
-            if markers or topic != '/markers'}
+            if markers or topic != MARKERS_TOPIC}

@@ -36,9 +36,10 @@ from omni_micro_common.conventions import join_stamp, quaternion_to_yaw, split_s
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import CAPTURE_TOPICS, DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.qos import DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.camera_frames import SCENES, CameraFrames, camera_settings, target_settings
@@ -96,7 +97,7 @@ class CameraNode(Node):
     def _subscribe(self) -> None:
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._odometry = odometry_template()
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
+        self.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS, raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
     def _on_odometry(self, data: bytes) -> None:

@@ -52,15 +52,19 @@ from omni_micro_common.conventions import (
 from omni_micro_common.lockstep import NOTHING_HANDLED_NS, Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import (
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_QOS,
     CAPTURE_TOPICS,
     CAPTURE_UNCERTAINTY_SOURCES,
-    DATA_QOS,
-    PER_TICK_SUBSCRIPTION_EVENTS,
+    GOAL_TOPIC,
+    JOINT_STATES_THROTTLE_TOPIC,
+    MARKERS_TOPIC,
+    ODOM_THROTTLE_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
 )
-from omni_micro_common.tick_messages import odometry_template
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.marker_messages import MarkerArrayEncoder
@@ -156,18 +160,18 @@ class MarkersNode(Node):
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self._odometry = odometry_template()
-        self.create_subscription(Odometry, '/odom_throttle', self._on_odometry, DATA_QOS,
+        self.create_subscription(Odometry, ODOM_THROTTLE_TOPIC, self._on_odometry, DATA_QOS,
                                  raw=True, event_callbacks=quiet)
         # The streams are kept as bytes and decoded once per publication. The wheels are
         # drawn at their actual steering angle (/joint_states): with a steering motion it
         # lags the commanded one.
-        self.create_subscription(JointState, '/wheel_slip', self._on_slip, DATA_QOS, raw=True,
+        self.create_subscription(JointState, WHEEL_SLIP_TOPIC, self._on_slip, DATA_QOS, raw=True,
                                  event_callbacks=quiet)
-        self.create_subscription(JointState, '/joint_states_throttle', self._on_joint_state,
+        self.create_subscription(JointState, JOINT_STATES_THROTTLE_TOPIC, self._on_joint_state,
                                  DATA_QOS, raw=True, event_callbacks=quiet)
-        self.create_subscription(JointTrajectory, '/wheel_trajectory', self._on_trajectory,
+        self.create_subscription(JointTrajectory, WHEEL_TRAJECTORY_TOPIC, self._on_trajectory,
                                  DATA_QOS)
-        self.create_subscription(PoseStamped, '/goal_pose', self._on_goal, 10)
+        self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         # Each capture from one topic, as the controller reads it (the same parameter): the
         # covariance topic has the pose too, and a second subscription would double the
         # deliveries of every capture to a process that only watches.
@@ -185,7 +189,7 @@ class MarkersNode(Node):
                 self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
                                          self._capture_reader(name), CAPTURE_QOS)
         # Made last: once the orchestration sees it, every subscription above exists.
-        self.publisher = self.create_publisher(MarkerArray, '/markers', DATA_QOS)
+        self.publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, DATA_QOS)
 
     # -- inputs ------------------------------------------------------------------------------
     def _at(self, stamp: Time, kind: str, apply: Callable[[], None]) -> None:

@@ -44,14 +44,9 @@ from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import (
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_QOS,
-    CAPTURE_TOPICS,
-    IMAGE_QOS,
-    latched,
-)
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
 from omni_micro_common.reader_matching import when_capture_readers_matched
+from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image

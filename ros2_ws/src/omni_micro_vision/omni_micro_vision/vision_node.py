@@ -39,16 +39,15 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
-from omni_micro_common.qos import (
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_QOS,
-    CAPTURE_TOPICS,
-    DATA_QOS,
-    PER_TICK_SUBSCRIPTION_EVENTS,
-    latched,
-)
+from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
 from omni_micro_common.reader_matching import when_capture_readers_matched
 from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    ODOM_TOPIC,
+)
 from omni_micro_vision.camera import (
     DEFAULT_RIG,
     CameraFaults,
@@ -106,7 +105,7 @@ class VisionNode(Node):
         self.covariance_pubs = {
             name: count(self.create_publisher(PoseWithCovarianceStamped, topic, CAPTURE_QOS))
             for name, topic in CAPTURE_COVARIANCE_TOPICS.items()}
-        self.status_pub = count(self.create_publisher(DiagnosticStatus, '/camera/status',
+        self.status_pub = count(self.create_publisher(DiagnosticStatus, CAMERA_STATUS_TOPIC,
                                                       CAMERA_STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         # Raw, read in place: an Odometry's conversion to Python cost more than the cameras.
@@ -126,7 +125,7 @@ class VisionNode(Node):
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
 
     def _read_odometry(self) -> None:
-        self.create_subscription(Odometry, '/odom', self._on_odometry, DATA_QOS, raw=True,
+        self.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS, raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:

@@ -13,6 +13,14 @@ import numpy as np
 from omni_micro_cli.arguments import positive_int, whole_number_in
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import output_folder, staged_directory
+from omni_micro_common.topic_names import (
+    CAPTURE_TOPICS,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
 from omni_micro_control.feedback import OUTCOME_NAMES
 
 # An animation's frames are held in memory until written (~1.4 MB each at 1000 x 450 px).
@@ -53,14 +61,14 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     from omni_micro_tools.bag_reading import read_bag
 
     data = read_bag(bag)
-    odometry = data.messages.get('/odom', [])
+    odometry = data.messages.get(ODOM_TOPIC, [])
     if not odometry:
         raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to analyse')
     route = np.array([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
                       for m in odometry])
     statuses = [{'message': m.message, **{kv.key: kv.value for kv in m.values}}
-                for m in data.messages.get('/controller/status', [])]
-    goals = data.messages.get('/goal_pose', [])
+                for m in data.messages.get(CONTROLLER_STATUS_TOPIC, [])]
+    goals = data.messages.get(GOAL_TOPIC, [])
     goal = None
     if goals:
         goal = (goals[-1].pose.position.x, goals[-1].pose.position.y)
@@ -69,10 +77,10 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
         if with_goal:
             goal = (float(with_goal[-1]['goal_x_m']), float(with_goal[-1]['goal_y_m']))
     captures = np.array([(_stamp(m), m.pose.position.x, m.pose.position.y)
-                         for topic in ('/camera/macro/pose', '/camera/micro/pose')
+                         for topic in CAPTURE_TOPICS.values()
                          for m in data.messages.get(topic, [])]).reshape(-1, 3)
-    moves = [m for m in data.messages.get('/wheel_trajectory', []) if m.points]
-    slip_msgs = data.messages.get('/wheel_slip', [])
+    moves = [m for m in data.messages.get(WHEEL_TRAJECTORY_TOPIC, []) if m.points]
+    slip_msgs = data.messages.get(WHEEL_SLIP_TOPIC, [])
     slip = np.array([(_stamp(m), *m.velocity) for m in slip_msgs]).reshape(-1, 7)
     remaining = [(int(s['periods']), float(s['remaining_m'])) for s in statuses
                  if s['message'] == 'moving' and 'remaining_m' in s]

@@ -10,6 +10,7 @@ from pathlib import Path
 from omni_micro_cli.arguments import FACTOR_RANGE, domain_id, number_in, positive_float
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_common.lockstep import REPLAY_SYNC_WINDOW
+from omni_micro_common.topic_names import CLOCK_TOPIC
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -44,14 +45,14 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.bag_reading import bag_topics, read_bag
 
     available = bag_topics(args.bag)
-    topics = args.topics or [t for t in available if t != '/clock']
+    topics = args.topics or [t for t in available if t != CLOCK_TOPIC]
     unknown = sorted(set(topics) - set(available))
     if unknown:
         raise UsageError(f'topic(s) {unknown} are not in the bag; it has {available}')
-    if args.clock and '/clock' not in topics:
-        if '/clock' not in available:
+    if args.clock and CLOCK_TOPIC not in topics:
+        if CLOCK_TOPIC not in available:
             raise UsageError('--clock: the bag has no /clock')
-        topics.append('/clock')
+        topics.append(CLOCK_TOPIC)
     # Only what is replayed is read: a bag with images holds a megabyte a frame.
     data = read_bag(args.bag, topics=topics, decode=bool(args.sync))
     if not any(data.timestamps[topic] for topic in topics):

@@ -1,0 +1,34 @@
+"""The names of the graph's topics, defined once (plain strings: no rclpy, so that a command's
+``--help`` can name them). Their types and QoS: docs/graph.md, "The node graph", and
+:mod:`omni_micro_common.qos`.
+"""
+
+# The robot's clock and state, every grid tick (dynamics_node, or a real robot's driver).
+CLOCK_TOPIC = '/clock'
+ODOM_TOPIC = '/odom'
+JOINT_STATES_TOPIC = '/joint_states'
+WHEEL_SLIP_TOPIC = '/wheel_slip'
+# The same as /odom and /joint_states on one tick in a few, for who only watches (topic_tools
+# throttle's names).
+ODOM_THROTTLE_TOPIC = '/odom_throttle'
+JOINT_STATES_THROTTLE_TOPIC = '/joint_states_throttle'
+# Commands to the robot's wheels, and the goals the controller is given (RViz's name).
+WHEEL_TRAJECTORY_TOPIC = '/wheel_trajectory'
+GOAL_TOPIC = '/goal_pose'
+# The captures, per camera, bare and with their uncertainty (same stamp): the captures stay
+# PoseStamped, so a driver that cannot estimate its own uncertainty still fits the contract (the
+# controller then takes a fixed one from its params).
+CAPTURE_TOPICS = {'macro': '/camera/macro/pose', 'micro': '/camera/micro/pose'}
+CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
+                             'micro': '/camera/micro/pose_with_covariance'}
+# Where a reader of the captures takes their uncertainty from (controller_node's and
+# markers_node's capture_uncertainty): 'covariance' reads each capture from its
+# CAPTURE_COVARIANCE_TOPICS message alone, which has the pose too; 'fixed' reads CAPTURE_TOPICS,
+# for a camera driver that publishes bare PoseStamped captures.
+CAPTURE_UNCERTAINTY_SOURCES = ('covariance', 'fixed')
+# Latched statuses.
+CONTROLLER_STATUS_TOPIC = '/controller/status'
+CAMERA_STATUS_TOPIC = '/camera/status'
+RECORDER_STATUS_TOPIC = '/bag_recorder/status'
+# What markers_node draws.
+MARKERS_TOPIC = '/markers'
