@@ -112,6 +112,15 @@ class CaptureUncertainty:
         return cls(*sigmas)
 
 
+# The platform goals lie on, in its own frame (m): what the macro camera sees, centred 50 mm
+# along x so that the paper's moves, (0,0)->(100,0) mm and (0,0)->(10.15,10.15) mm, both lie on
+# it. controller_node refuses a goal off it; the cameras' defaults are built on it.
+PLATFORM_CENTER_M = (0.05, 0.0)
+PLATFORM_SIZE_M = (0.15, 0.15)
+# A goal is reached within this distance (m): the end rule the paper leaves open. The
+# controller's tolerance_m by default, and the circle a viewer draws around the goal.
+GOAL_TOLERANCE_M = 3.0e-6
+
 # The key of the simulated time (s, repr of a float) every /controller/status and /camera/status
 # carries: the time of the decision or observation it says (a capture, a timeout on the robot's
 # clock, a goal's arrival), not of its publication. A recorder writes the status at that time,

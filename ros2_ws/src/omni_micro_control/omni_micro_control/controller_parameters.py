@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from rclpy.node import Node
 
-from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
 from omni_micro_common.topic_names import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelConfig
@@ -54,8 +54,9 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
         for name, field in FeedbackConfig.__dataclass_fields__.items()
         if name not in DERIVED_CONFIG})
     frame_id = node.declare_parameter('frame_id', 'platform').value
-    platform_center = list(node.declare_parameter('platform.center_m', [0.05, 0.0]).value)
-    platform_size = list(node.declare_parameter('platform.size_m', [0.15, 0.15]).value)
+    platform_center = list(node.declare_parameter('platform.center_m',
+                                                  list(PLATFORM_CENTER_M)).value)
+    platform_size = list(node.declare_parameter('platform.size_m', list(PLATFORM_SIZE_M)).value)
     checked_platform(platform_center, platform_size)
     goal = list(node.declare_parameter('goal_m', [0.0]).value)
     source, fixed = _declare_uncertainty(node)

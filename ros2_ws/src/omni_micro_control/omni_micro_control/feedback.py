@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.observations import Observation, mean_observation
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
@@ -91,7 +92,7 @@ class FeedbackConfig:
     far_period_s: float = 0.2             # timer1 beyond the comparator distance
     near_period_s: float = 0.05           # timer1 within it
     comparator_distance_m: float = 2.0e-3
-    tolerance_m: float = 3.0e-6
+    tolerance_m: float = GOAL_TOLERANCE_M
     max_periods: int = 100
     command_lead_s: float = 0.05          # a move starts this long after its capture's stamp
     open_loop_duration_s: float = 0.0     # > 0: one move of this long, no feedback

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
 from omni_micro_vision.errors import CameraConfigError
 
 
@@ -155,11 +155,10 @@ class CameraRig:
         return None
 
 
-# The platform frame of the defaults: the macro field is centred 50 mm along X so that the paper's
-# moves, (0,0)->(100,0) mm and (0,0)->(10.15,10.15) mm, both lie inside it; the micro work
+# The macro camera sees the whole platform (omni_micro_common.conventions); the micro work
 # platform is centred on the goal of Fig. 11.
 DEFAULT_RIG = CameraRig(
-    macro=CameraModel('macro', (0.05, 0.0), (0.15, 0.15)),
+    macro=CameraModel('macro', PLATFORM_CENTER_M, PLATFORM_SIZE_M),
     micro=CameraModel('micro', (0.1, 0.0), (0.002, 0.002)),
 )
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from omni_micro_sim.parameters import RobotParameters
 from omni_micro_vision.camera import CameraModel
 
 
@@ -35,7 +36,8 @@ class Fiducial:
 
 MACRO_FIDUCIAL = Fiducial(Dot(2.0e-3, 0.0, 0.9e-3), Dot(-2.0e-3, 0.0, 0.5e-3))
 MICRO_FIDUCIAL = Fiducial(Dot(0.3e-3, 0.0, 0.06e-3), Dot(-0.3e-3, 0.0, 0.035e-3))
-CHASSIS_RADIUS_M = 4.5e-3
+# The disc the dots are printed on: the nominal robot's chassis.
+CHASSIS_RADIUS_M = RobotParameters().chassis_radius_m
 # Reflectances: what fraction of the full well a pixel collects in one exposure (the
 # tracker's threshold depends on them too).
 PLATFORM_LEVEL = 0.35

@@ -44,6 +44,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import (
+    GOAL_TOLERANCE_M,
     STEERING_JOINT,
     CaptureUncertainty,
     quaternion_to_yaw,
@@ -126,7 +127,7 @@ class MarkersNode(Node):
         if len(offsets) != 3 or not all(math.isfinite(v) for v in offsets):
             raise CameraConfigError(
                 f'robot.wheel_offsets_rad must be three finite angles, got {list(offsets)}')
-        tolerance = float(self.declare_parameter('tolerance_m', 3.0e-6).value)
+        tolerance = float(self.declare_parameter('tolerance_m', GOAL_TOLERANCE_M).value)
         slip_arrow = float(self.declare_parameter('slip_arrow_s', 2.0).value)
         if not (tolerance > 0 and slip_arrow > 0):
             raise CameraConfigError(f'tolerance_m and slip_arrow_s must be > 0, got '

@@ -14,7 +14,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from omni_micro_common.conventions import STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_common.conventions import GOAL_TOLERANCE_M, STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_sim.parameters import RobotParameters
 from omni_micro_vision.camera import CameraRig
 
 Colour = tuple[float, float, float, float]
@@ -80,12 +81,17 @@ def move_of(joint_names: Sequence[str], first: Sequence[float], last: Sequence[f
     return steering, abs(float(last[wheel]) - float(first[wheel])) * wheel_radius_m
 
 
+_NOMINAL = RobotParameters()
+
+
 @dataclass(frozen=True)
 class RobotGeometry:
-    chassis_radius_m: float = 4.5e-3
-    wheel_distance_m: float = 4.15e-3
-    wheel_radius_m: float = 1.65e-3
-    wheel1_angle_rad: float = math.radians(45.0)
+    """What a viewer draws of the robot; by default the nominal robot's own dimensions."""
+
+    chassis_radius_m: float = _NOMINAL.chassis_radius_m
+    wheel_distance_m: float = _NOMINAL.wheel_distance_m
+    wheel_radius_m: float = _NOMINAL.wheel_radius_m
+    wheel1_angle_rad: float = _NOMINAL.wheel1_angle_rad
     wheel_offsets_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def wheel_contacts(self, x: float, y: float, phi: float) -> list[Point]:
@@ -111,7 +117,7 @@ class Scene:
 
     rig: CameraRig
     robot: RobotGeometry = field(default_factory=RobotGeometry)
-    tolerance_m: float = 3.0e-6
+    tolerance_m: float = GOAL_TOLERANCE_M
     slip_arrow_s: float = 2.0            # arrow length (m) per slip speed (m/s)
     # How each camera is turned about its centre (``yaw_rad`` of camera_node, tracker_node).
     camera_yaw_rad: dict[str, float] = field(default_factory=dict)
