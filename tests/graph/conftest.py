@@ -82,15 +82,15 @@ def probe(domain_id: int) -> Iterator[Probe]:
 
 @pytest.fixture
 def start_node(domain_id: int, tmp_path: Path):
-    """Start an installed node with its package params file; stopped with SIGINT afterwards."""
+    """Start an installed node with the graph's params file; stopped with SIGINT afterwards."""
     processes: list[subprocess.Popen[bytes]] = []
     logs: list[IO[str]] = []
 
     def start(package: str, executable: str, *params: str) -> subprocess.Popen:
-        from omni_micro_bringup.parameters import package_params_file, resolve_executable
+        from omni_micro_bringup.parameters import graph_params_file, resolve_executable
 
         argv = [str(resolve_executable(package, executable)), '--ros-args', '--params-file',
-                str(package_params_file(package, executable))]
+                str(graph_params_file())]
         for param in params:
             argv += ['-p', param]
         # Open for the node's whole life: closed after it has stopped, below.

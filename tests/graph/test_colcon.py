@@ -1,6 +1,6 @@
 """`colcon build` of the workspace installs the nodes and the omni-micro command where `ros2 run`
-looks for them, and the loop closes (recorded) with those executables and their installed params
-files, started by the colcon-installed command."""
+looks for them, and the loop closes (recorded) with those executables and the bringup's installed
+params file, started by the colcon-installed command."""
 
 import json
 import os
@@ -40,13 +40,13 @@ def test_executables_and_params_are_where_ros2_run_looks(workspace):
     for package, node in NODES.items():
         executable = workspace / 'install' / package / 'lib' / package / node
         assert executable.is_file() and os.access(executable, os.X_OK)
-        assert (workspace / 'install' / package / 'share' / package / 'config' /
-                f'{node}.yaml').is_file()
         assert (workspace / 'install' / package / 'share' / 'ament_index' / 'resource_index' /
                 'packages' / package).is_file()
     package, command = COMMAND
     executable = workspace / 'install' / package / 'lib' / package / command
     assert executable.is_file() and os.access(executable, os.X_OK)
+    assert (workspace / 'install' / 'omni_micro_bringup' / 'share' / 'omni_micro_bringup' /
+            'config' / 'omni_micro.yaml').is_file()
 
 
 def test_the_loop_closes_with_the_colcon_installed_nodes(workspace, tmp_path):
@@ -69,4 +69,5 @@ def test_the_loop_closes_with_the_colcon_installed_nodes(workspace, tmp_path):
         first_line = (Path(summary['log_dir']) / f'{node}.log').read_text().splitlines()[0]
         installed = workspace / 'install' / package
         assert f'{installed}/lib/{package}/{node} --ros-args --params-file ' \
-               f'{installed}/share/{package}/config/{node}.yaml' in first_line
+               f'{workspace}/install/omni_micro_bringup/share/omni_micro_bringup/config/' \
+               'omni_micro.yaml' in first_line

@@ -101,7 +101,7 @@ def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain
     closed) used to abort its teardown, and the interpreter's slow exit kept it alive up to
     1.2 s after the orchestrator on an idle machine. Now it exits through the fast path: code 0
     (an exception on the way out ends with 1)."""
-    from omni_micro_bringup.parameters import package_params_file, resolve_executable
+    from omni_micro_bringup.parameters import graph_params_file, resolve_executable
     from omni_micro_bringup.processes import node_environment
     from omni_micro_common.conventions import LIFELINE_ENV
 
@@ -110,7 +110,7 @@ def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain
     env = {**node_environment(domain_id, tmp_path), LIFELINE_ENV: str(lifeline_read)}
     recorder = subprocess.Popen(
         [str(resolve_executable('omni_micro_tools', 'bag_recorder')), '--ros-args',
-         '--params-file', str(package_params_file('omni_micro_tools', 'bag_recorder')),
+         '--params-file', str(graph_params_file()),
          '-p', f'bag:={bag}', '-p', 'topics:=[/odom]'],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, pass_fds=(lifeline_read,))
     os.close(lifeline_read)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_bringup.parameters import package_params_file, resolve_executable
+from omni_micro_bringup.parameters import graph_params_file, resolve_executable
 from omni_micro_bringup.processes import node_environment
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',
@@ -56,7 +56,7 @@ def test_run_refuses_a_params_file_mistake_before_anything_moves(text, expected,
 @pytest.mark.parametrize('node', list(PACKAGES))
 def test_a_node_alone_refuses_a_misspelt_key_in_its_params_file_and_from_p(node, tmp_path,
                                                                             domain_id):
-    own = package_params_file(PACKAGES[node], node)
+    own = graph_params_file()
     mine = params(tmp_path, f'{node}:\n  ros__parameters:\n    sed: 3\n')
     base = [str(resolve_executable(PACKAGES[node], node)), '--ros-args', '--params-file',
             str(own)]

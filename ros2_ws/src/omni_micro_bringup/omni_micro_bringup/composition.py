@@ -244,12 +244,12 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                                   f'{camera}.info_topic': sibling_info_topic(topic)})
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
-        vision = node_parameters('omni_micro_vision', _camera_node(options),
-                                 options.params_files, options.vision_overrides)
-        dynamics = node_parameters('omni_micro_sim', 'dynamics_node', options.params_files,
+        vision = node_parameters(_camera_node(options), options.params_files,
+                                 options.vision_overrides)
+        dynamics = node_parameters('dynamics_node', options.params_files,
                                    options.dynamics_overrides)
-        controller = node_parameters('omni_micro_control', 'controller_node',
-                                     options.params_files, options.controller_overrides)
+        controller = node_parameters('controller_node', options.params_files,
+                                     options.controller_overrides)
         sources = [*((name, vision) for name in MARKERS_FROM_VISION),
                    ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
                    ('capture_uncertainty', controller)]
@@ -285,7 +285,7 @@ def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
     (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
     recorder both)."""
     present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
-    source = node_parameters('omni_micro_control', 'controller_node', options.params_files,
+    source = node_parameters('controller_node', options.params_files,
                              options.controller_overrides).get('capture_uncertainty',
                                                                'covariance')
     readers = [name for name in ('controller_node', 'markers_node') if name in present]
@@ -338,8 +338,7 @@ def external_publications(options: GraphOptions) -> dict[str, str]:
         if options.image_topics:
             topics = list(options.image_topics.values())
         else:
-            values = node_parameters('omni_micro_vision', 'tracker_node', options.params_files,
-                                     {})
+            values = node_parameters('tracker_node', options.params_files, {})
             cameras = values.get('cameras', ['macro', 'micro'])
             topics = [str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
                       for camera in (cameras if isinstance(cameras, list) else [])]
@@ -351,8 +350,7 @@ def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
     """The cameras whose images camera_node streams in this graph (none without it)."""
     if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
         return ()
-    values = node_parameters('omni_micro_vision', 'camera_node', options.params_files,
-                             options.vision_overrides)
+    values = node_parameters('camera_node', options.params_files, options.vision_overrides)
     cameras = values.get('cameras', ['macro', 'micro'])
     return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
 

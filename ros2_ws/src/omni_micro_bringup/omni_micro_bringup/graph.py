@@ -39,7 +39,7 @@ from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.parameters import (
     check_params_file,
     format_parameter,
-    package_params_file,
+    graph_params_file,
     resolve_executable,
 )
 from omni_micro_bringup.processes import (
@@ -117,7 +117,7 @@ def _argv(spec: NodeSpec, options: GraphOptions) -> list[str]:
 
 def _ros_args(spec: NodeSpec, options: GraphOptions) -> list[str]:
     """A node's ROS arguments: its package's params file, the user's, the run's overrides."""
-    argv = ['--ros-args', '--params-file', str(package_params_file(spec.package, spec.executable))]
+    argv = ['--ros-args', '--params-file', str(graph_params_file())]
     for path in options.params_files:
         argv += ['--params-file', str(path)]
     for name, value in node_overrides(spec, options).items():

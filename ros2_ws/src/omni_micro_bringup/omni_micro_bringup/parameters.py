@@ -1,4 +1,4 @@
-"""Where the installed nodes and their params files are, and what each node will be given."""
+"""Where the installed nodes and the graph's params file are, and what each node will be given."""
 
 from __future__ import annotations
 
@@ -30,12 +30,18 @@ def resolve_executable(package: str, executable: str) -> Path:
                     f'{[str(p) for p in install_prefixes()]} (run ./scripts/test once to install)')
 
 
-def package_params_file(package: str, executable: str) -> Path:
+# The graph's params file (config/omni_micro.yaml of this package): a section per node.
+GRAPH_PARAMS_FILE = 'omni_micro.yaml'
+
+
+def graph_params_file() -> Path:
+    """The installed params file of the graph, every node's section in it."""
     for prefix in install_prefixes():
-        path = prefix / 'share' / package / 'config' / f'{executable}.yaml'
+        path = prefix / 'share' / 'omni_micro_bringup' / 'config' / GRAPH_PARAMS_FILE
         if path.is_file():
             return path
-    raise RunFailed(f'params file config/{executable}.yaml of {package} is not installed')
+    raise RunFailed(f'params file config/{GRAPH_PARAMS_FILE} of omni_micro_bringup is not '
+                    'installed')
 
 
 def format_parameter(value: object) -> str:
@@ -85,18 +91,18 @@ def dds_profile() -> Path:
     raise RunFailed('config/fastdds.xml of omni_micro_common is not installed')
 
 
-def node_parameters(package: str, node: str, params_files: tuple[Path, ...],
+def node_parameters(node: str, params_files: tuple[Path, ...],
                     overrides: dict[str, object]) -> dict[str, object]:
-    """A node's parameters as it will have them: its package file, the user's --params files
+    """A node's parameters as it will have them: the graph's file, the user's --params files
     in turn, then the orchestration's overrides (dotted names, as -p gives them)."""
-    values = params_from_files(package, node, *params_files)
+    values = params_from_files(node, *params_files)
     values.update(overrides)
     return values
 
 
-def params_from_files(package: str, node: str, *params_files: Path | None) -> dict[str, object]:
-    """A node's parameters from its package file, then each of ``params_files`` in turn
+def params_from_files(node: str, *params_files: Path | None) -> dict[str, object]:
+    """A node's parameters from the graph's file, then each of ``params_files`` in turn
     (dotted names; None stands for no file)."""
-    files = [package_params_file(package, node),
+    files = [graph_params_file(),
              *(path for path in params_files if path is not None)]
     return params.node_parameters(files, node)

@@ -11,7 +11,7 @@ from omni_micro_bringup.parameters import params_from_files
 
 def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:
     """A controller_node parameter as the node will see it: package file, then --params."""
-    return params_from_files('omni_micro_control', 'controller_node', *params_files).get(name)
+    return params_from_files('controller_node', *params_files).get(name)
 
 
 def check_goal(goal_m: tuple[float, float], params_files: tuple[Path, ...]) -> None:

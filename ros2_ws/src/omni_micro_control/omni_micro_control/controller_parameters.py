@@ -1,5 +1,5 @@
 """The controller node's parameters, declared and checked: the one place that says which
-parameters ``controller_node`` has and what each becomes (config/controller_node.yaml lists
+parameters ``controller_node`` has and what each becomes (the graph's params file lists
 them with their defaults).
 """
 

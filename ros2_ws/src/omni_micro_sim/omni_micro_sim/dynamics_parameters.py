@@ -1,5 +1,5 @@
 """The dynamics node's parameters, declared and checked: the one place that says which
-parameters ``dynamics_node`` has (config/dynamics_node.yaml lists them with their defaults) and
+parameters ``dynamics_node`` has (the graph's params file lists them with their defaults) and
 what each becomes.
 """
 

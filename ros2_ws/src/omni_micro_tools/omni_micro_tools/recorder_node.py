@@ -8,11 +8,12 @@ far is pushed to the file, so a SIGKILL loses at most that much (recover with
 each message at the simulated time it belongs to, in one order, serialized canonically, ending
 0.5 s after the run's last outcome; so the same run records the same file, byte for byte.
 
-Parameters (``config/bag_recorder.yaml``): ``bag`` (the folder to create; required, must not
-exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic of the graph but the
-images), ``lockstep_frames`` (report written frames on /lockstep, so that a graph in lockstep
-waits for the disk as for its tracker), ``end_at_outcome`` (false: keep every message received,
-for a soak that counts them). ``omni-micro record`` and ``run --record`` start it.
+Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``bag`` (the folder to
+create; required, must not exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic
+of the graph but the images), ``lockstep_frames`` (report written frames on /lockstep, so that a
+graph in lockstep waits for the disk as for its tracker), ``end_at_outcome`` (false: keep every
+message received, for a soak that counts them). ``omni-micro record`` and ``run --record`` start
+it.
 """
 
 from __future__ import annotations

@@ -5,9 +5,9 @@ Foxglove decodes them as it does from foxglove_bridge. It only listens, best eff
 never holds up a publisher, and the Foxglove SDK drops frames for a client that reads slowly.
 The server advertises no capability: clients cannot publish, call services or set parameters.
 
-Parameters (``config/viewer.yaml``): ``host`` (default 127.0.0.1: loopback only), ``port``
-(default 8765; 0 for any free one), ``markers`` (serve /markers; false for a graph without
-markers_node). ``omni-micro view`` and ``run --view`` start it.
+Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``host`` (default
+127.0.0.1: loopback only), ``port`` (default 8765; 0 for any free one), ``markers`` (serve
+/markers; false for a graph without markers_node). ``omni-micro view`` and ``run --view`` start it.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """One camera as the tracker reads it: where its pixels lie on the platform, what its captures
 state, and whether a driver's CameraInfo agrees with that.
 
-The settings are ``tracker_node``'s parameters under ``<name>.`` (``config/tracker_node.yaml``),
-read the same way by the node and by ``omni-micro track``. With ``<name>.calibration.*`` (what
-``omni-micro calibrate-camera`` writes) the pixels go through that calibration, lens included;
-without it through the nominal geometry (``center_m``, ``field_m``, ``resolution_px``,
+The settings are ``tracker_node``'s parameters under ``<name>.`` (its section of the graph's params
+file), read the same way by the node and by ``omni-micro track``. With ``<name>.calibration.*``
+(what ``omni-micro calibrate-camera`` writes) the pixels go through that calibration, lens
+included; without it through the nominal geometry (``center_m``, ``field_m``, ``resolution_px``,
 ``yaw_rad``, ``mirrored``: an ideal camera, the simulated one). No rclpy.
 """
 

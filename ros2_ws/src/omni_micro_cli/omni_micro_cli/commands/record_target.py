@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.params is not None:
         check_params_file(args.params)
-    values = params_from_files('omni_micro_vision', 'camera_node', args.params)
+    values = params_from_files('camera_node', args.params)
     try:
         target = target_from(args)
         optics, sensor = camera_settings(args.camera, values.get)

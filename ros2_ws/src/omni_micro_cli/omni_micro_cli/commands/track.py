@@ -60,7 +60,7 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
 
     for path in args.params:
         check_params_file(path)
-    values = params_from_files('omni_micro_vision', 'tracker_node', *args.params)
+    values = params_from_files('tracker_node', *args.params)
     topic = args.image_topic or str(values.get(f'{args.camera}.image_topic',
                                                f'/camera/{args.camera}/image_raw'))
     return values, topic
