@@ -29,6 +29,7 @@ from omni_micro_cli.arguments import (
 )
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder
+from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.feedback import MODES
 
 
@@ -121,7 +122,8 @@ def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
                              'goes (docs/control.md)')
     parser.add_argument('--tolerance-um', type=positive_float, metavar='UM',
                         help="reached when a capture's distance to the goal plus its 95 %% "
-                             'uncertainty is within this (default 3, from the params)')
+                             f'uncertainty is within this (default {GOAL_TOLERANCE_M * 1e6:g}, '
+                             'from the params)')
 
 
 def controller_overrides(args: argparse.Namespace) -> dict[str, object]:

@@ -14,19 +14,23 @@ from omni_micro_cli.arguments import (
     number_in,
 )
 from omni_micro_cli.errors import UsageError
-from omni_micro_sim.parameters import RobotParameters, steering_preset
+from omni_micro_sim.parameters import MotorLimits, RobotParameters, steering_preset
 
 # A steering angle as the wheel contract bounds it (omni_micro_sim.wheel_trajectory): beyond a
 # turn or two a float holds no direction (1e20 deg "steered" in no time and drifted 17 mm).
 steering_degrees = number_in(-360.0, 360.0)
+# The motors of section 3.5, as the help says them.
+_MOTORS = MotorLimits()
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'simulate',
         description='Run one open-loop move of the paper\'s section 3.5 from rest at the origin '
-                    'with phi = 0: ramp to 8.7 rad/s at 50 rad/s^2, hold, ramp down, so that '
-                    'the wheels turn by 8.7 rad/s times DURATION; then wait until the robot is '
+                    f'with phi = 0: ramp to {_MOTORS.cruise_speed_rad_s:g} rad/s at '
+                    f'{_MOTORS.acceleration_rad_s2:g} rad/s^2, hold, ramp down, so that the '
+                    f'wheels turn by {_MOTORS.cruise_speed_rad_s:g} rad/s times DURATION; then '
+                    'wait until the robot is '
                     'at rest. The drift is the distance from where a slip-free robot would stop. '
                     'With --steering realistic and --steer-from-deg the wheels first steer '
                     'from that angle (the chassis turns against the steering); --duration 0 '
@@ -35,7 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='steering (direction) angle theta in the robot frame, degrees '
                              '(within +-360, the wheel contract\'s +-2 pi)')
     parser.add_argument('--duration', type=non_negative_float, required=True, metavar='S',
-                        help='move time t in seconds (wheel rotation = 8.7 rad/s * t); 0 with '
+                        help='move time t in seconds (wheel rotation = '
+                             f'{_MOTORS.cruise_speed_rad_s:g} rad/s * t); 0 with '
                              '--steer-from-deg: steer only')
     parser.add_argument('--xi-deg', type=float_list(3, 'wheel offsets in degrees'),
                         default=(0.0, 0.0, 0.0), metavar='X1,X2,X3',
