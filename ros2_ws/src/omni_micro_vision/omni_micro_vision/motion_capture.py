@@ -1,0 +1,162 @@
+"""A camera that captures a moving robot: when each frame is exposed and when its capture is
+ready, what the motion blur does to the capture's spread, and how fast the robot may go before
+the tracker loses it. No rclpy.
+
+**Timing** (:class:`CameraTiming`). Frame k is exposed from ``k / frame_rate_hz`` for
+``exposure_s``; its capture is stamped at the exposure's middle and is ready ``delay_s`` after
+the exposure ends, plus a jitter drawn from [0, ``jitter_s``] per frame (a function of the
+seed, the camera and the frame: the same run at any speed).
+
+**Blur** (:func:`uncertainty_in_motion`). During the exposure each printed dot moves by
+``l = speed * exposure_s``: its image is the dot convolved with a segment of
+that length. The tracker's centroid of that streak is the dot's centroid at mid-exposure
+(the segment is symmetric about it), so a capture in motion is stamped there and is unbiased
+at constant velocity. Its noise grows along the travel only: the centroid's variance is the
+image's second moment over the photons collected, and the streak's second moment along the
+travel is the dot's, ``R^2 / 4`` for a disc of radius ``R``, plus the segment's, ``l^2 / 12``,
+with the same photons (the exposure does not change). So along the travel::
+
+    sigma_moving = sigma_still * sqrt(1 + l^2 / (3 R^2))
+
+with ``R`` the radius of the smaller dot of the camera's pair; across it the spread is the still
+one. An acceleration ``a`` during the exposure moves the streak's centroid off the mid-exposure
+pose by ``a * exposure_s^2 / 24`` (the mean of ``a t^2 / 2`` over the exposure), which the
+stated spread includes as a bound.
+
+**Loss.** Once the streak is longer than ``MAX_BLUR_PER_DOT_RADIUS`` of that dot's radii, the
+dots are no longer the sizes the tracker looks for: measured on rendered frames
+(docs/images.md, "Captures in motion"), the macro camera's tracker finds no pose at 2.4 radii
+and the micro camera's spread grows five-fold at 1.8. Such frames give no capture.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_vision.camera import CameraModel
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.fiducial import fiducial_for
+
+# The longest streak, in radii of the smaller dot, at which the rendered frames' tracker still
+# finds every frame with its still spread (measured: the macro camera to 1.6 radii, the micro
+# camera to 1.37; lost at 2.4 and five times the spread at 1.8).
+MAX_BLUR_PER_DOT_RADIUS = 1.4
+
+
+@dataclass(frozen=True)
+class CameraTiming:
+    """When a camera exposes its frames and when their captures are ready (seconds)."""
+
+    frame_rate_hz: float = 30.0
+    exposure_s: float = 0.004
+    delay_s: float = 0.0
+    jitter_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ('frame_rate_hz', 'exposure_s', 'delay_s', 'jitter_s'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0.0 \
+                    or (name == 'frame_rate_hz' and value == 0.0):
+                raise CameraConfigError(f'{name} must be a finite number '
+                                        f'{"> 0" if name == "frame_rate_hz" else ">= 0"}, got '
+                                        f'{value!r}')
+            object.__setattr__(self, name, float(value))
+        if self.exposure_s * self.frame_rate_hz > 1.0:
+            raise CameraConfigError(f'exposure_s {self.exposure_s!r} is longer than a frame at '
+                                    f'{self.frame_rate_hz!r} Hz')
+
+    def exposure_start_s(self, frame: int) -> float:
+        return frame / self.frame_rate_hz
+
+    def stamp_s(self, frame: int) -> float:
+        """The capture's stamp: the middle of its exposure."""
+        return self.exposure_start_s(frame) + 0.5 * self.exposure_s
+
+    def ready_s(self, frame: int, seed: int, camera: str) -> float:
+        """When the capture of ``frame`` is ready: the exposure's end, the delay and this frame's
+        jitter (the same for the same seed, camera and frame)."""
+        jitter = 0.0
+        if self.jitter_s > 0.0:
+            rng = np.random.default_rng(np.random.SeedSequence(
+                [seed, sum(camera.encode()), frame]))
+            jitter = float(rng.uniform(0.0, self.jitter_s))
+        return self.exposure_start_s(frame) + self.exposure_s + self.delay_s + jitter
+
+    def first_frame_after(self, time_s: float) -> int:
+        """The first frame whose exposure starts at or after ``time_s``."""
+        return max(0, math.ceil(time_s * self.frame_rate_hz - 1e-9))
+
+
+def dot_radius_m(camera: CameraModel) -> float:
+    """The radius of the smaller dot of the pair ``camera`` tracks."""
+    fiducial = fiducial_for(camera)
+    return min(fiducial.front.radius_m, fiducial.back.radius_m)
+
+
+def blur_m(speed_m_s: float, exposure_s: float) -> float:
+    """How far the robot moves during one exposure: the streak's length."""
+    return abs(speed_m_s) * exposure_s
+
+
+def trackable(camera: CameraModel, speed_m_s: float, exposure_s: float) -> bool:
+    """Whether the tracker still finds the robot moving at ``speed_m_s`` (see the module)."""
+    return blur_m(speed_m_s, exposure_s) <= MAX_BLUR_PER_DOT_RADIUS * dot_radius_m(camera)
+
+
+def max_trackable_speed_m_s(camera: CameraModel, exposure_s: float) -> float:
+    """The fastest the robot may move and still be captured by ``camera``."""
+    if exposure_s <= 0.0:
+        return math.inf
+    return MAX_BLUR_PER_DOT_RADIUS * dot_radius_m(camera) / exposure_s
+
+
+def along_travel_factor(camera: CameraModel, speed_m_s: float, exposure_s: float) -> float:
+    """``sigma_moving / sigma_still`` along the travel: sqrt(1 + l^2 / (3 R^2))."""
+    ratio = blur_m(speed_m_s, exposure_s) / dot_radius_m(camera)
+    return math.sqrt(1.0 + ratio * ratio / 3.0)
+
+
+def uncertainty_in_motion(camera: CameraModel, phi_rad: float, vx_m_s: float, vy_m_s: float,
+                          exposure_s: float, acceleration_m_s2: float = 0.0
+                          ) -> CaptureUncertainty:
+    """The spread of a capture of a robot heading ``phi_rad`` moving at (vx, vy), stamped at
+    mid-exposure: the still spread, grown along the travel by :func:`along_travel_factor`, and
+    the acceleration's shift of the streak (``a * exposure^2 / 24``) added as a bound. x and y
+    are the diagonal of the rotated covariance."""
+    still = camera.uncertainty(phi_rad)
+    speed = math.hypot(vx_m_s, vy_m_s)
+    if speed == 0.0 and acceleration_m_s2 == 0.0:
+        return still
+    factor = along_travel_factor(camera, speed, exposure_s)
+    cos, sin = (vx_m_s / speed, vy_m_s / speed) if speed > 0.0 else (1.0, 0.0)
+    # Still covariance, diagonal in x and y; grown by factor^2 along (cos, sin).
+    var_x, var_y = still.x_sigma_m ** 2, still.y_sigma_m ** 2
+    along = var_x * cos * cos + var_y * sin * sin
+    extra = (factor * factor - 1.0) * along
+    shift = abs(acceleration_m_s2) * exposure_s * exposure_s / 24.0
+    return CaptureUncertainty(
+        math.sqrt(var_x + extra * cos * cos + (shift * cos) ** 2),
+        math.sqrt(var_y + extra * sin * sin + (shift * sin) ** 2),
+        still.heading_sigma_rad)
+
+
+def measure_in_motion(camera: CameraModel, x_m: float, y_m: float, phi_rad: float,
+                      vx_m_s: float, vy_m_s: float, exposure_s: float,
+                      rng: np.random.Generator) -> tuple[float, float, float]:
+    """A capture of the robot whose pose at mid-exposure is (x, y, phi), moving at (vx, vy):
+    the still measurement, and the extra spread along the travel that the blur adds."""
+    x, y, phi = camera.measure(x_m, y_m, phi_rad, rng)
+    speed = math.hypot(vx_m_s, vy_m_s)
+    if speed == 0.0:
+        return x, y, phi
+    still = camera.uncertainty(phi_rad)
+    cos, sin = vx_m_s / speed, vy_m_s / speed
+    along = math.sqrt(still.x_sigma_m ** 2 * cos * cos + still.y_sigma_m ** 2 * sin * sin)
+    factor = along_travel_factor(camera, speed, exposure_s)
+    extra = along * math.sqrt(factor * factor - 1.0) * float(rng.standard_normal())
+    return x + extra * cos, y + extra * sin, phi
