@@ -15,6 +15,8 @@ from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.geometry import PlaneMap
 from omni_micro_vision.motion_capture import (
     CameraTiming,
+    MotionCapture,
+    MovingCamera,
     along_travel_factor,
     blur_m,
     dot_radius_m,
@@ -160,3 +162,60 @@ def test_frames_are_stamped_at_mid_exposure_and_ready_after_their_delay():
 def test_a_timing_that_cannot_be_is_refused_naming_the_value(values, said):
     with pytest.raises(CameraConfigError, match=f'^{said}$'):
         CameraTiming(**values)
+
+
+def moving_camera(**timings: CameraTiming) -> MovingCamera:
+    return MovingCamera(DEFAULT_RIG, {'macro': timings.get('macro', CameraTiming()),
+                                      'micro': timings.get('micro', CameraTiming())}, seed=4)
+
+
+def feed(camera: MovingCamera, samples: list[tuple[float, ...]]) -> list[MotionCapture]:
+    captures = []
+    for sample in samples:
+        captures += camera.on_odometry(*sample)
+    return captures
+
+
+def constant_velocity(start_s: float, end_s: float, v: float, x0: float = 0.02,
+                      grid_s: float = 0.02) -> list[tuple[float, ...]]:
+    count = round((end_s - start_s) / grid_s)
+    return [(start_s + k * grid_s, x0 + v * k * grid_s, 0.0, 0.1, v, 0.0)
+            for k in range(count + 1)]
+
+
+def test_a_robot_rolling_through_the_macro_field_is_captured_every_frame_at_mid_exposure():
+    samples = constant_velocity(0.0, 1.0, CRUISE_M_S)
+    captures = feed(moving_camera(), samples)
+    # Frames 0..29 of the 30 Hz camera have their middles inside the samples' span.
+    assert [c.frame for c in captures] == list(range(30))
+    assert all(c.camera == 'macro' for c in captures)
+    assert [c.stamp_s for c in captures] == pytest.approx([k / 30 + 0.002 for k in range(30)])
+    errors = np.array([c.x_m - (0.02 + CRUISE_M_S * c.stamp_s) for c in captures])
+    stated = captures[0].uncertainty.x_sigma_m
+    assert np.all(np.abs(errors) < 4 * stated) and errors.std() > 0.3 * stated
+    assert feed(moving_camera(), samples) == captures           # a function of the seed
+
+
+def test_a_still_robot_gives_no_capture_in_motion_and_the_micro_camera_needs_a_slow_robot():
+    assert feed(moving_camera(), constant_velocity(0.0, 0.5, 0.0)) == []
+    # In the micro field (centred at 100 mm): at cruise its streak is too long and the macro
+    # camera speaks; at 5 mm/s the micro camera does.
+    fast = feed(moving_camera(), constant_velocity(0.0, 0.1, CRUISE_M_S, x0=0.0995))
+    assert fast and {c.camera for c in fast} == {'macro'}
+    slow = feed(moving_camera(), constant_velocity(0.0, 0.1, 0.005, x0=0.0995))
+    assert slow and {c.camera for c in slow} == {'micro'}
+    assert all(abs(c.x_m - (0.0995 + 0.005 * c.stamp_s)) < 4 * c.uncertainty.x_sigma_m
+               for c in slow)
+
+
+def test_a_capture_is_released_once_time_has_reached_its_delay():
+    late = CameraTiming(frame_rate_hz=50.0, delay_s=0.1)
+    camera = moving_camera(macro=late)
+    released = []
+    for sample in constant_velocity(0.0, 0.5, CRUISE_M_S):
+        for capture in camera.on_odometry(*sample):
+            released.append((sample[0], capture))
+    assert released and all(at >= capture.ready_s - 1e-9 and at - capture.ready_s < 0.02 + 1e-9
+                            for at, capture in released)
+    assert all(capture.ready_s == pytest.approx(capture.stamp_s + 0.002 + 0.1)
+               for _, capture in released)

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
-from omni_micro_vision.camera import CameraModel
+from omni_micro_vision.camera import CameraModel, CameraRig
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import fiducial_for
 
@@ -160,3 +160,96 @@ def measure_in_motion(camera: CameraModel, x_m: float, y_m: float, phi_rad: floa
     factor = along_travel_factor(camera, speed, exposure_s)
     extra = along * math.sqrt(factor * factor - 1.0) * float(rng.standard_normal())
     return x + extra * cos, y + extra * sin, phi
+
+
+# The noise of captures in motion is drawn from its own stream, apart from the stationary
+# captures' (seed, stop, frame): adding captures in motion changes no stationary capture.
+_MOTION_STREAM = 0x6D6F74
+
+
+@dataclass(frozen=True)
+class MotionCapture:
+    """A capture of the moving robot: stamped at mid-exposure, published once ``ready_s``."""
+
+    stamp_s: float
+    ready_s: float
+    x_m: float
+    y_m: float
+    phi_rad: float
+    camera: str
+    frame: int
+    uncertainty: CaptureUncertainty
+
+
+class MovingCamera:
+    """Turns the robot's true motion (odometry samples, in stamp order) into captures of it in
+    motion, per camera at its own rate: a frame whose exposure's middle falls between two samples
+    sees the robot where the samples put it then (linear between them: at most a * dt^2 / 8, 4 nm
+    for the motors' acceleration over the 20 ms grid), in the finest camera that holds it and can
+    follow it at that speed (the macro camera where the micro one cannot). A robot that stands
+    still is the stationary captures' (:class:`omni_micro_vision.camera.StationaryCamera`); a
+    capture is released once the samples have reached its ``ready_s``.
+    """
+
+    def __init__(self, rig: CameraRig, timings: dict[str, CameraTiming], seed: int = 0,
+                 still_speed_m_s: float = 1.0e-6) -> None:
+        self.rig = rig
+        self.timings = timings
+        self.seed = int(seed)
+        self.still_speed_m_s = still_speed_m_s
+        self._last: tuple[float, np.ndarray] | None = None
+        self._next_frame = {name: 0 for name in timings}
+        self._pending: list[MotionCapture] = []
+
+    def on_odometry(self, stamp_s: float, x_m: float, y_m: float, phi_rad: float,
+                    vx_m_s: float, vy_m_s: float) -> list[MotionCapture]:
+        """Feed one sample; return the captures ready by its stamp, in stamp order."""
+        sample = np.array([x_m, y_m, phi_rad, vx_m_s, vy_m_s])
+        last, self._last = self._last, (stamp_s, sample)
+        if last is not None and stamp_s > last[0]:
+            for name, timing in self.timings.items():
+                self._expose(name, timing, last, (stamp_s, sample))
+        ready = sorted((c for c in self._pending if c.ready_s <= stamp_s + 1e-9),
+                       key=lambda c: (c.stamp_s, c.camera))
+        self._pending = [c for c in self._pending if c.ready_s > stamp_s + 1e-9]
+        return ready
+
+    def _expose(self, name: str, timing: CameraTiming, before: tuple[float, np.ndarray],
+                after: tuple[float, np.ndarray]) -> None:
+        (t0, a), (t1, b) = before, after
+        frame = max(self._next_frame[name],
+                    timing.first_frame_after(t0 - 0.5 * timing.exposure_s))
+        while timing.stamp_s(frame) <= t1 + 1e-12:
+            middle = timing.stamp_s(frame)
+            if middle > t0:
+                share = (middle - t0) / (t1 - t0)
+                x, y, _, vx, vy = a + share * (b - a)
+                phi = a[2] + share * math.remainder(b[2] - a[2], 2 * math.pi)
+                acceleration = math.hypot(b[3] - a[3], b[4] - a[4]) / (t1 - t0)
+                self._capture(name, timing, frame, middle, (x, y, phi), (vx, vy), acceleration)
+            frame += 1
+        self._next_frame[name] = frame
+
+    def _speaker(self, x_m: float, y_m: float, speed_m_s: float) -> CameraModel | None:
+        """The finest camera that holds the robot and can follow it at this speed."""
+        for camera in (self.rig.micro, self.rig.macro):
+            timing = self.timings.get(camera.name)
+            if timing is not None and camera.contains(x_m, y_m) \
+                    and trackable(camera, speed_m_s, timing.exposure_s):
+                return camera
+        return None
+
+    def _capture(self, name: str, timing: CameraTiming, frame: int, middle: float,
+                 pose: tuple[float, float, float], velocity: tuple[float, float],
+                 acceleration: float) -> None:
+        (x, y, phi), (vx, vy) = pose, velocity
+        speed = math.hypot(vx, vy)
+        camera: CameraModel = getattr(self.rig, name)
+        if speed < self.still_speed_m_s or self._speaker(x, y, speed) is not camera:
+            return
+        rng = np.random.default_rng(np.random.SeedSequence(
+            [self.seed, _MOTION_STREAM, sum(name.encode()), frame]))
+        measured = measure_in_motion(camera, x, y, phi, vx, vy, timing.exposure_s, rng)
+        self._pending.append(MotionCapture(
+            middle, timing.ready_s(frame, self.seed, name), *measured, name, frame,
+            uncertainty_in_motion(camera, measured[2], vx, vy, timing.exposure_s, acceleration)))
