@@ -16,6 +16,7 @@ from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     CLOCK_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
@@ -121,7 +122,7 @@ def default_nodes(vision: str = 'model') -> list[NodeSpec]:
 
 def recorder_spec(bag: Path, storage: str, markers: bool = True,
                   images: tuple[str, ...] = (), without: tuple[str, ...] = (),
-                  whole: bool = False) -> NodeSpec:
+                  whole: bool = False, in_motion: bool = False) -> NodeSpec:
     """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
     takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
     nobody in this graph publishes (it waits for a publisher of each before the clock starts).
@@ -132,6 +133,7 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
               if (markers or topic != MARKERS_TOPIC) and topic not in without]
     topics += [f'/camera/{camera}/{stream}' for camera in images
                for stream in ('image_raw', 'camera_info')]
+    topics += list(CAPTURE_IN_MOTION_TOPICS.values()) if in_motion else []
     return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
         'bag': str(bag), 'storage': storage, 'topics': topics,
         'lockstep_frames': bool(images), 'end_at_outcome': not whole}, lockstep=bool(images))
@@ -181,6 +183,8 @@ class GraphOptions:
     view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
     vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
     record_images: bool = False           # the recorder keeps the images too
+    # vision_node publishes captures of the moving robot too (and the recorder keeps them).
+    captures_in_motion: bool = False
     # The loop's nodes in one process and one executor (omni_micro_common's container).
     composed: bool = False
     # A real camera driver (its images to tracker_node) or a real robot (its driver reads
@@ -223,6 +227,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(seed=int(options.seed))
         if spec.executable == 'vision_node':
             overrides.update(capture_readers(options))
+            if options.captures_in_motion:
+                overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':
             # Its first frame waits for the readers that must not miss it.
             present = {other.executable for other in all_specs(options)}
@@ -365,6 +371,9 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.external and options.composed:
         raise UsageError('--composed runs the lockstep faster than real time; with an external '
                          'camera or robot the graph runs at real time: leave --composed out')
+    if options.captures_in_motion and not any(spec.executable == 'vision_node' for spec in loop):
+        raise UsageError('--captures-in-motion: only the model vision (vision_node) publishes '
+                         'captures in motion; leave --vision images and --camera external out')
     if options.composed and options.respawn:
         raise UsageError('--respawn restarts a crashed node in a process of its own; with '
                          '--composed the loop shares one process: choose one of them')
@@ -383,7 +392,8 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         if options.robot == 'external':
             unpublished += (CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC)
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
-                                   unpublished, whole=options.record_whole))
+                                   unpublished, whole=options.record_whole,
+                                   in_motion=options.captures_in_motion))
     if options.view is not None:
         specs.append(viewer_spec(*options.view, options.markers))
     return specs

@@ -26,6 +26,10 @@ CAPTURE_COVARIANCE_TOPICS = {'macro': '/camera/macro/pose_with_covariance',
 # CAPTURE_COVARIANCE_TOPICS message alone, which has the pose too; 'fixed' reads CAPTURE_TOPICS,
 # for a camera driver that publishes bare PoseStamped captures.
 CAPTURE_UNCERTAINTY_SOURCES = ('covariance', 'fixed')
+# Captures of the moving robot (vision_node with captures_in_motion): each stamped at the middle
+# of its exposure, with its uncertainty, beside the stationary captures above.
+CAPTURE_IN_MOTION_TOPICS = {'macro': '/camera/macro/pose_in_motion',
+                            'micro': '/camera/micro/pose_in_motion'}
 # Latched statuses.
 CONTROLLER_STATUS_TOPIC = '/controller/status'
 CAMERA_STATUS_TOPIC = '/camera/status'

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     CLOCK_TOPIC,
     CONTROLLER_STATUS_TOPIC,
@@ -85,7 +86,11 @@ IMAGE_TOPICS: dict[str, TopicSpec] = {
     f'/camera/{camera}/{stream}': TopicSpec(f'sensor_msgs/msg/{kind}', 10)
     for camera in ('macro', 'micro')
     for stream, kind in (('image_raw', 'Image'), ('camera_info', 'CameraInfo'))}
-RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS}
+# Captures in motion: published only by a vision_node with captures_in_motion.
+IN_MOTION_TOPICS: dict[str, TopicSpec] = {
+    topic: TopicSpec('geometry_msgs/msg/PoseWithCovarianceStamped', 100)
+    for topic in CAPTURE_IN_MOTION_TOPICS.values()}
+RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS}
 
 # Within one instant of simulated time a finished bag holds its topics in this order: what
 # causes before what it causes (the robot's sample, the frames, the captures, the controller's
@@ -96,6 +101,7 @@ TOPIC_ORDER: tuple[str, ...] = (
       for topic in (f'/camera/{camera}/camera_info', f'/camera/{camera}/image_raw')),
     *(topic for camera in ('macro', 'micro')
       for topic in (f'/camera/{camera}/pose_with_covariance', f'/camera/{camera}/pose')),
+    *CAPTURE_IN_MOTION_TOPICS.values(),
     CAMERA_STATUS_TOPIC, CONTROLLER_STATUS_TOPIC, WHEEL_TRAJECTORY_TOPIC, MARKERS_TOPIC)
 assert set(TOPIC_ORDER) == set(RECORDABLE_TOPICS)
 # A run's bag ends this long (simulated time) after its last outcome: the stop command and the

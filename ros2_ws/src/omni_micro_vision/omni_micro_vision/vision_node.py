@@ -6,6 +6,11 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
   /camera/micro/pose   captures of the micro camera (2 mm x 2 mm field)
   /camera/<name>/pose_with_covariance   each capture again, same stamp, with its uncertainty
                        (geometry_msgs/PoseWithCovarianceStamped, from the camera model)
+  /camera/<name>/pose_in_motion   with ``captures_in_motion``: captures of the moving
+                       robot (PoseWithCovarianceStamped), at each camera's
+                       ``<name>.motion.frame_rate_hz``, stamped at mid-exposure, published once
+                       simulated time has reached the capture's delay
+                       (:mod:`omni_micro_vision.motion_capture`)
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
   /lockstep            its report after each odometry sample (omni_micro_common.lockstep)
@@ -45,6 +50,7 @@ from omni_micro_common.tick_messages import odometry_template
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     ODOM_TOPIC,
 )
@@ -59,6 +65,7 @@ from omni_micro_vision.camera import (
     StationaryCamera,
 )
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.motion_capture import CameraTiming, MotionCapture, MovingCamera
 
 # Latched: a subscriber that comes later still learns which camera is in use.
 CAMERA_STATUS_QOS = latched(1)
@@ -91,6 +98,7 @@ class VisionNode(Node):
                 self.declare_parameter(f'{name}.quantisation_px', default.quantisation_px).value,
                 baseline)
         self.camera = StationaryCamera(CameraRig(**cameras), rule, seed)
+        self.moving = self._declare_moving_camera(CameraRig(**cameras), seed)
         fault_defaults = CameraFaults()
         faults = CameraFaults(**{
             name: self.declare_parameter(f'faults.{name}', getattr(fault_defaults, name)).value
@@ -105,6 +113,9 @@ class VisionNode(Node):
         self.covariance_pubs = {
             name: count(self.create_publisher(PoseWithCovarianceStamped, topic, CAPTURE_QOS))
             for name, topic in CAPTURE_COVARIANCE_TOPICS.items()}
+        self.in_motion_pubs = {
+            name: count(self.create_publisher(PoseWithCovarianceStamped, topic, CAPTURE_QOS))
+            for name, topic in CAPTURE_IN_MOTION_TOPICS.items()} if self.moving else {}
         self.status_pub = count(self.create_publisher(DiagnosticStatus, CAMERA_STATUS_TOPIC,
                                                       CAMERA_STATUS_QOS))
         self.lockstep = LockstepReporter(self)
@@ -123,6 +134,15 @@ class VisionNode(Node):
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
+
+    def _declare_moving_camera(self, rig: CameraRig, seed: int) -> MovingCamera | None:
+        """Captures in motion (off by default): each camera's rate, exposure, delay and jitter."""
+        enabled = bool(self.declare_parameter('captures_in_motion', False).value)
+        defaults = CameraTiming()
+        timings = {name: CameraTiming(**{
+            field: self.declare_parameter(f'{name}.motion.{field}', getattr(defaults, field)).value
+            for field in CameraTiming.__dataclass_fields__}) for name in CAPTURE_TOPICS}
+        return MovingCamera(rig, timings, seed) if enabled else None
 
     def _read_odometry(self) -> None:
         self.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS, raw=True,
@@ -174,8 +194,15 @@ class VisionNode(Node):
             self.get_logger().error(f'ignored odometry with a non-finite value: {tuple(values)}')
             return []
         x, y, qz, qw, vx, vy, wz = values
-        events = self.camera.on_odometry(join_stamp(sec, nanosec), x, y,
-                                         quaternion_to_yaw(qz, qw), math.hypot(vx, vy), wz)
+        phi = quaternion_to_yaw(qz, qw)
+        events = self.camera.on_odometry(join_stamp(sec, nanosec), x, y, phi,
+                                         math.hypot(vx, vy), wz)
+        if self.moving is not None:
+            # The twist is in the robot's frame (REP-105): the cameras see it on the platform.
+            cos, sin = math.cos(phi), math.sin(phi)
+            for moving in self.moving.on_odometry(join_stamp(sec, nanosec), x, y, phi,
+                                                  cos * vx - sin * vy, sin * vx + cos * vy):
+                self._publish_in_motion(moving)
         for event in events:
             if isinstance(event, Capture):
                 self.faults.submit(event)
@@ -206,6 +233,18 @@ class VisionNode(Node):
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
                              at_s=capture.stamp_s, camera=capture.camera)
         return stamp_ns(msg.header.stamp)
+
+
+    def _publish_in_motion(self, capture: MotionCapture) -> None:
+        msg = PoseWithCovarianceStamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
+        msg.header.frame_id = self.frame_id
+        msg.pose.pose.position.x = capture.x_m
+        msg.pose.pose.position.y = capture.y_m
+        msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = yaw_to_quaternion(
+            capture.phi_rad)
+        msg.pose.covariance = capture.uncertainty.covariance()
+        self.in_motion_pubs[capture.camera].publish(msg)
 
 
 COMPONENT = NodeComponent(VisionNode, config_errors=(CameraConfigError,))

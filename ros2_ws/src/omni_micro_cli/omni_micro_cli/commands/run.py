@@ -61,6 +61,12 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--record-images', action='store_true',
                         help='with --record and --vision images: the images and camera infos '
                              'too (about 80 MB per simulated second at the default sizes)')
+    parser.add_argument('--captures-in-motion', action='store_true',
+                        help='vision_node also publishes captures of the moving robot on '
+                             '/camera/<name>/pose_in_motion, stamped at mid-exposure (a '
+                             "recording keeps them; each camera's rate, exposure and latency: "
+                             '<name>.motion.* in --params; docs/images.md, "Captures in '
+                             'motion")')
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not start markers_node (the /markers it draws for RViz 2 and '
                              'Foxglove; the run is the same with or without it)')
@@ -226,6 +232,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         storage=args.storage, force=args.force,
                         vision_overrides=faults, vision=args.vision,
                         record_images=args.record_images,
+                        captures_in_motion=getattr(args, 'captures_in_motion', False),
                         controller_overrides={**controller_overrides(args),
                                               **preset_under_params(args, 'controller_node',
                                                                     'model.robot.')},

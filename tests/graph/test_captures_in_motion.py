@@ -1,0 +1,87 @@
+"""Captures of the moving robot through the graph (`run --captures-in-motion`): vision_node
+publishes them on /camera/<name>/pose_in_motion, each stamped at the middle of a frame's
+exposure and within its stated uncertainty of where /odom puts the robot then, none while the
+robot stands; the stationary captures and the run are what they are without them."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from omni_micro_common.conventions import CaptureUncertainty, stamp_ns
+from omni_micro_common.topic_names import (
+    CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
+    ODOM_TOPIC,
+)
+from omni_micro_tools.bag_reading import read_bag
+
+FRAME_NS = 1_000_000_000 / 30.0
+HALF_EXPOSURE_NS = 2_000_000
+
+
+@pytest.fixture(scope='module')
+def runs(tmp_path_factory, omni_micro):
+    folder = tmp_path_factory.mktemp('in_motion')
+    summaries = {}
+    for name, extra in (('moving', ['--captures-in-motion']), ('plain', [])):
+        result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--json', '--quiet',
+                            '--record', str(folder / name), '--log-dir', str(folder / 'logs'),
+                            *extra)
+        assert result.returncode == 0, result.stderr[-3000:]
+        summaries[name] = json.loads(result.stdout.strip().splitlines()[-1])
+    return folder, summaries
+
+
+def odometry_at(stamps: np.ndarray, odometry: list) -> tuple[np.ndarray, np.ndarray]:
+    """Where /odom puts the robot at ``stamps`` (ns), linear between samples, and its speed."""
+    times = np.array([stamp_ns(msg.header.stamp) for msg in odometry], dtype=float)
+    xs = np.array([msg.pose.pose.position.x for msg in odometry])
+    ys = np.array([msg.pose.pose.position.y for msg in odometry])
+    speeds = np.array([math.hypot(msg.twist.twist.linear.x, msg.twist.twist.linear.y)
+                       for msg in odometry])
+    return (np.stack([np.interp(stamps, times, xs), np.interp(stamps, times, ys)], axis=1),
+            np.interp(stamps, times, speeds))
+
+
+def test_captures_in_motion_are_at_mid_exposure_within_their_stated_spread(runs):
+    folder, _ = runs
+    bag = read_bag(folder / 'moving', [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])
+    seen = {camera: bag.messages.get(topic, []) for camera, topic in
+            CAPTURE_IN_MOTION_TOPICS.items()}
+    # Fig. 11 rolls 7 s at up to cruise speed: some 200 macro frames.
+    assert len(seen['macro']) > 150
+    for camera, captures in seen.items():
+        if not captures:
+            continue
+        stamps = np.array([stamp_ns(msg.header.stamp) for msg in captures], dtype=float)
+        frames = (stamps - HALF_EXPOSURE_NS) / FRAME_NS
+        assert np.allclose(frames, np.round(frames), atol=1e-6), camera
+        truth, speeds = odometry_at(stamps, bag.messages[ODOM_TOPIC])
+        assert np.all(speeds > 1e-6), camera
+        for msg, (x, y) in zip(captures, truth, strict=True):
+            stated = CaptureUncertainty.from_covariance(msg.pose.covariance)
+            assert abs(msg.pose.pose.position.x - x) < 5 * stated.x_sigma_m, camera
+            assert abs(msg.pose.pose.position.y - y) < 5 * stated.y_sigma_m, camera
+
+
+def test_the_stationary_captures_and_the_run_are_the_same_with_them(runs):
+    folder, summaries = runs
+    moving, plain = summaries['moving'], summaries['plain']
+    for key in ('outcome', 'final_x_mm', 'final_y_mm', 'periods', 'sim_time_s'):
+        assert moving[key] == plain[key], key
+    topics = list(CAPTURE_TOPICS.values())
+    with_them, without = read_bag(folder / 'moving', topics), read_bag(folder / 'plain', topics)
+    for topic in topics:
+        assert with_them.raw.get(topic) == without.raw.get(topic), topic
+    assert not set(CAPTURE_IN_MOTION_TOPICS.values()) & set(without.msgtypes)
+
+
+def test_only_the_model_vision_publishes_them(omni_micro, tmp_path):
+    result = omni_micro('run', '--goal-mm', '100,0', '--vision', 'images', '--captures-in-motion',
+                        '--log-dir', str(tmp_path))
+    assert result.returncode == 2
+    assert 'only the model vision (vision_node) publishes captures in motion' in result.stderr
