@@ -41,7 +41,7 @@ from omni_micro_common.reader_matching import node_list_parameter, when_readers_
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import checked_cameras
+from omni_micro_vision.camera import CaptureRule, checked_cameras
 from omni_micro_vision.camera_frames import SCENES, CameraFrames, camera_settings, target_settings
 from omni_micro_vision.errors import CameraConfigError
 
@@ -62,7 +62,8 @@ class CameraNode(Node):
         # build the node in-process with them.
         super().__init__('camera_node', **node_options)
         self.seed = int(self.declare_parameter('seed', 0).value)
-        self.rate_hz = float(self.declare_parameter('frame_rate_hz', 30.0).value)
+        self.rate_hz = float(self.declare_parameter('frame_rate_hz',
+                                                    CaptureRule.frame_rate_hz).value)
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise CameraConfigError(f'frame_rate_hz must be > 0, got {self.rate_hz}')
         chosen = checked_cameras(list(self.declare_parameter('cameras',

@@ -37,9 +37,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
-from omni_micro_vision.camera import CameraModel, CameraRig
+from omni_micro_vision.camera import CameraModel, CameraRig, CaptureRule
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import fiducial_for
+from omni_micro_vision.rendering import Sensor
 
 # The longest streak, in radii of the smaller dot, at which the rendered frames' tracker still
 # finds every frame with its still spread (measured: the macro camera to 1.6 radii, the micro
@@ -51,8 +52,9 @@ MAX_BLUR_PER_DOT_RADIUS = 1.4
 class CameraTiming:
     """When a camera exposes its frames and when their captures are ready (seconds)."""
 
-    frame_rate_hz: float = 30.0
-    exposure_s: float = 0.004
+    # By default the stationary captures' frame rate and the rendered camera's exposure.
+    frame_rate_hz: float = CaptureRule.frame_rate_hz
+    exposure_s: float = Sensor.exposure_s
     delay_s: float = 0.0
     jitter_s: float = 0.0
 
