@@ -95,8 +95,8 @@ def test_same_seed_same_bag_with_late_captures_in_motion_at_another_speed(tmp_pa
     from omni_micro_bringup.composition import GraphOptions
     from omni_micro_bringup.graph import run_graph
 
-    late = {'macro.motion.delay_s': 0.05, 'macro.motion.jitter_s': 0.02,
-            'micro.motion.delay_s': 0.05, 'micro.motion.jitter_s': 0.02}
+    late: dict[str, object] = {'macro.motion.delay_s': 0.05, 'macro.motion.jitter_s': 0.02,
+                               'micro.motion.delay_s': 0.05, 'micro.motion.jitter_s': 0.02}
     digests = []
     for name, rtf in (('fast', math.inf), ('slow', 2.0)):
         folder = tmp_path / name
