@@ -15,9 +15,7 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
-    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
-    CAPTURE_TOPICS,
     CLOCK_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
@@ -25,7 +23,6 @@ from omni_micro_common.topic_names import (
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
-    WHEEL_TRAJECTORY_TOPIC,
 )
 
 if TYPE_CHECKING:
@@ -61,8 +58,6 @@ VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
 LOOP_CONTAINER = 'loop_container'
 # What may come from the bench instead of the simulation (run --camera / --robot).
 SOURCES = ('simulated', 'external')
-# What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
-EXTERNAL_ROBOT_PUBLISHES = (JOINT_STATES_TOPIC,)
 
 
 @dataclass(frozen=True)
@@ -316,40 +311,6 @@ def sibling_info_topic(image_topic: str) -> str:
     """Where a driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside it
     (image_transport's convention)."""
     return image_topic.rsplit('/', 1)[0] + '/camera_info'
-
-
-def simulates_robot(options: GraphOptions) -> bool:
-    return any(spec.executable == 'dynamics_node' for spec in graph_nodes(options))
-
-
-def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
-    """The topics someone must read before time may start (of alternatives, any one): the
-    robot its trajectories, the controller the wheels and the captures (bare or with their
-    covariance, as its capture_uncertainty says: either will do), a simulated camera the
-    robot's /odom."""
-    names = {spec.executable for spec in graph_nodes(options)}
-    return [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
-            *(((ODOM_TOPIC,),) if names & {'vision_node', 'camera_node'} else ()),
-            *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera])
-              for camera in CAPTURE_TOPICS)]
-
-
-def external_publications(options: GraphOptions) -> dict[str, str]:
-    """Topics the bench's drivers must publish, each with who should (the run waits for them
-    and names the one missing)."""
-    needed = {}
-    if options.robot == 'external':
-        needed.update({topic: "the robot's driver" for topic in EXTERNAL_ROBOT_PUBLISHES})
-    if options.camera == 'external':
-        if options.image_topics:
-            topics = list(options.image_topics.values())
-        else:
-            values = node_parameters('tracker_node', options.params_files, {})
-            cameras = values.get('cameras', ['macro', 'micro'])
-            topics = [str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
-                      for camera in (cameras if isinstance(cameras, list) else [])]
-        needed.update({topic: 'the camera driver' for topic in topics})
-    return needed
 
 
 def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:

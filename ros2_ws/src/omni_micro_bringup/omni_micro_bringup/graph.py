@@ -29,10 +29,7 @@ from omni_micro_bringup.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
-    external_publications,
     node_overrides,
-    ready_subscriptions,
-    simulates_robot,
     streaming_cameras,
 )
 from omni_micro_bringup.errors import RunFailed, UsageError
@@ -49,6 +46,11 @@ from omni_micro_bringup.processes import (
     node_environment,
     shared_memory_files,
     stop_together,
+)
+from omni_micro_bringup.readiness import (
+    external_publications,
+    ready_subscriptions,
+    simulates_robot,
 )
 from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER, STATUS_TIME_KEY
 from omni_micro_common.errors import OmniMicroError

@@ -9,14 +9,16 @@ from omni_micro_bringup.composition import (
     GRAPH_NODE_NAMES,
     OPTIONAL_NODE_NAMES,
     GraphOptions,
-    external_publications,
-    ready_subscriptions,
-    simulates_robot,
     streaming_cameras,
 )
 from omni_micro_bringup.graph import Graph, new_log_dir
 from omni_micro_bringup.parameters import check_params_file
 from omni_micro_bringup.processes import DomainLease
+from omni_micro_bringup.readiness import (
+    external_publications,
+    ready_subscriptions,
+    simulates_robot,
+)
 
 
 @dataclass(frozen=True)

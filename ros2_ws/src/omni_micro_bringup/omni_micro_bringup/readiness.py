@@ -1,0 +1,51 @@
+"""What the orchestrator waits for before it starts the clock: who must read which topics, what
+the bench's drivers must publish, and whether a simulated robot keeps the clock."""
+
+from __future__ import annotations
+
+from omni_micro_bringup.composition import GraphOptions, graph_nodes
+from omni_micro_bringup.parameters import node_parameters
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_TOPICS,
+    JOINT_STATES_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
+
+# What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
+EXTERNAL_ROBOT_PUBLISHES = (JOINT_STATES_TOPIC,)
+
+
+def simulates_robot(options: GraphOptions) -> bool:
+    return any(spec.executable == 'dynamics_node' for spec in graph_nodes(options))
+
+
+def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
+    """The topics someone must read before time may start (of alternatives, any one): the
+    robot its trajectories, the controller the wheels and the captures (bare or with their
+    covariance, as its capture_uncertainty says: either will do), a simulated camera the
+    robot's /odom."""
+    names = {spec.executable for spec in graph_nodes(options)}
+    return [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
+            *(((ODOM_TOPIC,),) if names & {'vision_node', 'camera_node'} else ()),
+            *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera])
+              for camera in CAPTURE_TOPICS)]
+
+
+def external_publications(options: GraphOptions) -> dict[str, str]:
+    """Topics the bench's drivers must publish, each with who should (the run waits for them
+    and names the one missing)."""
+    needed = {}
+    if options.robot == 'external':
+        needed.update({topic: "the robot's driver" for topic in EXTERNAL_ROBOT_PUBLISHES})
+    if options.camera == 'external':
+        if options.image_topics:
+            topics = list(options.image_topics.values())
+        else:
+            values = node_parameters('tracker_node', options.params_files, {})
+            cameras = values.get('cameras', ['macro', 'micro'])
+            topics = [str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
+                      for camera in (cameras if isinstance(cameras, list) else [])]
+        needed.update({topic: 'the camera driver' for topic in topics})
+    return needed
