@@ -1,39 +1,26 @@
-"""Every node adapter in-process: parameters checked at start and at run time, messages turned
-into the plain modules' types and back, refusals that name the value."""
+"""The camera nodes in-process (vision_node, camera_node, tracker_node, markers_node): parameters
+checked, inputs read only once their readers are matched, frames and captures turned into
+messages and back, refusals that name the value."""
 
 from __future__ import annotations
 
 import math
-import re
-import time
-from collections.abc import Callable
 
 import numpy as np
 import pytest
-import rclpy
-from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from adapter_helpers import assert_reads_input_only_once_matched, overrides
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
-from rclpy.exceptions import InvalidParameterTypeException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from sensor_msgs.msg import CameraInfo, Image
 from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import quaternion_to_yaw, stamp_ns, yaw_to_quaternion
-from omni_micro_common.errors import ParameterError
-from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, IMAGE_QOS
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
 from omni_micro_common.tick_messages import odometry_template
-from omni_micro_control.controller_node import ControllerNode
-from omni_micro_control.errors import ControllerConfigError
-from omni_micro_sim.dynamics_node import DynamicsNode
 from omni_micro_sim.state import RobotState
-from omni_micro_tools.bag_reading import read_bag
-from omni_micro_tools.recorder_node import BagRecorder
-from omni_micro_tools.viewer_node import Viewer
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.camera_node import CameraNode
 from omni_micro_vision.errors import CameraConfigError
@@ -41,142 +28,6 @@ from omni_micro_vision.markers_node import MarkersNode
 from omni_micro_vision.rendering import Sensor, render
 from omni_micro_vision.tracker_node import TrackerNode
 from omni_micro_vision.vision_node import VisionNode
-
-
-def overrides(**values: object) -> list[Parameter]:
-    return [Parameter(name.replace('__', '.'), value=value) for name, value in values.items()]
-
-
-# -- dynamics_node ------------------------------------------------------------------------------
-def test_dynamics_node_refuses_a_bad_factor_at_start_and_at_run_time(context):
-    with pytest.raises(ParameterError, match='real_time_factor'):
-        DynamicsNode(context=context, parameter_overrides=overrides(real_time_factor=0.0))
-    node = DynamicsNode(context=context, parameter_overrides=overrides(real_time_factor=2.0))
-    try:
-        refused = node.set_parameters([Parameter('real_time_factor', value=-1.0)])[0]
-        assert not refused.successful and '-1.0' in refused.reason
-        assert node.real_time_factor == 2.0
-        # .inf (as fast as the lockstep allows) needs nodes to wait for.
-        refused = node.set_parameters([Parameter('real_time_factor', value=math.inf)])[0]
-        assert not refused.successful and 'lockstep_nodes' in refused.reason
-        assert node.set_parameters([Parameter('real_time_factor', value=5.0)])[0].successful
-        assert node.real_time_factor == 5.0
-    finally:
-        node.destroy_node()
-
-
-def test_dynamics_node_refuses_a_malformed_initial_pose(context):
-    with pytest.raises(ParameterError, match='initial_pose'):
-        DynamicsNode(context=context, parameter_overrides=overrides(initial_pose=[0.0, 1.0]))
-
-
-@pytest.mark.parametrize('name, value', [
-    ('robot.steering.backlash_rad', -0.01), ('robot.steering.motor_speed_rad_s', 0.0),
-    ('robot.steering.contact_radius_m', math.nan), ('robot.center_of_mass_m', [0.01, 0.0])])
-def test_dynamics_node_refuses_bad_steering_parameters_naming_them(context, name, value):
-    with pytest.raises(ParameterError, match=name.removeprefix('robot.').split('.')[-1]):
-        DynamicsNode(context=context, parameter_overrides=[Parameter(name, value=value)])
-
-
-@pytest.mark.parametrize('name', ['wheel_slip_every', 'throttle_every'])
-@pytest.mark.parametrize('value', [0, -1, 2.5, True])
-def test_dynamics_node_refuses_a_rate_that_is_not_a_whole_number_of_ticks(context, name, value):
-    with pytest.raises((ParameterError, InvalidParameterTypeException), match=name):
-        DynamicsNode(context=context, parameter_overrides=overrides(**{name: value}))
-
-
-def test_dynamics_node_publishes_the_slip_on_one_tick_in_wheel_slip_every(context):
-    node = DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=3))
-    try:
-        published: list[bytes] = []
-        node.slip_pub.publish = published.append
-        node.odom_pub.publish = lambda data: None
-        for _ in range(9):
-            node._publish(node.grid.advance())
-        assert len(published) == 3
-    finally:
-        node.destroy_node()
-
-
-def test_dynamics_node_takes_the_steering_from_its_parameters(context):
-    node = DynamicsNode(context=context, parameter_overrides=overrides(
-        robot__steering__instantaneous=False, robot__steering__backlash_rad=0.02))
-    try:
-        steering = node.grid.simulator.params.steering
-        assert not steering.instantaneous and steering.backlash_rad == 0.02
-        assert node.get_parameter('robot.steering.gear_ratio').value == 3.0
-    finally:
-        node.destroy_node()
-
-
-def test_dynamics_node_throttles_odometry_and_joints_for_who_only_watches(context):
-    node = DynamicsNode(context=context, parameter_overrides=overrides(throttle_every=4))
-    try:
-        sent: dict[str, list[bytes]] = {}
-        for publisher in (node.odom_pub, node.joint_pub, node.odom_throttle_pub,
-                          node.joint_throttle_pub):
-            publisher.publish = sent.setdefault(publisher.topic_name, []).append
-        for _ in range(12):
-            node._publish(node.grid.advance())
-        # The same messages, those of ticks 4, 8 and 12.
-        assert sent['/odom_throttle'] == sent['/odom'][3::4]
-        assert sent['/joint_states_throttle'] == sent['/joint_states'][3::4]
-        assert len(set(sent['/odom_throttle'])) == 3
-    finally:
-        node.destroy_node()
-
-
-def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(context):
-    """The recorder says "recording" once its readers see the publishers, which is not that the
-    publishers have matched its readers: a run's bag once lacked its first odometry."""
-    node = DynamicsNode(context=context, parameter_overrides=overrides(
-        awaited_readers=[f'bag_recorder:{topic}' for topic in
-                         ('/clock', '/odom', '/joint_states', '/wheel_slip')],
-        real_time_factor=100.0))
-    recorder = rclpy.create_node('bag_recorder', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    try:
-        executor.add_node(node)
-        for _ in range(4):
-            executor.spin_once(timeout_sec=0.05)
-        assert node.grid.tick == 0
-        assert "matching bag_recorder's reader of /clock" in node._waiting_for()
-        for topic, kind in (('/clock', Clock), ('/odom', Odometry), ('/joint_states', JointState),
-                            ('/wheel_slip', JointState)):
-            recorder.create_subscription(kind, topic, lambda msg: None, DATA_QOS)
-        deadline = time.monotonic() + 10.0
-        while node.grid.tick == 0 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        assert node.grid.tick > 0
-    finally:
-        executor.shutdown()
-        recorder.destroy_node()
-        node.destroy_node()
-
-
-# -- vision_node --------------------------------------------------------------------------------
-def assert_reads_input_only_once_matched(context, node: Node, reader_name: str,
-                                            make_readers: Callable[[Node], object],
-                                            input_topic: str = '/odom') -> None:
-    """``node`` has no reader of ``input_topic`` (so the robot's clock would not start) until
-    the readers that ``make_readers`` gives a node named ``reader_name`` are matched."""
-    reader = rclpy.create_node(reader_name, context=context)
-    executor = SingleThreadedExecutor(context=context)
-    try:
-        def reads_input() -> bool:
-            return any(sub.topic_name == input_topic for sub in node.subscriptions)
-        executor.add_node(node)
-        executor.spin_once(timeout_sec=0.2)
-        assert not reads_input()
-        make_readers(reader)
-        deadline = time.monotonic() + 10.0
-        while not reads_input() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        assert reads_input()
-    finally:
-        executor.shutdown()
-        reader.destroy_node()
-        node.destroy_node()
 
 
 def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(context):
@@ -201,46 +52,6 @@ def test_vision_node_lets_only_faults_change_while_it_runs(context):
         node.destroy_node()
 
 
-# -- controller_node ----------------------------------------------------------------------------
-def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):
-    node = ControllerNode(context=context)
-    try:
-        assert node.set_parameters([Parameter('near_period_s', value=0.2)])[0].successful
-        assert node.controller.config.near_period_s == 0.2
-        refused = node.set_parameters([Parameter('mode', value='model')])[0]
-        assert not refused.successful and 'mode' in refused.reason
-        refused = node.set_parameters([Parameter('near_period_s', value=-1.0)])[0]
-        assert not refused.successful and node.controller.config.near_period_s == 0.2
-    finally:
-        node.destroy_node()
-
-
-@pytest.mark.parametrize(('name', 'value', 'error'), [
-    ('capture_uncertainty', 'guess', ParameterError),
-    ('goal_m', [0.01, 0.0, 0.0], ParameterError),
-    ('tolerance_m', -1e-6, ControllerConfigError),
-])
-def test_controller_node_refuses_bad_parameters_naming_them(context, name, value, error):
-    with pytest.raises(error, match=name):
-        ControllerNode(context=context, parameter_overrides=[Parameter(name, value=value)])
-
-
-def test_controller_node_rejects_a_goal_in_another_frame_and_says_so(context, spy):
-    node = ControllerNode(context=context)
-    try:
-        statuses = spy(node.status_pub)
-        goal = PoseStamped()
-        goal.header.frame_id = 'map'
-        goal.pose.position.x = 0.01
-        node._on_goal(goal)
-        status = statuses.messages[-1]
-        assert status.level == DiagnosticStatus.WARN and status.message == 'goal rejected'
-        assert "'map'" in {value.key: value.value for value in status.values}['reason']
-    finally:
-        node.destroy_node()
-
-
-# -- camera_node and tracker_node ---------------------------------------------------------------
 def test_camera_node_renders_a_frame_of_the_odometry_stamped_with_its_time(context, spy):
     node = CameraNode(context=context, parameter_overrides=overrides(cameras=['macro']))
     try:
@@ -375,7 +186,6 @@ def test_tracker_node_refuses_an_unknown_camera_naming_it(context):
         TrackerNode(context=context, parameter_overrides=overrides(cameras=['macro', 'tele']))
 
 
-# -- markers_node -------------------------------------------------------------------------------
 def test_markers_node_refuses_a_turned_field_that_is_not_a_number(context):
     with pytest.raises(CameraConfigError, match=r'macro\.yaw_rad'):
         MarkersNode(context=context, parameter_overrides=overrides(macro__yaw_rad=math.nan))
@@ -470,53 +280,3 @@ def test_markers_node_reads_each_capture_from_one_topic_as_the_controller_does(c
 def test_markers_node_refuses_periods_it_cannot_keep(context, values, named):
     with pytest.raises(CameraConfigError, match=named):
         MarkersNode(context=context, parameter_overrides=overrides(**values))
-
-
-# -- bag_recorder and viewer (omni_micro_tools) -------------------------------------------------
-def test_bag_recorder_writes_what_it_receives_into_a_readable_bag(context, tmp_path):
-    bag = tmp_path / 'bag'
-    node = BagRecorder(context=context, parameter_overrides=overrides(
-        bag=str(bag), topics=['/odom']))
-    odometry = Odometry()
-    odometry.header.stamp.sec = 3
-    odometry.pose.pose.position.x = 0.0123
-    node._writer_of('/odom')(serialize_message(odometry))
-    node.close()
-    node.destroy_node()
-    (odom,) = read_bag(bag).messages['/odom']
-    assert odom.pose.pose.position.x == 0.0123 and odom.header.stamp.sec == 3
-
-
-@pytest.mark.parametrize(('values', 'named'), [
-    ({}, 'bag must name'),
-    ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
-    ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
-])
-def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, named):
-    if 'bag' in values:
-        values = {**values, 'bag': str(tmp_path / values['bag'])}
-    with pytest.raises(ParameterError, match=named):
-        BagRecorder(context=context, parameter_overrides=overrides(**values))
-    assert not (tmp_path / 'x').exists()
-
-
-def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):
-    (tmp_path / 'mine').mkdir()
-    with pytest.raises(ParameterError, match='exists already'):
-        BagRecorder(context=context, parameter_overrides=overrides(bag=str(tmp_path / 'mine')))
-
-
-def test_viewer_refuses_a_port_out_of_range(context):
-    with pytest.raises(ParameterError, match='70000'):
-        Viewer(context=context, parameter_overrides=overrides(port=70000))
-
-
-@pytest.mark.parametrize('entries, words', [
-    (['markers_node'], 'each entry must be NODE:/TOPIC'),
-    (['markers_node:odom'], 'each entry must be NODE:/TOPIC'),
-    (['markers_node:/markers'], "markers_node reads ['/markers'], which this node does not "
-                                'publish'),
-])
-def test_dynamics_node_refuses_awaited_readers_it_cannot_wait_for(context, entries, words):
-    with pytest.raises(ParameterError, match=re.escape(words)):
-        DynamicsNode(context=context, parameter_overrides=overrides(awaited_readers=entries))

@@ -1,0 +1,95 @@
+"""controller_node, bag_recorder and the viewer in-process: parameters checked at start and at
+run time, goals in another frame rejected, bags written readable and never over another."""
+
+from __future__ import annotations
+
+import pytest
+from adapter_helpers import overrides
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+from omni_micro_common.errors import ParameterError
+from omni_micro_control.controller_node import ControllerNode
+from omni_micro_control.errors import ControllerConfigError
+from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.recorder_node import BagRecorder
+from omni_micro_tools.viewer_node import Viewer
+
+
+def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):
+    node = ControllerNode(context=context)
+    try:
+        assert node.set_parameters([Parameter('near_period_s', value=0.2)])[0].successful
+        assert node.controller.config.near_period_s == 0.2
+        refused = node.set_parameters([Parameter('mode', value='model')])[0]
+        assert not refused.successful and 'mode' in refused.reason
+        refused = node.set_parameters([Parameter('near_period_s', value=-1.0)])[0]
+        assert not refused.successful and node.controller.config.near_period_s == 0.2
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize(('name', 'value', 'error'), [
+    ('capture_uncertainty', 'guess', ParameterError),
+    ('goal_m', [0.01, 0.0, 0.0], ParameterError),
+    ('tolerance_m', -1e-6, ControllerConfigError),
+])
+def test_controller_node_refuses_bad_parameters_naming_them(context, name, value, error):
+    with pytest.raises(error, match=name):
+        ControllerNode(context=context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_controller_node_rejects_a_goal_in_another_frame_and_says_so(context, spy):
+    node = ControllerNode(context=context)
+    try:
+        statuses = spy(node.status_pub)
+        goal = PoseStamped()
+        goal.header.frame_id = 'map'
+        goal.pose.position.x = 0.01
+        node._on_goal(goal)
+        status = statuses.messages[-1]
+        assert status.level == DiagnosticStatus.WARN and status.message == 'goal rejected'
+        assert "'map'" in {value.key: value.value for value in status.values}['reason']
+    finally:
+        node.destroy_node()
+
+
+def test_bag_recorder_writes_what_it_receives_into_a_readable_bag(context, tmp_path):
+    bag = tmp_path / 'bag'
+    node = BagRecorder(context=context, parameter_overrides=overrides(
+        bag=str(bag), topics=['/odom']))
+    odometry = Odometry()
+    odometry.header.stamp.sec = 3
+    odometry.pose.pose.position.x = 0.0123
+    node._writer_of('/odom')(serialize_message(odometry))
+    node.close()
+    node.destroy_node()
+    (odom,) = read_bag(bag).messages['/odom']
+    assert odom.pose.pose.position.x == 0.0123 and odom.header.stamp.sec == 3
+
+
+@pytest.mark.parametrize(('values', 'named'), [
+    ({}, 'bag must name'),
+    ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
+    ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
+])
+def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, named):
+    if 'bag' in values:
+        values = {**values, 'bag': str(tmp_path / values['bag'])}
+    with pytest.raises(ParameterError, match=named):
+        BagRecorder(context=context, parameter_overrides=overrides(**values))
+    assert not (tmp_path / 'x').exists()
+
+
+def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):
+    (tmp_path / 'mine').mkdir()
+    with pytest.raises(ParameterError, match='exists already'):
+        BagRecorder(context=context, parameter_overrides=overrides(bag=str(tmp_path / 'mine')))
+
+
+def test_viewer_refuses_a_port_out_of_range(context):
+    with pytest.raises(ParameterError, match='70000'):
+        Viewer(context=context, parameter_overrides=overrides(port=70000))

@@ -1,0 +1,40 @@
+"""What the node adapter tests share: parameter overrides by keyword, and the check that a node
+reads its input only once the readers that must not miss its output are matched."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+
+def overrides(**values: object) -> list[Parameter]:
+    return [Parameter(name.replace('__', '.'), value=value) for name, value in values.items()]
+
+
+def assert_reads_input_only_once_matched(context, node: Node, reader_name: str,
+                                            make_readers: Callable[[Node], object],
+                                            input_topic: str = '/odom') -> None:
+    """``node`` has no reader of ``input_topic`` (so the robot's clock would not start) until
+    the readers that ``make_readers`` gives a node named ``reader_name`` are matched."""
+    reader = rclpy.create_node(reader_name, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        def reads_input() -> bool:
+            return any(sub.topic_name == input_topic for sub in node.subscriptions)
+        executor.add_node(node)
+        executor.spin_once(timeout_sec=0.2)
+        assert not reads_input()
+        make_readers(reader)
+        deadline = time.monotonic() + 10.0
+        while not reads_input() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert reads_input()
+    finally:
+        executor.shutdown()
+        reader.destroy_node()
+        node.destroy_node()
