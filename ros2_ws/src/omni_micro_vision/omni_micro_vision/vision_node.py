@@ -234,7 +234,6 @@ class VisionNode(Node):
                              at_s=capture.stamp_s, camera=capture.camera)
         return stamp_ns(msg.header.stamp)
 
-
     def _publish_in_motion(self, capture: MotionCapture) -> None:
         msg = PoseWithCovarianceStamped()
         msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
