@@ -1,7 +1,8 @@
-"""Captures of the moving robot through the graph (`run --captures-in-motion`): vision_node
-publishes them on /camera/<name>/pose_in_motion, each stamped at the middle of a frame's
-exposure and within its stated uncertainty of where /odom puts the robot then, none while the
-robot stands; the stationary captures and the run are what they are without them."""
+"""Captures of the moving robot through the graph (`run --captures-in-motion`): vision_node, or
+tracker_node on rendered frames, publishes them on /camera/<name>/pose_in_motion, each stamped
+at the middle of a frame's exposure and within its stated uncertainty of where /odom puts the
+robot then, none while the robot stands; the stationary captures and the run are what they are
+without them."""
 
 from __future__ import annotations
 
@@ -84,11 +85,40 @@ def test_the_stationary_captures_and_the_run_are_the_same_with_them(runs):
     assert not set(CAPTURE_IN_MOTION_TOPICS.values()) & set(without.msgtypes)
 
 
-def test_only_the_model_vision_publishes_them(omni_micro, tmp_path):
-    result = omni_micro('run', '--goal-mm', '100,0', '--vision', 'images', '--captures-in-motion',
-                        '--log-dir', str(tmp_path))
-    assert result.returncode == 2
-    assert 'only the model vision (vision_node) publishes captures in motion' in result.stderr
+def test_the_tracker_captures_the_rendered_robot_in_motion_at_mid_exposure(omni_micro,
+                                                                            tmp_path):
+    """--vision images: tracker_node turns each frame it finds moving into a capture stamped
+    half camera_node's exposure after the frame, within its stated spread of /odom."""
+    bag = tmp_path / 'bag'
+    result = omni_micro('run', '--goal-mm', '100,0', '--vision', 'images', '--rtf', 'max',
+                        '--captures-in-motion', '--quiet', '--record', str(bag),
+                        '--log-dir', str(tmp_path / 'logs'))
+    assert result.returncode == 0, result.stderr[-3000:]
+    read = read_bag(bag, [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])
+    captures = read.messages.get(CAPTURE_IN_MOTION_TOPICS['macro'], [])
+    assert len(captures) > 150
+    stamps = np.array([stamp_ns(msg.header.stamp) for msg in captures], dtype=float)
+    frames = (stamps - HALF_EXPOSURE_NS) / FRAME_NS
+    assert np.allclose(frames, np.round(frames), atol=1e-6)
+    # Moving is the tracker's stillness rule on the images: a frame just after a stop, its
+    # robot at rest, still differs from the frames before it (and is then as good a capture).
+    truth, _ = odometry_at(stamps, read.messages[ODOM_TOPIC])
+    for msg, (x, y) in zip(captures, truth, strict=True):
+        stated = CaptureUncertainty.from_covariance(msg.pose.covariance)
+        assert abs(msg.pose.pose.position.x - x) < 5 * stated.x_sigma_m
+        assert abs(msg.pose.pose.position.y - y) < 5 * stated.y_sigma_m
+
+
+def test_a_graph_without_a_camera_node_to_publish_them_is_refused():
+    from omni_micro_bringup.composition import GraphOptions, NodeSpec, all_specs
+    from omni_micro_bringup.errors import UsageError
+
+    robot_and_controller = [NodeSpec('omni_micro_sim', 'dynamics_node'),
+                            NodeSpec('omni_micro_control', 'controller_node')]
+    with pytest.raises(UsageError, match='vision_node or tracker_node publishes captures in '
+                                         'motion, and this graph has neither'):
+        all_specs(GraphOptions(goal_m=(0.1, 0.0), nodes=robot_and_controller,
+                               captures_in_motion=True))
 
 
 def test_same_seed_same_bag_with_late_captures_in_motion_at_another_speed(tmp_path):

@@ -16,6 +16,7 @@ from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
     CLOCK_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
@@ -234,10 +235,22 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.vision_overrides)
     elif spec.executable == 'tracker_node':
         overrides.update(capture_readers(options))
+        if options.captures_in_motion:
+            overrides.update(captures_in_motion=True)
         if options.camera == 'simulated':
             # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
             # never reported: time would stand still. A driver's frames are read best effort.
             overrides.update(image_reliability='reliable')
+            if options.captures_in_motion:
+                # The blur and the stamp of camera_node's frames (stamped at exposure start).
+                rendering = node_parameters('camera_node', options.params_files,
+                                            options.vision_overrides)
+                for name in CAPTURE_TOPICS:
+                    exposure = rendering.get(f'{name}.exposure_s')
+                    if isinstance(exposure, (int, float)):
+                        overrides.update({f'{name}.motion.exposure_s': float(exposure),
+                                          f'{name}.motion.mid_exposure_after_stamp_s':
+                                          0.5 * float(exposure)})
         if options.image_topics:
             overrides.update(cameras=sorted(options.image_topics))
             for camera, topic in options.image_topics.items():
@@ -332,9 +345,10 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.external and options.composed:
         raise UsageError('--composed runs the lockstep faster than real time; with an external '
                          'camera or robot the graph runs at real time: leave --composed out')
-    if options.captures_in_motion and not any(spec.executable == 'vision_node' for spec in loop):
-        raise UsageError('--captures-in-motion: only the model vision (vision_node) publishes '
-                         'captures in motion; leave --vision images and --camera external out')
+    if options.captures_in_motion and not any(spec.executable in ('vision_node', 'tracker_node')
+                                              for spec in loop):
+        raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
+                         'in motion, and this graph has neither')
     if options.composed and options.respawn:
         raise UsageError('--respawn restarts a crashed node in a process of its own; with '
                          '--composed the loop shares one process: choose one of them')

@@ -124,13 +124,14 @@ def along_travel_factor(camera: CameraModel, speed_m_s: float, exposure_s: float
 
 
 def uncertainty_in_motion(camera: CameraModel, phi_rad: float, vx_m_s: float, vy_m_s: float,
-                          exposure_s: float, acceleration_m_s2: float = 0.0
-                          ) -> CaptureUncertainty:
+                          exposure_s: float, acceleration_m_s2: float = 0.0,
+                          still: CaptureUncertainty | None = None) -> CaptureUncertainty:
     """The spread of a capture of a robot heading ``phi_rad`` moving at (vx, vy), stamped at
-    mid-exposure: the still spread, grown along the travel by :func:`along_travel_factor`, and
-    the acceleration's shift of the streak (``a * exposure^2 / 24``) added as a bound. x and y
-    are the diagonal of the rotated covariance."""
-    still = camera.uncertainty(phi_rad)
+    mid-exposure: the still spread (``camera``'s model, or ``still`` as a tracker states it),
+    grown along the travel by :func:`along_travel_factor`, and the acceleration's shift of the
+    streak (``a * exposure^2 / 24``) added as a bound. x and y are the diagonal of the rotated
+    covariance."""
+    still = still or camera.uncertainty(phi_rad)
     speed = math.hypot(vx_m_s, vy_m_s)
     if speed == 0.0 and acceleration_m_s2 == 0.0:
         return still

@@ -6,6 +6,10 @@ the ``platform`` frame:
   /camera/<name>/pose                    geometry_msgs/PoseStamped captures, stamped with the frame
   /camera/<name>/pose_with_covariance    the same, with the covariance of vision_node's camera
                                          model (``<name>.noise_px``, ``<name>.quantisation_px``)
+  /camera/<name>/pose_in_motion          with ``captures_in_motion``: each frame of the moving
+                                         robot (PoseWithCovarianceStamped), stamped at its
+                                         exposure's middle (``<name>.motion.*``), its covariance
+                                         grown by the blur (:mod:`.motion_capture`)
   /camera/<name>/tracker_status          diagnostic_msgs/DiagnosticStatus: why a frame gave no
                                          pose (fiducial not found, cut by the edge, ambiguous) or
                                          why it was refused (encoding, size), on each change
@@ -28,6 +32,7 @@ that none of them misses the first captures.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -40,16 +45,22 @@ from rclpy.qos import QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import stamp_ns, yaw_to_quaternion
+from omni_micro_common.conventions import join_stamp, split_stamp, stamp_ns, yaw_to_quaternion
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
 from omni_micro_common.reader_matching import when_capture_readers_matched
-from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
+)
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
+from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
+from omni_micro_vision.rendering import Sensor
 from omni_micro_vision.tracked_camera import TrackedCamera, tracked_camera
 from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
 
@@ -81,6 +92,7 @@ class TrackerNode(Node):
             raise CameraConfigError(f'still_frames must be >= 2 and still_tolerance_px > 0, got '
                                     f'{self.still_frames} and {self.still_px}')
         checked_cameras(cameras)
+        self.captures_in_motion = bool(self.declare_parameter('captures_in_motion', False).value)
         # Best effort by default, which meets a reliable and a best-effort driver alike
         # (REP-2003); the lockstep graph asks reliable of its own camera_node.
         self.reliability = self.declare_parameter('image_reliability', 'best_effort').value
@@ -102,9 +114,21 @@ class TrackerNode(Node):
                 f'{name}.info_topic', f'/camera/{name}/camera_info').value)
             # Checks the parameters now, whichever cameras are used.
             camera = tracked_camera(name, self._setting)
+            # A driver's frame is stamped at its exposure's start (camera_node's, and most
+            # drivers' trigger time); the blur spans exposure_s.
+            exposure = float(self.declare_parameter(f'{name}.motion.exposure_s',
+                                                    Sensor.exposure_s).value)
+            after_stamp = float(self.declare_parameter(
+                f'{name}.motion.mid_exposure_after_stamp_s', 0.5 * Sensor.exposure_s).value)
+            if not (math.isfinite(exposure) and exposure >= 0.0
+                    and math.isfinite(after_stamp) and after_stamp >= 0.0):
+                raise CameraConfigError(f'{name}.motion.exposure_s and '
+                                        f'{name}.motion.mid_exposure_after_stamp_s must be '
+                                        f'finite numbers >= 0, got {exposure!r} and '
+                                        f'{after_stamp!r}')
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, camera)
+            reader = _CameraReader(self, camera, exposure, after_stamp)
             self.readers.append(reader)
             fields[name] = min(camera.model.field_m)
             inputs.append((image_topic, info_topic, reader))
@@ -164,9 +188,14 @@ class _CameraReader:
     """One camera's frames: check them against the camera's geometry, track, decide stillness,
     publish."""
 
-    def __init__(self, node: TrackerNode, camera: TrackedCamera) -> None:
+    def __init__(self, node: TrackerNode, camera: TrackedCamera, exposure_s: float,
+                 mid_exposure_after_stamp_s: float) -> None:
         self.node = node
         self.camera = camera
+        self.exposure_s = exposure_s
+        self.mid_exposure_after_stamp_s = mid_exposure_after_stamp_s
+        # The last pose found, and when: the robot's velocity over a frame, for the blur.
+        self._last_seen: tuple[float, float, float] | None = None
         self.name = camera.plane.name
         self.handled_ns = -1
         # Why the latest CameraInfo rules its frames out (None: it does not, or none came yet).
@@ -181,6 +210,9 @@ class _CameraReader:
         self.status_pub = node.create_publisher(DiagnosticStatus,
                                                 f'/camera/{self.name}/tracker_status',
                                                 latched(1))
+        self.in_motion_pub = node.create_publisher(
+            PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[self.name],
+            CAPTURE_QOS) if node.captures_in_motion else None
         self._said: str | None = None
 
     def events(self, topic: str) -> SubscriptionEventCallbacks:
@@ -223,6 +255,7 @@ class _CameraReader:
         self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
         self.stillness.reset()
         self.tracker.reset()
+        self._last_seen = None
 
     def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None]:
         """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
@@ -238,11 +271,16 @@ class _CameraReader:
             return False, None
         if result.pose is None:
             self.stillness.reset()
+            self._last_seen = None
             self._say(DiagnosticStatus.WARN, result.reason)
             return False, None
         x, y, phi = result.pose
+        last, self._last_seen = self._last_seen, (join_stamp(msg.header.stamp.sec,
+                                                            msg.header.stamp.nanosec), x, y)
         if not self.stillness.still(x, y):
             self._say(DiagnosticStatus.OK, 'moving')
+            if self.in_motion_pub is not None and last is not None:
+                self._publish_in_motion(msg, (x, y, phi), last)
             return True, None
         self._say(DiagnosticStatus.OK, 'still: capturing')
         capture = PoseStamped()
@@ -255,6 +293,32 @@ class _CameraReader:
         covariance.pose.pose = capture.pose
         covariance.pose.covariance = self.camera.uncertainty(phi).covariance()
         return True, (self, covariance, capture)
+
+
+    def _publish_in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
+                           last: tuple[float, float, float]) -> None:
+        """The frame of the moving robot as a capture at its exposure's middle, its spread grown
+        by the blur at the speed since the last frame; none past the speed the tracker follows
+        (motion_capture.trackable)."""
+        assert self.in_motion_pub is not None
+        x, y, phi = pose
+        stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        elapsed = stamp_s - last[0]
+        if elapsed <= 0.0:
+            return
+        vx, vy = (x - last[1]) / elapsed, (y - last[2]) / elapsed
+        model = self.camera.model
+        if not trackable(model, math.hypot(vx, vy), self.exposure_s):
+            return
+        capture = PoseWithCovarianceStamped()
+        capture.header.stamp.sec, capture.header.stamp.nanosec = split_stamp(
+            stamp_s + self.mid_exposure_after_stamp_s)
+        capture.header.frame_id = self.node.frame_id
+        capture.pose.pose.position.x, capture.pose.pose.position.y = x, y
+        capture.pose.pose.orientation.z, capture.pose.pose.orientation.w = yaw_to_quaternion(phi)
+        capture.pose.covariance = uncertainty_in_motion(
+            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi)).covariance()
+        self.in_motion_pub.publish(capture)
 
 
 # A capture as the tracker holds it until the arbiter lets it go: its camera, then both messages.

@@ -62,8 +62,9 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                         help='with --record and --vision images: the images and camera infos '
                              'too (about 80 MB per simulated second at the default sizes)')
     parser.add_argument('--captures-in-motion', action='store_true',
-                        help='vision_node also publishes captures of the moving robot on '
-                             '/camera/<name>/pose_in_motion, stamped at mid-exposure (a '
+                        help='vision_node (or tracker_node, on images) also publishes captures '
+                             'of the moving robot on /camera/<name>/pose_in_motion, stamped at '
+                             'mid-exposure (a '
                              "recording keeps them; each camera's rate, exposure and latency: "
                              '<name>.motion.* in --params; docs/images.md, "Captures in '
                              'motion")')
