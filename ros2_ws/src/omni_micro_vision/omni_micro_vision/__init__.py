@@ -10,8 +10,8 @@ map fitted from frames of it), :mod:`motion_capture` (captures of a moving robot
 loss), :mod:`scene` (what a viewer draws) and :mod:`scene_kernel` (the frames' reflectance, numba),
 :mod:`errors`. At the message boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and
 back), :mod:`camera_frames` (a simulated camera's frames as a driver sends them),
-:mod:`marker_messages` (the scene as a serialized MarkerArray). Their nodes: :mod:`vision_node`
-(captures from the camera model), :mod:`camera_node` (rendered frames, as a camera driver streams
-them), :mod:`tracker_node` (captures from any driver's frames), :mod:`markers_node` (the scene for
-a viewer).
+:mod:`marker_messages` (the scene as a serialized MarkerArray), :mod:`capture_messages` (a capture
+as the camera contract publishes it). Their nodes: :mod:`vision_node` (captures from the camera
+model), :mod:`camera_node` (rendered frames, as a camera driver streams them), :mod:`tracker_node`
+(captures from any driver's frames), :mod:`markers_node` (the scene for a viewer).
 """

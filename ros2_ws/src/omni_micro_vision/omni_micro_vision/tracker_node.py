@@ -45,7 +45,7 @@ from rclpy.qos import QoSPolicyKind, QoSProfile, ReliabilityPolicy
 from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import join_stamp, split_stamp, stamp_ns, yaw_to_quaternion
+from omni_micro_common.conventions import join_stamp, split_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
@@ -57,6 +57,7 @@ from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
 )
 from omni_micro_vision.camera import checked_cameras
+from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
@@ -283,17 +284,9 @@ class _CameraReader:
                 self._publish_in_motion(msg, (x, y, phi), last)
             return True, None
         self._say(DiagnosticStatus.OK, 'still: capturing')
-        capture = PoseStamped()
-        capture.header.stamp = msg.header.stamp
-        capture.header.frame_id = self.node.frame_id
-        capture.pose.position.x, capture.pose.position.y = x, y
-        capture.pose.orientation.z, capture.pose.orientation.w = yaw_to_quaternion(phi)
-        covariance = PoseWithCovarianceStamped()
-        covariance.header = capture.header
-        covariance.pose.pose = capture.pose
-        covariance.pose.covariance = self.camera.uncertainty(phi).covariance()
-        return True, (self, covariance, capture)
-
+        capture = capture_pose(msg.header.stamp.sec, msg.header.stamp.nanosec,
+                               self.node.frame_id, x, y, phi)
+        return True, (self, with_uncertainty(capture, self.camera.uncertainty(phi)), capture)
 
     def _publish_in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
                            last: tuple[float, float, float]) -> None:
@@ -310,15 +303,10 @@ class _CameraReader:
         model = self.camera.model
         if not trackable(model, math.hypot(vx, vy), self.exposure_s):
             return
-        capture = PoseWithCovarianceStamped()
-        capture.header.stamp.sec, capture.header.stamp.nanosec = split_stamp(
-            stamp_s + self.mid_exposure_after_stamp_s)
-        capture.header.frame_id = self.node.frame_id
-        capture.pose.pose.position.x, capture.pose.pose.position.y = x, y
-        capture.pose.pose.orientation.z, capture.pose.pose.orientation.w = yaw_to_quaternion(phi)
-        capture.pose.covariance = uncertainty_in_motion(
-            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi)).covariance()
-        self.in_motion_pub.publish(capture)
+        pose = capture_pose(*split_stamp(stamp_s + self.mid_exposure_after_stamp_s),
+                            self.node.frame_id, x, y, phi)
+        self.in_motion_pub.publish(with_uncertainty(pose, uncertainty_in_motion(
+            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi))))
 
 
 # A capture as the tracker holds it until the arbiter lets it go: its camera, then both messages.

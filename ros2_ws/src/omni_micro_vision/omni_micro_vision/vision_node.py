@@ -38,7 +38,6 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
     split_stamp,
     stamp_ns,
-    yaw_to_quaternion,
 )
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
@@ -64,6 +63,7 @@ from omni_micro_vision.camera import (
     FaultInjector,
     StationaryCamera,
 )
+from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.motion_capture import CameraTiming, MotionCapture, MovingCamera
 
@@ -217,33 +217,20 @@ class VisionNode(Node):
 
     def _publish_capture(self, capture: Capture) -> int:
         """Publish one capture; returns its stamp in nanoseconds."""
-        msg = PoseStamped()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
-        msg.header.frame_id = self.frame_id
-        msg.pose.position.x = capture.x_m
-        msg.pose.position.y = capture.y_m
-        msg.pose.orientation.z, msg.pose.orientation.w = yaw_to_quaternion(capture.phi_rad)
+        msg = capture_pose(*split_stamp(capture.stamp_s), self.frame_id, capture.x_m,
+                           capture.y_m, capture.phi_rad)
         # The uncertainty first: a controller reading it has the whole capture when the
         # PoseStamped arrives, and the lockstep report comes after both.
-        with_covariance = PoseWithCovarianceStamped(header=msg.header)
-        with_covariance.pose.pose = msg.pose
-        with_covariance.pose.covariance = capture.uncertainty.covariance()
-        self.covariance_pubs[capture.camera].publish(with_covariance)
+        self.covariance_pubs[capture.camera].publish(with_uncertainty(msg, capture.uncertainty))
         self.capture_pubs[capture.camera].publish(msg)
         self._publish_status(DiagnosticStatus.OK, f'{capture.camera} camera',
                              at_s=capture.stamp_s, camera=capture.camera)
         return stamp_ns(msg.header.stamp)
 
     def _publish_in_motion(self, capture: MotionCapture) -> None:
-        msg = PoseWithCovarianceStamped()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(capture.stamp_s)
-        msg.header.frame_id = self.frame_id
-        msg.pose.pose.position.x = capture.x_m
-        msg.pose.pose.position.y = capture.y_m
-        msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = yaw_to_quaternion(
-            capture.phi_rad)
-        msg.pose.covariance = capture.uncertainty.covariance()
-        self.in_motion_pubs[capture.camera].publish(msg)
+        pose = capture_pose(*split_stamp(capture.stamp_s), self.frame_id, capture.x_m,
+                            capture.y_m, capture.phi_rad)
+        self.in_motion_pubs[capture.camera].publish(with_uncertainty(pose, capture.uncertainty))
 
 
 COMPONENT = NodeComponent(VisionNode, config_errors=(CameraConfigError,))
