@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from omni_micro_bringup.parameters import YAML_SPECIAL
+from omni_micro_bringup.parameters import format_parameter
 from omni_micro_common.params import flatten, load_params_file
 
 # Parameters a node declares that the file leaves to the command line, the bringup or another
@@ -149,21 +149,15 @@ def _keyed_lines(lines: list[str]) -> Iterator[tuple[int, str, str, re.Match[str
 
 
 def yaml_value(value: object) -> str:
-    """``value`` as the file writes it: a float always with its point (YAML 1.1 reads 3e-06 as
-    a string), lists in flow style."""
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        if math.isinf(value):
-            return '.inf' if value > 0 else '-.inf'
+    """``value`` as the file writes it: as ``-p`` gives it (:func:`.parameters.format_parameter`),
+    but a float always with its point (YAML 1.1 reads 3e-06 as a string), lists spaced, and an
+    empty string quoted."""
+    if isinstance(value, float) and math.isfinite(value):
         mantissa, e, exponent = repr(value).partition('e')
         return (mantissa if '.' in mantissa else f'{mantissa}.0') + (e + exponent if e else '')
     if isinstance(value, (list, tuple)):
         return '[' + ', '.join(yaml_value(item) for item in value) + ']'
-    text = str(value)
-    if isinstance(value, str) and (not text or any(c in text for c in YAML_SPECIAL)):
-        return "'" + text.replace("'", "''") + "'"
-    return text
+    return "''" if value == '' else format_parameter(value)
 
 
 def rewrite(text: str, found: list[Drift]) -> str:
