@@ -106,20 +106,37 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
 
 
 def test_the_clock_waits_for_the_readers_of_whoever_reports_draws_or_keeps_the_run():
+    # The orchestration's too: the run's final pose is its /odom sample at the outcome.
     dynamics = NodeSpec('omni_micro_sim', 'dynamics_node')
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
     assert node_overrides(dynamics, recorded)['awaited_readers'] == [
         'vision_node:/odom', 'controller_node:/joint_states', 'markers_node:/odom_throttle',
         'markers_node:/joint_states_throttle', 'markers_node:/wheel_slip',
         'bag_recorder:/clock', 'bag_recorder:/odom', 'bag_recorder:/joint_states',
-        'bag_recorder:/wheel_slip']
+        'bag_recorder:/wheel_slip', 'omni_micro_orchestration:/odom']
     bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
     assert node_overrides(dynamics, bare)['awaited_readers'] == [
-        'vision_node:/odom', 'controller_node:/joint_states']
+        'vision_node:/odom', 'controller_node:/joint_states', 'omni_micro_orchestration:/odom']
     # Composed: the hosted nodes' readers, all the same.
     composed = GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False)
     assert node_overrides(dynamics, composed)['awaited_readers'] == [
-        'vision_node:/odom', 'controller_node:/joint_states']
+        'vision_node:/odom', 'controller_node:/joint_states', 'omni_micro_orchestration:/odom']
+
+
+def test_the_final_pose_is_the_sample_at_the_capture_or_a_clear_failure():
+    from collections import deque
+
+    from omni_micro_bringup.errors import RunFailed
+    from omni_micro_bringup.monitor import first_sample_at_or_after
+
+    creeping = deque(((0.02 * tick, 0.1 + 1e-14 * tick, 0.0, 0.0) for tick in range(10)),
+                     maxlen=20)
+    assert first_sample_at_or_after(creeping, 0.05) == creeping[3]
+    assert first_sample_at_or_after(creeping, 0.0) == creeping[0]   # the first sample of all
+    kept_last_five = deque(creeping, maxlen=5)
+    assert first_sample_at_or_after(kept_last_five, 0.15) == creeping[8]
+    with pytest.raises(RunFailed, match=r'/odom sample at t=0\.050 s is no longer kept'):
+        first_sample_at_or_after(kept_last_five, 0.05)
 
 
 def test_markers_read_the_captures_where_the_controller_reads_them():

@@ -46,6 +46,9 @@ READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
     'controller_node': (JOINT_STATES_TOPIC,),
     'markers_node': (ODOM_THROTTLE_TOPIC, JOINT_STATES_THROTTLE_TOPIC, WHEEL_SLIP_TOPIC),
     'bag_recorder': (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)}
+# The orchestrator's own node: it publishes goals, reads statuses and, from the first sample,
+# /odom for the run's final pose (omni_micro_bringup.monitor); not part of the graph.
+ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
 LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
@@ -213,8 +216,9 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         # streams from the first sample (READS_FROM_ROBOT).
         in_graph = [hosted.executable for other in all_specs(options)
                     for hosted in (other.hosts or (other,))]
-        overrides.update(awaited_readers=[f'{node}:{topic}' for node in dict.fromkeys(in_graph)
-                                          for topic in READS_FROM_ROBOT.get(node, ())])
+        overrides.update(awaited_readers=[
+            f'{node}:{topic}' for node in dict.fromkeys(in_graph)
+            for topic in READS_FROM_ROBOT.get(node, ())] + [f'{ORCHESTRATOR_NODE}:{ODOM_TOPIC}'])
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
             overrides.update(stamp_origin='wall', real_time_factor=1.0)

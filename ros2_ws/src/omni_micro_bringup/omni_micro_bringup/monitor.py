@@ -1,12 +1,19 @@
 """The orchestration's own node: sees the graph come up, hands the controller its goal, runs and
 holds the clock (dynamics_node's `paused`), brings respawned nodes back, waits for the outcome
-and reads the true final pose from /odom. It commands nothing that moves the robot."""
+and reads the true final pose from /odom. It commands nothing that moves the robot.
+
+The final pose is the /odom sample at the outcome's capture (the first at or after its stamp),
+not the one this process happens to read first: a robot at rest still creeps (1e-14 m a tick),
+so which sample that was would show in the last digits and depend on the machine's load. The
+monitor's /odom reader is one of dynamics_node's awaited readers (the composition says so):
+matched before time starts, it has every sample, and keeps the last ODOMETRY_KEPT."""
 
 from __future__ import annotations
 
 import functools
 import os
 import time
+from collections import deque
 from collections.abc import Callable
 
 import rclpy
@@ -20,6 +27,7 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.parameters import dds_profile
 from omni_micro_bringup.respawns import Respawns
@@ -42,8 +50,10 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
-# The orchestrator's own node (it publishes goals and reads statuses; not part of the graph).
-ORCHESTRATOR_NODE = 'omni_micro_orchestration'
+# How many of the latest /odom samples the monitor keeps (80 s of simulated time at 50 Hz): the
+# status naming the outcome's capture reaches this process after its sample, by far less.
+ODOMETRY_KEPT = 4000
+
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
 # How long a goal waits for its readers to match it and then to acknowledge it (a dead
@@ -54,8 +64,7 @@ SERVICE_RESEND_S = 2.0
 
 
 class GraphMonitor:
-    """With ``follow_route`` it keeps the whole route and every capture (for figures); that
-    costs a subscriber at the full sample rate, so plain runs only read /odom at the end."""
+    """With ``follow_route`` it keeps the whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None, markers: bool = False) -> None:
@@ -71,6 +80,7 @@ class GraphMonitor:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.latest_odometry: tuple[float, float, float, float] | None = None
+        self.odometry: deque[tuple[float, float, float, float]] = deque(maxlen=ODOMETRY_KEPT)
         self.statuses: list[dict[str, str]] = []
         self.node.create_subscription(DiagnosticStatus, CONTROLLER_STATUS_TOPIC, self._on_status,
                                       STATUS_QOS)
@@ -89,11 +99,10 @@ class GraphMonitor:
                                       self._on_recorder_status, STATUS_QOS)
         self.route: list[tuple[float, float, float]] = []
         self.respawns = Respawns(self)
-        self._odometry_reader: object | None = None
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
+        self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
         if follow_route:
-            self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
             for camera, topic in CAPTURE_TOPICS.items():
                 self.node.create_subscription(
                     PoseStamped, topic, functools.partial(self._on_capture, camera=camera),
@@ -111,6 +120,7 @@ class GraphMonitor:
         self.latest_odometry = (join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
                                 pose.position.x, pose.position.y,
                                 quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
+        self.odometry.append(self.latest_odometry)
         if self._following:
             self.route.append(self.latest_odometry[:3])
 
@@ -291,31 +301,21 @@ class GraphMonitor:
             self.spin_for(0.05)
 
     def _robot_time_said(self) -> str:
-        """Where the robot's time stands now, read from /odom (which a plain run does not
-        follow: a short look), for a message."""
-        if not self._following:
-            reader = self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry,
-                                                   DATA_QOS)
-            self.spin_for(1.0)
-            self.node.destroy_subscription(reader)
+        """Where the robot's time stands now, read from /odom, for a message."""
         if self.latest_odometry is None:
             return 'the robot published no /odom'
         return f"the robot's time reached {self.latest_odometry[0]:.2f} s"
 
     def wait_for_odometry_after(self, graph: Supervisor, stamp_s: float,
                                 timeout_s: float) -> tuple[float, float, float, float]:
-        if not self._following and self._odometry_reader is None:
-            # Subscribed only now: following /odom all run long would slow a fast graph down,
-            # and the robot is still once the controller has an outcome.
-            self._odometry_reader = self.node.create_subscription(
-                Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
+        """The first /odom sample stamped at or after ``stamp_s`` (time, x, y, heading)."""
         deadline = time.monotonic() + timeout_s
         while self.latest_odometry is None or self.latest_odometry[0] < stamp_s:
             graph.check_alive()
             if time.monotonic() > deadline:
                 raise RunFailed(f'no odometry at or after t={stamp_s:.3f} s from dynamics_node')
             self.spin_for(0.05)
-        return self.latest_odometry
+        return first_sample_at_or_after(self.odometry, stamp_s)
 
     def wait_for_recorder_past(self, graph: Supervisor, stamp_s: float,
                                timeout_s: float) -> None:
@@ -335,3 +335,18 @@ class GraphMonitor:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def first_sample_at_or_after(samples: deque[tuple[float, float, float, float]],
+                             stamp_s: float) -> tuple[float, float, float, float]:
+    """The first of ``samples`` (oldest first, by stamp) at or after ``stamp_s``, known to be the
+    first only if the one before it is kept too: a later one would be a number that depends on
+    when this process read it."""
+    for index, sample in enumerate(samples):
+        if sample[0] >= stamp_s:
+            if index == 0 and len(samples) == samples.maxlen:
+                break
+            return sample
+    raise RunFailed(f'the /odom sample at t={stamp_s:.3f} s is no longer kept (the last '
+                    f'{samples.maxlen} are, from t={samples[0][0]:.3f} s): the orchestration '
+                    'fell that far behind the robot')

@@ -71,7 +71,7 @@ def nodes_of(topics: list[TopicEndpoints]) -> list[str]:
 
 
 def _label(node: str) -> str:
-    from omni_micro_bringup.monitor import ORCHESTRATOR_NODE
+    from omni_micro_bringup.composition import ORCHESTRATOR_NODE
 
     return ORCHESTRATOR_LABEL if node == ORCHESTRATOR_NODE else node
 
