@@ -60,8 +60,9 @@ def test_same_seed_same_pose_at_another_real_time_factor(cli_run, tmp_path):
                                   real_time_factor=math.inf, log_dir=tmp_path))
     assert fast.outcome == 'reached'
     assert fast.sim_time_s / fast.wall_time_s > 5.0
-    # To the last digit: the final pose is the /odom sample at the outcome's capture, not the
-    # first one the orchestration happened to read (the robot at rest creeps 1e-14 m a tick).
+    # To the last digit: the final pose is the first odometry sample at or after the outcome's
+    # capture, not the first one the orchestration happened to read (the robot at rest creeps
+    # 1e-14 m a tick).
     assert fast.final_x_m * 1e3 == summary['final_x_mm']
     assert fast.final_y_m * 1e3 == summary['final_y_mm']
     assert fast.periods == summary['periods']

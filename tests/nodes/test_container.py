@@ -106,21 +106,26 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
 
 
 def test_the_clock_waits_for_the_readers_of_whoever_reports_draws_or_keeps_the_run():
-    # The orchestration's too: the run's final pose is its /odom sample at the outcome.
+    # The orchestration's too: the run's final pose is its odometry sample at the outcome.
     dynamics = NodeSpec('omni_micro_sim', 'dynamics_node')
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
     assert node_overrides(dynamics, recorded)['awaited_readers'] == [
         'vision_node:/odom', 'controller_node:/joint_states', 'markers_node:/odom_throttle',
         'markers_node:/joint_states_throttle', 'markers_node:/wheel_slip',
         'bag_recorder:/clock', 'bag_recorder:/odom', 'bag_recorder:/joint_states',
-        'bag_recorder:/wheel_slip', 'omni_micro_orchestration:/odom']
+        'bag_recorder:/wheel_slip', 'omni_micro_orchestration:/odom_throttle']
     bare = GraphOptions(goal_m=(0.1, 0.0), markers=False)
     assert node_overrides(dynamics, bare)['awaited_readers'] == [
-        'vision_node:/odom', 'controller_node:/joint_states', 'omni_micro_orchestration:/odom']
+        'vision_node:/odom', 'controller_node:/joint_states',
+        'omni_micro_orchestration:/odom_throttle']
     # Composed: the hosted nodes' readers, all the same.
+    following = GraphOptions(goal_m=(0.1, 0.0), markers=False, follow_route=True)
+    awaited = node_overrides(dynamics, following)['awaited_readers']
+    assert isinstance(awaited, list) and awaited[-1] == 'omni_micro_orchestration:/odom'
     composed = GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False)
     assert node_overrides(dynamics, composed)['awaited_readers'] == [
-        'vision_node:/odom', 'controller_node:/joint_states', 'omni_micro_orchestration:/odom']
+        'vision_node:/odom', 'controller_node:/joint_states',
+        'omni_micro_orchestration:/odom_throttle']
 
 
 def test_the_final_pose_is_the_sample_at_the_capture_or_a_clear_failure():
@@ -135,7 +140,7 @@ def test_the_final_pose_is_the_sample_at_the_capture_or_a_clear_failure():
     assert first_sample_at_or_after(creeping, 0.0) == creeping[0]   # the first sample of all
     kept_last_five = deque(creeping, maxlen=5)
     assert first_sample_at_or_after(kept_last_five, 0.15) == creeping[8]
-    with pytest.raises(RunFailed, match=r'/odom sample at t=0\.050 s is no longer kept'):
+    with pytest.raises(RunFailed, match=r'odometry sample at t=0\.050 s is no longer kept'):
         first_sample_at_or_after(kept_last_five, 0.05)
 
 

@@ -47,8 +47,15 @@ READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
     'markers_node': (ODOM_THROTTLE_TOPIC, JOINT_STATES_THROTTLE_TOPIC, WHEEL_SLIP_TOPIC),
     'bag_recorder': (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)}
 # The orchestrator's own node: it publishes goals, reads statuses and, from the first sample,
-# /odom for the run's final pose (omni_micro_bringup.monitor); not part of the graph.
+# the odometry it takes the run's final pose from (omni_micro_bringup.monitor); not part of the
+# graph.
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
+
+
+def orchestration_odometry_topic(follow_route: bool) -> str:
+    """The odometry the orchestration reads: all of it only to draw the route."""
+    return ODOM_TOPIC if follow_route else ODOM_THROTTLE_TOPIC
+
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
 LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
@@ -218,7 +225,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                     for hosted in (other.hosts or (other,))]
         overrides.update(awaited_readers=[
             f'{node}:{topic}' for node in dict.fromkeys(in_graph)
-            for topic in READS_FROM_ROBOT.get(node, ())] + [f'{ORCHESTRATOR_NODE}:{ODOM_TOPIC}'])
+            for topic in READS_FROM_ROBOT.get(node, ())]
+            + [f'{ORCHESTRATOR_NODE}:{orchestration_odometry_topic(options.follow_route)}'])
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
             overrides.update(stamp_origin='wall', real_time_factor=1.0)

@@ -2,11 +2,14 @@
 holds the clock (dynamics_node's `paused`), brings respawned nodes back, waits for the outcome
 and reads the true final pose from /odom. It commands nothing that moves the robot.
 
-The final pose is the /odom sample at the outcome's capture (the first at or after its stamp),
-not the one this process happens to read first: a robot at rest still creeps (1e-14 m a tick),
-so which sample that was would show in the last digits and depend on the machine's load. The
-monitor's /odom reader is one of dynamics_node's awaited readers (the composition says so):
-matched before time starts, it has every sample, and keeps the last ODOMETRY_KEPT."""
+The final pose is the first odometry sample at or after the outcome's capture, not the one this
+process happens to read first: a robot at rest still creeps (1e-14 m a tick), so which sample
+that was would show in the last digits and depend on the machine's load. The monitor's reader
+is one of dynamics_node's awaited readers (the composition says so): matched before time
+starts, it has every sample, and keeps the last ODOMETRY_KEPT. It reads /odom_throttle (one
+tick in five), or /odom when it follows the route: a reader at the full rate slows a graph at
+its fastest pace, and gives a killed orchestrator's shared-memory port more traffic to be
+caught holding (docs/reliability.md, "Processes")."""
 
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from omni_micro_bringup.composition import ORCHESTRATOR_NODE
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odometry_topic
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.parameters import dds_profile
 from omni_micro_bringup.respawns import Respawns
@@ -44,14 +47,13 @@ from omni_micro_common.topic_names import (
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     MARKERS_TOPIC,
-    ODOM_TOPIC,
     RECORDER_STATUS_TOPIC,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
-# How many of the latest /odom samples the monitor keeps (80 s of simulated time at 50 Hz): the
-# status naming the outcome's capture reaches this process after its sample, by far less.
+# How many of the latest odometry samples the monitor keeps (80 s of simulated time at 50 Hz):
+# the status naming the outcome's capture reaches this process after its sample, by far less.
 ODOMETRY_KEPT = 4000
 
 # Discovery shows an endpoint a little before every peer has matched it.
@@ -101,7 +103,8 @@ class GraphMonitor:
         self.respawns = Respawns(self)
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
-        self.node.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS)
+        self.node.create_subscription(Odometry, orchestration_odometry_topic(follow_route),
+                                      self._on_odometry, DATA_QOS)
         if follow_route:
             for camera, topic in CAPTURE_TOPICS.items():
                 self.node.create_subscription(
@@ -347,6 +350,6 @@ def first_sample_at_or_after(samples: deque[tuple[float, float, float, float]],
             if index == 0 and len(samples) == samples.maxlen:
                 break
             return sample
-    raise RunFailed(f'the /odom sample at t={stamp_s:.3f} s is no longer kept (the last '
+    raise RunFailed(f'the odometry sample at t={stamp_s:.3f} s is no longer kept (the last '
                     f'{samples.maxlen} are, from t={samples[0][0]:.3f} s): the orchestration '
                     'fell that far behind the robot')
