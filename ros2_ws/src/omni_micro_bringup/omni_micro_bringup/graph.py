@@ -221,17 +221,22 @@ class Graph:
         started = time.monotonic()
         named = {name for phase in SHUTDOWN_PHASES if phase for name in phase}
         codes: dict[str, int | None] = {}
+        took: dict[str, float] = {}
         for phase in SHUTDOWN_PHASES:
             members = [p for p in self.processes
                        if (p.name in phase if phase else p.name not in named)]
             # The recorder finishes its bag after its signal: it reads the bag back and writes
             # it again in the order of simulated time (a gigabyte of images takes seconds).
             recorder = phase is not None and 'bag_recorder' in phase
-            codes.update(stop_together(members, grace_s=RECORDER_FINISH_S if recorder else 5.0))
+            codes.update(stop_together(members, grace_s=RECORDER_FINISH_S if recorder else 5.0,
+                                       took_s=took))
         self._cut_lifeline()
         if self.options.echo:
+            slowest = max(took, key=took.__getitem__, default=None)
             self.options.echo(f'[orchestration] graph stopped in '
-                              f'{time.monotonic() - started:.2f} s; exit codes: '
+                              f'{time.monotonic() - started:.2f} s'
+                              + (f' (the slowest, {slowest}, {took[slowest]:.2f} s after its '
+                                 'signal)' if slowest else '') + '; exit codes: '
                               + ', '.join(f'{name} {code}' for name, code in codes.items()))
         clean_shared_memory(self.shm_before)
         record = self.options.record

@@ -153,10 +153,17 @@ class NodeProcess:
         return True
 
 
-def stop_together(processes: list[NodeProcess], grace_s: float = 5.0) -> dict[str, int | None]:
+# How often a stopping graph looks for processes that have exited.
+_STOP_POLL_S = 0.01
+
+
+def stop_together(processes: list[NodeProcess], grace_s: float = 5.0,
+                  took_s: dict[str, float] | None = None) -> dict[str, int | None]:
     """SIGINT to all at once, then SIGTERM, then SIGKILL to whoever is left after each grace
-    period; returns their exit codes. Every node stops on its first signal within a second, so
-    the later steps are for a node that hangs."""
+    period; returns their exit codes, and puts into ``took_s`` how long each took to exit after
+    the first signal. Every node stops on its first signal within a second, so the later steps
+    are for a node that hangs."""
+    signalled = time.monotonic()
     for sig, wait_s in ((signal.SIGINT, grace_s), (signal.SIGTERM, 2.0), (signal.SIGKILL, 5.0)):
         alive = [p for p in processes if p.exit_code() is None]
         if not alive:
@@ -164,8 +171,12 @@ def stop_together(processes: list[NodeProcess], grace_s: float = 5.0) -> dict[st
         for process in alive:
             process.signal(sig)
         deadline = time.monotonic() + wait_s
-        for process in alive:
-            process.wait(deadline - time.monotonic())
+        while alive and time.monotonic() < deadline:
+            time.sleep(_STOP_POLL_S)
+            for process in [p for p in alive if p.exit_code() is not None]:
+                alive.remove(process)
+                if took_s is not None:
+                    took_s[process.name] = time.monotonic() - signalled
     for process in processes:
         process.join_output()
     return {process.name: process.exit_code() for process in processes}

@@ -219,6 +219,8 @@ def run_components(hosted: list[Hosted], *, args: list[str] | None = None,
     exits 2 before any of them runs."""
     # A crash in the C layers (rmw, DDS) prints the Python stack it came from into the log.
     faulthandler.enable(all_threads=True)
+    # `kill -USR1 <pid>` prints where every thread of a node that will not stop is, into its log.
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     argv = list(sys.argv if args is None else args)
     program = argv[0].rsplit('/', 1)[-1] if argv else 'node'
     # rcl refuses a params file it cannot read with a traceback from inside rclpy.init: read
