@@ -9,9 +9,9 @@ from omni_micro_common.conventions import JOINT_NAMES
 from omni_micro_sim import paper
 from omni_micro_sim.errors import CommandError
 from omni_micro_sim.open_loop import simulate_open_loop
-from omni_micro_sim.parameters import MotorLimits
+from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelCommand, move_profile
-from omni_micro_sim.simulator import MotionStatus
+from omni_micro_sim.simulator import MotionStatus, SlipSimulator
 from omni_micro_sim.stepper import GridSimulator
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,
@@ -144,3 +144,29 @@ def test_the_wheel_contract_refuses_a_trajectory_too_long_or_an_angle_no_float_h
            for p in move]
     with pytest.raises(CommandError, match=r'steering angle 1e\+20 rad: expected within \+-2 pi'):
         command_from_points(JOINT_NAMES, far, 0.0, 0.0, MotorLimits())
+
+
+def test_a_robot_moved_and_turned_mid_move_goes_on_the_same_way_moved_and_turned():
+    """What an estimator's correction relies on: the floor is the same everywhere, so a robot
+    shifted by (dx, dy) and turned by dphi about its centre rolls on shifted and turned."""
+    robot = RobotParameters(wheel_offsets_rad=(0.0, math.radians(3.0), math.radians(2.0)))
+    rolling = SlipSimulator(robot)
+    rolling.command(0.3, move_profile(5.0))
+    rolling.step(0.7)
+    before = rolling.state
+    moved = rolling.with_robot(robot)
+    dx, dy, dphi = 2e-4, -1e-4, 0.05
+    moved.move_by(dx, dy, dphi)
+    rolling.step(1.9)
+    moved.step(1.9)
+    here, there = rolling.state, moved.state
+    cos_d, sin_d = math.cos(dphi), math.sin(dphi)
+    ex, ey = here.x_m - before.x_m, here.y_m - before.y_m
+    assert there.x_m == pytest.approx(before.x_m + dx + cos_d * ex - sin_d * ey, abs=1e-12)
+    assert there.y_m == pytest.approx(before.y_m + dy + sin_d * ex + cos_d * ey, abs=1e-12)
+    assert there.phi_rad == pytest.approx(here.phi_rad + dphi, abs=1e-12)
+    # Another robot from the same instant: the copy rolls on with its own offsets.
+    other = rolling.with_robot(RobotParameters())
+    other.step(0.5)
+    rolling.step(0.5)
+    assert abs(other.state.y_m - rolling.state.y_m) > 1e-6

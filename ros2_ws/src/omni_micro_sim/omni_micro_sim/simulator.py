@@ -226,6 +226,30 @@ class SlipSimulator:
         # The steering stops where it is (the same target steers no further).
         self.command(self._steering_target, profile)
 
+    # -- what an estimator changes ------------------------------------------------------------
+    def with_robot(self, params: RobotParameters) -> SlipSimulator:
+        """A copy at the same time and state, running the same command, on ``params``: another
+        guess of the robot (its offsets, its friction), with the same steering mechanism."""
+        if params.steering != self.params.steering:
+            raise CommandError('with_robot keeps the steering mechanism: the running steering '
+                               'motion was planned with it')
+        copy = SlipSimulator.__new__(SlipSimulator)
+        copy.__dict__.update(self.__dict__)
+        copy.params = params
+        copy._kernel_params = params.as_kernel_array()
+        copy._offsets = wheel_offsets(params)
+        copy._state = self._state.copy()
+        copy._rotation_before_move = self._rotation_before_move.copy()
+        return copy
+
+    def move_by(self, dx_m: float, dy_m: float, dphi_rad: float) -> None:
+        """Shift and turn the robot in the plane, its velocity turned with it: an estimator's
+        correction of where the robot is (the motion itself is unchanged)."""
+        cos_d, sin_d = math.cos(dphi_rad), math.sin(dphi_rad)
+        x, y, phi, vx, vy, omega = self._state
+        self._state[:] = (x + dx_m, y + dy_m, phi + dphi_rad, cos_d * vx - sin_d * vy,
+                          sin_d * vx + cos_d * vy, omega)
+
     # -- time --------------------------------------------------------------------------------
     def step(self, dt_s: float) -> RobotState:
         """Advance simulated time by ``dt_s`` and return the new state.
