@@ -34,6 +34,7 @@ from omni_micro_control.feedback import (
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation
+from omni_micro_control.servo import ServoCommand, ServoConfig, ServoController, ServoFinished
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile
@@ -45,6 +46,7 @@ from omni_micro_sim.wheel_trajectory import (
     points_from_profile,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, Capture, CaptureRule, StationaryCamera
+from omni_micro_vision.motion_capture import CameraTiming, MotionCapture, MovingCamera
 
 
 @dataclass
@@ -143,3 +145,89 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                             grid.simulator.state, grid.time_s,
                             (float(goal_m[0]), float(goal_m[1])), used,
                             np.array(route), moves, planner)
+
+
+@dataclass
+class ServoResult(ClosedLoopResult):
+    stops: int = 0
+    replans: int = 0
+    captures_in_motion: int = 0
+    offsets_rad: tuple[float, float] = (0.0, 0.0)
+
+
+def _observation(capture: Capture | MotionCapture) -> Observation:
+    """A capture as the controller node reads it from its message."""
+    return Observation(through_stamp(capture.stamp_s), capture.x_m, capture.y_m,
+                       quaternion_to_yaw(*yaw_to_quaternion(capture.phi_rad)), capture.camera,
+                       CaptureUncertainty.from_covariance(capture.uncertainty.covariance()))
+
+
+def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
+              limits: MotorLimits | None = None, config: ServoConfig | None = None,
+              rig: CameraRig = DEFAULT_RIG, timings: dict[str, CameraTiming] | None = None,
+              seed: int = 0, start: RobotState | None = None,
+              period_s: float = DEFAULT_PERIOD_S, max_sim_time_s: float = 120.0,
+              model_robot: RobotParameters | None = None) -> ServoResult:
+    """Drive the robot to ``goal_m`` with the servo mode (:mod:`omni_micro_control.servo`):
+    rolling, corrected from the captures in motion, a stop at the end to confirm. ``robot`` is
+    the true robot; the servo knows ``model_robot`` (the nominal robot by default).
+
+    Raises
+    ------
+    SimulationError
+        If no outcome came within ``max_sim_time_s`` of simulated time.
+    """
+    limits = limits or MotorLimits()
+    grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
+    still = StationaryCamera(rig, seed=seed)
+    moving = MovingCamera(rig, timings or {name: CameraTiming() for name in ('macro', 'micro')},
+                          seed)
+    servo = ServoController(config or ServoConfig(), limits, model_robot or RobotParameters())
+
+    def schedule(command: ServoCommand, now_s: float) -> None:
+        # The command crosses a JointTrajectory: knot times become nanosecond stamps.
+        points = [TrajectoryPoint(through_stamp(point.time_from_start_s), point.positions,
+                                  point.velocities)
+                  for point in points_from_profile(command.steering_rad, command.profile)]
+        grid.schedule(command_from_points(JOINT_NAMES, points, through_stamp(command.start_s),
+                                          now_s, limits))
+
+    servo.set_goal(goal_m, 0.0)
+    route = []
+    in_motion = 0
+    finished: ServoFinished | None = None
+    while finished is None:
+        if grid.time_s > max_sim_time_s:
+            raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
+        sample = grid.advance()
+        state = sample.state
+        stamp = through_stamp(sample.time_s)
+        route.append((sample.time_s, state.x_m, state.y_m))
+        phi = quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad))
+        command = servo.command
+        if (command is not None and not np.any(sample.wheel_speeds_rad_s)
+                and stamp >= command.start_s + command.profile.end_time_s):
+            servo.on_wheels_stopped(stamp)
+        for capture in moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
+                                          state.vy_m_s):
+            in_motion += 1
+            replanned = servo.on_capture_in_motion(_observation(capture), stamp)
+            if replanned is not None:
+                schedule(replanned, stamp)
+        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
+        for event in still.on_odometry(stamp, state.x_m, state.y_m, phi,
+                                       math.hypot(forward, lateral), state.omega_rad_s):
+            if not isinstance(event, Capture):
+                continue
+            decision = servo.on_capture(_observation(event))
+            if isinstance(decision, ServoCommand):
+                schedule(decision, stamp)
+            elif isinstance(decision, ServoFinished):
+                finished = decision
+                break
+    learnt = servo.filter.offsets_rad if servo.filter is not None else (0.0, 0.0)
+    return ServoResult(finished.outcome, finished.reason, finished.moves, grid.simulator.state,
+                       grid.time_s, (float(goal_m[0]), float(goal_m[1])),
+                       [finished.observation] if finished.observation else [], np.array(route),
+                       stops=servo.stops, replans=servo.replans, captures_in_motion=in_motion,
+                       offsets_rad=learnt)

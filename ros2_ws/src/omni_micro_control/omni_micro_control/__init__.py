@@ -1,11 +1,12 @@
-"""The vision-feedback controller of section 4 and the model-based mode.
+"""The vision-feedback controller of section 4, the model-based mode and the servo mode.
 
 Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, the distance
 comparator, the outcome), :mod:`observations` (a capture as the controllers see it),
 :mod:`move_watcher` (a move's end, from the wheel states), :mod:`model_based` (plans through the
 slip model, learns the robot) and :mod:`identification` (the least-squares fit it and ``omni-micro
 identify`` use, over the :mod:`chains` of stops and moves that :mod:`recorded_runs` reads from a
-run's messages), and :mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
+run's messages), :mod:`servo` (keeps the robot rolling, corrected from the captures in motion
+through :mod:`slip_filter`, a Kalman filter over the slip core; in the twin), and :mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
 :mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
 and :mod:`controller_messages` (the trajectories and statuses it publishes).
 """
