@@ -330,6 +330,8 @@ class ServoController:
             if math.hypot(*miss) < self.config.shooting_tolerance_m:
                 break
             along = (stop(steering, rotation + _ROTATION_STEP_RAD) - reached) / _ROTATION_STEP_RAD
+            if float(along @ along) == 0.0:
+                break    # the wheels cannot stop sooner than they do: nothing to shoot
             if keep_steering:
                 # Only the rotation: the stop as far along the course as the goal.
                 rotation += float(miss @ along) / float(along @ along)

@@ -1,12 +1,12 @@
-"""`omni-micro compare-controllers`: the paper's rule against the model-based controller.
+"""`omni-micro compare-controllers`: the paper's rule, the model-based mode and the servo.
 
-Seeded cases on the micro platform, each run by both modes through the in-process twin (the
-graph's loop in one process): half drive (0,0) -> (100,0) mm, half drive from a random start
-in the macro field to a random goal inside the micro field; every robot has random assembly
-offsets xi2, xi3 in [-5, 5] deg, which the model mode does not know (it starts from none).
-With --steering realistic every robot also steers through the realistic preset with a
-backlash drawn in [0, 2] deg, which the model mode does not know either (it starts from the
-preset's 1 deg).
+Seeded cases on the micro platform, each run by the three modes through the in-process twin
+(the graph's loop in one process): half drive (0,0) -> (100,0) mm, half drive from a random
+start in the macro field to a random goal inside the micro field; every robot has random
+assembly offsets xi2, xi3 in [-5, 5] deg, which neither the model mode nor the servo knows
+(they start from none). With --steering realistic every robot also steers through the
+realistic preset with a backlash drawn in [0, 2] deg, which they do not know either (they start
+from the preset's 1 deg).
 """
 
 from __future__ import annotations
@@ -44,6 +44,8 @@ OFFSET_RANGE_DEG = 5.0
 # Hand-assembled gears: from none to twice the realistic preset's 1 deg (a stated guess).
 BACKLASH_RANGE_DEG = (0.0, 2.0)
 MICRO_GOAL_HALF_WIDTH_M = 0.8e-3     # goals well inside the 2 mm micro field
+# The modes compared, and how the table and the figure name them.
+MODES = {'paper': "paper's rule", 'model': 'model-based', 'servo': 'servo'}
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -101,13 +103,18 @@ def make_cases(count: int, seed: int, steering: str = 'ideal') -> list[Case]:
 
 
 def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
-    from omni_micro_cli.twin import run_closed_loop
+    from omni_micro_cli.twin import run_closed_loop, run_servo
+    from omni_micro_control.servo import ServoConfig
 
     preset = steering_preset(case.steering)
     robot = RobotParameters(
         wheel_offsets_rad=(0.0, math.radians(case.xi2_deg), math.radians(case.xi3_deg)),
         steering=preset.replace(backlash_rad=math.radians(case.backlash_deg)))
     # The model knows the steering's form (the preset), not this robot's backlash or offsets.
+    if mode == 'servo':
+        return run_servo(case.goal_m, robot=robot, seed=case.seed, start=RobotState(*case.start),
+                         config=ServoConfig(tolerance_m=tolerance_m),
+                         model_robot=RobotParameters(steering=preset))
     return run_closed_loop(case.goal_m, robot=robot, seed=case.seed,
                            start=RobotState(*case.start),
                            config=FeedbackConfig(mode=mode, tolerance_m=tolerance_m),
@@ -115,15 +122,19 @@ def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
 
 
 def run_case(case: Case, tolerance_m: float) -> dict[str, object]:
-    """Both modes on one case; the row of the results."""
+    """Every mode on one case; the row of the results (a servo's periods are its moves)."""
+    from omni_micro_cli.twin import ServoResult
     from omni_micro_control.model_based import ModelBasedPlanner
 
     row: dict[str, object] = {**asdict(case)}
-    for mode in ('paper', 'model'):
+    for mode in MODES:
         began = time.perf_counter()
         result = _run(case, mode, tolerance_m)
         row[f'{mode}_outcome'] = result.outcome.value
         row[f'{mode}_periods'] = result.periods
+        if isinstance(result, ServoResult):
+            row['servo_stops'] = result.stops
+            row['servo_replans'] = result.replans
         row[f'{mode}_deviation_um'] = result.deviation_m * 1e6
         row[f'{mode}_sim_time_s'] = result.sim_time_s
         row[f'{mode}_wall_s'] = time.perf_counter() - began
@@ -171,16 +182,19 @@ def summarise(rows: list[dict], tolerance_um: float) -> dict[str, object]:
     fits = [wall for row in rows for wall in row['fit_wall_s']]
     summary: dict[str, object] = {'cases': len(rows), 'tolerance_um': tolerance_um,
                                   'steering': rows[0].get('steering', 'ideal')}
-    for mode in ('paper', 'model'):
+    for mode in MODES:
         deviations = [row[f'{mode}_deviation_um'] for row in rows]
         periods = [row[f'{mode}_periods'] for row in rows]
+        times = [row[f'{mode}_sim_time_s'] for row in rows]
         summary[mode] = {
             'reached_percent': share([row[f'{mode}_outcome'] == 'reached' for row in rows]),
             'within_tolerance_percent': share([d <= tolerance_um for d in deviations]),
             'median_periods': statistics.median(periods), 'max_periods': max(periods),
             'median_deviation_um': statistics.median(deviations),
             'max_deviation_um': max(deviations),
-            'median_sim_time_s': statistics.median(row[f'{mode}_sim_time_s'] for row in rows),
+            'median_sim_time_s': statistics.median(times), 'max_sim_time_s': max(times),
+            **({'max_stops': max(row['servo_stops'] for row in rows)} if mode == 'servo'
+               else {}),
         }
     summary['model_not_worse_percent'] = share([not_worse(row, tolerance_um) for row in rows])
     summary['model_cases_with_fallback'] = sum(1 for row in rows if row['model_fallbacks'])
@@ -201,42 +215,51 @@ def summarise(rows: list[dict], tolerance_um: float) -> dict[str, object]:
 
 
 def table(summary: dict) -> str:
-    paper, model = summary['paper'], summary['model']
     first, second = summary['offset_error_deg_first_move'], summary['offset_error_deg_second_move']
-    return '\n'.join([
-        f"| {summary['cases']} cases, tolerance {summary['tolerance_um']:g} um, "
-        f"{summary['steering']} steering | paper's rule "
-        f'| model-based |',
-        '|---|---|---|',
-        f"| reached | {paper['reached_percent']:.0f} % | {model['reached_percent']:.0f} % |",
-        f"| final deviation <= tolerance | {paper['within_tolerance_percent']:.0f} % | "
-        f"{model['within_tolerance_percent']:.0f} % |",
-        f"| periods: median (max) | {paper['median_periods']:g} ({paper['max_periods']}) | "
-        f"{model['median_periods']:g} ({model['max_periods']}) |",
-        f"| final deviation: median (max) | {paper['median_deviation_um']:.3f} um "
-        f"({paper['max_deviation_um']:.3f} um) | {model['median_deviation_um']:.3f} um "
-        f"({model['max_deviation_um']:.3f} um) |",
-        f"| simulated time: median | {paper['median_sim_time_s']:.1f} s | "
-        f"{model['median_sim_time_s']:.1f} s |",
-        f"| no worse than the paper's rule on the same case | - | "
-        f"{summary['model_not_worse_percent']:.0f} % |",
-        f"| cases with a fall-back to the paper's rule | - | "
-        f"{summary['model_cases_with_fallback']} |",
-        f"| xi2, xi3 error after the first (long) move: median, max | - | "
-        f"{first['median']:.3f}, {first['max']:.3f} deg ({first['within_0.1_deg_percent']:.0f}"
-        f' % within 0.1 deg) |',
-        f"| xi2, xi3 error after the second move: median, max | - | "
-        f"{second['median']:.4f}, {second['max']:.4f} deg "
-        f"({second['within_0.1_deg_percent']:.0f} % within 0.1 deg) |",
-        *([f"| backlash error after the last move: median, max | - | "
-           f"{summary['backlash_error_deg_last']['median']:.3f}, "
-           f"{summary['backlash_error_deg_last']['max']:.3f} deg |"]
-          if 'backlash_error_deg_last' in summary else []),
-        f"| wall time per plan: median, max | - | {summary['plan_wall_ms']['median']:.1f}, "
-        f"{summary['plan_wall_ms']['max']:.1f} ms |",
-        f"| wall time per refit (after each stop): median, max | - | "
-        f"{summary['refit_wall_ms']['median']:.1f}, {summary['refit_wall_ms']['max']:.1f} ms |",
-        ''])
+
+    def each(template: str) -> str:
+        """A row's cells, one per mode: ``template`` filled from the mode's summary."""
+        return ' | '.join(template.format(**summary[mode]) for mode in MODES)
+
+    def model_only(text: str) -> str:
+        return f'- | {text} | -'
+
+    rows = [
+        (f"{summary['cases']} cases, tolerance {summary['tolerance_um']:g} um, "
+         f"{summary['steering']} steering", ' | '.join(MODES.values())),
+        ('---', '---|---|---'),
+        ('reached', each('{reached_percent:.0f} %')),
+        ('final deviation <= tolerance', each('{within_tolerance_percent:.0f} %')),
+        ('periods (servo: moves): median (max)', each('{median_periods:g} ({max_periods})')),
+        ('stops: max', f"- | - | {summary['servo']['max_stops']}"),
+        ('final deviation: median (max)',
+         each('{median_deviation_um:.3f} um ({max_deviation_um:.3f} um)')),
+        ('simulated time: median (worst)',
+         each('{median_sim_time_s:.2f} s ({max_sim_time_s:.2f} s)')),
+        ("model-based no worse than the paper's rule on the same case",
+         model_only(f"{summary['model_not_worse_percent']:.0f} %")),
+        ("cases with a fall-back to the paper's rule",
+         model_only(str(summary['model_cases_with_fallback']))),
+        ('xi2, xi3 error after the first (long) move: median, max',
+         model_only(f"{first['median']:.3f}, {first['max']:.3f} deg "
+                    f"({first['within_0.1_deg_percent']:.0f} % within 0.1 deg)")),
+        ('xi2, xi3 error after the second move: median, max',
+         model_only(f"{second['median']:.4f}, {second['max']:.4f} deg "
+                    f"({second['within_0.1_deg_percent']:.0f} % within 0.1 deg)")),
+    ]
+    backlash = summary.get('backlash_error_deg_last')
+    if backlash:
+        rows.append(('backlash error after the last move: median, max',
+                     model_only(f"{backlash['median']:.3f}, {backlash['max']:.3f} deg")))
+    rows += [
+        ('wall time per plan: median, max',
+         model_only(f"{summary['plan_wall_ms']['median']:.1f}, "
+                    f"{summary['plan_wall_ms']['max']:.1f} ms")),
+        ('wall time per refit (after each stop): median, max',
+         model_only(f"{summary['refit_wall_ms']['median']:.1f}, "
+                    f"{summary['refit_wall_ms']['max']:.1f} ms")),
+    ]
+    return '\n'.join(f'| {label} | {cells} |' for label, cells in rows) + '\n'
 
 
 def figure(path: Path, rows: list[dict], tolerance_um: float) -> None:
@@ -244,8 +267,8 @@ def figure(path: Path, rows: list[dict], tolerance_um: float) -> None:
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
     bins = np.arange(0.5, max(row['paper_periods'] for row in rows) + 1.5)
-    for mode, colour in (('paper', 'tab:orange'), ('model', 'tab:blue')):
-        label = "paper's rule" if mode == 'paper' else 'model-based'
+    for mode, colour in zip(MODES, ('tab:orange', 'tab:blue', 'tab:green'), strict=True):
+        label = MODES[mode]
         axes[0].hist([row[f'{mode}_periods'] for row in rows], bins=bins, color=colour,
                      alpha=0.7, label=label)
         axes[1].hist([row[f'{mode}_deviation_um'] for row in rows],
@@ -264,8 +287,8 @@ def figure(path: Path, rows: list[dict], tolerance_um: float) -> None:
     for axis in axes:
         axis.grid(True, alpha=0.3)
         axis.legend()
-    fig.suptitle(f"{len(rows)} seeded cases: the paper's rule against the model-based "
-                 'controller (in-process twin)')
+    fig.suptitle(f"{len(rows)} seeded cases: the paper's rule, the model-based mode and the "
+                 'servo (in-process twin)')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
