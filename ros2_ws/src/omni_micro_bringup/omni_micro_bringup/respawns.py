@@ -7,17 +7,13 @@ from __future__ import annotations
 import time
 from typing import TYPE_CHECKING, ClassVar
 
-from nav_msgs.msg import Odometry
-
 from omni_micro_bringup.composition import READS_FROM_ROBOT
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.supervisor import Supervisor
-from omni_micro_common.qos import DATA_QOS
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
     GOAL_TOPIC,
-    ODOM_TOPIC,
 )
 
 if TYPE_CHECKING:
@@ -131,15 +127,9 @@ class Respawns:
         (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
         clock again levels every node at the time it stands at and looks at the readers anew.
         """
-        odometry = None if self.monitor._following else self.monitor.node.create_subscription(
-            Odometry, ODOM_TOPIC, self.monitor._on_odometry, DATA_QOS)
-        try:
-            self.monitor.set_paused(graph, False)
-            self._wait_for_time_to_move(graph, restarted, stall_s)
-        finally:
-            if odometry is not None:
-                # A reader per tick: only while needed.
-                self.monitor.node.destroy_subscription(odometry)
+        # Time is read from the monitor's own odometry reader (one tick in five at least).
+        self.monitor.set_paused(graph, False)
+        self._wait_for_time_to_move(graph, restarted, stall_s)
 
     def _wait_for_time_to_move(self, graph: Supervisor, restarted: list[str],
                                stall_s: float) -> None:
