@@ -165,12 +165,14 @@ def _observation(capture: Capture | MotionCapture) -> Observation:
 def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
               limits: MotorLimits | None = None, config: ServoConfig | None = None,
               rig: CameraRig = DEFAULT_RIG, timings: dict[str, CameraTiming] | None = None,
-              seed: int = 0, start: RobotState | None = None,
+              rule: CaptureRule | None = None, seed: int = 0, start: RobotState | None = None,
               period_s: float = DEFAULT_PERIOD_S, max_sim_time_s: float = 120.0,
               model_robot: RobotParameters | None = None) -> ServoResult:
     """Drive the robot to ``goal_m`` with the servo mode (:mod:`omni_micro_control.servo`):
     rolling, corrected from the captures in motion, a stop at the end to confirm. ``robot`` is
-    the true robot; the servo knows ``model_robot`` (the nominal robot by default).
+    the true robot; the servo knows ``model_robot`` (the nominal robot by default). ``timings``:
+    each camera's in motion (:class:`omni_micro_vision.motion_capture.CameraTiming`, by name);
+    ``rule``: when the still robot's captures come.
 
     Raises
     ------
@@ -179,7 +181,7 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     """
     limits = limits or MotorLimits()
     grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
-    still = StationaryCamera(rig, seed=seed)
+    still = StationaryCamera(rig, rule, seed)
     moving = MovingCamera(rig, timings or {name: CameraTiming() for name in ('macro', 'micro')},
                           seed)
     servo = ServoController(config or ServoConfig(), limits, model_robot or RobotParameters())

@@ -11,10 +11,11 @@ from dataclasses import dataclass
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import STEERING_PRESETS, RobotParameters
-from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.camera import DEFAULT_RIG, CaptureRule
+from omni_micro_vision.motion_capture import CameraTiming
 
 SCENARIOS = ('closed_loop', 'open_loop')
-MODES = ('paper', 'model')
+MODES = ('paper', 'model', 'servo')
 CLOSED_LOOP = 'closed_loop'
 
 
@@ -37,6 +38,7 @@ _ROBOT = RobotParameters()
 _FEEDBACK = FeedbackConfig()
 _MACRO, _MICRO = DEFAULT_RIG.macro, DEFAULT_RIG.micro
 _REALISTIC = STEERING_PRESETS['realistic']
+_TIMING = CameraTiming()
 _MM, _UM = 1e3, 1e6
 
 # The inputs a study can fix, sweep or draw. Ranges are the ones the physics, camera and
@@ -80,6 +82,17 @@ PARAMETERS: dict[str, Parameter] = {
                                 20.0, (CLOSED_LOOP,)),
     'micro_noise_px': Parameter(_MICRO.noise_px, 'px', "micro tracker's noise per mark", 0.0,
                                 20.0, (CLOSED_LOOP,)),
+    # when the cameras capture (closed loop): the frame rate of every capture; exposure, delay
+    # and jitter of the captures in motion, which only the servo uses
+    'frame_rate_hz': Parameter(CaptureRule.frame_rate_hz, 'Hz', "both cameras' frame rate",
+                               1.0, 1000.0, (CLOSED_LOOP,)),
+    'exposure_ms': Parameter(_TIMING.exposure_s * 1e3, 'ms', 'exposure of a capture in motion '
+                             '(servo)', 0.0, 1000.0, (CLOSED_LOOP,)),
+    'latency_ms': Parameter(_TIMING.delay_s * 1e3, 'ms', 'from the end of an exposure to its '
+                            'capture reaching the controller (servo)', 0.0, 10_000.0,
+                            (CLOSED_LOOP,)),
+    'jitter_ms': Parameter(_TIMING.jitter_s * 1e3, 'ms', 'up to this much more latency, drawn '
+                           'per frame (servo)', 0.0, 10_000.0, (CLOSED_LOOP,)),
     # the controller (section 4.1, closed loop)
     'timer1_far_s': Parameter(_FEEDBACK.far_period_s, 's', 'timer1 beyond the comparator '
                               'distance', 0.005, 10.0, (CLOSED_LOOP,)),

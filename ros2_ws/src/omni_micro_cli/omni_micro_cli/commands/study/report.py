@@ -13,12 +13,19 @@ import numpy as np
 from omni_micro_cli.commands.study.inputs import CLOSED_LOOP, PARAMETERS
 from omni_micro_cli.commands.study.spec import Study
 
-MODE_LABELS = {'paper': "paper's rule", 'model': 'model-based', 'open_loop': 'open loop'}
-MODE_COLOURS = {'paper': 'tab:orange', 'model': 'tab:blue', 'open_loop': 'tab:green'}
+MODE_LABELS = {'paper': "paper's rule", 'model': 'model-based', 'servo': 'servo',
+               'open_loop': 'open loop'}
+MODE_COLOURS = {'paper': 'tab:orange', 'model': 'tab:blue', 'servo': 'tab:red',
+                'open_loop': 'tab:green'}
 
 
 def plotted_metrics(study: Study) -> list[str]:
-    return ['deviation_um', 'periods'] if study.scenario == CLOSED_LOOP else ['drift_um']
+    """What the summary and the figure show: the loop's accuracy and effort, and its time when
+    the study asks for it; an open-loop move's drift."""
+    if study.scenario != CLOSED_LOOP:
+        return ['drift_um']
+    return ['deviation_um', 'periods', *(['sim_time_s'] if 'sim_time_s' in study.metrics
+                                        else [])]
 
 
 def _values(rows: list[dict[str, Any]], column: str) -> np.ndarray:

@@ -10,14 +10,16 @@ import math
 import time
 from typing import Any
 
-from omni_micro_cli.twin import run_closed_loop
+from omni_micro_cli.twin import ClosedLoopResult, ServoResult, run_closed_loop, run_servo
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
+from omni_micro_control.servo import ServoConfig
 from omni_micro_sim import paper
 from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters, SteeringParameters, steering_preset
 from omni_micro_sim.state import RobotState
-from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig
+from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, CaptureRule
+from omni_micro_vision.motion_capture import CameraTiming
 
 # Failed runs are rows too (a study keeps going): their outcome says so, the error says why.
 FAILED = 'failed'
@@ -75,17 +77,35 @@ def _pose(state: RobotState) -> dict[str, float]:
             'final_heading_deg': math.degrees(state.phi_rad)}
 
 
+def timing_of(row: dict[str, Any]) -> CameraTiming:
+    return CameraTiming(frame_rate_hz=row['frame_rate_hz'], exposure_s=row['exposure_ms'] * 1e-3,
+                        delay_s=row['latency_ms'] * 1e-3, jitter_s=row['jitter_ms'] * 1e-3)
+
+
 def closed_loop(row: dict[str, Any]) -> dict[str, Any]:
-    result = run_closed_loop((row['goal_x_mm'] * 1e-3, row['goal_y_mm'] * 1e-3),
-                             robot=robot_of(row), config=config_of(row), rig=rig_of(row),
-                             seed=int(row['seed']), start=start_of(row),
-                             # The model knows the steering's form, not this robot's values.
-                             model_robot=RobotParameters(
-                                 steering=steering_preset(row.get('steering', 'ideal'))))
+    goal = (row['goal_x_mm'] * 1e-3, row['goal_y_mm'] * 1e-3)
+    # The controllers know the steering's form, not this robot's values.
+    known = RobotParameters(steering=steering_preset(row.get('steering', 'ideal')))
+    rule = CaptureRule(frame_rate_hz=row['frame_rate_hz'])
+    result: ClosedLoopResult
+    if row['mode'] == 'servo':
+        timing = timing_of(row)
+        result = run_servo(goal, robot=robot_of(row), rig=rig_of(row),
+                           config=ServoConfig(tolerance_m=row['tolerance_um'] * 1e-6,
+                                              max_moves=int(row['max_periods'])),
+                           timings={'macro': timing, 'micro': timing}, rule=rule,
+                           seed=int(row['seed']), start=start_of(row), model_robot=known)
+    else:
+        result = run_closed_loop(goal, robot=robot_of(row), config=config_of(row),
+                                 rig=rig_of(row), rule=rule, seed=int(row['seed']),
+                                 start=start_of(row), model_robot=known)
     metrics: dict[str, Any] = {
         'outcome': result.outcome.value, 'deviation_um': result.deviation_m * 1e6,
         'periods': result.periods, 'sim_time_s': result.sim_time_s,
         **_pose(result.final_state)}
+    if isinstance(result, ServoResult):
+        metrics['xi2_identified_deg'] = math.degrees(result.offsets_rad[0])
+        metrics['xi3_identified_deg'] = math.degrees(result.offsets_rad[1])
     if isinstance(result.planner, ModelBasedPlanner) and result.planner.log.estimates:
         last = result.planner.log.estimates[-1]
         metrics['xi2_identified_deg'] = math.degrees(last['xi2'])
