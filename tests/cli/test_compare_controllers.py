@@ -50,7 +50,7 @@ def test_with_realistic_steering_each_robot_has_its_own_backlash_and_both_modes_
         assert row['model_periods'] <= row['paper_periods']
         assert abs(row['backlash_error_deg_last']) < 0.5   # learnt on the way
         # A steering mechanism lets the servo steer only from rest (docs/control.md): it
-        # still ends in the micro field, in its few moves.
-        assert row['servo_outcome'] in ('reached', 'gave_up') and row['servo_periods'] <= 4
-        assert row['servo_deviation_um'] < 100.0
+        # reaches in more moves than with the paper's steering.
+        assert row['servo_outcome'] == 'reached' and row['servo_deviation_um'] <= 0.5
+        assert 1 < row['servo_periods'] <= 10
     assert 'backlash error after the last move' in done.stdout

@@ -220,10 +220,14 @@ def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_i
     monitor.parameters.call_async = first_answer_lost   # type: ignore[method-assign]
     try:
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
+        # Returns once an answer says the clock runs: it raises if none ever came.
         monitor.set_paused(_NoDeaths(tmp_path), False, resend_s=0.5)
     finally:
         monitor.close()
-    assert len(calls) == 2
+    # The lost one, then as many as it takes: on a busy machine an answer can take longer than
+    # the 0.5 s between two requests, and the request goes again (the orchestrator's design;
+    # the count is the machine's, not the behaviour's).
+    assert len(calls) >= 2
 
 
 # -- bad input at run time ---------------------------------------------------------------------

@@ -40,10 +40,11 @@ from omni_micro_control.feedback import Outcome
 from omni_micro_control.observations import Observation, mean_observation
 from omni_micro_control.slip_filter import FilterConfig, SlipFilter
 from omni_micro_sim.errors import SimulationError
-from omni_micro_sim.open_loop import run_to_rest, steering_motion
+from omni_micro_sim.open_loop import run_to_rest
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.state import RobotState
+from omni_micro_sim.steering import plan_steering
 
 # The smallest change of a wheel speed (rad/s) that needs a knot of its own.
 _SPEED_EPS = 1e-9
@@ -67,7 +68,7 @@ class ServoConfig:
     command_lead_s: float = 0.02
     settle_wait_s: float = 0.1
     captures_per_stop: int = 5
-    max_moves: int = 4
+    max_moves: int = 10
     shooting_iterations: int = 4
     shooting_tolerance_m: float = 1.0e-9
     filter: FilterConfig = field(default_factory=FilterConfig)
@@ -289,10 +290,23 @@ class ServoController:
         aim = math.remainder(math.atan2(self.goal_m[1] - mean.y_m, self.goal_m[0] - mean.x_m)
                              - mean.phi_rad, 2.0 * math.pi)
         distance = math.hypot(self.goal_m[1] - mean.y_m, self.goal_m[0] - mean.x_m)
-        steering, profile = self._shoot(state, 0.0, aim, distance / self.robot.wheel_radius_m,
-                                        keep_steering=False, from_rest=True)
+        wheels, profile = self._shoot(state, 0.0, aim, distance / self.robot.wheel_radius_m,
+                                      keep_steering=False, from_rest=True)
         self._last_replan_s = mean.stamp_s
-        return self._send(ServoCommand(start, steering, profile))
+        return self._send(ServoCommand(start, self._gear_target(wheels), profile))
+
+    def _gear_target(self, wheels_rad: float) -> float:
+        """The angle to command so that the wheels end at ``wheels_rad``: with a gear's play
+        the wheels trail the gear by half the play (as the model has it) on the side it came
+        from; a change smaller than a motor step is none."""
+        steering = self.robot.steering
+        assert self.filter is not None
+        if steering.instantaneous:
+            return wheels_rad
+        now = self.filter.wheels_steering_rad
+        if abs(wheels_rad - now) < max(steering.step_rad, 1e-12):
+            return self._steering_rad
+        return wheels_rad + math.copysign(0.5 * steering.backlash_rad, wheels_rad - now)
 
     def _send(self, command: ServoCommand) -> ServoCommand:
         assert self.filter is not None
@@ -302,25 +316,31 @@ class ServoController:
         return command
 
     def _shoot(self, state: RobotState, speed: float, steering: float, rotation: float,
-               keep_steering: bool, from_rest: bool = False, wheels_rad: float | None = None
+               keep_steering: bool, wheels_rad: float | None = None, from_rest: bool = False
                ) -> tuple[float, WheelSpeedProfile]:
-        """The steering and the wheels' rotation from ``state`` (wheels at ``speed``) whose
-        predicted stop is the goal; with ``keep_steering`` only the rotation, so that the stop
-        lies as far along the course as the goal (the wheels where the model has them,
-        ``wheels_rad``: a gear's play leaves them off the commanded angle)."""
+        """The wheels' angle and rotation from ``state`` (wheels at ``speed``) whose predicted
+        stop is the goal; with ``keep_steering`` only the rotation, so that the stop lies as far
+        along the course as the goal (the wheels where the model has them, ``wheels_rad``: a
+        gear's play leaves them off the commanded angle). From rest with a steering mechanism
+        the prediction steers first, from where the model has gear and wheels to the gear
+        target that leaves the wheels at the angle (:meth:`_gear_target`): the chassis turns
+        while they steer."""
         assert self.goal_m is not None and self.filter is not None
         robot = self.filter.robot_estimate
         crawl_rad = self.config.crawl_m / self.robot.wheel_radius_m
         goal = np.array(self.goal_m)
         steers = from_rest and not robot.steering.instantaneous
-        # A steering mechanism turns in steps: a smaller difference would change nothing.
-        steering_step = max(_STEERING_STEP_RAD, 2.0 * robot.steering.step_rad)
+        gear, wheels_now = self.filter.gear_rad, self.filter.wheels_steering_rad
+        # A motor turns in steps: a smaller difference of angle would change nothing.
+        steering_step = max(_STEERING_STEP_RAD, 2.0 * robot.steering.step_rad) if steers \
+            else _STEERING_STEP_RAD
 
         def stop(angle: float, turn: float) -> np.ndarray:
             profile = profile_to(speed, turn, self.limits, self.config.crawl_speed_rad_s,
                                  crawl_rad)
-            motion = steering_motion(robot, angle, self._steering_rad) if steers else None
             rolling_at = wheels_rad if keep_steering and wheels_rad is not None else angle
+            motion = (plan_steering(robot.steering, gear, wheels_now, self._gear_target(angle))
+                      if steers else None)
             final, _ = run_to_rest(robot, rolling_at, profile, state, motion=motion)
             return np.array([final.x_m, final.y_m])
 

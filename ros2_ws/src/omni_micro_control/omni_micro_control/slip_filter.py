@@ -33,6 +33,9 @@ from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.simulator import SlipSimulator
 from omni_micro_sim.state import RobotState
 
+# The most the filter believes of an offset or of the steering's play (10 deg).
+_PARAMETER_LIMIT_RAD = math.radians(10.0)
+
 
 @dataclass(frozen=True)
 class FilterConfig:
@@ -134,6 +137,9 @@ class SlipFilter:
         correction = gain @ innovation
         self.covariance = (np.eye(6) - gain @ np.eye(3, 6)) @ covariance
         self.mean = np.concatenate([predicted, self.mean[3:]]) + correction
+        # A linearisation far from the truth can throw the parameters off: keep them where a
+        # robot can be (and the slip core accepts them) until the captures pull them back.
+        self.mean[3:] = np.clip(self.mean[3:], -_PARAMETER_LIMIT_RAD, _PARAMETER_LIMIT_RAD)
         self._mean_sim.move_by(*correction[0:3])
         if np.any(correction[3:] != 0.0):
             self._mean_sim = self._mean_sim.with_robot(self._robot_of(self.mean))
@@ -158,9 +164,17 @@ class SlipFilter:
             else 0.0
         self.time_s = start.stamp_s
         self._commands = []
-        state = RobotState(x_m=start.x_m, y_m=start.y_m, phi_rad=start.phi_rad)
-        self._mean_sim = SlipSimulator(self._robot_of(self.mean), state,
-                                       steering_rad=steering_rad)
+        if self.updates == 0:
+            state = RobotState(x_m=start.x_m, y_m=start.y_m, phi_rad=start.phi_rad)
+            self._mean_sim = SlipSimulator(self._robot_of(self.mean), state,
+                                           steering_rad=steering_rad)
+        else:
+            # The same robot at rest, where the capture has it: its gear and wheels stay where
+            # its commands left them (a play between them included).
+            self._mean_sim = self._mean_sim.with_robot(self._robot_of(self.mean))
+            here = self._mean_sim.state
+            self._mean_sim.move_by(start.x_m - here.x_m, start.y_m - here.y_m,
+                                   math.remainder(start.phi_rad - here.phi_rad, 2.0 * math.pi))
         self._restart_sensitivities()
 
     # -- what it knows -----------------------------------------------------------------------
@@ -183,6 +197,11 @@ class SlipFilter:
         """Where the model has the wheels' steering now (a gear's play leaves them off the
         commanded angle)."""
         return self._mean_sim.steering_rad
+
+    @property
+    def gear_rad(self) -> float:
+        """Where the model has the steering gear now."""
+        return self._mean_sim.gear_rad
 
     @property
     def pose_sigma_m(self) -> float:

@@ -115,6 +115,12 @@ class SlipSimulator:
         return self._motion.wheel_at(self.move_time_s)[0]
 
     @property
+    def gear_rad(self) -> float:
+        """The steering gear's angle now, as wheel angle (the wheels' own with exact steering;
+        with a play, up to half of it away)."""
+        return self._motion.gear_at(self.move_time_s)[0]
+
+    @property
     def steering_rate_rad_s(self) -> float:
         return self._motion.wheel_at(self.move_time_s)[1]
 

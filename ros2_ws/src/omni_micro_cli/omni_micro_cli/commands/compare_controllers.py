@@ -227,7 +227,6 @@ def table(summary: dict) -> str:
     rows = [
         (f"{summary['cases']} cases, tolerance {summary['tolerance_um']:g} um, "
          f"{summary['steering']} steering", ' | '.join(MODES.values())),
-        ('---', '---|---|---'),
         ('reached', each('{reached_percent:.0f} %')),
         ('final deviation <= tolerance', each('{within_tolerance_percent:.0f} %')),
         ('periods (servo: moves): median (max)', each('{median_periods:g} ({max_periods})')),
@@ -259,7 +258,9 @@ def table(summary: dict) -> str:
          model_only(f"{summary['refit_wall_ms']['median']:.1f}, "
                     f"{summary['refit_wall_ms']['max']:.1f} ms")),
     ]
-    return '\n'.join(f'| {label} | {cells} |' for label, cells in rows) + '\n'
+    lines = [f'| {label} | {cells} |' for label, cells in rows]
+    lines.insert(1, '|---|---|---|---|')
+    return '\n'.join(lines) + '\n'
 
 
 def figure(path: Path, rows: list[dict], tolerance_um: float) -> None:
