@@ -27,7 +27,6 @@ import numpy as np
 
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.observations import Observation
-from omni_micro_sim.open_loop import run_to_rest
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.simulator import SlipSimulator
@@ -72,7 +71,8 @@ def _with_offsets(robot: RobotParameters, bias: float, xi2: float,
 
 class SlipFilter:
     """Start it where the robot stands still (a stop's averaged capture), tell it every command
-    as it is sent and every capture as it comes; ask it where the robot will stop."""
+    as it is sent and every capture as it comes; ask it where the robot is at a later time, and
+    how it is built."""
 
     def __init__(self, robot: RobotParameters, start: Observation, steering_rad: float,
                  config: FilterConfig | None = None) -> None:
@@ -149,7 +149,8 @@ class SlipFilter:
 
     def restart(self, start: Observation, steering_rad: float) -> None:
         """The robot at rest (a stop's averaged capture): the pose from the capture, the offsets
-        as learnt so far."""
+        as learnt so far; ``steering_rad``, where gear and wheels stand, counts only before the
+        first capture (then the model's own gear and wheels are where its commands left them)."""
         pose_sigma = (np.array([start.uncertainty.x_sigma_m, start.uncertainty.y_sigma_m,
                                 start.uncertainty.heading_sigma_rad])
                       if start.uncertainty is not None else np.full(3, 1e-9))
@@ -203,25 +204,12 @@ class SlipFilter:
         """Where the model has the steering gear now."""
         return self._mean_sim.gear_rad
 
-    @property
-    def pose_sigma_m(self) -> float:
-        """The larger position standard deviation now."""
-        return float(math.sqrt(max(self.covariance[0, 0], self.covariance[1, 1])))
-
     def state_at(self, time_s: float) -> RobotState:
         """Where the model has the robot at ``time_s`` (not before the filter's time), through
         the commands sent so far."""
         ahead = self._mean_sim.with_robot(self._mean_sim.params)
         self._run(ahead, self.time_s, time_s)
         return ahead.state
-
-    def stop_of(self, start_s: float, steering_rad: float,
-                profile: WheelSpeedProfile) -> RobotState:
-        """Where the robot comes to rest if ``profile`` replaces the running command at
-        ``start_s`` (the steering acting at once: the paper's exact steering, or an unchanged
-        angle)."""
-        return run_to_rest(self._mean_sim.params, steering_rad, profile,
-                           self.state_at(start_s))[0]
 
     # -- internals ---------------------------------------------------------------------------
     def _robot_of(self, mean: np.ndarray) -> RobotParameters:
