@@ -37,7 +37,7 @@ from omni_micro_control.observations import Observation
 from omni_micro_control.servo import ServoCommand, ServoConfig, ServoController, ServoFinished
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
-from omni_micro_sim.profile import move_profile
+from omni_micro_sim.profile import WheelSpeedProfile, move_profile
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator
 from omni_micro_sim.wheel_trajectory import (
@@ -66,6 +66,25 @@ class ClosedLoopResult:
     def deviation_m(self) -> float:
         return math.hypot(self.final_state.x_m - self.goal_m[0],
                           self.final_state.y_m - self.goal_m[1])
+
+
+def _observation(capture: Capture | MotionCapture) -> Observation:
+    """A capture as the controller node reads it from its message (the uncertainty crosses a
+    PoseWithCovarianceStamped: variances)."""
+    return Observation(through_stamp(capture.stamp_s), capture.x_m, capture.y_m,
+                       quaternion_to_yaw(*yaw_to_quaternion(capture.phi_rad)), capture.camera,
+                       CaptureUncertainty.from_covariance(capture.uncertainty.covariance()))
+
+
+def _schedule(grid: GridSimulator, steering_rad: float, profile: WheelSpeedProfile,
+              start_s: float, now_s: float, limits: MotorLimits) -> None:
+    """A command as the dynamics node receives it: it crosses a JointTrajectory, so its knot
+    times become nanosecond stamps."""
+    points = [TrajectoryPoint(through_stamp(point.time_from_start_s), point.positions,
+                              point.velocities)
+              for point in points_from_profile(steering_rad, profile)]
+    grid.schedule(command_from_points(JOINT_NAMES, points, through_stamp(start_s), now_s,
+                                      limits))
 
 
 def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
@@ -113,12 +132,7 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                                     math.hypot(forward, lateral), state.omega_rad_s)
         for event in events:
             if isinstance(event, Capture):
-                observation = Observation(
-                    through_stamp(event.stamp_s), event.x_m, event.y_m,
-                    quaternion_to_yaw(*yaw_to_quaternion(event.phi_rad)), event.camera,
-                    # The uncertainty crosses a PoseWithCovarianceStamped: variances.
-                    CaptureUncertainty.from_covariance(event.uncertainty.covariance()))
-                decisions.append(controller.on_capture(observation))
+                decisions.append(controller.on_capture(_observation(event)))
             else:
                 decisions.append(controller.on_out_of_field(through_stamp(event.stamp_s)))
         for decision in decisions:
@@ -127,13 +141,7 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                 moves.append(decision)
                 profile = move_profile(decision.duration_s, limits)
                 watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-                # The command crosses a JointTrajectory: knot times become nanosecond stamps.
-                points = [TrajectoryPoint(through_stamp(point.time_from_start_s),
-                                          point.positions, point.velocities)
-                          for point in points_from_profile(decision.steering_rad, profile)]
-                grid.schedule(command_from_points(JOINT_NAMES, points,
-                                                  through_stamp(decision.start_s), stamp,
-                                                  limits))
+                _schedule(grid, decision.steering_rad, profile, decision.start_s, stamp, limits)
             elif isinstance(decision, Finished):
                 finished = decision
                 if decision.observation is not None:
@@ -155,11 +163,6 @@ class ServoResult(ClosedLoopResult):
     offsets_rad: tuple[float, float] = (0.0, 0.0)
 
 
-def _observation(capture: Capture | MotionCapture) -> Observation:
-    """A capture as the controller node reads it from its message."""
-    return Observation(through_stamp(capture.stamp_s), capture.x_m, capture.y_m,
-                       quaternion_to_yaw(*yaw_to_quaternion(capture.phi_rad)), capture.camera,
-                       CaptureUncertainty.from_covariance(capture.uncertainty.covariance()))
 
 
 def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
@@ -187,12 +190,7 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     servo = ServoController(config or ServoConfig(), limits, model_robot or RobotParameters())
 
     def schedule(command: ServoCommand, now_s: float) -> None:
-        # The command crosses a JointTrajectory: knot times become nanosecond stamps.
-        points = [TrajectoryPoint(through_stamp(point.time_from_start_s), point.positions,
-                                  point.velocities)
-                  for point in points_from_profile(command.steering_rad, command.profile)]
-        grid.schedule(command_from_points(JOINT_NAMES, points, through_stamp(command.start_s),
-                                          now_s, limits))
+        _schedule(grid, command.steering_rad, command.profile, command.start_s, now_s, limits)
 
     servo.set_goal(goal_m, 0.0)
     route = []
