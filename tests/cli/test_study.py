@@ -294,7 +294,7 @@ BAD_STUDIES = [
      '{distribution: uniform, low: 0, high: 1}}}\n',
      'random.parameters.xi2_deg.seed: missing'),
     ('scenario: closed_loop\nmodes: [paper, fuzzy]\n',
-     "modes: expected a list of distinct controller modes from paper, model, got "
+     "modes: expected a list of distinct controller modes from paper, model, servo, got "
      "['paper', 'fuzzy']"),
     ('scenario: open_loop\nmetrics: [periods]\n',
      'metrics[0]: periods is not measured in a open_loop study'),
@@ -352,7 +352,7 @@ def test_example_prints_the_shipped_example_and_every_shipped_study_parses(capsy
     assert main(['study', '--example']) == 0
     assert capsys.readouterr().out == EXAMPLE.read_text()
     shipped = sorted((Path(__file__).resolve().parents[2] / 'studies').glob('*.yaml'))
-    assert len(shipped) == 3
+    assert len(shipped) == 4
     for path in shipped:
         assert load_study(path).run_count >= 100
 
