@@ -111,7 +111,7 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     headers = ('| result', '| Fig. 11, (0,0)', '| ---')
     rows = [line for line in section.splitlines()
             if line.startswith('| ') and not line.startswith(headers)]
-    assert len(rows) == 17
+    assert len(rows) == 20
     for row in rows:
         assert row in done.stdout, f'README row not printed by demo: {row}'
     runs = json.loads((tmp_path / 'demo' / 'fig11_graph.json').read_text())

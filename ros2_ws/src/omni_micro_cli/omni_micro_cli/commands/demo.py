@@ -33,6 +33,7 @@ from omni_micro_sim import paper
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph import GraphResult
+    from omni_micro_cli.twin import ServoResult
 
 
 OPEN_LOOP_S = paper.FIG11_OPEN_LOOP.duration_s
@@ -46,7 +47,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "node graph: one open-loop move of 7 s, then vision feedback by the "
                     "paper's rule, then by the model-based controller, then by the paper's "
                     "rule on rendered camera images (camera_node + tracker_node), then by the "
-                    "paper's rule on a robot with realistic steering; print the "
+                    "paper's rule on a robot with realistic steering, and by the servo mode "
+                    "in the twin (the loop in one process; the graph has no servo yet); print "
+                    "the "
                     "deviations beside the paper's (13 mm and 0.0124 mm) and write the "
                     "comparison figure, plus the open-loop figures of Figs. 6-8 from the core. "
                     "Exit 0 when every closed loop reached the goal, 1 otherwise, 2 for a bad "
@@ -131,9 +134,21 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
         ''])
 
 
+def servo_table(servo: ServoResult) -> str:
+    """The servo mode on Fig. 11, in the twin (the node graph has no servo mode yet)."""
+    return '\n'.join([
+        '| Fig. 11, (0,0) -> (100,0) mm, servo mode | paper | the twin |',
+        '|---|---|---|',
+        f'| servo, in the twin: deviation | - | {servo.deviation_m * 1e6:.2f} um |',
+        f'| servo, in the twin: moves and stops | - | {servo.periods} and {servo.stops} |',
+        f'| servo, in the twin: simulated time | - | {servo.sim_time_s:.2f} s |',
+        ''])
+
+
 def run(args: argparse.Namespace) -> int:
     from omni_micro_cli import plots
     from omni_micro_cli.commands import figures
+    from omni_micro_cli.twin import run_servo
 
     try:
         check_timing(args)
@@ -168,11 +183,19 @@ def run(args: argparse.Namespace) -> int:
                               steering='realistic')
         _progress(f'  {realistic.outcome}: deviation {realistic.deviation_m * 1e6:.2f} um '
                   f'after {realistic.periods} periods')
-        for name, result in (('closed loop', closed_loop), ('model-based loop', model),
-                             ('loop on images', images),
-                             ('loop with realistic steering', realistic)):
-            if result.outcome != 'reached':
-                raise RunFailed(f'the {name} ended {result.outcome}: {result.reason}')
+        _progress('Fig. 11 by the servo mode, in the twin')
+        servo = run_servo(paper.FIG11_GOAL_M, robot=paper.FIG11_OPEN_LOOP.robot(),
+                          seed=args.seed)
+        _progress(f'  {servo.outcome.value}: deviation {servo.deviation_m * 1e6:.2f} um in '
+                  f'{servo.sim_time_s:.2f} s, {servo.periods} move(s)')
+        for name, outcome, reason in (
+                ('closed loop', closed_loop.outcome, closed_loop.reason),
+                ('model-based loop', model.outcome, model.reason),
+                ('loop on images', images.outcome, images.reason),
+                ('loop with realistic steering', realistic.outcome, realistic.reason),
+                ('servo in the twin', servo.outcome.value, servo.reason)):
+            if outcome != 'reached':
+                raise RunFailed(f'the {name} ended {outcome}: {reason}')
         used = np.array([c[1:3] for c in closed_loop.captures]).reshape(-1, 2)
         plots.closed_loop_comparison(
             scratch / 'fig11_graph_comparison.png',
@@ -182,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
             title='Fig. 11 through the node graph')
         table = comparison_table(open_loop, closed_loop, model, images, realistic)
         (scratch / 'fig11_graph.md').write_text(table)
+        twin_table = servo_table(servo)
+        (scratch / 'fig11_servo_twin.md').write_text(twin_table)
         summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json(),
                      'model': model.as_json(), 'images': images.as_json(),
                      'realistic_steering': realistic.as_json()}
@@ -192,6 +217,7 @@ def run(args: argparse.Namespace) -> int:
         core_table = (scratch / 'comparison.md').read_text()
     print(core_table)
     print(table)
+    print(twin_table)
     if args.record is not None:
         print(f'bags in {args.record}/ (omni-micro analyze {bags["closed_loop"]} --out DIR)')
     print(f'figures in {args.out}/ ({time.perf_counter() - started:.1f} s)')
