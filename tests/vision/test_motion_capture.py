@@ -18,6 +18,7 @@ from omni_micro_vision.motion_capture import (
     MotionCapture,
     MovingCamera,
     along_travel_factor,
+    capture_age_bound_s,
     blur_m,
     dot_radius_m,
     max_trackable_speed_m_s,
@@ -219,3 +220,20 @@ def test_a_capture_is_released_once_time_has_reached_its_delay():
                             for at, capture in released)
     assert all(capture.ready_s == pytest.approx(capture.stamp_s + 0.002 + 0.1)
                for _, capture in released)
+
+
+def test_captures_come_out_in_exposure_order_and_never_older_than_the_bound():
+    # A jitter of three frames would let a later frame overtake an earlier one.
+    jittery = CameraTiming(frame_rate_hz=60.0, delay_s=0.01, jitter_s=0.05)
+    camera = moving_camera(macro=jittery)
+    released = []
+    for sample in constant_velocity(0.0, 1.0, CRUISE_M_S):
+        released += [(sample[0], capture) for capture in camera.on_odometry(*sample)]
+    stamps = [capture.stamp_s for _, capture in released]
+    assert len(stamps) == 59 and stamps == sorted(stamps)
+    ages = [at - capture.stamp_s for at, capture in released]
+    bound = capture_age_bound_s([jittery, CameraTiming()], period_s=0.02)
+    assert bound == pytest.approx(0.002 + 0.01 + 0.05 + 0.02)
+    assert max(ages) <= bound + 1e-9
+    # Some waited for an earlier frame: released after their own ready time's sample.
+    assert any(at - capture.ready_s >= 0.02 - 1e-9 for at, capture in released)

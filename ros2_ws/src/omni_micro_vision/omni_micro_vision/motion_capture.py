@@ -32,6 +32,7 @@ and the micro camera's spread grows five-fold at 1.8. Such frames give no captur
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,6 +93,14 @@ class CameraTiming:
     def first_frame_after(self, time_s: float) -> int:
         """The first frame whose exposure starts at or after ``time_s``."""
         return max(0, math.ceil(time_s * self.frame_rate_hz - 1e-9))
+
+
+def capture_age_bound_s(timings: Iterable[CameraTiming], period_s: float) -> float:
+    """The oldest a capture in motion can be when it is released on a grid of ``period_s``:
+    half an exposure, the delay and the whole jitter, and one period (the first sample at or
+    after it is ready). A capture waiting for an earlier frame's is no older (that one was)."""
+    return max((0.5 * timing.exposure_s + timing.delay_s + timing.jitter_s
+                for timing in timings), default=0.0) + period_s
 
 
 def dot_radius_m(camera: CameraModel) -> float:
@@ -212,9 +221,11 @@ class MovingCamera:
         if last is not None and stamp_s > last[0]:
             for name, timing in self.timings.items():
                 self._expose(name, timing, last, (stamp_s, sample))
-        ready = sorted((c for c in self._pending if c.ready_s <= stamp_s + 1e-9),
-                       key=lambda c: (c.stamp_s, c.camera))
-        self._pending = [c for c in self._pending if c.ready_s > stamp_s + 1e-9]
+        self._pending.sort(key=lambda c: (c.stamp_s, c.camera))
+        # In exposure order: the first not ready holds back every later one.
+        waiting = next((index for index, c in enumerate(self._pending)
+                        if c.ready_s > stamp_s + 1e-9), len(self._pending))
+        ready, self._pending = self._pending[:waiting], self._pending[waiting:]
         return ready
 
     def _expose(self, name: str, timing: CameraTiming, before: tuple[float, np.ndarray],
