@@ -9,6 +9,10 @@ step; this does the same with a bounded lead. Every node that takes part reports
 - ``captures_ns``: the first and last capture stamp it published while doing so (a camera, a
   tracker);
 - ``capture_handled_ns``: the latest capture stamp it has handled (a controller);
+- ``motion_ns`` and ``motion_handled_ns``: the same for the captures of the moving robot, apart
+  from the stationary ones (a camera publishes them later than their stamp, so the two kinds
+  interleave out of stamp order). The robot waits for them only once some node reports
+  ``motion_handled_ns`` (a controller that acts on them: the servo); watchers do not draw them;
 - ``frames_ns``: the first and last image stamp it published (a rendering camera), and
   ``frame_handled_ns``: the latest image stamp up to which it has handled every camera's frame
   (a tracker; a recorder that must keep every frame);
@@ -50,7 +54,8 @@ REPLAY_SYNC_WINDOW = 10
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
-           'frame_handled_ns', 'command_handled_ns')
+           'frame_handled_ns', 'command_handled_ns', 'motion_first_ns', 'motion_last_ns',
+           'motion_handled_ns')
 # What a watcher reports before it has handled any capture or command.
 NOTHING_HANDLED_NS = -1
 
@@ -68,6 +73,8 @@ class Ack:
     frames_ns: tuple[int, int] | None = None
     frame_handled_ns: int | None = None
     command_handled_ns: int | None = None
+    motion_ns: tuple[int, int] | None = None
+    motion_handled_ns: int | None = None
 
     @property
     def watcher(self) -> bool:
@@ -75,11 +82,12 @@ class Ack:
 
     def to_values(self) -> list[tuple[str, str]]:
         values = [] if self.processed_ns is None else [('processed_ns', str(self.processed_ns))]
-        for kind, span in (('capture', self.captures_ns), ('frame', self.frames_ns)):
+        for kind, span in (('capture', self.captures_ns), ('frame', self.frames_ns),
+                           ('motion', self.motion_ns)):
             if span is not None:
                 values += [(f'{kind}_first_ns', str(span[0])), (f'{kind}_last_ns', str(span[1]))]
         for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns',
-                     'command_handled_ns'):
+                     'command_handled_ns', 'motion_handled_ns'):
             value = getattr(self, name)
             if value is not None:
                 values.append((name, str(value)))
@@ -105,7 +113,7 @@ class Ack:
             raise LockstepError(f'lockstep report of {node!r}: a watcher reports '
                                 f'command_handled_ns and capture_handled_ns together')
         spans: dict[str, tuple[int, int] | None] = {}
-        for kind in ('capture', 'frame'):
+        for kind in ('capture', 'frame', 'motion'):
             first, last = fields.get(f'{kind}_first_ns'), fields.get(f'{kind}_last_ns')
             if (first is None) != (last is None):
                 raise LockstepError(f'lockstep report of {node!r}: {kind}_first_ns and '
@@ -114,7 +122,8 @@ class Ack:
         return cls(node, fields.get('processed_ns'), spans['capture'],
                    fields.get('capture_handled_ns'), fields.get('command_ns'),
                    fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'),
-                   fields.get('command_handled_ns'))
+                   fields.get('command_handled_ns'), spans['motion'],
+                   fields.get('motion_handled_ns'))
 
 
 class LockstepGate:
@@ -148,6 +157,8 @@ class LockstepGate:
         self._capture_handled: dict[str, int] = {}
         self._awaited_commands: dict[str, int] = {}
         self._pending_captures: list[tuple[int, int]] = []
+        self._motion_handled: dict[str, int] = {}
+        self._pending_motion: list[tuple[int, int]] = []
         self._frame_handled: dict[str, int] = {}
         self._pending_frames: list[tuple[int, int]] = []
         self._received_commands: deque[int] = deque(maxlen=self.RECEIVED_COMMANDS_KEPT)
@@ -177,6 +188,8 @@ class LockstepGate:
         self._capture_handled.clear()
         self._awaited_commands.clear()
         self._pending_captures.clear()
+        self._motion_handled.clear()
+        self._pending_motion.clear()
         self._frame_handled.clear()
         self._pending_frames.clear()
         self._watched_up_to.clear()
@@ -200,6 +213,12 @@ class LockstepGate:
             self._unwatched_captures.append(ack.captures_ns)
             if not self._watched_up_to:
                 del self._unwatched_captures[:-self.RECEIVED_COMMANDS_KEPT]
+        if ack.motion_ns is not None:
+            self._pending_motion.append(ack.motion_ns)
+            if not self._motion_handled:
+                del self._pending_motion[:-self.RECEIVED_COMMANDS_KEPT]
+        if ack.motion_handled_ns is not None:
+            self._motion_handled[ack.node] = ack.motion_handled_ns
         if ack.watcher:
             assert ack.command_handled_ns is not None
             self._watched_up_to[ack.node] = max(
@@ -250,6 +269,12 @@ class LockstepGate:
                        if last > self._capture_handled[handler]]
             if pending:
                 return f'{handler} to handle the capture at {min(pending)} ns'
+        if self._motion_handled:
+            handler = min(self._motion_handled, key=self._motion_handled.__getitem__)
+            pending = [first for first, last in self._pending_motion
+                       if last > self._motion_handled[handler]]
+            if pending:
+                return f'{handler} to handle the capture in motion at {min(pending)} ns'
         slowest = min(self._processed, key=self._processed.__getitem__, default=None)
         return None if slowest is None else f'{slowest} at {self._processed[slowest]} ns'
 
@@ -278,6 +303,13 @@ class LockstepGate:
             if self._pending_captures:
                 # The move a capture causes starts a lead after it: no further than that.
                 reachable = min(reachable, min(first for first, _ in self._pending_captures)
+                                + self._move_lead_ns)
+        if self._motion_handled:
+            handled = min(self._motion_handled.values())
+            self._pending_motion = [c for c in self._pending_motion if c[1] > handled]
+            if self._pending_motion:
+                # The same for a capture in motion: its correction starts after it.
+                reachable = min(reachable, min(first for first, _ in self._pending_motion)
                                 + self._move_lead_ns)
         if self._watched_up_to:
             watched = min(self._watched_up_to.values())

@@ -13,7 +13,8 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
                        (:mod:`omni_micro_vision.motion_capture`)
   /camera/status       diagnostic_msgs/DiagnosticStatus: which camera sees the robot, or a
                        warning when none does
-  /lockstep            its report after each odometry sample (omni_micro_common.lockstep)
+  /lockstep            its report after each odometry sample (omni_micro_common.lockstep),
+                       with the stamps of the captures and captures in motion it published
 It reads /odom only once its capture writers have matched the readers of the nodes named in
 ``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
 that none of them misses the first captures. The stamp of a capture is its exposure time in
@@ -181,28 +182,29 @@ class VisionNode(Node):
 
     def _on_odometry(self, data: bytes) -> None:
         sec, nanosec, *values = self._odometry.decode(data)
-        published = self._see(int(sec), int(nanosec), values)
+        published, in_motion = self._see(int(sec), int(nanosec), values)
         # Last: everything this sample caused is out before the robot may move on.
         self.lockstep.report(Ack(
             self.get_name(), int(sec) * 1_000_000_000 + int(nanosec),
-            captures_ns=(min(published), max(published)) if published else None))
+            captures_ns=(min(published), max(published)) if published else None,
+            motion_ns=(min(in_motion), max(in_motion)) if in_motion else None))
 
-    def _see(self, sec: int, nanosec: int, values: list[float]) -> list[int]:
+    def _see(self, sec: int, nanosec: int, values: list[float]) -> tuple[list[int], list[int]]:
         """Feed one sample (x, y, qz, qw, vx, vy, wz as ODOMETRY_FIELDS orders them) to the
-        cameras; returns the stamps (ns) of the captures published."""
+        cameras; returns the stamps (ns) of the captures and captures in motion published."""
         if not all(math.isfinite(v) for v in values):
             self.get_logger().error(f'ignored odometry with a non-finite value: {tuple(values)}')
-            return []
+            return [], []
         x, y, qz, qw, vx, vy, wz = values
         phi = quaternion_to_yaw(qz, qw)
         events = self.camera.on_odometry(join_stamp(sec, nanosec), x, y, phi,
                                          math.hypot(vx, vy), wz)
+        in_motion = []
         if self.moving is not None:
             # The twist is in the robot's frame (REP-105): the cameras see it on the platform.
             cos, sin = math.cos(phi), math.sin(phi)
-            for moving in self.moving.on_odometry(join_stamp(sec, nanosec), x, y, phi,
-                                                  cos * vx - sin * vy, sin * vx + cos * vy):
-                self._publish_in_motion(moving)
+            in_motion = [self._publish_in_motion(moving) for moving in self.moving.on_odometry(
+                join_stamp(sec, nanosec), x, y, phi, cos * vx - sin * vy, sin * vx + cos * vy)]
         for event in events:
             if isinstance(event, Capture):
                 self.faults.submit(event)
@@ -213,7 +215,7 @@ class VisionNode(Node):
                     f'robot at ({x * 1e3:.3f}, {y * 1e3:.3f}) mm '
                     f'is outside the macro field: no capture', throttle_duration_sec=5.0)
         return [self._publish_capture(capture) for capture in
-                self.faults.due(join_stamp(sec, nanosec))]
+                self.faults.due(join_stamp(sec, nanosec))], in_motion
 
     def _publish_capture(self, capture: Capture) -> int:
         """Publish one capture; returns its stamp in nanoseconds."""
@@ -227,10 +229,12 @@ class VisionNode(Node):
                              at_s=capture.stamp_s, camera=capture.camera)
         return stamp_ns(msg.header.stamp)
 
-    def _publish_in_motion(self, capture: MotionCapture) -> None:
+    def _publish_in_motion(self, capture: MotionCapture) -> int:
+        """Publish one capture in motion; returns its stamp in nanoseconds."""
         pose = capture_pose(*split_stamp(capture.stamp_s), self.frame_id, capture.x_m,
                             capture.y_m, capture.phi_rad)
         self.in_motion_pubs[capture.camera].publish(with_uncertainty(pose, capture.uncertainty))
+        return stamp_ns(pose.header.stamp)
 
 
 COMPONENT = NodeComponent(VisionNode, config_errors=(CameraConfigError,))
