@@ -104,9 +104,9 @@ def test_with_a_steering_mechanism_it_steers_only_from_rest(monkeypatch):
     replanned = []
     original = ServoController.on_capture_in_motion
 
-    def watched(self, seen, now_s):
+    def watched(self, seen):
         before = self.command.steering_rad if self.command is not None else None
-        command = original(self, seen, now_s)
+        command = original(self, seen)
         if command is not None:
             replanned.append((before, command.steering_rad))
         return command

@@ -11,7 +11,7 @@ graph test checks that. Use it for sweeps, where starting processes would domina
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,7 +34,8 @@ from omni_micro_control.feedback import (
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoCommand, ServoConfig, ServoController, ServoFinished
+from omni_micro_control.servo import ServoCommand, ServoConfig
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile, move_profile
@@ -46,7 +47,12 @@ from omni_micro_sim.wheel_trajectory import (
     points_from_profile,
 )
 from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, Capture, CaptureRule, StationaryCamera
-from omni_micro_vision.motion_capture import CameraTiming, MotionCapture, MovingCamera
+from omni_micro_vision.motion_capture import (
+    CameraTiming,
+    MotionCapture,
+    MovingCamera,
+    capture_age_bound_s,
+)
 
 
 @dataclass
@@ -175,7 +181,8 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     rolling, corrected from the captures in motion, a stop at the end to confirm. ``robot`` is
     the true robot; the servo knows ``model_robot`` (the nominal robot by default). ``timings``:
     each camera's in motion (:class:`omni_micro_vision.motion_capture.CameraTiming`, by name);
-    ``rule``: when the still robot's captures come.
+    ``rule``: when the still robot's captures come. The servo counts on captures in motion as
+    old as these cameras make them (``capture_age_s``), as the graph's bringup sets it.
 
     Raises
     ------
@@ -185,17 +192,19 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     limits = limits or MotorLimits()
     grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
     still = StationaryCamera(rig, rule, seed)
-    moving = MovingCamera(rig, timings or {name: CameraTiming() for name in ('macro', 'micro')},
-                          seed)
-    servo = ServoController(config or ServoConfig(), limits, model_robot or RobotParameters())
+    timings = timings or {name: CameraTiming() for name in ('macro', 'micro')}
+    moving = MovingCamera(rig, timings, seed)
+    config = replace(config or ServoConfig(),
+                     capture_age_s=capture_age_bound_s(timings.values(), period_s),
+                     command_period_s=period_s)
+    session = ServoSession(config, limits, model_robot or RobotParameters())
 
     def schedule(command: ServoCommand, now_s: float) -> None:
         _schedule(grid, command.steering_rad, command.profile, command.start_s, now_s, limits)
 
-    servo.set_goal(goal_m, 0.0)
+    session.set_goal(goal_m, 0.0)
     route = []
-    in_motion = 0
-    finished: ServoFinished | None = None
+    finished: Finished | None = None
     while finished is None:
         if grid.time_s > max_sim_time_s:
             raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
@@ -204,30 +213,26 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
         stamp = through_stamp(sample.time_s)
         route.append((sample.time_s, state.x_m, state.y_m))
         phi = quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad))
-        command = servo.command
-        if (command is not None and not np.any(sample.wheel_speeds_rad_s)
-                and stamp >= command.start_s + command.profile.end_time_s):
-            servo.on_wheels_stopped(stamp)
+        session.on_wheel_state(stamp, tuple(sample.wheel_speeds_rad_s))
         for capture in moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
                                           state.vy_m_s):
-            in_motion += 1
-            replanned = servo.on_capture_in_motion(_observation(capture), stamp)
+            replanned = session.on_capture_in_motion(_observation(capture))
             if replanned is not None:
                 schedule(replanned, stamp)
         forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
         for event in still.on_odometry(stamp, state.x_m, state.y_m, phi,
                                        math.hypot(forward, lateral), state.omega_rad_s):
-            if not isinstance(event, Capture):
-                continue
-            decision = servo.on_capture(_observation(event))
+            decision = (session.on_capture(_observation(event)) if isinstance(event, Capture)
+                        else session.on_out_of_field(through_stamp(event.stamp_s)))
             if isinstance(decision, ServoCommand):
                 schedule(decision, stamp)
-            elif isinstance(decision, ServoFinished):
+            elif isinstance(decision, Finished):
                 finished = decision
                 break
+    servo = session.servo
     learnt = servo.filter.offsets_rad if servo.filter is not None else (0.0, 0.0)
-    return ServoResult(finished.outcome, finished.reason, finished.moves, grid.simulator.state,
-                       grid.time_s, (float(goal_m[0]), float(goal_m[1])),
+    return ServoResult(finished.outcome, finished.reason, finished.periods,
+                       grid.simulator.state, grid.time_s, (float(goal_m[0]), float(goal_m[1])),
                        [finished.observation] if finished.observation else [], np.array(route),
-                       stops=servo.stops, replans=servo.replans, captures_in_motion=in_motion,
-                       offsets_rad=learnt)
+                       stops=servo.stops, replans=servo.replans,
+                       captures_in_motion=session.captures_in_motion, offsets_rad=learnt)

@@ -7,9 +7,14 @@ the move from the captures of the moving robot (:mod:`omni_micro_vision.motion_c
 - **The estimate** is an extended Kalman filter over the slip core
   (:mod:`omni_micro_control.slip_filter`): the pose and the assembly offsets xi2, xi3, the model
   fed the same wheel commands as the robot, every capture taken in at its stamp (mid-exposure).
-- **Latency.** A capture arrives after its stamp. The new command starts ``command_lead_s``
-  after it is handled, and is planned from where the model has the robot then: the estimate at
-  the capture's stamp carried through the commands already sent.
+- **Latency.** A capture arrives after its stamp, at most ``capture_age_s`` after it (the
+  cameras say how much: :func:`omni_micro_vision.motion_capture.capture_age_bound_s`). The new
+  command starts ``capture_age_s + command_lead_s`` after the capture's stamp (on the robot's
+  command grid, ``command_period_s``: the dynamics starts a command on its next tick, and a plan
+  that assumed otherwise misses by what the crawl rolls in a tick), so that when it starts is a
+  function of the capture, never of when its message came; it is planned from where
+  the model has the robot then: the estimate at the capture's stamp carried through the
+  commands already sent.
 - **The plan** shoots through the slip core from that rolling state: the steering angle and the
   wheels' rotation whose predicted stop is the goal (Newton's method, finite differences). The
   wheels go on from the speed they have, at cruise, down to a slow crawl for the last
@@ -35,8 +40,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import Outcome
+from omni_micro_control.feedback import (
+    MODEL_CAPTURES_PER_STOP,
+    FeedbackConfig,
+    Finished,
+    Outcome,
+)
 from omni_micro_control.observations import Observation, mean_observation
 from omni_micro_control.slip_filter import FilterConfig, SlipFilter
 from omni_micro_sim.errors import SimulationError
@@ -45,6 +56,7 @@ from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.steering import plan_steering
+from omni_micro_sim.stepper import DEFAULT_PERIOD_S
 
 # The smallest change of a wheel speed (rad/s) that needs a knot of its own.
 _SPEED_EPS = 1e-9
@@ -58,16 +70,23 @@ _MAX_STEERING_STEP_RAD = 0.1
 
 @dataclass(frozen=True)
 class ServoConfig:
-    """The servo's settings (SI)."""
+    """The servo's settings (SI). The tolerance, the lead, the settling and the captures per
+    stop are the controller's own, shared with the other modes (the same parameters)."""
 
-    tolerance_m: float = 0.5e-6
+    tolerance_m: float = GOAL_TOLERANCE_M
     crawl_speed_rad_s: float = 0.5
     crawl_m: float = 2.0e-4
     freeze_steering_m: float = 1.0e-5
     replan_period_s: float = 0.1
-    command_lead_s: float = 0.02
-    settle_wait_s: float = 0.1
-    captures_per_stop: int = 5
+    command_lead_s: float = FeedbackConfig.command_lead_s
+    # The oldest a capture in motion is when it arrives: the graph's bringup and the twin set it
+    # from the cameras' timings (capture_age_bound_s); this default covers theirs.
+    capture_age_s: float = 0.05
+    # The robot starts a command on its next tick: the dynamics' period (the bringup and the twin
+    # set it from theirs).
+    command_period_s: float = DEFAULT_PERIOD_S
+    settle_wait_s: float = FeedbackConfig.settle_wait_s
+    captures_per_stop: int = MODEL_CAPTURES_PER_STOP
     max_moves: int = 10
     shooting_iterations: int = 4
     shooting_tolerance_m: float = 1.0e-9
@@ -75,11 +94,11 @@ class ServoConfig:
 
     def __post_init__(self) -> None:
         for name in ('tolerance_m', 'crawl_speed_rad_s', 'crawl_m', 'replan_period_s',
-                     'shooting_tolerance_m'):
+                     'shooting_tolerance_m', 'command_period_s'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ControllerConfigError(f'{name} must be a number > 0, got {value!r}')
-        for name in ('freeze_steering_m', 'command_lead_s', 'settle_wait_s'):
+        for name in ('freeze_steering_m', 'command_lead_s', 'capture_age_s', 'settle_wait_s'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ControllerConfigError(f'{name} must be a number >= 0, got {value!r}')
@@ -153,19 +172,13 @@ def profile_to(speed_rad_s: float, rotation_rad: float, limits: MotorLimits,
 
 @dataclass(frozen=True)
 class ServoCommand:
-    """Steer to ``steering_rad`` and run ``profile`` from ``start_s`` (what ran is replaced)."""
+    """Steer to ``steering_rad`` and run ``profile`` from ``start_s`` (what ran is replaced);
+    ``from_rest``: a move from a stop, else a plan made again while rolling."""
 
     start_s: float
     steering_rad: float
     profile: WheelSpeedProfile
-
-
-@dataclass(frozen=True)
-class ServoFinished:
-    outcome: Outcome
-    reason: str
-    moves: int
-    observation: Observation | None
+    from_rest: bool = True
 
 
 class ServoPhase(enum.Enum):
@@ -227,8 +240,9 @@ class ServoController:
             self._settled_at = stamp_s + self.config.settle_wait_s
             self._stop_captures = []
 
-    def on_capture(self, seen: Observation) -> ServoCommand | ServoFinished | None:
-        """A stationary capture: after the stop's settling, average, then confirm or move."""
+    def on_capture(self, seen: Observation) -> ServoCommand | Finished | None:
+        """A stationary capture: after the stop's settling, average, then confirm or move
+        (a Finished's periods are the moves)."""
         if self.phase not in (ServoPhase.SETTLING, ServoPhase.CAPTURING) \
                 or seen.stamp_s < self._settled_at:
             return None
@@ -241,23 +255,24 @@ class ServoController:
         distance = math.hypot(mean.x_m - self.goal_m[0], mean.y_m - self.goal_m[1])
         if distance + mean.radius_95_m <= self.config.tolerance_m:
             self.phase = ServoPhase.DONE
-            return ServoFinished(Outcome.REACHED, f'{distance * 1e6:.3f} um from the goal, '
+            return Finished(Outcome.REACHED, f'{distance * 1e6:.3f} um from the goal, '
                                  f'{mean.radius_95_m * 1e6:.3f} um 95 % radius', self.moves,
                                  mean)
         if self.moves >= self.config.max_moves:
             self.phase = ServoPhase.DONE
-            return ServoFinished(Outcome.GAVE_UP, f'{distance * 1e6:.3f} um from the goal after '
+            return Finished(Outcome.GAVE_UP, f'{distance * 1e6:.3f} um from the goal after '
                                  f'{self.moves} moves', self.moves, mean)
         return self._move_from_rest(mean)
 
-    def on_capture_in_motion(self, seen: Observation, now_s: float) -> ServoCommand | None:
-        """A capture of the rolling robot, handled at ``now_s``: learn, then maybe replan."""
+    def on_capture_in_motion(self, seen: Observation) -> ServoCommand | None:
+        """A capture of the rolling robot: learn, then maybe replan (see the module: latency)."""
         if self.phase is not ServoPhase.ROLLING or self.filter is None or self.command is None:
             return None
         self.filter.update(seen)
-        if now_s - self._last_replan_s < self.config.replan_period_s:
+        if seen.stamp_s - self._last_replan_s < self.config.replan_period_s:
             return None
-        start = now_s + self.config.command_lead_s
+        start = self._on_grid(seen.stamp_s + self.config.capture_age_s
+                              + self.config.command_lead_s)
         speed = self._commanded_speed(start)
         if speed <= _SPEED_EPS:
             return None     # the wheels are stopping: the stop decides
@@ -272,9 +287,9 @@ class ServoController:
                                             wheels_rad=self.filter.wheels_steering_rad)
         except SimulationError:
             return None     # the plan did not settle: the running command goes on
-        self._last_replan_s = now_s
+        self._last_replan_s = seen.stamp_s
         self.replans += 1
-        return self._send(ServoCommand(start, steering, profile))
+        return self._send(ServoCommand(start, steering, profile, from_rest=False))
 
     # -- plans -------------------------------------------------------------------------------
     def _move_from_rest(self, mean: Observation) -> ServoCommand:
@@ -285,7 +300,7 @@ class ServoController:
         else:
             self.filter.restart(mean, self._steering_rad)
         assert self.goal_m is not None
-        start = mean.stamp_s + self.config.command_lead_s
+        start = self._on_grid(mean.stamp_s + self.config.command_lead_s)
         state = RobotState(x_m=mean.x_m, y_m=mean.y_m, phi_rad=mean.phi_rad)
         aim = math.remainder(math.atan2(self.goal_m[1] - mean.y_m, self.goal_m[0] - mean.x_m)
                              - mean.phi_rad, 2.0 * math.pi)
@@ -294,6 +309,12 @@ class ServoController:
                                       keep_steering=False, from_rest=True)
         self._last_replan_s = mean.stamp_s
         return self._send(ServoCommand(start, self._gear_target(wheels), profile))
+
+    def _on_grid(self, time_s: float) -> float:
+        """The first tick of the robot's command grid at or after ``time_s`` (a hair of
+        tolerance, as the dynamics has it, so that k * period lands on tick k)."""
+        period = self.config.command_period_s
+        return math.ceil(time_s / period - 1e-9) * period
 
     def _gear_target(self, wheels_rad: float) -> float:
         """The angle to command so that the wheels end at ``wheels_rad``: with a gear's play

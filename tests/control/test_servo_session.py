@@ -1,0 +1,77 @@
+"""The servo as the controller node and the twin drive it (omni_micro_control.servo_session):
+when a command made while rolling starts, when the wheels' stop counts, and how a goal ends."""
+
+import math
+
+from omni_micro_cli.twin import run_servo
+from omni_micro_common.conventions import CaptureUncertainty
+from omni_micro_control.feedback import REPLACED_REASON, Outcome, Phase
+from omni_micro_control.observations import Observation
+from omni_micro_control.servo import ServoConfig, ServoController
+from omni_micro_control.servo_session import OUT_OF_FIELD_REASON, ServoSession
+from omni_micro_sim.parameters import MotorLimits, RobotParameters
+
+MICRO = CaptureUncertainty(0.07e-6, 0.07e-6, 1e-4)
+
+
+def test_a_plan_made_while_rolling_starts_on_the_grid_after_the_capture_s_age_and_lead(
+        monkeypatch):
+    """Its start is a function of the capture's stamp alone, never of when it was handled."""
+    made = []
+    original = ServoController.on_capture_in_motion
+
+    def watched(self, seen):
+        command = original(self, seen)
+        if command is not None:
+            made.append((seen.stamp_s, command.start_s, self.config))
+        return command
+
+    monkeypatch.setattr(ServoController, 'on_capture_in_motion', watched)
+    run_servo((0.01, 0.0), robot=RobotParameters(), seed=1)
+    assert len(made) > 5
+    for stamp, start, config in made:
+        earliest = stamp + config.capture_age_s + config.command_lead_s
+        ticks = start / config.command_period_s
+        assert earliest - 1e-9 <= start < earliest + config.command_period_s
+        assert abs(ticks - round(ticks)) < 1e-9
+    # The twin took the age from its cameras: half the 4 ms exposure and one 20 ms tick.
+    assert made[0][2].capture_age_s == 0.002 + 0.02
+
+
+def session_at_rest(goal_m=(0.001, 0.0)) -> ServoSession:
+    session = ServoSession(ServoConfig(captures_per_stop=1), MotorLimits(), RobotParameters())
+    session.set_goal(goal_m, 0.0)
+    return session
+
+
+def test_a_goal_rolls_from_its_first_capture_and_its_wheels_stop_only_after_the_command():
+    session = session_at_rest()
+    assert session.phase is Phase.SETTLING
+    command = session.on_capture(Observation(0.2, 0.0, 0.0, 0.0, 'micro', MICRO))
+    assert command is not None and command.from_rest and session.phase is Phase.MOVING
+    end = command.start_s + command.profile.end_time_s
+    session.on_wheel_state(end - 0.02, (0.0, 0.0, 0.0))   # steering stops them: no end
+    session.on_wheel_state(end, (0.0, 0.1, 0.0))           # still turning: no end
+    assert session.phase is Phase.MOVING
+    session.on_wheel_state(end, (0.0, 0.0, 0.0))
+    assert session.phase is Phase.SETTLING and session.servo.stops == 1
+
+
+def test_a_goal_ends_once_lost_replaced_or_cancelled_and_says_so():
+    session = session_at_rest()
+    session.on_capture(Observation(0.2, 0.0, 0.0, 0.0, 'micro', MICRO))
+    replaced = session.set_goal((0.002, 0.0), 0.5)
+    assert replaced is not None and replaced.outcome is Outcome.CANCELLED
+    assert replaced.reason == REPLACED_REASON and replaced.periods == 1
+    lost = session.on_out_of_field(0.6)
+    assert lost is not None and lost.outcome is Outcome.LOST and lost.reason == OUT_OF_FIELD_REASON
+    assert session.phase is Phase.DONE
+    assert session.on_out_of_field(0.7) is None and session.cancel('shutdown') is None
+    assert session.on_time(10.0) == (0, None)
+
+
+def test_the_goal_reached_is_the_sharpest_camera_s_mean_within_the_tolerance():
+    session = session_at_rest(goal_m=(0.0, 0.0))
+    finished = session.on_capture(Observation(0.2, 0.1e-6, 0.0, 0.0, 'micro', MICRO))
+    assert finished is not None and finished.outcome is Outcome.REACHED
+    assert finished.periods == 0 and math.isclose(finished.observation.x_m, 0.1e-6)
