@@ -37,10 +37,10 @@ from omni_micro_control.observations import Observation
 from omni_micro_control.servo import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import SimulationError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile, move_profile
 from omni_micro_sim.state import RobotState
-from omni_micro_sim.stepper import DEFAULT_PERIOD_S, GridSimulator
+from omni_micro_sim.stepper import GridSimulator
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,
     command_from_points,

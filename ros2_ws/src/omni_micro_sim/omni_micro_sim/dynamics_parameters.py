@@ -16,8 +16,12 @@ from omni_micro_common.lockstep import DEFAULT_MAX_LEAD_S
 from omni_micro_common.reader_matching import node_list_parameter
 from omni_micro_sim import paper
 from omni_micro_sim.errors import ParameterError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
-from omni_micro_sim.stepper import DEFAULT_PERIOD_S
+from omni_micro_sim.parameters import (
+    DEFAULT_PERIOD_S,
+    MotorLimits,
+    RobotParameters,
+    robot_parameter_values,
+)
 
 # Fixed at start-up: they define the robot, and changing them mid-run would change physics.
 READ_ONLY = ParameterDescriptor(read_only=True)

@@ -16,7 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_micro_sim.errors import CommandError
-from omni_micro_sim.parameters import MotorLimits, RobotParameters, require_finite
+from omni_micro_sim.parameters import (
+    DEFAULT_PERIOD_S,
+    MotorLimits,
+    RobotParameters,
+    require_finite,
+)
 from omni_micro_sim.profile import WheelCommand, move_profile
 from omni_micro_sim.simulator import (
     ContactSlip,
@@ -24,10 +29,6 @@ from omni_micro_sim.simulator import (
     SlipSimulator,
 )
 from omni_micro_sim.state import RobotState
-
-# 50 Hz of simulated time: fine enough for the 0.05 s moves, coarse enough that a Python graph
-# keeps up at a real-time factor of 10 on two cores.
-DEFAULT_PERIOD_S = 0.02
 
 
 @dataclass(frozen=True)
