@@ -11,7 +11,8 @@ from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import Outcome
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoConfig, profile_to
+from omni_micro_control.servo import profile_to
+from omni_micro_control.servo_config import ServoConfig
 from omni_micro_control.slip_filter import SlipFilter
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, steering_preset
 from omni_micro_sim.profile import move_profile

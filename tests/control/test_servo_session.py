@@ -7,7 +7,8 @@ from omni_micro_cli.twin import run_servo
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import REPLACED_REASON, Outcome, Phase
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoConfig, ServoController
+from omni_micro_control.servo import ServoController
+from omni_micro_control.servo_config import ServoConfig
 from omni_micro_control.servo_session import OUT_OF_FIELD_REASON, ServoSession
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 

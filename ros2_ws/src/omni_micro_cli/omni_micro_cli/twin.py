@@ -34,7 +34,7 @@ from omni_micro_control.feedback import (
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoCommand, ServoConfig
+from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters

@@ -6,7 +6,8 @@ comparator, the outcome), :mod:`observations` (a capture as the controllers see 
 slip model, learns the robot) and :mod:`identification` (the least-squares fit it and ``omni-micro
 identify`` use, over the :mod:`chains` of stops and moves that :mod:`recorded_runs` reads from a
 run's messages), :mod:`servo` (keeps the robot rolling, corrected from the captures in motion
-through :mod:`slip_filter`, a Kalman filter over the slip core; in the twin), and
+through :mod:`slip_filter`, a Kalman filter over the slip core, with its settings and commands
+in :mod:`servo_config`, driven goal after goal by :mod:`servo_session`), and
 :mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
 :mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
 and :mod:`controller_messages` (the trajectories and statuses it publishes).

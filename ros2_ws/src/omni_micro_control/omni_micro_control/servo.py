@@ -36,27 +36,22 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_common.conventions import GOAL_TOLERANCE_M
-from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
-    MODEL_CAPTURES_PER_STOP,
-    FeedbackConfig,
     Finished,
     Outcome,
 )
 from omni_micro_control.observations import Observation, mean_observation
-from omni_micro_control.slip_filter import FilterConfig, SlipFilter
+from omni_micro_control.servo_config import ServoCommand, ServoConfig
+from omni_micro_control.slip_filter import SlipFilter
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.open_loop import run_to_rest
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.steering import plan_steering
-from omni_micro_sim.stepper import DEFAULT_PERIOD_S
 
 # The smallest change of a wheel speed (rad/s) that needs a knot of its own.
 _SPEED_EPS = 1e-9
@@ -66,46 +61,6 @@ _SHORTEST_S = 1e-6
 _STEERING_STEP_RAD = 1e-5
 _ROTATION_STEP_RAD = 1e-3
 _MAX_STEERING_STEP_RAD = 0.1
-
-
-@dataclass(frozen=True)
-class ServoConfig:
-    """The servo's settings (SI). The tolerance, the lead, the settling and the captures per
-    stop are the controller's own, shared with the other modes (the same parameters)."""
-
-    tolerance_m: float = GOAL_TOLERANCE_M
-    crawl_speed_rad_s: float = 0.5
-    crawl_m: float = 2.0e-4
-    freeze_steering_m: float = 1.0e-5
-    replan_period_s: float = 0.1
-    command_lead_s: float = FeedbackConfig.command_lead_s
-    # The oldest a capture in motion is when it arrives: the graph's bringup and the twin set it
-    # from the cameras' timings (capture_age_bound_s); this default covers theirs.
-    capture_age_s: float = 0.05
-    # The robot starts a command on its next tick: the dynamics' period (the bringup and the twin
-    # set it from theirs).
-    command_period_s: float = DEFAULT_PERIOD_S
-    settle_wait_s: float = FeedbackConfig.settle_wait_s
-    captures_per_stop: int = MODEL_CAPTURES_PER_STOP
-    max_moves: int = 10
-    shooting_iterations: int = 4
-    shooting_tolerance_m: float = 1.0e-9
-    filter: FilterConfig = field(default_factory=FilterConfig)
-
-    def __post_init__(self) -> None:
-        for name in ('tolerance_m', 'crawl_speed_rad_s', 'crawl_m', 'replan_period_s',
-                     'shooting_tolerance_m', 'command_period_s'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ControllerConfigError(f'{name} must be a number > 0, got {value!r}')
-        for name in ('freeze_steering_m', 'command_lead_s', 'capture_age_s', 'settle_wait_s'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ControllerConfigError(f'{name} must be a number >= 0, got {value!r}')
-        for name in ('captures_per_stop', 'max_moves', 'shooting_iterations'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ControllerConfigError(f'{name} must be a whole number >= 1, got {value!r}')
 
 
 def profile_to(speed_rad_s: float, rotation_rad: float, limits: MotorLimits,
@@ -168,17 +123,6 @@ def profile_to(speed_rad_s: float, rotation_rad: float, limits: MotorLimits,
         knots[-1] = (knots[-1][0], 0.0)
     times, speeds = zip(*knots, strict=True)
     return WheelSpeedProfile(np.array(times), np.array(speeds))
-
-
-@dataclass(frozen=True)
-class ServoCommand:
-    """Steer to ``steering_rad`` and run ``profile`` from ``start_s`` (what ran is replaced);
-    ``from_rest``: a move from a stop, else a plan made again while rolling."""
-
-    start_s: float
-    steering_rad: float
-    profile: WheelSpeedProfile
-    from_rest: bool = True
 
 
 class ServoPhase(enum.Enum):

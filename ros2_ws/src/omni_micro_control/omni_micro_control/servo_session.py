@@ -11,7 +11,8 @@ from collections.abc import Sequence
 
 from omni_micro_control.feedback import REPLACED_REASON, Finished, Outcome, Phase
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoCommand, ServoConfig, ServoController, ServoPhase
+from omni_micro_control.servo import ServoController, ServoPhase
+from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 
 OUT_OF_FIELD_REASON = 'the robot is outside every camera field'

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.observations import Observation
+from omni_micro_control.servo_config import FilterConfig
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.simulator import SlipSimulator
@@ -34,25 +34,6 @@ from omni_micro_sim.state import RobotState
 
 # The most the filter believes of an offset or of the steering's play (10 deg).
 _PARAMETER_LIMIT_RAD = math.radians(10.0)
-
-
-@dataclass(frozen=True)
-class FilterConfig:
-    """How sure the filter is of the robot before the captures, and of its own motion model."""
-
-    offset_sigma_rad: float = math.radians(3.0)    # as the model mode's prior
-    steering_bias_sigma_rad: float = math.radians(1.0)   # the play's range, after a steer
-    offset_step_rad: float = 1.0e-4                 # finite difference of the offsets
-    travel_noise: float = 2.0e-3                    # position error per metre travelled (1 sigma)
-    heading_noise_rad_per_m: float = 0.05           # heading error per metre travelled (1 sigma)
-
-    def __post_init__(self) -> None:
-        for name in ('offset_sigma_rad', 'steering_bias_sigma_rad', 'offset_step_rad',
-                     'travel_noise',
-                     'heading_noise_rad_per_m'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ControllerConfigError(f'{name} must be a number > 0, got {value!r}')
 
 
 @dataclass(frozen=True)

@@ -104,7 +104,7 @@ def make_cases(count: int, seed: int, steering: str = 'ideal') -> list[Case]:
 
 def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
     from omni_micro_cli.twin import run_closed_loop, run_servo
-    from omni_micro_control.servo import ServoConfig
+    from omni_micro_control.servo_config import ServoConfig
 
     preset = steering_preset(case.steering)
     robot = RobotParameters(

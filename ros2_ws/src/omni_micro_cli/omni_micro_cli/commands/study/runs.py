@@ -13,7 +13,7 @@ from typing import Any
 from omni_micro_cli.twin import ClosedLoopResult, ServoResult, run_closed_loop, run_servo
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
-from omni_micro_control.servo import ServoConfig
+from omni_micro_control.servo_config import ServoConfig
 from omni_micro_sim import paper
 from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters, SteeringParameters, steering_preset
