@@ -236,7 +236,7 @@ def test_captures_per_stop_zero_means_the_modes_own(mode, expected):
 
 
 @pytest.mark.parametrize('changes, message', [
-    ({'mode': 'magic'}, "mode must be one of ['paper', 'model'], got 'magic'"),
+    ({'mode': 'magic'}, "mode must be one of ['paper', 'model', 'servo'], got 'magic'"),
     ({'captures_per_stop': -1}, 'captures_per_stop must be a whole number >= 1, got -1'),
     # Unbounded, 1e9 s ran the robot off the platform for 1,276 s before the run timed out.
     ({'open_loop_duration_s': 1e9}, 'open_loop_duration_s must be at most 60 s (at cruise '

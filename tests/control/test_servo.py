@@ -24,7 +24,7 @@ MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4.3e-3)
 
 @pytest.fixture(scope='module')
 def fig11():
-    return run_servo((0.1, 0.0), robot=FIG11_ROBOT, seed=0)
+    return run_servo((0.1, 0.0), robot=FIG11_ROBOT, seed=0, config=ServoConfig(tolerance_m=0.5e-6))
 
 
 def test_fig11_goal_within_half_a_micrometre_in_eight_seconds_and_one_stop(fig11):

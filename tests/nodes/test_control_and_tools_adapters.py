@@ -10,17 +10,24 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
 
+from omni_micro_common.conventions import JOINT_NAMES, CaptureUncertainty, stamp_ns
 from omni_micro_common.errors import ParameterError
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
+from omni_micro_control.feedback import VisionFeedbackController
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.recorder_node import BagRecorder
 from omni_micro_tools.viewer_node import Viewer
+from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 
 
 def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):
     node = ControllerNode(context=context)
+    assert isinstance(node.controller, VisionFeedbackController)
     try:
         assert node.set_parameters([Parameter('near_period_s', value=0.2)])[0].successful
         assert node.controller.config.near_period_s == 0.2
@@ -93,3 +100,45 @@ def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):
 def test_viewer_refuses_a_port_out_of_range(context):
     with pytest.raises(ParameterError, match='70000'):
         Viewer(context=context, parameter_overrides=overrides(port=70000))
+
+
+def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(context, spy,
+                                                                            monkeypatch):
+    """It reads /camera/<name>/pose_in_motion, starts a plan made while rolling on the grid after
+    the capture's age and its lead, and says on /lockstep which of both kinds it has handled."""
+    node = ControllerNode(context=context, parameter_overrides=[
+        Parameter('mode', value='servo'), Parameter('goal_m', value=[0.001, 0.0]),
+        Parameter('captures_per_stop', value=1)])
+    try:
+        assert set(CAPTURE_IN_MOTION_TOPICS.values()) <= {s.topic_name for s in node.subscriptions}
+        acks: list[Ack] = []
+        monkeypatch.setattr(node.lockstep, 'report', acks.append)
+        trajectories = spy(node.trajectory_pub)
+        still = JointState(name=list(JOINT_NAMES), position=[0.0] * len(JOINT_NAMES),
+                           velocity=[0.0] * len(JOINT_NAMES))
+        still.header.stamp.sec, still.header.stamp.nanosec = 0, 200_000_000
+        node._on_joint_state(serialize_message(still))
+        uncertainty = CaptureUncertainty(0.1e-6, 0.1e-6, 1e-4)
+        node._on_capture_with_covariance(
+            with_uncertainty(capture_pose(0, 200_000_000, 'platform', 0.0, 0.0, 0.0),
+                             uncertainty), camera='micro')
+        assert [stamp_ns(t.header.stamp) for t in trajectories.messages] == [220_000_000]
+        node._on_capture_with_covariance(
+            with_uncertainty(capture_pose(0, 300_000_000, 'platform', 5e-5, 0.0, 0.0),
+                             uncertainty), camera='micro', in_motion=True)
+        # 0.3 s + 0.05 s (the age it counts on alone) + 0.02 s, on the 20 ms grid.
+        assert stamp_ns(trajectories.messages[-1].header.stamp) == 380_000_000
+        assert (acks[-1].capture_handled_ns, acks[-1].motion_handled_ns) == (200_000_000,
+                                                                             300_000_000)
+        refused = node.set_parameters([Parameter('tolerance_m', value=1e-6)])[0]
+        assert not refused.successful and 'servo' in refused.reason
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize(('name', 'value'), [('servo.crawl_m', -1.0), ('servo.max_moves', 0),
+                                             ('servo.filter.travel_noise', 0.0)])
+def test_controller_node_refuses_bad_servo_parameters_naming_them(context, name, value):
+    with pytest.raises(ControllerConfigError, match=name.rsplit('.', 1)[-1]):
+        ControllerNode(context=context, parameter_overrides=[
+            Parameter('mode', value='servo'), Parameter(name, value=value)])

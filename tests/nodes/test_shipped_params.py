@@ -77,11 +77,13 @@ def test_a_drifted_value_is_caught():
 def test_the_controllers_cruise_speed_is_the_motors_not_a_second_parameter(context):
     """Derived, not checked for agreement: one number, motor.cruise_speed_rad_s."""
     from omni_micro_control.controller_node import ControllerNode
+    from omni_micro_control.feedback import VisionFeedbackController
 
     node = ControllerNode(context=context, parameter_overrides=[
         Parameter('motor.cruise_speed_rad_s', value=6.0)])
     try:
         assert not node.has_parameter('cruise_speed_rad_s')
+        assert isinstance(node.controller, VisionFeedbackController)
         assert node.controller.config.cruise_speed_rad_s == 6.0
     finally:
         node.destroy_node()

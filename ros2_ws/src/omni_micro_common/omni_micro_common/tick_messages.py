@@ -11,11 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from omni_micro_common.cdr import MessageTemplate
-from omni_micro_common.conventions import JOINT_NAMES
+from omni_micro_common.conventions import JOINT_NAMES, STEERING_JOINT, WHEEL_JOINTS
 
 SLIP_NAMES = [f'wheel_{k}_{part}' for k in (1, 2, 3) for part in ('longitudinal', 'transverse')]
 STAMP = {'header.stamp.sec': 'int32', 'header.stamp.nanosec': 'uint32'}
@@ -51,6 +52,40 @@ def joint_state_template(base_frame: str = 'base_link') -> MessageTemplate:
                         velocity=[0.0] * len(JOINT_NAMES))
     joints.header.frame_id = base_frame
     return MessageTemplate(joints, JOINT_STATE_FIELDS)
+
+
+@dataclass(frozen=True)
+class WheelState:
+    """What a controller reads of a JointState: the wheels' rotations and speeds in
+    WHEEL_JOINTS order, the steering's rate (0 when not said), the stamp."""
+
+    sec: int
+    nanosec: int
+    rotations_rad: tuple[float, ...]
+    speeds_rad_s: tuple[float, ...]
+    steering_rate_rad_s: float
+
+
+def read_wheel_state(template: MessageTemplate, data: bytes) -> WheelState | None:
+    """A serialized JointState read in place when it has the robot's own layout (JOINT_NAMES
+    order), else converted; None when it does not name every wheel."""
+    values = template.read(data)
+    if values is not None:
+        count = len(JOINT_NAMES)
+        return WheelState(int(values[0]), int(values[1]),
+                          tuple(float(v) for v in values[3:2 + count]),
+                          tuple(float(v) for v in values[3 + count:]), float(values[2 + count]))
+    msg = deserialize_message(data, JointState)
+    try:
+        index = [msg.name.index(name) for name in WHEEL_JOINTS]
+    except ValueError:
+        return None
+    steering_rate = (msg.velocity[msg.name.index(STEERING_JOINT)]
+                     if STEERING_JOINT in msg.name and len(msg.velocity) == len(msg.name)
+                     else 0.0)
+    return WheelState(msg.header.stamp.sec, msg.header.stamp.nanosec,
+                      tuple(msg.position[i] for i in index),
+                      tuple(msg.velocity[i] for i in index), steering_rate)
 
 
 def tick_templates(odom_frame: str, base_frame: str) -> TickTemplates:

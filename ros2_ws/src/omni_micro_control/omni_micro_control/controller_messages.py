@@ -14,8 +14,10 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_common.conventions import JOINT_NAMES, OUTCOME_KEY, STATUS_TIME_KEY, split_stamp
-from omni_micro_control.feedback import Finished, Move, Outcome
+from omni_micro_control.feedback import FeedbackConfig, Finished, Move, Outcome
 from omni_micro_control.model_based import ModelBasedPlanner
+from omni_micro_control.servo_config import ServoCommand, ServoConfig
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.profile import WheelSpeedProfile
 from omni_micro_sim.wheel_trajectory import points_from_profile
 
@@ -26,9 +28,9 @@ STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: Diagno
 TRAJECTORY_FRAME = 'base_link'
 
 
-def move_trajectory(move: Move, profile: WheelSpeedProfile) -> JointTrajectory:
-    """The move as the robot takes it: steering, then the wheels along ``profile``, from the
-    move's start (its header stamp)."""
+def move_trajectory(move: Move | ServoCommand, profile: WheelSpeedProfile) -> JointTrajectory:
+    """The move (or a servo's command) as the robot takes it: steering, then the wheels along
+    ``profile``, from the move's start (its header stamp)."""
     msg = JointTrajectory()
     msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(move.start_s)
     msg.header.frame_id = TRAJECTORY_FRAME
@@ -53,6 +55,33 @@ def stop_trajectory(decided_at_ns: int) -> JointTrajectory:
     return msg
 
 
+def ready_line(config: FeedbackConfig | ServoConfig, uncertainty_source: str) -> str:
+    """The log line of a controller ready to take a goal: its mode and main settings."""
+    if isinstance(config, ServoConfig):
+        return (f'controller ready (servo mode): replans every {config.replan_period_s:g} s from '
+                f'captures in motion at most {config.capture_age_s:g} s old, crawls the last '
+                f'{config.crawl_m * 1e3:g} mm, tolerance {config.tolerance_m * 1e6:g} um, '
+                f'{config.captures_per_stop} capture(s) at the stop, uncertainty from '
+                f'{uncertainty_source}')
+    return (f'controller ready ({config.mode} mode): timer2 {config.settle_wait_s:g} s, timer1 '
+            f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
+            f'{config.comparator_distance_m * 1e3:g} mm, '
+            f'tolerance {config.tolerance_m * 1e6:g} um, {config.captures_per_stop} '
+            f'capture(s) per stop, uncertainty from {uncertainty_source}')
+
+
+def servo_move(session: ServoSession, command: ServoCommand) -> tuple[str, dict[str, str]]:
+    """The log line and the ``moving`` status's values of a servo's move from a stop."""
+    goal, estimate = session.goal_m, session.servo.filter
+    assert goal is not None and estimate is not None
+    remaining = math.hypot(goal[0] - estimate.mean[0], goal[1] - estimate.mean[1])
+    moves = session.servo.moves
+    line = (f'move {moves} (servo): {remaining * 1e3:.4f} mm to go; theta1 '
+            f'{math.degrees(command.steering_rad):.3f} deg, wheels for '
+            f'{command.profile.end_time_s:.4f} s, corrected while rolling')
+    return line, {'periods': str(moves), 'remaining_m': repr(remaining), 'rule': 'servo'}
+
+
 def move_line(move: Move) -> str:
     """The log line of a move: what the camera saw and what the wheels are told."""
     return (f'period {move.period} ({move.rule}): {move.observation.camera} sees '
@@ -71,6 +100,13 @@ def move_values(move: Move, planner: object) -> dict[str, str]:
         values.update({f'estimate.{name}': repr(value)
                        for name, value in planner.estimate().items()})
     return values
+
+
+def servo_values(session: ServoSession) -> dict[str, str]:
+    """What a servo's goal end adds: its stops, its plans made while rolling and the captures in
+    motion it took in."""
+    return {'stops': str(session.servo.stops), 'replans': str(session.servo.replans),
+            'captures_in_motion': str(session.captures_in_motion)}
 
 
 def outcome_values(finished: Finished, robot_time_s: float,

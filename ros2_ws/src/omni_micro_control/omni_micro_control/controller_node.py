@@ -5,6 +5,7 @@ Subscribes:
   /camera/<name>/pose_with_covariance   captures with their uncertainty (the camera
                        contract, README); with capture_uncertainty: fixed, the bare
                        /camera/<name>/pose captures and the fixed_uncertainty.<name> params
+  /camera/<name>/pose_in_motion   in the servo mode: captures of the moving robot
   /joint_states        wheel states, to know when a commanded move is over
 Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
@@ -12,10 +13,11 @@ Publishes:
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_common.lockstep)
 Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken
-on capture stamps, see
-:mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves through the slip core and
-identifies the robot as it goes (:mod:`omni_micro_control.model_based`). On shutdown the robot
-is told to stop.
+on capture stamps, see :mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves
+through the slip core and identifies the robot as it goes
+(:mod:`omni_micro_control.model_based`); ``mode: servo`` keeps it rolling and corrects it from
+the captures in motion (:mod:`omni_micro_control.servo_session`). On shutdown the robot is told
+to stop.
 """
 
 from __future__ import annotations
@@ -29,17 +31,13 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
-    JOINT_NAMES,
     STATUS_TIME_KEY,
-    STEERING_JOINT,
-    WHEEL_JOINTS,
     CaptureUncertainty,
     join_stamp,
     quaternion_to_yaw,
@@ -50,10 +48,11 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, STATUS_QOS
-from omni_micro_common.tick_messages import joint_state_template
+from omni_micro_common.tick_messages import joint_state_template, read_wheel_state
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
@@ -66,23 +65,20 @@ from omni_micro_control.controller_messages import (
     move_trajectory,
     move_values,
     outcome_values,
+    ready_line,
+    servo_move,
+    servo_values,
     status_message,
     stop_trajectory,
 )
-from omni_micro_control.controller_parameters import declare_controller_parameters
+from omni_micro_control.controller_parameters import declare_controller_parameters, reconfigured
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import (
-    FeedbackConfig,
-    Finished,
-    Move,
-    Outcome,
-    Phase,
-    VisionFeedbackController,
-)
-from omni_micro_control.model_based import planner_for
+from omni_micro_control.feedback import Finished, Move, Outcome, Phase, VisionFeedbackController
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation
 from omni_micro_control.platform import goal_error
+from omni_micro_control.servo_config import ServoCommand
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import CommandError, ParameterError
 from omni_micro_sim.profile import move_profile
 
@@ -103,13 +99,14 @@ class ControllerNode(Node):
         goal = settings.goal
         self.uncertainty_source = settings.uncertainty_source
         self.fixed_uncertainty = settings.fixed_uncertainty
-        self.controller = VisionFeedbackController(
-            config, planner_for(config, settings.model_robot, self.limits, settings.model_config))
+        self.controller = settings.controller()
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
         self._said_mismatch: str | None = None   # the last clock mismatch logged
         self._robot_time_ns = 0
         self._capture_handled_ns = -1
+        # A servo reports the captures in motion it has handled; the others read none.
+        self._motion_handled_ns = -1 if isinstance(self.controller, ServoSession) else None
         self._command_ns: int | None = None
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
@@ -133,27 +130,21 @@ class ControllerNode(Node):
                 self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
                                          functools.partial(self._on_capture, camera=name),
                                          CAPTURE_QOS)
+            if self._motion_handled_ns is not None:
+                self.create_subscription(
+                    PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[name],
+                    functools.partial(self._on_capture_with_covariance, camera=name,
+                                      in_motion=True), CAPTURE_QOS)
         self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0
         self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
-        self.get_logger().info(
-            f'controller ready ({config.mode} mode): timer2 {config.settle_wait_s:g} s, timer1 '
-            f'{config.far_period_s:g}/{config.near_period_s:g} s beyond/within '
-            f'{config.comparator_distance_m * 1e3:g} mm, '
-            f'tolerance {config.tolerance_m * 1e6:g} um, {config.captures_per_stop} '
-            f'capture(s) per stop, uncertainty from {self.uncertainty_source}')
-        if len(goal) == 2:
+        self.get_logger().info(ready_line(settings.servo or config, self.uncertainty_source))
+        if goal is not None:
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)
-        elif goal != [0.0]:
-            raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
-
-    def now_s(self) -> float:
-        """The robot's time, as far as its wheel states have come."""
-        return self.robot_time_s
 
     # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
@@ -163,7 +154,7 @@ class ControllerNode(Node):
             self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
                                  reason=problem)
             return
-        self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.now_s())
+        self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.robot_time_s)
 
     def _accept_goal(self, x_m: float, y_m: float, stopped_at_s: float) -> None:
         problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
@@ -180,25 +171,10 @@ class ControllerNode(Node):
 
     # -- events ------------------------------------------------------------------------------
     def _on_joint_state(self, data: bytes) -> None:
-        values = self._joint_state.read(data)
-        if values is not None:   # the robot's own layout: JOINT_NAMES order, read in place
-            sec, nanosec = int(values[0]), int(values[1])
-            count = len(JOINT_NAMES)
-            steering_rate = float(values[2 + count])
-            rotations = tuple(float(v) for v in values[3:2 + count])
-            speeds = tuple(float(v) for v in values[3 + count:])
-        else:
-            msg = deserialize_message(data, JointState)
-            try:
-                index = [msg.name.index(name) for name in WHEEL_JOINTS]
-            except ValueError:
-                return
-            rotations = tuple(msg.position[i] for i in index)
-            speeds = tuple(msg.velocity[i] for i in index)
-            steering_rate = (msg.velocity[msg.name.index(STEERING_JOINT)]
-                             if STEERING_JOINT in msg.name and len(msg.velocity) == len(msg.name)
-                             else 0.0)
-            sec, nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
+        wheels = read_wheel_state(self._joint_state, data)
+        if wheels is None:
+            return
+        sec, nanosec = wheels.sec, wheels.nanosec
         stamp = join_stamp(sec, nanosec)
         if self.robot_time_s == 0.0 and stamp > 0.0:
             # First word from a robot whose clock was already running (this node was started
@@ -206,7 +182,11 @@ class ControllerNode(Node):
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
         self._robot_time_ns = max(self._robot_time_ns, sec * 1_000_000_000 + nanosec)
-        if self.watcher.on_wheel_state(rotations, speeds, steering_rate):
+        stopped = self.watcher.on_wheel_state(wheels.rotations_rad, wheels.speeds_rad_s,
+                                              wheels.steering_rate_rad_s)
+        if isinstance(self.controller, ServoSession):
+            self.controller.on_wheel_state(stamp, wheels.speeds_rad_s)
+        elif stopped:
             self._act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
         # The capture timeouts every TIMEOUT_CHECK_S of the robot's time, on its own wheel
         # states: no /clock subscription (one message less per tick).
@@ -217,19 +197,33 @@ class ControllerNode(Node):
         self._report_lockstep()
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
-        self._handle_capture(msg.header, msg.pose, self.fixed_uncertainty[camera], camera)
-        self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(msg.header.stamp))
-        self._report_lockstep()
+        self._take(msg.header, msg.pose, self.fixed_uncertainty[camera], camera)
 
-    def _on_capture_with_covariance(self, msg: PoseWithCovarianceStamped, camera: str) -> None:
+    def _on_capture_with_covariance(self, msg: PoseWithCovarianceStamped, camera: str,
+                                    in_motion: bool = False) -> None:
         try:
             uncertainty = CaptureUncertainty.from_covariance(msg.pose.covariance)
         except ValueError as error:
             self.get_logger().warning(f'ignored {camera} capture: {error}',
                                       throttle_duration_sec=5.0)
+            uncertainty = None
+        self._take(msg.header, msg.pose.pose, uncertainty, camera, in_motion)
+
+    def _take(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty | None,
+              camera: str, in_motion: bool = False) -> None:
+        """A capture (``in_motion``: of the rolling robot, for the servo) handled, then said
+        handled on /lockstep, usable or not."""
+        seen = None if uncertainty is None else self._observation(header, pose, uncertainty,
+                                                                  camera)
+        if seen is not None:
+            controller = self.controller
+            self._act(controller.on_capture_in_motion(seen)
+                      if in_motion and isinstance(controller, ServoSession)
+                      else controller.on_capture(seen), at_s=seen.stamp_s)
+        if in_motion and self._motion_handled_ns is not None:
+            self._motion_handled_ns = max(self._motion_handled_ns, stamp_ns(header.stamp))
         else:
-            self._handle_capture(msg.header, msg.pose.pose, uncertainty, camera)
-        self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(msg.header.stamp))
+            self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(header.stamp))
         self._report_lockstep()
 
     def _report_lockstep(self) -> None:
@@ -237,21 +231,23 @@ class ControllerNode(Node):
         self.lockstep.report(Ack(
             self.get_name(), self._robot_time_ns, capture_handled_ns=self._capture_handled_ns,
             command_ns=self._command_ns,
-            command_lead_ns=round(self.controller.config.command_lead_s * 1e9)))
+            command_lead_ns=round(self.controller.config.command_lead_s * 1e9),
+            motion_handled_ns=self._motion_handled_ns))
 
-    def _handle_capture(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
-                        camera: str) -> None:
+    def _observation(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
+                     camera: str) -> Observation | None:
+        """The capture as the controller reads it; None (said why) if it cannot be used."""
         if header.frame_id != self.frame_id:
             self.get_logger().warning(
                 f'ignored {camera} capture in frame {header.frame_id!r}: expected '
                 f'{self.frame_id!r}', throttle_duration_sec=5.0)
-            return
+            return None
         if self.watcher.latest_rotations is None:
             # No wheel state yet (a respawned controller): the robot's time, and whether it
             # moves, are unknown until the first; the next stop's captures decide.
             self.get_logger().info(f'{camera} capture before the first wheel state: skipped',
                                    throttle_duration_sec=5.0)
-            return
+            return None
         stamp = join_stamp(header.stamp.sec, header.stamp.nanosec)
         mismatch = clock_mismatch(f'a {camera} capture', stamp, 'the robot', self.robot_time_s)
         if mismatch is not None:
@@ -261,18 +257,23 @@ class ControllerNode(Node):
                 self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch',
                                      at_s=self.robot_time_s, reason=mismatch)
             self._act(self.controller.on_foreign_capture(mismatch), at_s=self.robot_time_s)
-            return
-        observation = Observation(
-            stamp,
-            pose.position.x, pose.position.y,
-            quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera, uncertainty)
-        self._act(self.controller.on_capture(observation), at_s=observation.stamp_s)
+            return None
+        return Observation(stamp, pose.position.x, pose.position.y,
+                           quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera,
+                           uncertainty)
 
-    def _act(self, decision: Move | Finished | None, at_s: float) -> None:
+    def _act(self, decision: Move | ServoCommand | Finished | None, at_s: float) -> None:
         """``at_s``: the simulated time of what caused the decision (a capture's stamp, a wheel
         state's, a camera status's), which a finished goal's status carries."""
         if isinstance(decision, Move):
             self._command(decision)
+        elif isinstance(decision, ServoCommand):
+            self._publish_trajectory(move_trajectory(decision, decision.profile))
+            # A plan made again while rolling is counted at the goal's end, not said each time.
+            if decision.from_rest and isinstance(self.controller, ServoSession):
+                line, values = servo_move(self.controller, decision)
+                self.get_logger().info(line)
+                self._publish_status(DiagnosticStatus.OK, 'moving', at_s=at_s, **values)
         elif isinstance(decision, Finished):
             self.report(decision, at_s)
 
@@ -289,23 +290,20 @@ class ControllerNode(Node):
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
-        fields = FeedbackConfig.__dataclass_fields__
-        changes = {p.name: p.value for p in params if p.name in fields}
-        # The mode chose the planner, and the planner holds what it has learnt: fixed.
-        others = [p.name for p in params
-                  if (p.name not in fields or p.name == 'mode') and p.name != 'use_sim_time']
-        if others:
+        if isinstance(self.controller, ServoSession):
             return SetParametersResult(successful=False,
-                                       reason=f'{others} are fixed while the node runs')
-        try:
-            config = FeedbackConfig(**{**self.controller.config.__dict__, **changes})
-        except ControllerConfigError as error:
-            return SetParametersResult(successful=False, reason=str(error))
+                                       reason='the servo mode fixes its parameters while it runs')
+        config = reconfigured(self.controller.config, {p.name: p.value for p in params})
+        if isinstance(config, str):
+            return SetParametersResult(successful=False, reason=config)
         self.controller.config = config
         return SetParametersResult(successful=True)
 
     def _on_timer(self) -> None:
-        """The capture timeouts, every TIMEOUT_CHECK_S of the robot's time."""
+        """The capture timeouts, every TIMEOUT_CHECK_S of the robot's time (none in the servo
+        mode: the run's own timeout catches a silent camera)."""
+        if isinstance(self.controller, ServoSession):
+            return
         tries_before = self.controller.tries
         # Timeouts count the robot's own time as far as its reports have arrived, so a busy
         # machine delays them instead of firing them before the captures could arrive.
@@ -321,6 +319,7 @@ class ControllerNode(Node):
 
     # -- outputs -----------------------------------------------------------------------------
     def _command(self, move: Move) -> None:
+        assert isinstance(self.controller, VisionFeedbackController)   # it made the move
         try:
             profile = move_profile(move.duration_s, self.limits)
         except CommandError as error:
@@ -346,6 +345,8 @@ class ControllerNode(Node):
         if self.controller.phase is Phase.DONE:
             self.watcher.forget()   # a replaced goal keeps watching the move still running
         values = outcome_values(finished, self.robot_time_s, self.controller.goal_m)
+        if isinstance(self.controller, ServoSession):
+            values.update(servo_values(self.controller))
         # Lost: never move blind. A goal replaced mid-move lets the move finish (its end is
         # what starts timer2 for the new goal); a shutdown stops the robot in main().
         if finished.outcome is Outcome.LOST:

@@ -12,14 +12,19 @@ from rclpy.node import Node
 
 from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
 from omni_micro_common.topic_names import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
-from omni_micro_control.feedback import FeedbackConfig
-from omni_micro_control.model_based import ModelConfig
+from omni_micro_control.errors import ControllerConfigError
+from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
+from omni_micro_control.model_based import ModelConfig, planner_for
 from omni_micro_control.platform import checked_platform
+from omni_micro_control.servo_config import SERVO_MODE, FilterConfig, ServoConfig
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 
 # FeedbackConfig fields that are no parameter of their own: derived (the motors' cruise speed).
 DERIVED_CONFIG = ('cruise_speed_rad_s',)
+# ServoConfig fields that are the controller's own parameters, shared with the other modes.
+SHARED_WITH_SERVO = ('tolerance_m', 'settle_wait_s', 'captures_per_stop')
 
 
 @dataclass(frozen=True)
@@ -29,11 +34,19 @@ class ControllerParameters:
     frame_id: str
     platform_center: list[float]
     platform_size: list[float]
-    goal: list[float]
+    goal: list[float] | None            # [x_m, y_m] to go to from the start, or none
     uncertainty_source: str
     fixed_uncertainty: dict[str, CaptureUncertainty]
     model_robot: RobotParameters
     model_config: ModelConfig
+    servo: ServoConfig | None           # in the servo mode: its settings, the shared ones in
+
+    def controller(self) -> VisionFeedbackController | ServoSession:
+        """What decides in the mode these parameters say."""
+        if self.servo is not None:
+            return ServoSession(self.servo, self.limits, self.model_robot)
+        return VisionFeedbackController(self.config, planner_for(
+            self.config, self.model_robot, self.limits, self.model_config))
 
 
 def declare_controller_parameters(node: Node) -> ControllerParameters:
@@ -53,16 +66,50 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
         name: node.declare_parameter(name, field.default).value
         for name, field in FeedbackConfig.__dataclass_fields__.items()
         if name not in DERIVED_CONFIG})
+    servo = _declare_servo_config(node, config)
     frame_id = node.declare_parameter('frame_id', 'platform').value
     platform_center = list(node.declare_parameter('platform.center_m',
                                                   list(PLATFORM_CENTER_M)).value)
     platform_size = list(node.declare_parameter('platform.size_m', list(PLATFORM_SIZE_M)).value)
     checked_platform(platform_center, platform_size)
     goal = list(node.declare_parameter('goal_m', [0.0]).value)
+    if len(goal) != 2 and goal != [0.0]:
+        raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
     source, fixed = _declare_uncertainty(node)
-    return ControllerParameters(limits, config, frame_id, platform_center, platform_size, goal,
+    return ControllerParameters(limits, config, frame_id, platform_center, platform_size,
+                                goal if len(goal) == 2 else None,
                                 source, fixed, _declare_model_robot(node),
-                                _declare_model_config(node))
+                                _declare_model_config(node), servo)
+
+
+def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> FeedbackConfig | str:
+    """``config`` with ``changes`` made while the node runs, or why they are refused: section
+    4.1's parameters may change, checked first; the mode chose the planner, and the planner holds
+    what it has learnt, so it is fixed, as is everything else."""
+    fields = FeedbackConfig.__dataclass_fields__
+    others = [name for name in changes
+              if (name not in fields or name == 'mode') and name != 'use_sim_time']
+    if others:
+        return f'{others} are fixed while the node runs'
+    try:
+        return FeedbackConfig(**{**config.__dict__,
+                                 **{k: v for k, v in changes.items() if k in fields}})
+    except ControllerConfigError as error:
+        return str(error)
+
+
+def _declare_servo_config(node: Node, shared: FeedbackConfig) -> ServoConfig | None:
+    """The servo's own parameters (``servo.``, its filter's ``servo.filter.``) and those it
+    shares with the other modes; checked, and returned, in the servo mode only."""
+    own = {name: node.declare_parameter(f'servo.{name}', field.default).value
+           for name, field in ServoConfig.__dataclass_fields__.items()
+           if name not in (*SHARED_WITH_SERVO, 'filter')}
+    kept = {name: node.declare_parameter(f'servo.filter.{name}', field.default).value
+            for name, field in FilterConfig.__dataclass_fields__.items()}
+    if shared.mode != SERVO_MODE:
+        return None
+    return ServoConfig(**own, **{name: getattr(shared, name) for name in SHARED_WITH_SERVO},
+                       filter=FilterConfig(**kept))
 
 
 def _declare_uncertainty(node: Node) -> tuple[str, dict[str, CaptureUncertainty]]:

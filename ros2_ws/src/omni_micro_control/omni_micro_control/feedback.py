@@ -48,8 +48,10 @@ OUTCOME_NAMES = tuple(outcome.value for outcome in Outcome)
 REPLACED_REASON = 'replaced by a new goal'
 
 
-# Controller modes: who plans each move.
-MODES = ('paper', 'model')
+# Controller modes: who plans each move. The servo keeps the robot rolling between one stop at
+# the start and one at the end (omni_micro_control.servo_session); it shares this config's
+# tolerance, settling and captures per stop, and plans with its own (servo_config).
+MODES = ('paper', 'model', 'servo')
 # Five frames (0.13 s at 30 Hz) shrink a capture's spread by sqrt(5): the micro camera's 95 %
 # radius goes from 0.35 um to 0.16 um, so a 0.5 um tolerance is met after one fine move.
 MODEL_CAPTURES_PER_STOP = 5
@@ -101,10 +103,10 @@ class FeedbackConfig:
     # The robot's and its motors' own (omni_micro_sim.parameters), defined there once.
     wheel_radius_m: float = RobotParameters.wheel_radius_m
     cruise_speed_rad_s: float = MotorLimits.cruise_speed_rad_s
-    mode: str = 'paper'                   # 'paper' (section 4.1) or 'model' (model_based)
+    mode: str = 'paper'                   # 'paper' (section 4.1), 'model' or 'servo' (MODES)
     # Average this many captures of each stop; 0 = the mode's own: 1 for the paper's rule
-    # (section 4.1 takes one), MODEL_CAPTURES_PER_STOP for the model, whose plans are only as
-    # good as the start pose they shoot from.
+    # (section 4.1 takes one), MODEL_CAPTURES_PER_STOP for the model and the servo, whose plans
+    # are only as good as the start pose they shoot from.
     captures_per_stop: int = 0
 
     def __post_init__(self) -> None:
@@ -123,7 +125,7 @@ class FeedbackConfig:
                 f'{self.open_loop_duration_s!r}')
         if self.captures_per_stop == 0:
             object.__setattr__(self, 'captures_per_stop',
-                               MODEL_CAPTURES_PER_STOP if self.mode == 'model' else 1)
+                               1 if self.mode == 'paper' else MODEL_CAPTURES_PER_STOP)
         for name in ('max_periods', 'max_capture_tries', 'captures_per_stop'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:

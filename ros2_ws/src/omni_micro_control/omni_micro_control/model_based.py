@@ -293,4 +293,7 @@ def planner_for(config: FeedbackConfig, robot: RobotParameters | None = None,
     """The planner of ``config.mode``: the node and the in-process twin both build it here."""
     if config.mode == 'model':
         return ModelBasedPlanner(robot, limits, model)
+    if config.mode != 'paper':
+        raise ControllerConfigError(f'the {config.mode} mode plans no stop-and-go moves: '
+                                    f'omni_micro_control.servo_session drives it')
     return PaperRule()

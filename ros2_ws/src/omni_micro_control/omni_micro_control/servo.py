@@ -34,7 +34,6 @@ tolerance (its 95 % radius included) the goal is reached; else one more move fro
 
 from __future__ import annotations
 
-import enum
 import math
 
 import numpy as np
@@ -44,7 +43,7 @@ from omni_micro_control.feedback import (
     Outcome,
 )
 from omni_micro_control.observations import Observation, mean_observation
-from omni_micro_control.servo_config import ServoCommand, ServoConfig
+from omni_micro_control.servo_config import ServoCommand, ServoConfig, ServoPhase
 from omni_micro_control.slip_filter import SlipFilter
 from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.open_loop import run_to_rest
@@ -123,13 +122,6 @@ def profile_to(speed_rad_s: float, rotation_rad: float, limits: MotorLimits,
         knots[-1] = (knots[-1][0], 0.0)
     times, speeds = zip(*knots, strict=True)
     return WheelSpeedProfile(np.array(times), np.array(speeds))
-
-
-class ServoPhase(enum.Enum):
-    ROLLING = 'rolling'
-    SETTLING = 'settling'
-    CAPTURING = 'capturing'
-    DONE = 'done'
 
 
 def sharpest_mean(captures: list[Observation]) -> Observation:

@@ -8,12 +8,15 @@ behaviour.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from omni_micro_control.feedback import REPLACED_REASON, Finished, Outcome, Phase
 from omni_micro_control.observations import Observation
-from omni_micro_control.servo import ServoController, ServoPhase
-from omni_micro_control.servo_config import ServoCommand, ServoConfig
+from omni_micro_control.servo_config import ServoCommand, ServoConfig, ServoPhase
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
+
+if TYPE_CHECKING:
+    from omni_micro_control.servo import ServoController
 
 OUT_OF_FIELD_REASON = 'the robot is outside every camera field'
 
@@ -23,7 +26,11 @@ class ServoSession:
     cameras say; it answers with commands and, at a goal's end, a Finished."""
 
     def __init__(self, config: ServoConfig, limits: MotorLimits, robot: RobotParameters) -> None:
-        self.servo = ServoController(config, limits, robot)
+        # Here, not above: a controller node of another mode imports this module and must not
+        # load the slip core the servo plans through.
+        from omni_micro_control.servo import ServoController
+
+        self.servo: ServoController = ServoController(config, limits, robot)
         self.captures_in_motion = 0
 
     @property
@@ -76,10 +83,6 @@ class ServoSession:
     def on_foreign_capture(self, reason: str) -> Finished | None:
         """A capture on another clock than the robot's: lost at once, with ``reason``."""
         return self._finish(Outcome.LOST, reason)
-
-    def on_time(self, now_s: float) -> tuple[int, Finished | None]:
-        """The servo has no capture timeout of its own (the run's timeout catches silence)."""
-        return 0, None
 
     def cancel(self, reason: str) -> Finished | None:
         return self._finish(Outcome.CANCELLED, reason)
