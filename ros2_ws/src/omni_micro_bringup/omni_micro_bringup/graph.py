@@ -29,10 +29,10 @@ from omni_micro_bringup.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
-    node_overrides,
     streaming_cameras,
 )
 from omni_micro_bringup.errors import RunFailed, UsageError
+from omni_micro_bringup.node_overrides import node_overrides
 from omni_micro_bringup.parameters import (
     check_params_file,
     format_parameter,

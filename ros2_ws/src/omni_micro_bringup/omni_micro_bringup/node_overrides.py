@@ -1,0 +1,134 @@
+"""What the orchestration tells each node beyond the graph's params file: the lockstep's and the
+readers' wiring, the seed, and values one node must share with another (markers_node draws the
+cameras' fields, the tracker blurs as the rendering camera exposes).
+"""
+
+from __future__ import annotations
+
+from omni_micro_bringup.composition import (
+    MARKERS_FROM_VISION,
+    ORCHESTRATOR_NODE,
+    READS_FROM_ROBOT,
+    GraphOptions,
+    NodeSpec,
+    all_specs,
+    camera_node_of,
+    graph_nodes,
+    orchestration_odometry_topic,
+)
+from omni_micro_bringup.parameters import node_parameters
+from omni_micro_common.topic_names import CAPTURE_TOPICS
+
+
+def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if spec.executable == 'dynamics_node':
+        # Time 0 waits until the orchestration has seen every node listening.
+        overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
+        taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
+        overrides.update(lockstep_nodes=taking_part if options.in_lockstep else [])
+        # Time waits for the readers of every node of the graph that must have the robot's
+        # streams from the first sample (READS_FROM_ROBOT).
+        in_graph = [hosted.executable for other in all_specs(options)
+                    for hosted in (other.hosts or (other,))]
+        overrides.update(awaited_readers=[
+            f'{node}:{topic}' for node in dict.fromkeys(in_graph)
+            for topic in READS_FROM_ROBOT.get(node, ())]
+            + [f'{ORCHESTRATOR_NODE}:{orchestration_odometry_topic(options.follow_route)}'])
+        if options.external:
+            # Beside a real camera: stamps on the wall clock, at real time.
+            overrides.update(stamp_origin='wall', real_time_factor=1.0)
+        overrides.update(options.dynamics_overrides)
+    elif spec.executable in ('vision_node', 'camera_node'):
+        overrides.update(seed=int(options.seed))
+        if spec.executable == 'vision_node':
+            overrides.update(capture_readers(options))
+            if options.captures_in_motion:
+                overrides.update(captures_in_motion=True)
+        if spec.executable == 'camera_node':
+            # Its first frame waits for the readers that must not miss it.
+            present = {other.executable for other in all_specs(options)}
+            readers = ['tracker_node'] if 'tracker_node' in present else []
+            if options.record_images:
+                readers.append('bag_recorder')
+            overrides.update(image_readers=readers)
+        overrides.update(options.vision_overrides)
+    elif spec.executable == 'tracker_node':
+        overrides.update(capture_readers(options))
+        if options.captures_in_motion:
+            overrides.update(captures_in_motion=True)
+        if options.camera == 'simulated':
+            # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
+            # never reported: time would stand still. A driver's frames are read best effort.
+            overrides.update(image_reliability='reliable')
+            if options.captures_in_motion:
+                # The blur and the stamp of camera_node's frames (stamped at exposure start).
+                rendering = node_parameters('camera_node', options.params_files,
+                                            options.vision_overrides)
+                for name in CAPTURE_TOPICS:
+                    exposure = rendering.get(f'{name}.exposure_s')
+                    if isinstance(exposure, (int, float)):
+                        overrides.update({f'{name}.motion.exposure_s': float(exposure),
+                                          f'{name}.motion.mid_exposure_after_stamp_s':
+                                          0.5 * float(exposure)})
+        if options.image_topics:
+            overrides.update(cameras=sorted(options.image_topics))
+            for camera, topic in options.image_topics.items():
+                overrides.update({f'{camera}.image_topic': topic,
+                                  f'{camera}.info_topic': sibling_info_topic(topic)})
+    elif spec.executable == 'markers_node':
+        # The fields as the camera in use has them (camera_node has vision_node's names).
+        vision = node_parameters(camera_node_of(options), options.params_files,
+                                 options.vision_overrides)
+        dynamics = node_parameters('dynamics_node', options.params_files,
+                                   options.dynamics_overrides)
+        controller = node_parameters('controller_node', options.params_files,
+                                     options.controller_overrides)
+        sources = [*((name, vision) for name in MARKERS_FROM_VISION),
+                   ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
+                   ('capture_uncertainty', controller)]
+        for name, source in sources:
+            value = passed_on(source.get(name))
+            if value is not None:
+                overrides[name] = value
+    elif spec.executable == 'controller_node':
+        if options.open_loop_s is not None:
+            overrides.update(open_loop_duration_s=float(options.open_loop_s))
+        overrides.update(options.controller_overrides)
+    overrides.update(spec.overrides)
+    return overrides
+
+
+def passed_on(value: object) -> object | None:
+    """A value of another node's params as markers_node declares it (numbers as floats, the
+    way ROS types them), or None when it is not of that kind: its own node then refuses it,
+    naming it (tolerance_m: 5 was blamed on markers_node, which refused the integer first)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                       for v in value):
+        return [float(v) for v in value]
+    return None
+
+
+def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
+    """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers``: the
+    nodes of this graph that read its captures from the bare and from the covariance topics
+    (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
+    recorder both)."""
+    present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
+    source = node_parameters('controller_node', options.params_files,
+                             options.controller_overrides).get('capture_uncertainty',
+                                                               'covariance')
+    readers = [name for name in ('controller_node', 'markers_node') if name in present]
+    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
+    return {'capture_readers': (readers if source == 'fixed' else []) + recorder,
+            'covariance_readers': (readers if source != 'fixed' else []) + recorder}
+
+
+def sibling_info_topic(image_topic: str) -> str:
+    """Where a driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside it
+    (image_transport's convention)."""
+    return image_topic.rsplit('/', 1)[0] + '/camera_info'
