@@ -24,6 +24,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
 )
+from omni_micro_control.servo_config import SERVO_MODE
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph import Graph
@@ -188,7 +189,8 @@ class GraphOptions:
     view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
     vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)
     record_images: bool = False           # the recorder keeps the images too
-    # vision_node publishes captures of the moving robot too (and the recorder keeps them).
+    # vision_node publishes captures of the moving robot too (and the recorder keeps them); the
+    # servo mode reads them, so with it they are on whatever this says (publishes_in_motion).
     captures_in_motion: bool = False
     # The loop's nodes in one process and one executor (omni_micro_common's container).
     composed: bool = False
@@ -209,6 +211,18 @@ class GraphOptions:
     def in_lockstep(self) -> bool:
         """Whether time waits for the nodes' reports (nothing real reports on /lockstep)."""
         return self.lockstep and not self.external
+
+
+def servo_mode(options: GraphOptions) -> bool:
+    """Whether the controller runs the servo mode (``--controller servo`` or its params)."""
+    return node_parameters('controller_node', options.params_files,
+                           options.controller_overrides).get('mode') == SERVO_MODE
+
+
+def publishes_in_motion(options: GraphOptions) -> bool:
+    """Whether the vision side publishes captures of the moving robot: asked, or read by the
+    servo."""
+    return options.captures_in_motion or servo_mode(options)
 
 
 def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
@@ -242,7 +256,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.external and options.composed:
         raise UsageError('--composed runs the lockstep faster than real time; with an external '
                          'camera or robot the graph runs at real time: leave --composed out')
-    if options.captures_in_motion and not any(spec.executable in ('vision_node', 'tracker_node')
+    if publishes_in_motion(options) and not any(spec.executable in ('vision_node', 'tracker_node')
                                               for spec in loop):
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
                          'in motion, and this graph has neither')
@@ -265,7 +279,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
             unpublished += (CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC)
         specs.append(recorder_spec(options.record, options.storage, options.markers, images,
                                    unpublished, whole=options.record_whole,
-                                   in_motion=options.captures_in_motion))
+                                   in_motion=publishes_in_motion(options)))
     if options.view is not None:
         specs.append(viewer_spec(*options.view, options.markers))
     return specs

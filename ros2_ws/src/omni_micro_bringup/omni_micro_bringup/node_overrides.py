@@ -15,9 +15,14 @@ from omni_micro_bringup.composition import (
     camera_node_of,
     graph_nodes,
     orchestration_odometry_topic,
+    publishes_in_motion,
+    servo_mode,
 )
 from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.topic_names import CAPTURE_TOPICS
+from omni_micro_sim.parameters import DEFAULT_PERIOD_S
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.motion_capture import CameraTiming, capture_age_bound_s
 
 
 def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
@@ -43,7 +48,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(seed=int(options.seed))
         if spec.executable == 'vision_node':
             overrides.update(capture_readers(options))
-            if options.captures_in_motion:
+            if publishes_in_motion(options):
                 overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':
             # Its first frame waits for the readers that must not miss it.
@@ -55,13 +60,13 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         overrides.update(options.vision_overrides)
     elif spec.executable == 'tracker_node':
         overrides.update(capture_readers(options))
-        if options.captures_in_motion:
+        if publishes_in_motion(options):
             overrides.update(captures_in_motion=True)
         if options.camera == 'simulated':
             # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
             # never reported: time would stand still. A driver's frames are read best effort.
             overrides.update(image_reliability='reliable')
-            if options.captures_in_motion:
+            if publishes_in_motion(options):
                 # The blur and the stamp of camera_node's frames (stamped at exposure start).
                 rendering = node_parameters('camera_node', options.params_files,
                                             options.vision_overrides)
@@ -95,8 +100,45 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)
+        if servo_mode(options):
+            overrides.update(servo_timing(options))
     overrides.update(spec.overrides)
     return overrides
+
+
+def servo_timing(options: GraphOptions) -> dict[str, object]:
+    """The servo's ``servo.capture_age_s`` and ``servo.command_period_s`` as this graph's
+    cameras and robot make them: how old a capture in motion can be when it arrives, and the
+    grid the robot starts commands on, as the twin has them. A real camera or robot says
+    neither: then the params say."""
+    if options.external:
+        return {}
+    dynamics = node_parameters('dynamics_node', options.params_files, options.dynamics_overrides)
+    camera = camera_node_of(options)
+    vision = node_parameters(camera, options.params_files, options.vision_overrides)
+    try:
+        period = _number(dynamics.get('publish_period_s', DEFAULT_PERIOD_S))
+        if camera == 'vision_node':
+            timings = [CameraTiming(**{name: _number(vision[f'{camera_name}.motion.{name}'])
+                                       for name in CameraTiming.__dataclass_fields__
+                                       if f'{camera_name}.motion.{name}' in vision})
+                       for camera_name in CAPTURE_TOPICS]
+        else:
+            # The tracker publishes a frame's capture once it has tracked it, which the lockstep
+            # holds the robot for: no later than the frame's exposure allows.
+            timings = [CameraTiming(exposure_s=_number(vision.get(f'{camera_name}.exposure_s',
+                                                                  CameraTiming.exposure_s)))
+                       for camera_name in CAPTURE_TOPICS]
+    except (CameraConfigError, TypeError):
+        return {}   # the node given the bad value refuses it, naming it
+    return {'servo.capture_age_s': capture_age_bound_s(timings, period),
+            'servo.command_period_s': period}
+
+
+def _number(value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f'{value!r} is no number')
+    return float(value)
 
 
 def passed_on(value: object) -> object | None:

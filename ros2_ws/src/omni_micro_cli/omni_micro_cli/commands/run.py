@@ -126,7 +126,8 @@ def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--controller', choices=MODES, default='paper',
                         help="paper: section 4.1's rule (default); model: plan each move "
                              "through the slip model and identify the robot's offsets as it "
-                             'goes (docs/control.md)')
+                             'goes; servo: keep the robot rolling, corrected from captures in '
+                             'motion, and stop once at the end (docs/control.md)')
     parser.add_argument('--tolerance-um', type=positive_float, metavar='UM',
                         help="reached when a capture's distance to the goal plus its 95 %% "
                              f'uncertainty is within this (default {GOAL_TOLERANCE_M * 1e6:g}, '
