@@ -9,12 +9,15 @@ the ``platform`` frame:
   /camera/<name>/pose_in_motion          with ``captures_in_motion``: each frame of the moving
                                          robot (PoseWithCovarianceStamped), stamped at its
                                          exposure's middle (``<name>.motion.*``), its covariance
-                                         grown by the blur (:mod:`.motion_capture`)
+                                         grown by the blur (:mod:`.motion_capture`); from the
+                                         finest camera that captures it in motion, as the
+                                         model vision has it
   /camera/<name>/tracker_status          diagnostic_msgs/DiagnosticStatus: why a frame gave no
                                          pose (fiducial not found, cut by the edge, ambiguous) or
                                          why it was refused (encoding, size), on each change
   /lockstep                              after each frame: up to which stamp every camera's
-                                         frames are handled, and the captures that caused
+                                         frames are handled, and the captures (and captures in
+                                         motion) that caused
 A capture is published only while the robot is still, decided from the images alone: the
 fiducial's pose in the last ``still_frames`` frames agrees within ``still_tolerance_px`` pixels;
 and only from the finest camera that sees the robot (:mod:`omni_micro_vision.tracking`).
@@ -143,6 +146,10 @@ class TrackerNode(Node):
         # The smaller field has the finer pixel.
         self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
+        # The same for the captures in motion: one capture per frame time, whose stamp then says
+        # which have been handled (omni_micro_common.lockstep).
+        self.motion_arbiter: CameraArbiter[_InMotion] = CameraArbiter(
+            sorted(fields, key=fields.__getitem__))
 
         def read_images() -> None:
             for image_topic, info_topic, reader in inputs:
@@ -171,7 +178,7 @@ class TrackerNode(Node):
         return self.declare_parameter(name, default).value
 
     def on_frame(self, reader: _CameraReader, stamp: int, found: bool,
-                 capture: _Capture | None) -> None:
+                 capture: _Capture | None, in_motion: _InMotion | None = None) -> None:
         """Publish what is due, then report: every camera's frames are handled up to the oldest
         of their latest (a capture from a frame still on its way could come later)."""
         reader.handled_ns = max(reader.handled_ns, stamp)
@@ -180,9 +187,16 @@ class TrackerNode(Node):
             # The uncertainty first, as vision_node: a reader of the bare capture has it by then.
             owner.covariance_pub.publish(covariance)
             owner.capture_pub.publish(pose)
+        # A finer camera that found the robot but lost it to the blur leaves it to the coarser.
+        moving = [message for _, (owner, message) in
+                  self.motion_arbiter.on_frame(reader.name, stamp, in_motion is not None,
+                                               in_motion)
+                  if owner.publish_in_motion(message)]
         self.lockstep.report(Ack(
             self.get_name(), None, captures_ns=(due[0][0], due[-1][0]) if due else None,
-            frame_handled_ns=min(r.handled_ns for r in self.readers)))
+            frame_handled_ns=min(r.handled_ns for r in self.readers),
+            motion_ns=(stamp_ns(moving[0].header.stamp), stamp_ns(moving[-1].header.stamp))
+            if moving else None))
 
 
 class _CameraReader:
@@ -247,8 +261,8 @@ class _CameraReader:
         except CameraConfigError as error:
             self._refuse(error)   # no stamp to report it under: as a frame lost on the way
             return
-        found, capture = self._see(msg)
-        self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture)
+        found, capture, in_motion = self._see(msg)
+        self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture, in_motion)
 
     def _refuse(self, error: CameraConfigError | str) -> None:
         if not isinstance(error, str):
@@ -258,59 +272,69 @@ class _CameraReader:
         self.tracker.reset()
         self._last_seen = None
 
-    def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None]:
-        """Track one frame: whether the fiducial is in it, and the capture it gives, if any."""
+    def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None, _InMotion | None]:
+        """Track one frame: whether the fiducial is in it, and the capture or the capture in
+        motion it gives, if any."""
         if self.info_refusal is not None:
             # Said once in the log when the CameraInfo came; in the status with every frame.
             self._refuse(self.info_refusal)
-            return False, None
+            return False, None, None
         try:
             pixels = image_array(msg, self.camera.plane.resolution_px)
             result = self.tracker(pixels)
         except CameraConfigError as error:
             self._refuse(error)
-            return False, None
+            return False, None, None
         if result.pose is None:
             self.stillness.reset()
             self._last_seen = None
             self._say(DiagnosticStatus.WARN, result.reason)
-            return False, None
+            return False, None, None
         x, y, phi = result.pose
         last, self._last_seen = self._last_seen, (join_stamp(msg.header.stamp.sec,
                                                             msg.header.stamp.nanosec), x, y)
         if not self.stillness.still(x, y):
             self._say(DiagnosticStatus.OK, 'moving')
+            moving = None
             if self.in_motion_pub is not None and last is not None:
-                self._publish_in_motion(msg, (x, y, phi), last)
-            return True, None
+                moving = self._in_motion(msg, (x, y, phi), last)
+            return True, None, moving
         self._say(DiagnosticStatus.OK, 'still: capturing')
         capture = capture_pose(msg.header.stamp.sec, msg.header.stamp.nanosec,
                                self.node.frame_id, x, y, phi)
-        return True, (self, with_uncertainty(capture, self.camera.uncertainty(phi)), capture)
+        return True, (self, with_uncertainty(capture, self.camera.uncertainty(phi)), capture), None
 
-    def _publish_in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
-                           last: tuple[float, float, float]) -> None:
+    def _in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
+                   last: tuple[float, float, float]) -> _InMotion | None:
         """The frame of the moving robot as a capture at its exposure's middle, its spread grown
         by the blur at the speed since the last frame; none past the speed the tracker follows
         (motion_capture.trackable)."""
-        assert self.in_motion_pub is not None
         x, y, phi = pose
         stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         elapsed = stamp_s - last[0]
         if elapsed <= 0.0:
-            return
+            return None
         vx, vy = (x - last[1]) / elapsed, (y - last[2]) / elapsed
         model = self.camera.model
         if not trackable(model, math.hypot(vx, vy), self.exposure_s):
-            return
+            return None
         pose = capture_pose(*split_stamp(stamp_s + self.mid_exposure_after_stamp_s),
                             self.node.frame_id, x, y, phi)
-        self.in_motion_pub.publish(with_uncertainty(pose, uncertainty_in_motion(
-            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi))))
+        return self, with_uncertainty(pose, uncertainty_in_motion(
+            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi)))
+
+    def publish_in_motion(self, message: PoseWithCovarianceStamped) -> bool:
+        """Publish a capture in motion the arbiter let through; whether it was."""
+        if self.in_motion_pub is None:
+            return False
+        self.in_motion_pub.publish(message)
+        return True
 
 
 # A capture as the tracker holds it until the arbiter lets it go: its camera, then both messages.
 _Capture = tuple[_CameraReader, PoseWithCovarianceStamped, PoseStamped]
+# A capture in motion, held the same way: its camera and its message.
+_InMotion = tuple[_CameraReader, PoseWithCovarianceStamped]
 
 
 COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,))
