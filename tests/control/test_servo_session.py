@@ -88,3 +88,25 @@ def test_a_stop_and_go_loop_asked_for_the_servo_refuses_rather_than_run_the_pape
 
     with pytest.raises(ControllerConfigError, match='servo mode plans no stop-and-go moves'):
         planner_for(FeedbackConfig(mode='servo'))
+
+
+def test_a_capture_in_motion_counts_by_its_stamp_whether_the_stop_came_first_or_not():
+    """A node receives the wheels' stop and a late capture in either order: the same state."""
+    states = []
+    for stop_first in (True, False):
+        session = session_at_rest()
+        command = session.on_capture(Observation(0.2, 0.0, 0.0, 0.0, 'micro', MICRO))
+        assert isinstance(command, ServoCommand)
+        end = command.start_s + command.profile.end_time_s
+        late = Observation(end - 0.01, 0.9e-3, 0.0, 0.0, 'micro', MICRO)
+        after = Observation(end + 0.03, 1.0e-3, 0.0, 0.0, 'micro', MICRO)
+        if stop_first:
+            session.on_wheel_state(end, (0.0, 0.0, 0.0))
+        assert session.on_capture_in_motion(late) is None    # no wheel speed left to replan
+        assert session.on_capture_in_motion(after) is None
+        if not stop_first:
+            session.on_wheel_state(end, (0.0, 0.0, 0.0))
+        assert session.servo.filter is not None
+        states.append((session.phase, session.servo.filter.updates,
+                       tuple(session.servo.filter.mean)))
+    assert states[0] == states[1] and states[0][1] == 1

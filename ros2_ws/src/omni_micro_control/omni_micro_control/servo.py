@@ -201,8 +201,15 @@ class ServoController:
         return self._move_from_rest(mean)
 
     def on_capture_in_motion(self, seen: Observation) -> ServoCommand | None:
-        """A capture of the rolling robot: learn, then maybe replan (see the module: latency)."""
-        if self.phase is not ServoPhase.ROLLING or self.filter is None or self.command is None:
+        """A capture of the rolling robot: learn, then maybe replan (see the module: latency).
+
+        Whether it counts is decided by its stamp alone, never by whether the wheels' stop came
+        first: one stamped within the running command is taken in even after the stop (a node
+        may receive the two in either order); one stamped after it is the stop's to decide.
+        """
+        command = self.command
+        if self.phase is ServoPhase.DONE or self.filter is None or command is None \
+                or seen.stamp_s > command.start_s + command.profile.end_time_s:
             return None
         self.filter.update(seen)
         if seen.stamp_s - self._last_replan_s < self.config.replan_period_s:
@@ -218,7 +225,7 @@ class ServoController:
         keep_steering = (not self.rolls_while_steering
                          or remaining < self.config.freeze_steering_m)
         try:
-            steering, profile = self._shoot(state, speed, self.command.steering_rad,
+            steering, profile = self._shoot(state, speed, command.steering_rad,
                                             self._rotation_left(start), keep_steering,
                                             wheels_rad=self.filter.wheels_steering_rad)
         except SimulationError:
