@@ -1,7 +1,8 @@
 """The servo mode through the graph (`run --controller servo`): Fig. 11's goal reached as the twin
-reaches it, with the same plans made while rolling from the same captures in motion; and the same
-seed records the same bag at another speed with both cores kept busy (the lockstep waits for every
-capture in motion the controller acts on: docs/control.md, "The servo mode")."""
+reaches it, with the same plans made while rolling from the same captures in motion, and on the
+rendered images through the tracker; the same seed records the same bag at another speed with
+both cores kept busy (the lockstep waits for every capture in motion the controller acts on:
+docs/control.md, "The servo mode")."""
 
 from __future__ import annotations
 
@@ -21,11 +22,12 @@ SEED = 3
 TOLERANCE_M = 0.5e-6
 
 
-def servo_run(folder: Path, real_time_factor: float = math.inf) -> tuple[Path, GraphResult]:
+def servo_run(folder: Path, real_time_factor: float = math.inf,
+              vision: str = 'model') -> tuple[Path, GraphResult]:
     bag = folder / 'bag'
     result = run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=SEED, real_time_factor=real_time_factor, record=bag,
-        log_dir=folder / 'logs',
+        log_dir=folder / 'logs', vision=vision,
         controller_overrides={'mode': 'servo', 'tolerance_m': TOLERANCE_M}))
     # No command arrives after its start stamp, plans made while rolling included.
     assert 'arrived' not in (result.log_dir / 'dynamics_node.log').read_text()
@@ -58,3 +60,16 @@ def test_same_seed_same_bag_at_another_speed_with_both_cores_kept_busy(reference
         bag, result = servo_run(tmp_path, real_time_factor=2.0)
     assert result.sim_time_s == reference[1].sim_time_s
     assert bag_digest(bag) == bag_digest(reference[0])
+
+
+def test_on_the_rendered_images_the_servo_reaches_and_records_the_same_bag_at_any_speed(
+        tmp_path, busy_machine):
+    """--vision images: the tracker's captures in motion, one per frame from the finest camera
+    that follows the robot, drive the same servo."""
+    fast_bag, fast = servo_run(tmp_path / 'fast', vision='images')
+    assert fast.outcome == 'reached' and fast.deviation_m < TOLERANCE_M
+    assert int(fast.status['replans']) > 20 and fast.sim_time_s < 9.0
+    with busy_machine():
+        slow_bag, slow = servo_run(tmp_path / 'slow', real_time_factor=2.0, vision='images')
+    assert slow.sim_time_s == fast.sim_time_s
+    assert bag_digest(slow_bag) == bag_digest(fast_bag)
