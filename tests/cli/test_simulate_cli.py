@@ -128,6 +128,10 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     realistic = runs['realistic_steering']
     assert realistic['outcome'] == 'reached' and realistic['deviation_mm'] < 0.003
     assert realistic['sim_time_s'] > runs['closed_loop']['sim_time_s']
+    # The servo mode through the graph: within 0.5 um in one move and one stop, in 8 s at most.
+    servo = runs['servo']
+    assert servo['outcome'] == 'reached' and servo['deviation_mm'] < 0.0005
+    assert servo['periods'] == 1 and servo['sim_time_s'] <= 8.0
     for name in ('fig11_open_loop', 'fig11_closed_loop', 'fig11_model', 'fig11_images',
-                 'fig11_realistic_steering'):
+                 'fig11_realistic_steering', 'fig11_servo'):
         assert (tmp_path / 'bags' / name / 'metadata.yaml').is_file()
