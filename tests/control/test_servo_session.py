@@ -110,3 +110,10 @@ def test_a_capture_in_motion_counts_by_its_stamp_whether_the_stop_came_first_or_
         states.append((session.phase, session.servo.filter.updates,
                        tuple(session.servo.filter.mean)))
     assert states[0] == states[1] and states[0][1] == 1
+
+
+def test_a_capture_that_is_not_finite_is_as_good_as_none():
+    session = session_at_rest()
+    broken = Observation(0.2, math.nan, 0.0, 0.0, 'micro', MICRO)
+    assert session.on_capture(broken) is None and session.phase is Phase.SETTLING
+    assert session.on_capture_in_motion(broken) is None and session.captures_in_motion == 0

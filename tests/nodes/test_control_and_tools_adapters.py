@@ -3,6 +3,8 @@ run time, goals in another frame rejected, bags written readable and never over 
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from adapter_helpers import overrides
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -130,6 +132,11 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
         assert stamp_ns(trajectories.messages[-1].header.stamp) == 380_000_000
         assert (acks[-1].capture_handled_ns, acks[-1].motion_handled_ns) == (200_000_000,
                                                                              300_000_000)
+        # A broken capture in motion is as good as none, and still said handled.
+        node._on_capture_with_covariance(
+            with_uncertainty(capture_pose(0, 400_000_000, 'platform', math.nan, 0.0, 0.0),
+                             uncertainty), camera='micro', in_motion=True)
+        assert len(trajectories.messages) == 2 and acks[-1].motion_handled_ns == 400_000_000
         refused = node.set_parameters([Parameter('tolerance_m', value=1e-6)])[0]
         assert not refused.successful and 'servo' in refused.reason
     finally:

@@ -23,6 +23,7 @@ to stop.
 from __future__ import annotations
 
 import functools
+import math
 import time
 from typing import Any
 
@@ -96,7 +97,6 @@ class ControllerNode(Node):
         self.limits = settings.limits
         self.frame_id = settings.frame_id
         self.platform_center, self.platform_size = settings.platform_center, settings.platform_size
-        goal = settings.goal
         self.uncertainty_source = settings.uncertainty_source
         self.fixed_uncertainty = settings.fixed_uncertainty
         self.controller = settings.controller()
@@ -142,9 +142,9 @@ class ControllerNode(Node):
         self._timeout_checks = 0
         self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         self.get_logger().info(ready_line(settings.servo or config, self.uncertainty_source))
-        if goal is not None:
+        if settings.goal is not None:
             # A scripted goal counts from time 0: the robot has been still since the start.
-            self._accept_goal(goal[0], goal[1], stopped_at_s=0.0)
+            self._accept_goal(*settings.goal, stopped_at_s=0.0)
 
     # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
@@ -258,9 +258,14 @@ class ControllerNode(Node):
                                      at_s=self.robot_time_s, reason=mismatch)
             self._act(self.controller.on_foreign_capture(mismatch), at_s=self.robot_time_s)
             return None
-        return Observation(stamp, pose.position.x, pose.position.y,
+        seen = Observation(stamp, pose.position.x, pose.position.y,
                            quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera,
                            uncertainty)
+        if not all(math.isfinite(v) for v in (seen.x_m, seen.y_m, seen.phi_rad)):
+            self.get_logger().warning(f'ignored {camera} capture with a non-finite pose: {seen}',
+                                      throttle_duration_sec=5.0)
+            return None
+        return seen
 
     def _act(self, decision: Move | ServoCommand | Finished | None, at_s: float) -> None:
         """``at_s``: the simulated time of what caused the decision (a capture's stamp, a wheel

@@ -7,6 +7,7 @@ behaviour.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -70,9 +71,12 @@ class ServoSession:
             self.servo.on_wheels_stopped(stamp_s)
 
     def on_capture(self, seen: Observation) -> ServoCommand | Finished | None:
-        return self.servo.on_capture(seen)
+        return self.servo.on_capture(seen) if _finite(seen) else None
 
     def on_capture_in_motion(self, seen: Observation) -> ServoCommand | None:
+        """A capture of the rolling robot; a broken one (not finite) is as good as none."""
+        if not _finite(seen):
+            return None
         self.captures_in_motion += 1
         return self.servo.on_capture_in_motion(seen)
 
@@ -92,3 +96,7 @@ class ServoSession:
             return None
         self.servo.phase = ServoPhase.DONE
         return Finished(outcome, reason, self.servo.moves, None)
+
+
+def _finite(seen: Observation) -> bool:
+    return all(math.isfinite(v) for v in (seen.stamp_s, seen.x_m, seen.y_m, seen.phi_rad))
