@@ -144,7 +144,7 @@ class ControllerNode(Node):
         self.get_logger().info(ready_line(settings.servo or config, self.uncertainty_source))
         if settings.goal is not None:
             # A scripted goal counts from time 0: the robot has been still since the start.
-            self._accept_goal(*settings.goal, stopped_at_s=0.0)
+            self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
 
     # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
