@@ -7,16 +7,21 @@ docs/control.md, "The servo mode")."""
 from __future__ import annotations
 
 import math
+import subprocess
 from pathlib import Path
 
 import pytest
 from bag_compare import bag_digest
+from conftest import ROOT
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_cli.twin import run_servo
+from omni_micro_common.conventions import stamp_ns
+from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS, ODOM_TOPIC
 from omni_micro_control.servo_config import ServoConfig
 from omni_micro_sim import paper
+from omni_micro_tools.bag_reading import read_bag
 
 SEED = 3
 TOLERANCE_M = 0.5e-6
@@ -73,3 +78,37 @@ def test_on_the_rendered_images_the_servo_reaches_and_records_the_same_bag_at_an
         slow_bag, slow = servo_run(tmp_path / 'slow', real_time_factor=2.0, vision='images')
     assert slow.sim_time_s == fast.sim_time_s
     assert bag_digest(slow_bag) == bag_digest(fast_bag)
+
+
+def test_the_servo_s_bag_replayed_into_a_fresh_camera_gives_its_captures_in_motion(
+        reference, start_node, probe, domain_id):
+    """The recorded /odom replayed into a fresh vision_node of the same seed yields every
+    capture in motion the servo acted on, stamp and pose (the camera is a function of both)."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    bag, _ = reference
+    start_node('omni_micro_vision', 'vision_node', f'seed:={SEED}', 'captures_in_motion:=true')
+    captures: list[PoseWithCovarianceStamped] = []
+    readers = [probe.node.create_subscription(
+        PoseWithCovarianceStamped, topic, captures.append,
+        QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+        for topic in CAPTURE_IN_MOTION_TOPICS.values()]
+    probe.spin_until(lambda: all(r.get_publisher_count() > 0 for r in readers), 60.0,
+                     "the probe matched to the vision_node's writers of captures in motion")
+    replay = subprocess.Popen(
+        [str(ROOT / 'scripts' / 'omni-micro'), 'replay', str(bag), '--topics', ODOM_TOPIC,
+         '--rate', '10', '--wait-subscribers', '30', '--sync', 'vision_node',
+         '--domain-id', str(domain_id)],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    probe.spin_until(lambda: replay.poll() is not None, 240.0, 'the replay to finish')
+    assert replay.returncode == 0, replay.communicate()[0]
+    probe.spin_for(2.0)
+    recorded = read_bag(bag, list(CAPTURE_IN_MOTION_TOPICS.values()))
+
+    def key(msg: PoseWithCovarianceStamped) -> tuple[int, float, float]:
+        return stamp_ns(msg.header.stamp), msg.pose.pose.position.x, msg.pose.pose.position.y
+
+    expected = sorted(key(m) for topic in recorded.messages for m in recorded.messages[topic])
+    assert len(expected) > 200
+    assert sorted(key(m) for m in captures) == expected
