@@ -76,3 +76,29 @@ def test_a_capture_with_a_broken_covariance_is_named_with_its_source():
 def test_too_little_recorded_is_not_a_malformed_recording(messages, said):
     with pytest.raises(TooLittleRecordedError, match=said):
         read_run(messages, 'live')
+
+
+def test_a_servo_move_corrected_while_rolling_links_no_stops_and_an_uncorrected_one_does():
+    """A servo's plan made while rolling replaces the running move: the move it cut short, and
+    it, are no command the slip core replays from rest, so only the uncorrected move is linked."""
+    from omni_micro_control.servo import profile_to
+    from omni_micro_control.servo_config import ServoCommand
+    from omni_micro_sim.parameters import MotorLimits
+
+    limits = MotorLimits()
+    first = ServoCommand(1.0, 0.0, profile_to(0.0, 60.0, limits, 0.5, 0.1))
+    replanned = ServoCommand(2.0, 0.0, profile_to(8.7, 40.0, limits, 0.5, 0.1), from_rest=False)
+    end = replanned.start_s + replanned.profile.end_time_s
+    last = ServoCommand(end + 1.0, 0.0, profile_to(0.0, 0.2, limits, 0.5, 0.1))
+    messages = {
+        WHEEL_TRAJECTORY_TOPIC: [move_trajectory(command, command.profile)
+                                 for command in (first, replanned, last)],
+        CAPTURE_COVARIANCE_TOPICS['macro']: [
+            capture(0.5, 0.0),                                              # before the first
+            capture(end + 0.5, 0.1),                                        # after the replan
+            capture(last.start_s + last.profile.end_time_s + 0.5, 0.1003)],  # after the last
+    }
+    run = read_run(messages, 'servo')
+    assert run.moves == 1 and len(run.chains) == 1
+    assert run.chains[0].moves[0].profile.end_time_s == pytest.approx(last.profile.end_time_s)
+    assert [stop.x_m for stop in run.chains[0].stops] == [0.1, 0.1003]
