@@ -96,6 +96,8 @@ def test_open_loop_option_makes_a_single_move(tmp_path):
     (['--goal-mm', 'nan,0'], 'finite'),
     (['--goal-mm', '1,0', '--rtf', '-2'], 'in [0.001, 10000]'),
     (['--goal-mm', '1,0', '--params', 'no/such/file.yaml'], 'does not exist'),
+    (['--goal-mm', '1,0', '--controller', 'servo', '--open-loop', '1'],
+     '--open-loop makes one move without feedback and the servo mode corrects every move'),
 ])
 def test_bad_run_arguments_exit_2_naming_the_value(args, message, tmp_path, omni_micro):
     result = omni_micro('run', *args, '--log-dir', str(tmp_path / 'logs'))

@@ -144,7 +144,8 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
 
 
 @pytest.mark.parametrize(('name', 'value'), [('servo.crawl_m', -1.0), ('servo.max_moves', 0),
-                                             ('servo.filter.travel_noise', 0.0)])
+                                             ('servo.filter.travel_noise', 0.0),
+                                             ('open_loop_duration_s', 1.0)])
 def test_controller_node_refuses_bad_servo_parameters_naming_them(context, name, value):
     with pytest.raises(ControllerConfigError, match=name.rsplit('.', 1)[-1]):
         ControllerNode(context=context, parameter_overrides=[

@@ -256,6 +256,9 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.external and options.composed:
         raise UsageError('--composed runs the lockstep faster than real time; with an external '
                          'camera or robot the graph runs at real time: leave --composed out')
+    if options.open_loop_s is not None and servo_mode(options):
+        raise UsageError('--open-loop makes one move without feedback and the servo mode corrects '
+                         'every move: leave one of them out')
     if publishes_in_motion(options) and not any(spec.executable in ('vision_node', 'tracker_node')
                                               for spec in loop):
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '

@@ -310,6 +310,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
         from omni_micro_tools.bags import check_bag_output
 
         check_bag_output(options.record, options.force)
+    all_specs(options)   # a graph that cannot be is refused before anything is written
     log_dir = new_log_dir(options.log_dir)
     goals = [(float(x), float(y)) for x, y in [options.goal_m, *options.more_goals_m]]
     # With external parts the domain is the drivers': joined, not leased.
