@@ -1,8 +1,8 @@
 """The servo mode through the graph (`run --controller servo`): Fig. 11's goal reached as the twin
 reaches it, with the same plans made while rolling from the same captures in motion, and on the
-rendered images through the tracker; the same seed records the same bag at another speed with
-both cores kept busy (the lockstep waits for every capture in motion the controller acts on:
-docs/control.md, "The servo mode")."""
+rendered images through the tracker; the same seed records the same bag at another speed with both
+cores kept busy, and with the loop in one process (the lockstep waits for every capture in motion
+the controller acts on: docs/control.md, "The servo mode")."""
 
 from __future__ import annotations
 
@@ -27,15 +27,16 @@ SEED = 3
 TOLERANCE_M = 0.5e-6
 
 
-def servo_run(folder: Path, real_time_factor: float = math.inf,
-              vision: str = 'model') -> tuple[Path, GraphResult]:
+def servo_run(folder: Path, real_time_factor: float = math.inf, vision: str = 'model',
+              composed: bool = False) -> tuple[Path, GraphResult]:
     bag = folder / 'bag'
     result = run_graph(GraphOptions(
         goal_m=paper.FIG11_GOAL_M, seed=SEED, real_time_factor=real_time_factor, record=bag,
-        log_dir=folder / 'logs', vision=vision,
+        log_dir=folder / 'logs', vision=vision, composed=composed,
         controller_overrides={'mode': 'servo', 'tolerance_m': TOLERANCE_M}))
     # No command arrives after its start stamp, plans made while rolling included.
-    assert 'arrived' not in (result.log_dir / 'dynamics_node.log').read_text()
+    log = 'loop_container.log' if composed else 'dynamics_node.log'
+    assert 'arrived' not in (result.log_dir / log).read_text()
     return bag, result
 
 
@@ -59,12 +60,14 @@ def test_the_servo_over_the_graph_is_the_twin(reference):
     assert said['replans'] > 20
 
 
-def test_same_seed_same_bag_at_another_speed_with_both_cores_kept_busy(reference, tmp_path,
-                                                                        busy_machine):
+def test_same_seed_same_bag_at_another_speed_busy_and_in_one_process(reference, tmp_path,
+                                                                      busy_machine):
     with busy_machine():
-        bag, result = servo_run(tmp_path, real_time_factor=2.0)
+        bag, result = servo_run(tmp_path / 'slow', real_time_factor=2.0)
     assert result.sim_time_s == reference[1].sim_time_s
     assert bag_digest(bag) == bag_digest(reference[0])
+    composed, _ = servo_run(tmp_path / 'composed', composed=True)
+    assert bag_digest(composed) == bag_digest(reference[0])
 
 
 def test_on_the_rendered_images_the_servo_reaches_and_records_the_same_bag_at_any_speed(

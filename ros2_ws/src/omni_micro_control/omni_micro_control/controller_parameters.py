@@ -39,7 +39,7 @@ class ControllerParameters:
     fixed_uncertainty: dict[str, CaptureUncertainty]
     model_robot: RobotParameters
     model_config: ModelConfig
-    servo: ServoConfig | None           # in the servo mode: its settings, the shared ones in
+    servo: ServoConfig | None           # in the servo mode: its settings, the shared ones too
 
     def controller(self) -> VisionFeedbackController | ServoSession:
         """What decides in the mode these parameters say."""
