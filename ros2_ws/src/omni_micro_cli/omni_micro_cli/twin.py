@@ -40,7 +40,7 @@ from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
 from omni_micro_sim.profile import WheelSpeedProfile, move_profile
 from omni_micro_sim.state import RobotState
-from omni_micro_sim.stepper import GridSimulator
+from omni_micro_sim.stepper import GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,
     command_from_points,
@@ -93,6 +93,22 @@ def _schedule(grid: GridSimulator, steering_rad: float, profile: WheelSpeedProfi
                                       limits))
 
 
+def _tick(grid: GridSimulator, max_sim_time_s: float,
+          route: list[tuple[float, float, float]]) -> Sample:
+    """One period of the robot, as the dynamics node publishes it, its pose kept in ``route``.
+
+    Raises
+    ------
+    SimulationError
+        Once past ``max_sim_time_s`` of simulated time with no outcome.
+    """
+    if grid.time_s > max_sim_time_s:
+        raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
+    sample = grid.advance()
+    route.append((sample.time_s, sample.state.x_m, sample.state.y_m))
+    return sample
+
+
 def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                     limits: MotorLimits | None = None,
                     config: FeedbackConfig | None = None, rig: CameraRig = DEFAULT_RIG,
@@ -119,15 +135,12 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     watcher = MoveWatcher()
     controller.set_goal(goal_m, 0.0)
     used: list[Observation] = []
-    route = []
+    route: list[tuple[float, float, float]] = []
     finished: Finished | None = None
     while finished is None:
-        if grid.time_s > max_sim_time_s:
-            raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
-        sample = grid.advance()
+        sample = _tick(grid, max_sim_time_s, route)
         state = sample.state
         stamp = through_stamp(sample.time_s)
-        route.append((sample.time_s, state.x_m, state.y_m))
         decisions = []
         if watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
                                   tuple(sample.wheel_speeds_rad_s), sample.steering_rate_rad_s):
@@ -203,15 +216,12 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
         _schedule(grid, command.steering_rad, command.profile, command.start_s, now_s, limits)
 
     session.set_goal(goal_m, 0.0)
-    route = []
+    route: list[tuple[float, float, float]] = []
     finished: Finished | None = None
     while finished is None:
-        if grid.time_s > max_sim_time_s:
-            raise SimulationError(f'no outcome within {max_sim_time_s} s of simulated time')
-        sample = grid.advance()
+        sample = _tick(grid, max_sim_time_s, route)
         state = sample.state
         stamp = through_stamp(sample.time_s)
-        route.append((sample.time_s, state.x_m, state.y_m))
         phi = quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad))
         session.on_wheel_state(stamp, tuple(sample.wheel_speeds_rad_s))
         for capture in moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
