@@ -11,19 +11,16 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-import sqlite3
 import struct
 import zlib
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from mcap.exceptions import McapError
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, Stored, in_bag_order
+from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, in_bag_order
+from omni_micro_tools.bag_salvage import Recovery, reader_of, stored_file
 from omni_micro_tools.errors import BagDamagedError, BagPathError
 from omni_micro_tools.topics import GRAPH_TOPICS, STORAGE_NAMES, TopicSpec
 
@@ -107,117 +104,6 @@ def flush(writer: Writer) -> None:
         storage.conn.commit()
 
 
-# A damaged file can announce records of any length; nothing the recorder writes is this big.
-RECORD_SIZE_LIMIT = 1 << 30
-# What reading a damaged mcap file raises: the library's own errors, and what its parsers hit
-# on bytes that are not what they should be.
-MCAP_DAMAGE = (McapError, struct.error, ValueError, EOFError, UnicodeDecodeError, KeyError)
-
-
-@dataclass
-class Recovery:
-    """What ``recover`` kept and what it could not."""
-
-    counts: dict[str, int]          # messages kept, per topic
-    dropped: int = 0                # messages of damaged chunks, or that did not decode
-    damaged_chunks: int = 0
-    cut_short: bool = False         # the file ends inside a record (a kill, a copy cut short)
-    unsure_tail: int = 0            # whole messages of the last RECOVERY_WINDOW_S, left out
-
-    @property
-    def kept(self) -> int:
-        return sum(self.counts.values())
-
-
-def _mcap_messages(path: Path, report: Recovery) -> Iterator[tuple[str, str, int, bytes]]:
-    """Every message of every intact chunk of an mcap file, footer or not: a chunk that does
-    not parse is skipped (its messages counted from the indexes after it), and reading stops
-    where the file's framing does."""
-    from mcap.records import Channel, Chunk, Message, MessageIndex, Schema
-    from mcap.stream_reader import StreamReader, breakup_chunk
-
-    schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, str]] = {}
-
-    def from_records(records: list[Any]) -> list[tuple[str, str, int, bytes]]:
-        messages = []
-        for record in records:
-            if isinstance(record, Schema):
-                schemas[record.id] = record.name
-            elif isinstance(record, Channel):
-                channels[record.id] = (record.topic, schemas[record.schema_id])
-            elif isinstance(record, Message):
-                topic, msgtype = channels[record.channel_id]
-                messages.append((topic, msgtype, record.log_time, record.data))
-        return messages
-
-    # A chunk's messages wait for the indexes that follow it: a record whose length was damaged
-    # can swallow the records after it, and only the indexes tell how many there were.
-    pending: list[tuple[str, str, int, bytes]] = []
-    indexed = 0
-
-    def settle() -> list[tuple[str, str, int, bytes]]:
-        nonlocal pending, indexed
-        if indexed > len(pending):
-            report.damaged_chunks += 1
-            report.dropped += indexed - len(pending)
-        done, pending, indexed = pending, [], 0
-        return done
-
-    with open(path, 'rb') as stream:
-        reader = StreamReader(stream, skip_magic=False, emit_chunks=True,
-                              record_size_limit=RECORD_SIZE_LIMIT)
-        try:
-            for record in reader.records:
-                if isinstance(record, MessageIndex):
-                    indexed += len(record.records)
-                    continue
-                yield from settle()
-                if isinstance(record, Chunk):
-                    try:
-                        pending = from_records(breakup_chunk(record, validate_crc=True))
-                    except MCAP_DAMAGE:
-                        pending = []   # its indexes, next, say how many it held
-                else:
-                    yield from from_records([record])
-        except MCAP_DAMAGE:
-            report.cut_short = True
-        yield from settle()
-
-
-def _sqlite_messages(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
-    connection = sqlite3.connect(f'file:{path}?mode=ro', uri=True)
-    try:
-        topics = {row[0]: (row[1], row[2]) for row in
-                  connection.execute('SELECT id, name, type FROM topics')}
-        for topic_id, timestamp, data in connection.execute(
-                'SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
-            topic, msgtype = topics[topic_id]
-            yield topic, msgtype, timestamp, bytes(data)
-    finally:
-        connection.close()
-
-
-def _stored_file(folder: Path) -> Path:
-    mcaps, databases = sorted(folder.glob('*.mcap')), sorted(folder.glob('*.db3'))
-    if not mcaps and not databases:
-        raise BagPathError(f'{str(folder)!r} holds no .mcap or .db3 file')
-    return mcaps[0] if mcaps else databases[0]
-
-
-def _reader_of(file: Path, report: Recovery) -> Callable[[], Iterator[Stored]]:
-    """Reads ``file``'s messages in stored order; the first reading counts what is damaged."""
-    readings = 0
-
-    def read() -> Iterator[Stored]:
-        nonlocal readings
-        readings += 1
-        if file.suffix == '.db3':
-            return _sqlite_messages(file)
-        return _mcap_messages(file, report if readings == 1 else Recovery({}))
-    return read
-
-
 def _write_in_order(source: Path, target: Path, storage: str, end: str,
                     topics: dict[str, TopicSpec] | None) -> tuple[Ordered, Recovery]:
     """Write the messages of the bag folder ``source`` into a new bag at ``target`` in bag
@@ -225,7 +111,7 @@ def _write_in_order(source: Path, target: Path, storage: str, end: str,
     in that order, as the recorder opened them, whether or not it has messages. Nothing is left
     at ``target`` if this raises."""
     report = Recovery({})
-    messages, ordered = in_bag_order(_reader_of(_stored_file(source), report), TYPESTORE, end)
+    messages, ordered = in_bag_order(reader_of(stored_file(source), report), TYPESTORE, end)
     writer = Writer(target, version=BAG_VERSION, storage_plugin=STORAGES[storage])
     writer.open()
     try:
@@ -299,7 +185,7 @@ def recover(source: Path, target: Path, storage: str = 'mcap',
     if not source.is_dir():
         raise BagPathError(f'{str(source)!r} is not a bag folder')
     try:
-        _stored_file(source)
+        stored_file(source)
     except BagPathError:
         raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover') from None
     ordered, report = _write_in_order(source, target, storage,
