@@ -4,14 +4,20 @@ every intact chunk and says how many messages it dropped."""
 
 from __future__ import annotations
 
+import itertools
+import struct
+import tempfile
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 
 from omni_micro_cli.cli import main
 from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bag_salvage import Recovery, reader_of
 from omni_micro_tools.bags import flush, open_writer, recover
 from omni_micro_tools.errors import BagDamagedError
 from omni_micro_tools.topics import GRAPH_TOPICS
@@ -170,3 +176,112 @@ def test_bytes_flipped_in_message_data_are_caught_by_the_chunks_crc(bag, command
             '0.000 to 0.000 s)') in err, err
     report = recover(bag, tmp_path / 'recovered')
     assert report.kept == (CHUNKS - 1) * PER_CHUNK - 1 and report.damaged_chunks == 1
+
+
+def footer_of(data: bytes) -> tuple[int, int]:
+    """Where the summary section starts and where the data section's end record does."""
+    footer = len(data) - 8 - 29
+    summary = int.from_bytes(data[footer + 9:footer + 17], 'little')
+    return summary, summary - 13
+
+
+def as_killed(bag: Path) -> None:
+    """The bag as a recorder killed after its last flush leaves it: no summary, no footer, no
+    metadata.yaml."""
+    data = mcap_of(bag).read_bytes()
+    mcap_of(bag).write_bytes(data[:footer_of(data)[1]])
+    (bag / 'metadata.yaml').unlink()
+
+
+def overwrite(bag: Path, at: int, length: int, value: int = 0xFF) -> None:
+    data = bytearray(mcap_of(bag).read_bytes())
+    data[at:at + length] = bytes([value]) * len(data[at:at + length])
+    mcap_of(bag).write_bytes(bytes(data))
+
+
+def kept_stamps(recovered: Path) -> list[int]:
+    return [m.header.stamp.sec for m in read_bag(recovered).messages.get('/odom', [])]
+
+
+def test_a_chunk_whose_length_alone_was_overwritten_is_read_whole_by_its_header(bag, tmp_path):
+    """The walk used to stop there, keeping nothing after it: the chunk's header says where it
+    ends, a record checks out there, and its CRC vouches for its records."""
+    data = mcap_of(bag).read_bytes()
+    second = chunk_offsets(data)[1]
+    overwrite(bag, second + 1, 8, 0x7F)
+    report = recover(bag, tmp_path / 'recovered', keep_unsure_tail=True)
+    assert report.dropped == 0 and report.damaged_chunks == 0 and not report.cut_short
+    assert kept_stamps(tmp_path / 'recovered') == list(range(CHUNKS * PER_CHUNK))
+
+
+@pytest.mark.parametrize('killed', [False, True], ids=['finished', 'killed'])
+def test_the_chunks_after_a_damaged_stretch_are_kept_and_the_loss_is_placed_in_time(
+        bag, tmp_path, killed):
+    """64 bytes of bad sectors over the second chunk's header: its framing is gone. The walk
+    finds the next record that checks out and keeps the third and fourth chunks whole. A
+    finished file's statistics say how many the stretch held; a killed recorder's file does not
+    (its indexes cannot be told from a part of another chunk's), and that is what is said."""
+    data = mcap_of(bag).read_bytes()
+    second = chunk_offsets(data)[1]
+    if killed:
+        as_killed(bag)
+    overwrite(bag, second, 64)
+    report = recover(bag, tmp_path / 'recovered', keep_unsure_tail=True)
+    stamps = kept_stamps(tmp_path / 'recovered')
+    assert stamps == [*range(PER_CHUNK), *range(2 * PER_CHUNK, CHUNKS * PER_CHUNK)]
+    assert report.damaged_chunks == 1 and len(report.stretches) == 1
+    (stretch,) = report.stretches
+    # Between the last message kept before it and the first kept after it (log times: index).
+    assert stretch.from_ns is not None and stretch.to_ns is not None
+    assert stretch.from_ns >= PER_CHUNK - 1 and stretch.to_ns <= 2 * PER_CHUNK
+    assert report.cut_short is killed
+    if killed:
+        assert stretch.count is None and 'an unknown number between' in stretch.said()
+    else:
+        assert stretch.count == report.dropped == PER_CHUNK
+        assert stretch.said() == f'{PER_CHUNK} between {stretch.from_ns * 1e-9:.3f} s and ' \
+                                 f'{stretch.to_ns * 1e-9:.3f} s'
+
+
+def test_bag_recover_names_the_times_of_what_it_dropped(bag, tmp_path, capsys):
+    second = chunk_offsets(mcap_of(bag).read_bytes())[1]
+    overwrite(bag, second, 64)
+    assert main(['bag-recover', str(bag), '--out', str(tmp_path / 'r')]) == 0
+    err = capsys.readouterr().err
+    assert f'dropped {PER_CHUNK} messages: {PER_CHUNK} between ' in err
+
+
+@pytest.fixture(scope='module')
+def pristine(tmp_path_factory) -> bytes:
+    path = tmp_path_factory.mktemp('pristine') / 'bag'
+    write_bag(path)
+    return mcap_of(path).read_bytes()
+
+
+@settings(max_examples=200, deadline=None)
+@given(where=st.floats(0.0, 1.0), length=st.integers(1, 3000), value=st.integers(0, 255))
+def test_any_damage_keeps_every_chunk_it_did_not_touch_and_invents_nothing(
+        pristine, where, length, value):
+    """Bytes overwritten anywhere, of any length: the salvage never fails, every message it
+    reads is one the bag held (its stamp, at most once), every chunk the damage did not touch
+    is read whole, and read + dropped never exceeds what the bag held (and, while the
+    summary is intact, is exactly that)."""
+    data = bytearray(pristine)
+    at = round(where * (len(data) - 1))
+    data[at:at + length] = bytes([value]) * len(data[at:at + length])
+    report = Recovery({})
+    with tempfile.TemporaryDirectory() as work:
+        file = Path(work) / 'bag.mcap'
+        file.write_bytes(bytes(data))
+        stamps = [struct.unpack_from('<i', message, 4)[0]
+                  for _, _, _, message in reader_of(file, report)()]
+    assert len(stamps) == len(set(stamps))
+    assert set(stamps) <= set(range(CHUNKS * PER_CHUNK))
+    offsets = [*chunk_offsets(pristine), footer_of(pristine)[1]]
+    for index, (start, end) in enumerate(itertools.pairwise(offsets)):
+        if at + length <= start or end <= at:
+            chunk = set(range(index * PER_CHUNK, (index + 1) * PER_CHUNK))
+            assert chunk <= set(stamps), f'chunk {index} was not touched'
+    assert len(stamps) + report.dropped <= CHUNKS * PER_CHUNK
+    if at >= footer_of(pristine)[0] + 64:   # the summary's statistics untouched
+        assert len(stamps) + report.dropped == CHUNKS * PER_CHUNK

@@ -140,6 +140,7 @@ def _write_in_order(source: Path, target: Path, storage: str, end: str,
         raise
     report.counts = dict(ordered.counts)
     report.dropped += ordered.undecodable
+    report.undecodable = ordered.undecodable
     return ordered, report
 
 

@@ -46,8 +46,10 @@ def run(args: argparse.Namespace) -> int:
           + ', '.join(f'{topic} {count}' for topic, count in sorted(report.counts.items())),
           file=sys.stderr)
     if report.dropped or report.damaged_chunks or report.cut_short:
-        print(f'dropped {report.dropped} messages ({report.damaged_chunks} damaged chunks, '
-              'and messages that did not decode)'
+        where = [stretch.said() for stretch in report.stretches]
+        if report.undecodable:
+            where.append(f'{report.undecodable} read whole that did not decode as their type')
+        print(f'dropped {report.dropped} messages' + (f': {"; ".join(where)}' if where else '')
               + ('; the file ends mid-record (cut short): what followed is lost'
                  if report.cut_short else ''), file=sys.stderr)
     if report.unsure_tail:
