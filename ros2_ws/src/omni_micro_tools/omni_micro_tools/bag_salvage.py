@@ -67,6 +67,8 @@ class Recovery:
 # The mcap specification's magic, with which a file starts and ends.
 MAGIC = b'\x89MCAP0\r\n'
 _LAST_OPCODE = max(Opcode)
+# The smallest message record: opcode, length, channel, sequence, log and publish time.
+_SMALLEST_MESSAGE = 1 + 8 + 2 + 4 + 8 + 8
 
 
 def _u64(data: memoryview | bytes, at: int) -> int:
@@ -85,6 +87,29 @@ class _Stretch:
     after_ns: int | None
     count: int | None = 0
     times: list[int] = field(default_factory=list)
+
+
+# What the other records of a data section hold, field by field (the mcap specification): 'h',
+# 'i', 'q' fixed integers of 2, 4 and 8 bytes, 's' a string and 'b' bytes (each after its u32
+# length), 'm' a map (after its u32 length in bytes). A record must be exactly that long.
+_SHAPES = {Opcode.HEADER: 'ss', Opcode.SCHEMA: 'hssb', Opcode.CHANNEL: 'hhssm',
+           Opcode.METADATA: 'sm', Opcode.FOOTER: 'qqi'}
+_FIXED = {'h': 2, 'i': 4, 'q': 8}
+
+
+def _fills(body: memoryview, shape: str) -> bool:
+    """Whether ``body`` is exactly the fields of ``shape`` (see _SHAPES)."""
+    at = 0
+    for field_kind in shape:
+        if field_kind in _FIXED:
+            at += _FIXED[field_kind]
+        else:
+            if at + 4 > len(body):
+                return False
+            at += 4 + _u32(body, at)
+        if at > len(body):
+            return False
+    return at == len(body)
 
 
 def _chunk_records(body: memoryview) -> tuple[bytes, bool] | None:
@@ -126,6 +151,7 @@ class _McapSalvage:
         self._pending: list[Stored] = []
         self._damaged: tuple[int, int] | None = None
         self._indexed: list[int] = []
+        self._orphans = 0   # messages of the chunk read last whose channel is unknown
         self._stretch: _Stretch | None = None
 
     # -- the walk ----------------------------------------------------------------------------
@@ -164,6 +190,7 @@ class _McapSalvage:
                     self._damaged = (_u64(body, 0), _u64(body, 8))   # its indexes: how many
             elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE):
                 yield from self._from_records(data[at:end].tobytes())
+                self._orphans = 0   # outside a chunk: no index counts them again
             elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
                 complete = True
                 break
@@ -194,8 +221,9 @@ class _McapSalvage:
         pending, self._pending = self._pending, []
         indexed, self._indexed = self._indexed, []
         damaged, self._damaged = self._damaged, None
-        if damaged is not None or len(indexed) > len(pending):
-            count = len(indexed) - len(pending) if indexed else None
+        read, self._orphans = len(pending) + self._orphans, 0   # orphans: counted already
+        if damaged is not None or len(indexed) > read:
+            count = len(indexed) - read if indexed else None
             self._lose(count, [*(damaged or ()), *indexed])
         if pending:
             self._close_stretch(pending[0][2])
@@ -248,7 +276,8 @@ class _McapSalvage:
             return body if length == 4 else None
         if opcode == Opcode.MESSAGE:
             return body if length >= 22 else None
-        return None if strict else body
+        shape = _SHAPES.get(Opcode(opcode))
+        return body if not strict and shape is not None and _fills(body, shape) else None
 
     def _from_records(self, records: bytes) -> list[Stored]:
         """The messages among ``records`` (a chunk's, or records of the data section); schemas
@@ -287,6 +316,7 @@ class _McapSalvage:
         self.seen += len(messages)
         if orphans:
             self._lose(len(orphans), orphans)
+            self._orphans += len(orphans)
         if messages:
             self.last_ns = messages[-1][2]
         return messages
@@ -346,7 +376,13 @@ class _McapSalvage:
                     channel = Channel.read(stream)
                     self.channels[channel.id] = (channel.topic, self.schemas[channel.schema_id])
                 elif opcode == Opcode.STATISTICS:
-                    self.total = Statistics.read(stream).message_count
+                    statistics = Statistics.read(stream)
+                    # The summary has no CRC (rosbags writes 0): its count is trusted only if it
+                    # agrees with its per-channel counts and fits in the file.
+                    count = statistics.message_count
+                    if count == sum(statistics.channel_message_counts.values()) \
+                            and count <= len(data) // _SMALLEST_MESSAGE:
+                        self.total = count
                 at += 9 + length
 
 
