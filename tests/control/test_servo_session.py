@@ -117,3 +117,17 @@ def test_a_capture_that_is_not_finite_is_as_good_as_none():
     broken = Observation(0.2, math.nan, 0.0, 0.0, 'micro', MICRO)
     assert session.on_capture(broken) is None and session.phase is Phase.SETTLING
     assert session.on_capture_in_motion(broken) is None and session.captures_in_motion == 0
+
+
+@pytest.mark.parametrize(('said', 'bound'), [(None, None), ('soon', None), ('nan', None),
+                                             ('-0.01', None), ('0.03', None), ('0.07', 0.07)])
+def test_a_trackers_measured_age_is_the_servos_bound_only_where_it_is_later(said, bound):
+    """A driver's captures in motion come as old as its tracker measures them: the servo starts
+    its corrections no sooner after a capture than that, nor than its own setting."""
+    session = ServoSession(ServoConfig(capture_age_s=0.05), MotorLimits(), RobotParameters())
+    assert session.take_capture_age('micro', said) == bound
+    assert session.config.capture_age_s == (bound or 0.05)
+    # The oldest stated counts, of any camera: a later, younger statement lowers nothing.
+    session.take_capture_age('macro', '0.06')
+    assert session.take_capture_age('micro', '0.055') is None
+    assert session.config.capture_age_s == max(bound or 0.0, 0.06)

@@ -5,6 +5,7 @@ messages and back, refusals that name the value."""
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -177,6 +178,35 @@ def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(co
         reader.on_image(serialize_message(image)[:30])   # cut short: refused, named
         assert 'an image message' in statuses.messages[-1].message
         assert len(captures.messages) == 2
+    finally:
+        node.destroy_node()
+
+
+def test_tracker_node_says_how_old_a_drivers_frames_come_and_nothing_of_simulated_ones(
+        context, spy):
+    """Frames stamped on the wall clock (a driver's) get their age measured and said in the
+    status, with the topic; camera_node's, stamped from 0, get none."""
+    node = TrackerNode(context=context, parameter_overrides=overrides(
+        cameras=['macro'], **{'macro.image_topic': '/bench/camera/image_raw'}))
+    try:
+        reader = node.readers[0]
+        statuses = spy(reader.status_pub)
+        truth = RobotState(0.05, 0.01, 0.4)
+        pixels = render(DEFAULT_RIG.macro, Sensor(), truth, np.random.default_rng(5))
+        for index in range(6):
+            image, info = frame(pixels, index * 33_333_333)
+            reader.on_info(info)
+            reader.on_image(serialize_message(image))
+        assert all(not status.values for status in statuses.messages)
+        now_ns = time.time_ns()
+        for index in range(5):
+            image, _ = frame(pixels, now_ns - 40_000_000 + index * 33_333_333)
+            reader.on_image(serialize_message(image))
+        said = {item.key: item.value for item in statuses.messages[-1].values}
+        assert said['image_topic'] == '/bench/camera/image_raw'
+        assert float(said['frame_age_s']) >= 0.040 - 0.002    # at least as late as stamped
+        assert float(said['frame_rate_hz']) == pytest.approx(30.0, rel=1e-3)
+        assert statuses.messages[-1].message == 'still: capturing'
     finally:
         node.destroy_node()
 

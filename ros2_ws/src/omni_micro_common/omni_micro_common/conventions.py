@@ -129,6 +129,13 @@ GOAL_TOLERANCE_M = 3.0e-6
 STATUS_TIME_KEY = 'status_time_s'
 # The key a /controller/status that ends a goal carries (its value: the outcome's name).
 OUTCOME_KEY = 'outcome'
+# What a /camera/<name>/tracker_status says of a driver's frames (stamped on the wall clock) once
+# measured: how old they are on arrival and its captures in motion when published (s, the
+# largest of the latest frames), their rate by their stamps (Hz), and the topic they come on.
+FRAME_AGE_KEY = 'frame_age_s'
+CAPTURE_AGE_KEY = 'capture_age_s'
+FRAME_RATE_KEY = 'frame_rate_hz'
+IMAGE_TOPIC_KEY = 'image_topic'
 
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
 PUBLISHED_MARKER = 'published message counts: '

@@ -32,7 +32,17 @@ CAPTURE_IN_MOTION_TOPICS = {'macro': '/camera/macro/pose_in_motion',
                             'micro': '/camera/micro/pose_in_motion'}
 # Latched statuses.
 CONTROLLER_STATUS_TOPIC = '/controller/status'
+# tracker_node's, per camera: what its latest frame gave (or why it was refused), and, for frames
+# stamped on the wall clock (a driver's), how old they are when they arrive.
+TRACKER_STATUS_TOPICS = {'macro': '/camera/macro/tracker_status',
+                         'micro': '/camera/micro/tracker_status'}
 CAMERA_STATUS_TOPIC = '/camera/status'
 RECORDER_STATUS_TOPIC = '/bag_recorder/status'
 # What markers_node draws.
 MARKERS_TOPIC = '/markers'
+
+
+def camera_info_beside(image_topic: str) -> str:
+    """Where a camera driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside
+    it (image_transport's convention)."""
+    return image_topic.rsplit('/', 1)[0] + '/camera_info'

@@ -13,7 +13,14 @@ from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from omni_micro_common.conventions import JOINT_NAMES, OUTCOME_KEY, STATUS_TIME_KEY, split_stamp
+from omni_micro_common.conventions import (
+    CAPTURE_AGE_KEY,
+    IMAGE_TOPIC_KEY,
+    JOINT_NAMES,
+    OUTCOME_KEY,
+    STATUS_TIME_KEY,
+    split_stamp,
+)
 from omni_micro_control.feedback import FeedbackConfig, Finished, Move, Outcome
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_control.servo_config import ServoCommand, ServoConfig
@@ -138,3 +145,19 @@ def status_message(level: int, message: str, at_s: float, values: dict[str, str]
     values = {STATUS_TIME_KEY: repr(float(at_s)), **values}
     status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
     return status
+
+
+def capture_age_line(camera: str, values: dict[str, str], own_s: float, bound_s: float) -> str:
+    """The line a servo logs when a driver's captures in motion come later than its bound
+    (``values``: the tracker's status)."""
+    return (f'{camera}: frames from {values.get(IMAGE_TOPIC_KEY, "the camera driver")} give '
+            f'captures in motion up to {float(values[CAPTURE_AGE_KEY]) * 1e3:.1f} ms old '
+            f"(tracker_status), later than the servo's bound of {own_s * 1e3:.1f} ms "
+            f'(servo.capture_age_s): it starts its corrections {bound_s * 1e3:.1f} ms after a '
+            "capture's stamp")
+
+
+def waiting_line(tries: int, config: FeedbackConfig) -> str:
+    """The line a controller logs when a capture timeout passes and it waits again."""
+    return (f'no capture {tries} x {config.capture_timeout_s:g} s after timer2; waiting again '
+            f'(try {tries + 1} of {config.max_capture_tries})')

@@ -5,7 +5,8 @@ Subscribes:
   /camera/<name>/pose_with_covariance   captures with their uncertainty (the camera
                        contract, README); with capture_uncertainty: fixed, the bare
                        /camera/<name>/pose captures and the fixed_uncertainty.<name> params
-  /camera/<name>/pose_in_motion   in the servo mode: captures of the moving robot
+  /camera/<name>/pose_in_motion   in the servo mode: captures of the moving robot, and
+                       /camera/<name>/tracker_status: how old a driver's come
   /joint_states        wheel states, to know when a commanded move is over
 Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
@@ -23,7 +24,6 @@ to stop.
 from __future__ import annotations
 
 import functools
-import math
 import time
 from typing import Any
 
@@ -38,6 +38,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
+    CAPTURE_AGE_KEY,
     STATUS_TIME_KEY,
     CaptureUncertainty,
     join_stamp,
@@ -58,10 +59,12 @@ from omni_micro_common.topic_names import (
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     JOINT_STATES_TOPIC,
+    TRACKER_STATUS_TOPICS,
     WHEEL_TRAJECTORY_TOPIC,
 )
 from omni_micro_control.controller_messages import (
     STATUS_LEVELS,
+    capture_age_line,
     move_line,
     move_trajectory,
     move_values,
@@ -71,12 +74,13 @@ from omni_micro_control.controller_messages import (
     servo_values,
     status_message,
     stop_trajectory,
+    waiting_line,
 )
-from omni_micro_control.controller_parameters import declare_controller_parameters, reconfigured
+from omni_micro_control.controller_parameters import declare_controller_parameters, reconfigure
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import Finished, Move, Outcome, Phase, VisionFeedbackController
 from omni_micro_control.move_watcher import MoveWatcher
-from omni_micro_control.observations import Observation
+from omni_micro_control.observations import Observation, read_capture
 from omni_micro_control.platform import goal_error
 from omni_micro_control.servo_config import ServoCommand
 from omni_micro_control.servo_session import ServoSession
@@ -135,6 +139,9 @@ class ControllerNode(Node):
                     PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[name],
                     functools.partial(self._on_capture_with_covariance, camera=name,
                                       in_motion=True), CAPTURE_QOS)
+                self.create_subscription(
+                    DiagnosticStatus, TRACKER_STATUS_TOPICS[name],
+                    functools.partial(self._on_tracker_status, camera=name), STATUS_QOS)
         self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
@@ -174,14 +181,13 @@ class ControllerNode(Node):
         wheels = read_wheel_state(self._joint_state, data)
         if wheels is None:
             return
-        sec, nanosec = wheels.sec, wheels.nanosec
-        stamp = join_stamp(sec, nanosec)
+        stamp = join_stamp(wheels.sec, wheels.nanosec)
         if self.robot_time_s == 0.0 and stamp > 0.0:
             # First word from a robot whose clock was already running (this node was started
             # late, e.g. respawned): timer2 counts from now, not from the time 0 we assumed.
             self.controller.restart_wait(stamp)
         self.robot_time_s = max(self.robot_time_s, stamp)
-        self._robot_time_ns = max(self._robot_time_ns, sec * 1_000_000_000 + nanosec)
+        self._robot_time_ns = max(self._robot_time_ns, wheels.sec * 10**9 + wheels.nanosec)
         stopped = self.watcher.on_wheel_state(wheels.rotations_rad, wheels.speeds_rad_s,
                                               wheels.steering_rate_rad_s)
         if isinstance(self.controller, ServoSession):
@@ -237,11 +243,6 @@ class ControllerNode(Node):
     def _observation(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
                      camera: str) -> Observation | None:
         """The capture as the controller reads it; None (said why) if it cannot be used."""
-        if header.frame_id != self.frame_id:
-            self.get_logger().warning(
-                f'ignored {camera} capture in frame {header.frame_id!r}: expected '
-                f'{self.frame_id!r}', throttle_duration_sec=5.0)
-            return None
         if self.watcher.latest_rotations is None:
             # No wheel state yet (a respawned controller): the robot's time, and whether it
             # moves, are unknown until the first; the next stop's captures decide.
@@ -249,6 +250,13 @@ class ControllerNode(Node):
                                    throttle_duration_sec=5.0)
             return None
         stamp = join_stamp(header.stamp.sec, header.stamp.nanosec)
+        seen = read_capture(camera, header.frame_id, self.frame_id, stamp,
+                            (pose.position.x, pose.position.y,
+                             quaternion_to_yaw(pose.orientation.z, pose.orientation.w)),
+                            uncertainty)
+        if isinstance(seen, str):
+            self.get_logger().warning(seen, throttle_duration_sec=5.0)
+            return None
         mismatch = clock_mismatch(f'a {camera} capture', stamp, 'the robot', self.robot_time_s)
         if mismatch is not None:
             if mismatch != self._said_mismatch:
@@ -257,13 +265,6 @@ class ControllerNode(Node):
                 self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch',
                                      at_s=self.robot_time_s, reason=mismatch)
             self._act(self.controller.on_foreign_capture(mismatch), at_s=self.robot_time_s)
-            return None
-        seen = Observation(stamp, pose.position.x, pose.position.y,
-                           quaternion_to_yaw(pose.orientation.z, pose.orientation.w), camera,
-                           uncertainty)
-        if not all(math.isfinite(v) for v in (seen.x_m, seen.y_m, seen.phi_rad)):
-            self.get_logger().warning(f'ignored {camera} capture with a non-finite pose: {seen}',
-                                      throttle_duration_sec=5.0)
             return None
         return seen
 
@@ -293,16 +294,19 @@ class ControllerNode(Node):
             self._act(self.controller.on_out_of_field(self.robot_time_s), at_s=at_s)
             self._report_lockstep()
 
+    def _on_tracker_status(self, msg: DiagnosticStatus, camera: str) -> None:
+        """How old a driver's captures in motion come (the tracker measures it from the frames'
+        stamps): the servo's bound grows to it, said once."""
+        assert isinstance(self.controller, ServoSession)
+        values = {item.key: item.value for item in msg.values}
+        own = self.controller.config.capture_age_s
+        if self.controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY)) is not None:
+            self.get_logger().warning(capture_age_line(camera, values, own,
+                                                       self.controller.config.capture_age_s))
+
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
-        if isinstance(self.controller, ServoSession):
-            return SetParametersResult(successful=False,
-                                       reason='the servo mode fixes its parameters while it runs')
-        config = reconfigured(self.controller.config, {p.name: p.value for p in params})
-        if isinstance(config, str):
-            return SetParametersResult(successful=False, reason=config)
-        self.controller.config = config
-        return SetParametersResult(successful=True)
+        return reconfigure(self.controller, {p.name: p.value for p in params})
 
     def _on_timer(self) -> None:
         """The capture timeouts, every TIMEOUT_CHECK_S of the robot's time (none in the servo
@@ -314,10 +318,7 @@ class ControllerNode(Node):
         # machine delays them instead of firing them before the captures could arrive.
         tries, finished = self.controller.on_time(self.robot_time_s)
         if tries > tries_before and finished is None:
-            self.get_logger().warning(
-                f'no capture {tries} x {self.controller.config.capture_timeout_s:g} s after '
-                f'timer2; waiting again (try {tries + 1} of '
-                f'{self.controller.config.max_capture_tries})')
+            self.get_logger().warning(waiting_line(tries, self.controller.config))
         if finished is not None:
             self.report(finished, at_s=self.robot_time_s)
             self._report_lockstep()
@@ -367,8 +368,7 @@ class ControllerNode(Node):
 
     def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
         """``at_s``: the simulated time of what the status says (controller_messages)."""
-        status = status_message(level, message, at_s, values)
-        self.status_pub.publish(status)
+        self.status_pub.publish(status_message(level, message, at_s, values))
 
     def stop_robot(self) -> None:
         """Tell the robot to ramp its wheels down now (controller_messages.stop_trajectory)."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
@@ -96,6 +97,20 @@ def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> Feedback
                                  **{k: v for k, v in changes.items() if k in fields}})
     except ControllerConfigError as error:
         return str(error)
+
+
+def reconfigure(controller: VisionFeedbackController | ServoSession,
+                changes: dict[str, object]) -> SetParametersResult:
+    """The answer to a parameter change while the node runs, made on ``controller`` if it is
+    accepted (:func:`reconfigured`; the servo fixes all of its own)."""
+    if isinstance(controller, ServoSession):
+        return SetParametersResult(successful=False,
+                                   reason='the servo mode fixes its parameters while it runs')
+    config = reconfigured(controller.config, changes)
+    if isinstance(config, str):
+        return SetParametersResult(successful=False, reason=config)
+    controller.config = config
+    return SetParametersResult(successful=True)
 
 
 def _declare_servo_config(node: Node, shared: FeedbackConfig) -> ServoConfig | None:

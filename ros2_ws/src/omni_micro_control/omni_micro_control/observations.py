@@ -26,6 +26,18 @@ class Observation:
         return 0.0 if self.uncertainty is None else self.uncertainty.radius_95_m
 
 
+def read_capture(camera: str, frame_id: str, expected_frame_id: str, stamp_s: float,
+                 pose: tuple[float, float, float],
+                 uncertainty: CaptureUncertainty) -> Observation | str:
+    """A capture (x, y, heading) as a controller reads it, or why it cannot (a line to log)."""
+    if frame_id != expected_frame_id:
+        return f'ignored {camera} capture in frame {frame_id!r}: expected {expected_frame_id!r}'
+    seen = Observation(stamp_s, *pose, camera, uncertainty)
+    if not all(math.isfinite(v) for v in pose):
+        return f'ignored {camera} capture with a non-finite pose: {seen}'
+    return seen
+
+
 def mean_observation(observations: list[Observation]) -> Observation:
     """One observation of a still robot from several captures of the same camera: the mean
     position, the circular mean heading, the last stamp, and the mean's (smaller) spread."""

@@ -7,6 +7,7 @@ behaviour.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -33,6 +34,8 @@ class ServoSession:
 
         self.servo: ServoController = ServoController(config, limits, robot)
         self.captures_in_motion = 0
+        self._own_capture_age_s = config.capture_age_s
+        self._stated_ages: dict[str, float] = {}
 
     @property
     def config(self) -> ServoConfig:
@@ -79,6 +82,25 @@ class ServoSession:
             return None
         self.captures_in_motion += 1
         return self.servo.on_capture_in_motion(seen)
+
+    def take_capture_age(self, camera: str, said: str | None) -> float | None:
+        """A tracker's measured age of ``camera``'s captures in motion when it publishes them
+        (its status's capture_age_s, in seconds: ``said``): the servo starts its corrections no
+        sooner after a capture's stamp than the oldest any camera has stated, nor than its own
+        setting. Returns the new bound if it grew (None: it did not, or ``said`` is no age)."""
+        try:
+            age_s = float(said) if said is not None else math.nan
+        except ValueError:
+            return None
+        if not (math.isfinite(age_s) and age_s >= 0.0):
+            return None
+        before = self.config.capture_age_s
+        self._stated_ages[camera] = max(age_s, self._stated_ages.get(camera, 0.0))
+        bound = max(self._own_capture_age_s, *self._stated_ages.values())
+        if bound <= before:
+            return None
+        self.servo.config = dataclasses.replace(self.servo.config, capture_age_s=bound)
+        return bound
 
     def on_out_of_field(self, stamp_s: float) -> Finished | None:
         """The camera cannot see the robot: lost, unless the goal is over."""

@@ -36,9 +36,10 @@ that none of them misses the first captures.
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
@@ -58,10 +59,12 @@ from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
+    TRACKER_STATUS_TOPICS,
 )
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.frame_ages import FrameAges
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.rendering import Sensor
@@ -132,7 +135,7 @@ class TrackerNode(Node):
                                         f'{after_stamp!r}')
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, camera, exposure, after_stamp)
+            reader = _CameraReader(self, camera, exposure, after_stamp, image_topic)
             self.readers.append(reader)
             fields[name] = min(camera.model.field_m)
             inputs.append((image_topic, info_topic, reader))
@@ -204,8 +207,12 @@ class _CameraReader:
     publish."""
 
     def __init__(self, node: TrackerNode, camera: TrackedCamera, exposure_s: float,
-                 mid_exposure_after_stamp_s: float) -> None:
+                 mid_exposure_after_stamp_s: float, image_topic: str) -> None:
         self.node = node
+        self.image_topic = image_topic
+        # A driver's frames (wall-clock stamps): how old they come, said in the status.
+        self.ages = FrameAges(mid_exposure_after_stamp_s)
+        self._age_values: list[KeyValue] = []
         self.camera = camera
         self.exposure_s = exposure_s
         self.mid_exposure_after_stamp_s = mid_exposure_after_stamp_s
@@ -223,12 +230,12 @@ class _CameraReader:
         self.covariance_pub = node.create_publisher(
             PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[self.name], CAPTURE_QOS)
         self.status_pub = node.create_publisher(DiagnosticStatus,
-                                                f'/camera/{self.name}/tracker_status',
-                                                latched(1))
+                                                TRACKER_STATUS_TOPICS[self.name], latched(1))
         self.in_motion_pub = node.create_publisher(
             PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[self.name],
             CAPTURE_QOS) if node.captures_in_motion else None
         self._said: str | None = None
+        self._said_level = DiagnosticStatus.OK
 
     def events(self, topic: str) -> SubscriptionEventCallbacks:
         """rclpy's incompatible-QoS event, said by this node in its status and log."""
@@ -249,20 +256,40 @@ class _CameraReader:
             self.node.get_logger().warning(f'{self.name}: frames refused: {refusal}')
         self.info_refusal = refusal
 
-    def _say(self, level: bytes, message: str) -> None:
-        if message != self._said:
-            self._said = message
+    def _say(self, level: bytes, message: str, again: bool = False) -> None:
+        """A status on each change (``again``: even without one, with new ages); it carries the
+        frames' ages once they are measured (frame_ages)."""
+        if message != self._said or again:
+            self._said, self._said_level = message, level
             self.status_pub.publish(DiagnosticStatus(level=level, name=f'tracker {self.name}',
-                                                     message=message))
+                                                     message=message, values=self._age_values))
 
     def on_image(self, data: bytes) -> None:
+        arrived_ns = time.time_ns()
         try:
             msg = read_image(data)
         except CameraConfigError as error:
             self._refuse(error)   # no stamp to report it under: as a frame lost on the way
             return
         found, capture, in_motion = self._see(msg)
-        self.node.on_frame(self, stamp_ns(msg.header.stamp), found, capture, in_motion)
+        stamp = stamp_ns(msg.header.stamp)
+        self.node.on_frame(self, stamp, found, capture, in_motion)
+        if self.ages.add(stamp, arrived_ns, time.time_ns()):
+            self._state_ages()
+
+    def _state_ages(self) -> None:
+        """How old the driver's frames come (frame_ages), in the status and, the first time,
+        in the log."""
+        if not self._age_values:
+            self.node.get_logger().info(
+                f'{self.name}: frames from {self.image_topic} arrive up to '
+                f'{self.ages.frame_age_s * 1e3:.1f} ms after their stamps, at '
+                f'{self.ages.frame_rate_hz:.1f} Hz; a capture in motion is up to '
+                f'{self.ages.capture_age_s * 1e3:.1f} ms old when published')
+        self._age_values = [KeyValue(key=key, value=value)
+                            for key, value in self.ages.values(self.image_topic)]
+        if self._said is not None:
+            self._say(self._said_level, self._said, again=True)
 
     def _refuse(self, error: CameraConfigError | str) -> None:
         if not isinstance(error, str):
