@@ -83,6 +83,26 @@ def test_too_little_motion_leaves_the_offsets_unidentifiable():
     assert fit.unidentifiable() == ['xi2', 'xi3']
 
 
+def test_a_fit_that_wanders_where_moves_never_settle_is_not_identifiable(monkeypatch):
+    """Two short moves of a bench run: the fit stepped to offsets under which a move never
+    came to rest, and identify ended on that (exit 1, naming the simulation) instead of saying
+    that the bag pins nothing down."""
+    from omni_micro_control import identification
+    from omni_micro_sim.errors import SimulationError
+
+    def wanders(chains, base, names, **_):
+        raise SimulationError('the move did not come to rest within 1.0 s of its end')
+
+    monkeypatch.setattr(identification, 'fit_parameters', wanders)
+    chain = chain_of(robot_with(2.0, -1.0), [(0.5, 0.05)], [MICRO, MICRO], seed=0)
+    with pytest.raises(IdentificationError) as error:
+        identification.identify([chain], ('xi2', 'xi3', 'mu_longitudinal'), RobotParameters())
+    assert str(error.value) == (
+        'not identifiable from this bag, too little motion to pin down: xi2 (its 95 % interval '
+        'would be unbounded), xi3 (its 95 % interval would be unbounded), mu_L (its 95 % '
+        'interval would be unbounded)')
+
+
 @pytest.mark.parametrize('chains, names, message', [
     ([Chain([Stop(0.0, 0.0, 0.0, MICRO)], [])], ('xi2',), 'no move between two stops'),
     ([], ('xi2', 'mu'), "cannot fit ['mu']"),

@@ -25,6 +25,7 @@ import numpy as np
 
 from omni_micro_control.chains import Chain, RecordedMove, Stop, wheels_after
 from omni_micro_control.errors import IdentificationError
+from omni_micro_sim.errors import SimulationError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.state import RobotState
 
@@ -349,7 +350,13 @@ def identify(chains: Sequence[Chain], names: Sequence[str],
         initial = None
         if fit is not None:
             initial = np.concatenate([fit.values, [PARAMETERS[n].get(base) for n in batch]])
-        trial = fit_parameters(chains, base, trial_names, initial=initial)
+        try:
+            trial = fit_parameters(chains, base, trial_names, initial=initial)
+        except SimulationError:
+            # So little motion that the fit wandered to parameters under which a move never
+            # comes to rest: none of the batch is pinned down.
+            dropped.update(dict.fromkeys(batch, math.inf))
+            continue
         vague = trial.unidentifiable()
         if any(name in vague for name in kept):
             vague = batch   # the newcomer made the others vague: it is not pinned down either
@@ -368,7 +375,8 @@ def vague_text(dropped: dict[str, float]) -> str:
     parts = []
     for name, width in dropped.items():
         spec = PARAMETERS[name]
-        parts.append(f'{spec.label} (its 95 % interval would be +-{width * spec.display_scale:.3g}'
-                     f' {spec.unit})'.replace(' )', ')'))
+        interval = (f'+-{width * spec.display_scale:.3g} {spec.unit}'.rstrip()
+                    if math.isfinite(width) else 'unbounded')
+        parts.append(f'{spec.label} (its 95 % interval would be {interval})')
     return ('not identifiable from this bag, too little motion to pin down: '
             + ', '.join(parts))
