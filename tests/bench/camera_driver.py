@@ -13,8 +13,10 @@ robot where /bench_truth/odom says it is (the stand-in robot's true pose), or a 
 lying on the platform. The grey frame becomes the sensor's encoding here, from the
 encoding's definition (a Bayer pattern keeps one colour per pixel), under a warm light.
 
-    python camera_driver.py NAMESPACE ENCODING SCENE [CLOCK_OFFSET_S]
-    (SCENE: robot or chessboard; CLOCK_OFFSET_S: how far this machine's clock is off)
+    python camera_driver.py NAMESPACE ENCODING SCENE [CLOCK_OFFSET_S [FIRST_FRAME_AFTER_S]]
+    (SCENE: robot or chessboard; CLOCK_OFFSET_S: how far this machine's clock is off;
+    FIRST_FRAME_AFTER_S: its device opens that long after the node, which streams nothing
+    until then, as a driver waiting for its camera does)
 """
 
 import math
@@ -59,8 +61,10 @@ def to_encoding(grey: np.ndarray, encoding: str) -> np.ndarray:
 
 
 class StandInCamera(Node):
-    def __init__(self, encoding: str, scene: str, clock_offset_s: float = 0.0) -> None:
+    def __init__(self, encoding: str, scene: str, clock_offset_s: float = 0.0,
+                 first_frame_after_s: float = 0.0) -> None:
         super().__init__('camera')
+        self.device_open_at = time.monotonic() + first_frame_after_s
         self.clock_offset_ns = round(clock_offset_s * 1e9)
         self.encoding = encoding
         self.scene = scene
@@ -82,6 +86,8 @@ class StandInCamera(Node):
                                 twist.linear.y, twist.angular.z)
 
     def on_frame(self) -> None:
+        if time.monotonic() < self.device_open_at:
+            return
         # The system clock: when it was taken (on a machine whose clock may be off).
         stamp = (self.get_clock().now()
                  + rclpy.duration.Duration(nanoseconds=self.clock_offset_ns)).to_msg()
@@ -113,8 +119,9 @@ class StandInCamera(Node):
 def main() -> None:
     namespace, encoding, scene = sys.argv[1:4]
     offset = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
+    first_frame_after = float(sys.argv[5]) if len(sys.argv) > 5 else 0.0
     rclpy.init(args=['--ros-args', '-r', f'__ns:={namespace}'])
-    node = StandInCamera(encoding, scene, offset)
+    node = StandInCamera(encoding, scene, offset, first_frame_after)
     node.get_logger().info(f'streaming {encoding} {scene} at {FRAME_RATE_HZ:g} Hz, '
                            f'{time.strftime("%H:%M:%S")}')
     try:

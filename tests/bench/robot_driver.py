@@ -11,7 +11,9 @@ Its "hardware" is the slip core run on the wall clock at real time (omni_micro_s
 modules: the physics stands for the robot, not for its driver). It also publishes the pose it
 really has on /bench_truth/odom, which a real robot cannot: the stand-in camera renders it.
 
-    python robot_driver.py [x_m y_m phi_rad]
+    python robot_driver.py [x_m y_m phi_rad [FIRST_STATE_AFTER_S]]
+    (FIRST_STATE_AFTER_S: its hardware comes up that long after the node, which publishes
+    nothing until then, as a driver waiting for its controller board does)
 """
 
 import math
@@ -36,7 +38,7 @@ CONTROL_RATE_HZ = 50.0
 
 
 class StandInRobot(Node):
-    def __init__(self, pose: tuple[float, float, float]) -> None:
+    def __init__(self, pose: tuple[float, float, float], first_state_after_s: float = 0.0) -> None:
         super().__init__('standin_robot_driver')
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.states = self.create_publisher(JointState, '/joint_states', qos)
@@ -46,8 +48,9 @@ class StandInRobot(Node):
                                    period_s=1.0 / CONTROL_RATE_HZ,
                                    state=RobotState(*pose))
         self.robot.load_kernels()
-        # The hardware's time 0 is the system clock now; its loop runs on the wall clock.
-        self.origin_ns = time.time_ns()
+        # The hardware's time 0 is the system clock when it comes up; its loop runs on the wall
+        # clock.
+        self.origin_ns = time.time_ns() + round(first_state_after_s * 1e9)
         self.create_timer(1.0 / CONTROL_RATE_HZ, self.on_control_tick)
 
     def hardware_time_s(self, sec: int, nanosec: int) -> float:
@@ -67,6 +70,10 @@ class StandInRobot(Node):
 
     def on_control_tick(self) -> None:
         now_s = (time.time_ns() - self.origin_ns) * 1e-9
+        if now_s < 0.0:
+            # The hardware is not up: the driver says nothing, the robot stands where it is.
+            self.publish_truth(self.robot.sample().state, time.time_ns())
+            return
         while self.robot.time_s + self.robot.period_s <= now_s:
             self.publish(self.robot.advance())
 
@@ -80,10 +87,13 @@ class StandInRobot(Node):
         state.velocity = [float(sample.steering_rate_rad_s),
                           *(float(v) for v in sample.wheel_speeds_rad_s)]
         self.states.publish(state)
+        self.publish_truth(sample.state, total)
+
+    def publish_truth(self, robot: RobotState, stamp_ns: int) -> None:
+        """Where the robot really is (what the stand-in camera renders)."""
         truth = Odometry()
-        truth.header = state.header
+        truth.header.stamp.sec, truth.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
         truth.header.frame_id = 'platform'
-        robot = sample.state
         truth.pose.pose.position.x, truth.pose.pose.position.y = robot.x_m, robot.y_m
         truth.pose.pose.orientation.z = float(math.sin(robot.phi_rad / 2))
         truth.pose.pose.orientation.w = float(math.cos(robot.phi_rad / 2))
@@ -94,8 +104,9 @@ class StandInRobot(Node):
 
 def main() -> None:
     x, y, phi = (float(v) for v in sys.argv[1:4]) if len(sys.argv) >= 4 else (0.0, 0.0, 0.0)
+    first_state_after_s = float(sys.argv[4]) if len(sys.argv) >= 5 else 0.0
     rclpy.init()
-    node = StandInRobot((x, y, phi))
+    node = StandInRobot((x, y, phi), first_state_after_s)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

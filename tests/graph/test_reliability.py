@@ -293,7 +293,7 @@ def test_a_params_file_with_a_bad_value_is_refused_with_the_nodes_words(tmp_path
     (['--goal-mm', '100,0', '--rtf', 'inf'], "in [0.001, 10000] or 'max'"),
     (['--goal-mm', '100,0', '--rtf', 'max', '--free-running'], 'needs the lockstep'),
     (['--goal-mm', '100,0', '--open-loop', '-7'], '> 0'),
-    (['--goal-mm', '100,0', '--record-images'], 'needs --record BAG and --vision images'),
+    (['--goal-mm', '100,0', '--record-images'], 'needs --record BAG and images to record'),
     (['--goal-mm', '100,0', '--vision', 'images', '--drop-captures', '0.3'],
      "is vision_node's: it needs --vision model"),
 ])

@@ -4,10 +4,11 @@ run time, goals in another frame rejected, bags written readable and never over 
 from __future__ import annotations
 
 import math
+import time
 
 import pytest
 from adapter_helpers import overrides
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
@@ -21,6 +22,7 @@ from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import VisionFeedbackController
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.recorder_node import BagRecorder
 from omni_micro_tools.viewer_node import Viewer
@@ -80,8 +82,37 @@ def test_bag_recorder_writes_what_it_receives_into_a_readable_bag(context, tmp_p
     assert odom.pose.pose.position.x == 0.0123 and odom.header.stamp.sec == 3
 
 
+def test_bag_recorder_on_the_bench_logs_on_the_wall_clock_with_the_drivers_images(context,
+                                                                                  tmp_path):
+    """A real robot has no /clock: each message is logged when it came, by the system clock,
+    and a status said at time 0 (before the robot's first state) stays where it came, not
+    before the run; a driver's images, on any topic, are recorded with their CameraInfo."""
+    from sensor_msgs.msg import Image
+
+    bag = tmp_path / 'bag'
+    node = BagRecorder(context=context, parameter_overrides=[
+        Parameter('bag', value=str(bag)), Parameter('topics', value=['/controller/status']),
+        Parameter('log_clock', value='wall'),
+        Parameter('driver_images', value=['/bench/camera/image_raw'])])
+    assert {'/bench/camera/image_raw', '/bench/camera/camera_info'} <= set(node.topics)
+    before = time.time_ns()
+    node._writer_of('/controller/status')(serialize_message(DiagnosticStatus(
+        message='idle', values=[KeyValue(key='status_time_s', value='0.0')])))
+    image = Image(height=1, width=2, encoding='mono8', step=2, data=b'\x01\x02')
+    image.header.stamp.sec = before // 10**9
+    node._writer_of('/bench/camera/image_raw')(serialize_message(image))
+    node.close()
+    node.destroy_node()
+    data = read_bag(bag)
+    (status_at,) = data.timestamps['/controller/status']
+    assert before <= status_at <= time.time_ns()
+    assert data.messages['/bench/camera/image_raw'][0].data.tobytes() == b'\x01\x02'
+
+
 @pytest.mark.parametrize(('values', 'named'), [
     ({}, 'bag must name'),
+    ({'bag': 'x', 'log_clock': 'sundial'}, "'sundial'"),
+    ({'bag': 'x', 'driver_images': ['camera/image_raw']}, 'camera/image_raw'),
     ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
     ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
 ])
@@ -139,6 +170,26 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
         assert len(trajectories.messages) == 2 and acks[-1].motion_handled_ns == 400_000_000
         refused = node.set_parameters([Parameter('tolerance_m', value=1e-6)])[0]
         assert not refused.successful and 'servo' in refused.reason
+        # A driver's captures in motion measured 90 ms old by the tracker: the servo takes that
+        # as its bound, says so naming the driver's topic, and starts its corrections that late
+        # after a capture's stamp; an age under its own bound, or no age, changes nothing.
+        warnings: list[str] = []
+        monkeypatch.setattr(node.get_logger(), 'warning', warnings.append)
+        for said in ('garbage', '0.03', '0.09'):
+            node._on_tracker_status(DiagnosticStatus(values=[
+                KeyValue(key='capture_age_s', value=said),
+                KeyValue(key='image_topic', value='/bench/camera/image_raw')]), camera='micro')
+        assert warnings == [
+            "micro: frames from /bench/camera/image_raw give captures in motion up to 90.0 ms "
+            "old (tracker_status), later than the servo's bound of 50.0 ms (servo.capture_age_s): "
+            "it starts its corrections 90.0 ms after a capture's stamp"]
+        assert isinstance(node.controller, ServoSession)
+        assert node.controller.config.capture_age_s == pytest.approx(0.09)
+        node._on_capture_with_covariance(
+            with_uncertainty(capture_pose(0, 500_000_000, 'platform', 8e-5, 0.0, 0.0),
+                             uncertainty), camera='micro', in_motion=True)
+        # 0.5 s + 0.09 s + 0.02 s, on the 20 ms grid.
+        assert stamp_ns(trajectories.messages[-1].header.stamp) == 620_000_000
     finally:
         node.destroy_node()
 

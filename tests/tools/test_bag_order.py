@@ -169,3 +169,21 @@ def test_topics_of_one_instant_keep_their_publication_order_within_a_topic(tmp_p
     assert len({digest(tmp_path / str(seed) / 'bag') for seed in range(3)}) == 1
     assert list(itertools.islice(read_bag(bag).timestamps['/clock'], 2)) == [TICK_NS,
                                                                              2 * TICK_NS]
+
+
+def test_on_the_wall_clock_a_status_said_at_time_0_stays_where_it_came(tmp_path):
+    """A bench run's bag (log times and stamps on the wall clock): the controller's first
+    status, said before the real robot's first state, is stamped 0; placed there it would come
+    1.8e9 s before the run (a replay then slept for ever). It keeps its arrival time; a status
+    on the wall clock keeps its own."""
+    wall_ns = 1_796_000_000 * 10**9
+    writer, connections = open_writer(tmp_path / 'bag', 'mcap', TOPICS)
+    writer.write(connections['/controller/status'], wall_ns + 5, status('idle', 0))
+    said_at = serialize_message(DiagnosticStatus(message='moving', values=[
+        KeyValue(key=STATUS_TIME_KEY, value=repr((wall_ns + 3 * TICK_NS) * 1e-9))]))
+    writer.write(connections['/controller/status'], wall_ns + 9 * TICK_NS, said_at)
+    writer.close()
+    finish_in_order(tmp_path / 'bag', 'mcap', TOPICS)
+    times = [log_time for _, log_time, _ in stored_messages(tmp_path / 'bag')]
+    assert times[0] == wall_ns + 5
+    assert abs(times[1] - (wall_ns + 3 * TICK_NS)) < 1000   # its own time, to a microsecond

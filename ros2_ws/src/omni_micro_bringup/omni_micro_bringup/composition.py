@@ -7,7 +7,7 @@ the recorder, the live view); what each node is told beyond its package's params
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,7 +15,9 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.parameters import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
     CLOCK_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
@@ -128,7 +130,8 @@ def default_nodes(vision: str = 'model') -> list[NodeSpec]:
 
 def recorder_spec(bag: Path, storage: str, markers: bool = True,
                   images: tuple[str, ...] = (), without: tuple[str, ...] = (),
-                  whole: bool = False, in_motion: bool = False) -> NodeSpec:
+                  whole: bool = False, in_motion: bool = False,
+                  cameras: tuple[str, ...] = ('macro', 'micro')) -> NodeSpec:
     """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
     takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
     nobody in this graph publishes (it waits for a publisher of each before the clock starts).
@@ -139,7 +142,7 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
               if (markers or topic != MARKERS_TOPIC) and topic not in without]
     topics += [f'/camera/{camera}/{stream}' for camera in images
                for stream in ('image_raw', 'camera_info')]
-    topics += list(CAPTURE_IN_MOTION_TOPICS.values()) if in_motion else []
+    topics += [CAPTURE_IN_MOTION_TOPICS[camera] for camera in cameras] if in_motion else []
     return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
         'bag': str(bag), 'storage': storage, 'topics': topics,
         'lockstep_frames': bool(images), 'end_at_outcome': not whole}, lockstep=bool(images))
@@ -246,6 +249,31 @@ def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
     return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
 
 
+def bench_cameras(options: GraphOptions) -> dict[str, str]:
+    """The tracker's cameras that read a driver's images (``--camera external``), each with its
+    image topic (``--image-topic``, or the tracker's params)."""
+    if options.camera != 'external':
+        return {}
+    if options.image_topics:
+        return dict(options.image_topics)
+    values = node_parameters('tracker_node', options.params_files, {})
+    cameras = values.get('cameras', ['macro', 'micro'])
+    return {str(camera): str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
+            for camera in (cameras if isinstance(cameras, list) else [])}
+
+
+def tracked_cameras(options: GraphOptions) -> tuple[str, ...]:
+    """The cameras whose captures this graph publishes: vision_node's two, or the tracker's."""
+    names = {spec.executable for spec in graph_nodes(options)}
+    if 'vision_node' in names or 'tracker_node' not in names:
+        return tuple(CAPTURE_TOPICS)
+    if options.image_topics:
+        return tuple(sorted(options.image_topics))
+    cameras = node_parameters('tracker_node', options.params_files, {}).get(
+        'cameras', list(CAPTURE_TOPICS))
+    return tuple(str(name) for name in cameras) if isinstance(cameras, list) else ()
+
+
 def all_specs(options: GraphOptions) -> list[NodeSpec]:
     """Every process of the graph: the loop (one process with ``composed``), then who listens
     (markers, recorder, viewer)."""
@@ -270,19 +298,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.markers:
         specs.append(MARKERS_NODE)
     if options.record is not None:
-        images = streaming_cameras(options) if options.record_images else ()
-        if options.record_images and not images:
-            raise UsageError('--record-images needs the rendered cameras (--vision images)')
-        # /camera/status is vision_node's (the tracker says why per camera, not recorded);
-        # a real robot's driver publishes its wheels, not the simulation's clock, pose or slip.
-        unpublished: tuple[str, ...] = (
-            () if any(spec.executable == 'vision_node' for spec in loop)
-            else (CAMERA_STATUS_TOPIC,))
-        if options.robot == 'external':
-            unpublished += (CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC)
-        specs.append(recorder_spec(options.record, options.storage, options.markers, images,
-                                   unpublished, whole=options.record_whole,
-                                   in_motion=publishes_in_motion(options)))
+        specs.append(recorder_of_graph(options, options.record))
     if options.view is not None:
         specs.append(viewer_spec(*options.view, options.markers))
     return specs
@@ -293,3 +309,40 @@ def camera_node_of(options: GraphOptions) -> str:
     names = {spec.executable for spec in graph_nodes(options)}
     return 'camera_node' if 'camera_node' in names and 'vision_node' not in names \
         else 'vision_node'
+
+
+def recorder_of_graph(options: GraphOptions, bag: Path) -> NodeSpec:
+    """The recorder of ``run --record``: what this graph publishes, on its clock (a real robot's
+    run: the system clock), the images with ``record_images`` (the rendered cameras', or a
+    camera driver's).
+
+    Raises
+    ------
+    UsageError
+        ``record_images`` with no camera streaming images in this graph.
+    """
+    images = streaming_cameras(options) if options.record_images else ()
+    driver_images = tuple(bench_cameras(options).values()) if options.record_images else ()
+    if options.record_images and not images and not driver_images:
+        raise UsageError('--record-images needs the rendered cameras (--vision images) or a '
+                         'camera driver (--camera external)')
+    loop = graph_nodes(options)
+    # /camera/status is vision_node's (the tracker says why per camera, not recorded); a real
+    # robot's driver publishes its wheels, not the simulation's clock, pose or slip; a tracker
+    # publishes the captures of its own cameras only.
+    unpublished: tuple[str, ...] = (
+        () if any(spec.executable == 'vision_node' for spec in loop) else (CAMERA_STATUS_TOPIC,))
+    if options.robot == 'external':
+        unpublished += (CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC)
+    cameras = tracked_cameras(options)
+    unpublished += tuple(topic for name in CAPTURE_TOPICS if name not in cameras
+                         for topic in (CAPTURE_TOPICS[name], CAPTURE_COVARIANCE_TOPICS[name]))
+    spec = recorder_spec(bag, options.storage, options.markers, images, unpublished,
+                         whole=options.record_whole, in_motion=publishes_in_motion(options),
+                         cameras=cameras)
+    overrides = dict(spec.overrides)
+    if driver_images:
+        overrides.update(driver_images=list(driver_images))
+    if options.robot == 'external':
+        overrides.update(log_clock='wall')   # a real robot has no /clock
+    return replace(spec, overrides=overrides)

@@ -29,6 +29,8 @@ from omni_micro_bringup.composition import (
     GraphOptions,
     NodeSpec,
     all_specs,
+    bench_cameras,
+    servo_mode,
     streaming_cameras,
 )
 from omni_micro_bringup.errors import RunFailed, UsageError
@@ -62,6 +64,9 @@ SHUTDOWN_PHASES = (('controller_node',), None, ('bag_recorder',))
 # How long the recorder may take to finish its bag once asked to stop (then SIGTERM; a bag
 # left unfinished is recovered: in the same order, without its last second).
 RECORDER_FINISH_S = 120.0
+# How long a run on the bench waits for the robot's first state and the cameras' first frames
+# (bench_start), as for the drivers' topics.
+BENCH_READY_S = 60.0
 # A recorded run goes on this far (simulated time) past the bag's end before it is stopped:
 # markers_node draws an array once the odometry is two arrays (0.2 s) past it.
 RUN_ON_PAST_BAG_END_S = 0.4
@@ -301,7 +306,8 @@ def run_graph(options: GraphOptions) -> GraphResult:
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_bringup.monitor import GraphMonitor  # rclpy only where a graph runs
+    from omni_micro_bringup.bench_start import wait_for_bench  # rclpy only where a graph runs
+    from omni_micro_bringup.monitor import GraphMonitor
     from omni_micro_tools.topics import BAG_TAIL_S
 
     for path in options.params_files:
@@ -331,8 +337,13 @@ def run_graph(options: GraphOptions) -> GraphResult:
                                      subscriptions=ready_subscriptions(options),
                                      publications=external_publications(options),
                                      clock=simulated_robot)
+            if options.external:
+                wait_for_bench(monitor, graph, robot=options.robot == 'external',
+                               cameras=bench_cameras(options), timeout_s=BENCH_READY_S,
+                               ages=servo_mode(options))
             wall_start = time.monotonic()
-            goal_stamp_s = 0.0
+            # The goal at the robot's time: 0 for a simulated one, the wall clock on the bench.
+            goal_stamp_s = time.time() if options.external else 0.0
             for index, goal in enumerate(goals):
                 monitor.send_goal(graph, goal, recording, stamp_s=goal_stamp_s)
                 if index == 0:
@@ -363,6 +374,10 @@ def run_graph(options: GraphOptions) -> GraphResult:
                 odom = (capture_stamp, float(status.get('measured_x_m', 'nan')),
                         float(status.get('measured_y_m', 'nan')),
                         float(status.get('measured_phi_rad', 'nan')))
+                if recording:
+                    # The bag's tail: the stop and the robot's wheels coming to rest.
+                    monitor.wait_for_recorder_past(graph, goal_stamp_s + BAG_TAIL_S,
+                                                   timeout_s=60.0)
         finally:
             monitor.close()
             graph.stop()

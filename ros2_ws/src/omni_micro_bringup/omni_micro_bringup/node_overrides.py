@@ -19,7 +19,7 @@ from omni_micro_bringup.composition import (
     servo_mode,
 )
 from omni_micro_bringup.parameters import node_parameters
-from omni_micro_common.topic_names import CAPTURE_TOPICS
+from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.motion_capture import CameraTiming, capture_age_bound_s
@@ -80,7 +80,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
             overrides.update(cameras=sorted(options.image_topics))
             for camera, topic in options.image_topics.items():
                 overrides.update({f'{camera}.image_topic': topic,
-                                  f'{camera}.info_topic': sibling_info_topic(topic)})
+                                  f'{camera}.info_topic': camera_info_beside(topic)})
     elif spec.executable == 'markers_node':
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters(camera_node_of(options), options.params_files,
@@ -168,9 +168,3 @@ def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
     recorder = ['bag_recorder'] if 'bag_recorder' in present else []
     return {'capture_readers': (readers if source == 'fixed' else []) + recorder,
             'covariance_readers': (readers if source != 'fixed' else []) + recorder}
-
-
-def sibling_info_topic(image_topic: str) -> str:
-    """Where a driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside it
-    (image_transport's convention)."""
-    return image_topic.rsplit('/', 1)[0] + '/camera_info'

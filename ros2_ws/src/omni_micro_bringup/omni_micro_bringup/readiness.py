@@ -3,8 +3,7 @@ the bench's drivers must publish, and whether a simulated robot keeps the clock.
 
 from __future__ import annotations
 
-from omni_micro_bringup.composition import GraphOptions, graph_nodes
-from omni_micro_bringup.parameters import node_parameters
+from omni_micro_bringup.composition import GraphOptions, bench_cameras, graph_nodes
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
@@ -39,13 +38,5 @@ def external_publications(options: GraphOptions) -> dict[str, str]:
     needed = {}
     if options.robot == 'external':
         needed.update({topic: "the robot's driver" for topic in EXTERNAL_ROBOT_PUBLISHES})
-    if options.camera == 'external':
-        if options.image_topics:
-            topics = list(options.image_topics.values())
-        else:
-            values = node_parameters('tracker_node', options.params_files, {})
-            cameras = values.get('cameras', ['macro', 'micro'])
-            topics = [str(values.get(f'{camera}.image_topic', f'/camera/{camera}/image_raw'))
-                      for camera in (cameras if isinstance(cameras, list) else [])]
-        needed.update({topic: 'the camera driver' for topic in topics})
+    needed.update({topic: 'the camera driver' for topic in bench_cameras(options).values()})
     return needed

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from omni_micro_cli.errors import UsageError
+from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -33,6 +34,8 @@ from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
 DPI = 100                      # frames of 1000 x 450 pixels
+# The robot as a capture shows it, where the bag has no /odom (a real robot's run).
+SEEN = 'seen by a camera'
 TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
           *CAPTURE_TOPICS.values(), *CAPTURE_COVARIANCE_TOPICS.values())
 
@@ -40,20 +43,34 @@ TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, WHEEL_TRAJECTORY_TOP
 def _events(bag: Path) -> list[tuple[int, str, Any]]:
     """Every message that changes the scene, with the simulated time it was recorded at."""
     data = read_bag(bag, list(TOPICS))
-    if not data.messages.get(ODOM_TOPIC):
-        raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to animate')
     events = [(stamp, topic, message)
               for topic in TOPICS
               for stamp, message in zip(data.timestamps.get(topic, []),
                                         data.messages.get(topic, []), strict=True)]
+    if not data.messages.get(ODOM_TOPIC):
+        # A run with a real robot: the robot drawn where the cameras saw it.
+        events += [(stamp, SEEN, message) for topic in CAPTURE_TOPICS.values()
+                   for stamp, message in zip(data.timestamps.get(topic, []),
+                                             data.messages.get(topic, []), strict=True)]
+    if not any(topic in (ODOM_TOPIC, SEEN) for _, topic, _ in events):
+        raise UsageError(f'{str(bag)!r} has no /odom and no captures: nothing to animate')
     # The recorder's stamps are simulated time; ties keep the topics' order above.
     events.sort(key=lambda event: event[0])
     return events
 
 
+def _first_position(events: list[tuple[int, str, Any]]) -> tuple[float, float]:
+    """Where the robot is first placed (x, y)."""
+    for _, topic, message in events:
+        if topic in (ODOM_TOPIC, SEEN):
+            pose = message.pose.pose if topic == ODOM_TOPIC else message.pose
+            return pose.position.x, pose.position.y
+    raise AssertionError('_events checked there is one')
+
+
 def _apply(scene: Scene, topic: str, message: Any) -> None:
-    if topic == ODOM_TOPIC:
-        pose = message.pose.pose
+    if topic in (ODOM_TOPIC, SEEN):
+        pose = message.pose.pose if topic == ODOM_TOPIC else message.pose
         scene.on_odometry(pose.position.x, pose.position.y,
                           quaternion_to_yaw(pose.orientation.z, pose.orientation.w))
     elif topic == JOINT_STATES_TOPIC and STEERING_JOINT in message.name:
@@ -116,6 +133,8 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
         raise UsageError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
     events = _events(bag)
     first, last = events[0][0], events[-1][0]
+    start = _first_position(events)
+    clock = 'on the wall clock' if is_wall_clock(first * 1e-9) else 'simulated'
     times = np.linspace(first, last, frames)
     scene = Scene(DEFAULT_RIG)
     fig = plt.figure(figsize=FIGURE_SIZE_IN, dpi=DPI)
@@ -137,13 +156,16 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
             _draw(axis, shapes, micro)
             axis.set_aspect('equal')
             axis.grid(True, alpha=0.3)
-        x_values = [x for x, _ in scene.route] + ([scene.goal_m[0]] if scene.goal_m else [])
-        y_values = [y for _, y in scene.route] + ([scene.goal_m[1]] if scene.goal_m else [])
+        # Before the robot is first placed (a real robot's run shows it at its first capture):
+        # where it will be.
+        seen = scene.route or [start]
+        x_values = [x for x, _ in seen] + ([scene.goal_m[0]] if scene.goal_m else [])
+        y_values = [y for _, y in seen] + ([scene.goal_m[1]] if scene.goal_m else [])
         margin = 6.0
         main.set_xlim(min(x_values) * 1e3 - margin, max(x_values) * 1e3 + margin)
         main.set_ylim(min(y_values) * 1e3 - margin - 20, max(y_values) * 1e3 + margin + 20)
         main.set(xlabel='x (mm)', ylabel='y (mm)', title='platform (15 cm field)')
-        title.set_text(f'{bag.name}: t = {(times[index] - first) * 1e-9:6.2f} s simulated')
+        title.set_text(f'{bag.name}: t = {(times[index] - first) * 1e-9:6.2f} s {clock}')
         (cx, cy), (w, h) = DEFAULT_RIG.micro.center_m, DEFAULT_RIG.micro.field_m
         inset.set_xlim((cx - w / 2) * 1e3, (cx + w / 2) * 1e3)
         inset.set_ylim((cy - h / 2) * 1e3, (cy + h / 2) * 1e3)

@@ -5,7 +5,8 @@ depends on the machine's load. A finished bag instead holds each message
 
 - at the simulated time it belongs to (its *event time*): a stamped message's header stamp, a
   /clock message's clock, a MarkerArray's first marker's stamp, a status's ``status_time_s``
-  (omni_micro_common.conventions.STATUS_TIME_KEY); a message without one keeps its arrival time;
+  (omni_micro_common.conventions.STATUS_TIME_KEY); a message without one, or with a time from 0
+  in a bag recorded on the wall clock (a real robot's run), keeps its arrival time;
   never earlier than the message before it on its topic (a topic keeps its publication order);
 - in one order: by event time, then by topic (``TOPIC_ORDER``), then by publication order;
 - serialized canonically (rosbags' CDR, padding zeroed: a publisher may leave garbage in it);
@@ -25,8 +26,9 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.conventions import OUTCOME_KEY, STATUS_TIME_KEY
-from omni_micro_tools.topics import BAG_TAIL_S, IMAGE_TOPICS, TOPIC_ORDER
+from omni_micro_tools.topics import BAG_TAIL_S, IMAGE_TYPES, TOPIC_ORDER
 
 # A killed recorder's last messages of a tick may still have been on their way: a recovered
 # bag ends this far (simulated time) before its latest message.
@@ -129,11 +131,14 @@ def in_bag_order(read: Callable[[], Iterable[Stored]], typestore: Any,
             report.undecodable += 1
             continue
         at = event_time_ns(msgtype, canonical, decoded)
-        at = max(log_time if at is None else at, last_time.get(topic, -2**63))
+        if at is None or (is_wall_clock(log_time * 1e-9) and not is_wall_clock(at * 1e-9)):
+            at = log_time   # says none, or a time from 0 in a bag on the wall clock (a status
+            # before a real robot's first state says 0): kept where it arrived
+        at = max(at, last_time.get(topic, -2**63))
         last_time[topic] = at
         index = next_index.get(topic, 0)
         next_index[topic] = index + 1
-        image = topic in IMAGE_TOPICS
+        image = msgtype in IMAGE_TYPES
         entries.append(_Entry(at, _rank(topic), index, topic, msgtype,
                               None if image else canonical))
         finished_at = outcome_time_ns(msgtype, decoded)
@@ -177,7 +182,7 @@ def _images(read: Callable[[], Iterable[Stored]], typestore: Any,
                 queue.popleft()
                 continue
             stored_topic, msgtype, _, data = next(stream)
-            if stored_topic not in IMAGE_TOPICS:
+            if msgtype not in IMAGE_TYPES:
                 continue
             try:
                 decoded = typestore.deserialize_cdr(data, msgtype)

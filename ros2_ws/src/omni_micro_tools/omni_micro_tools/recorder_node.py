@@ -1,7 +1,8 @@
 """``bag_recorder``: raw messages of the graph's topics into a rosbag2 bag.
 
 While the run goes it is what ``ros2 bag record --use-sim-time`` would be: raw (still
-serialized) messages, each stamped with the simulated time at which it arrived, into an mcap
+serialized) messages, each stamped with the simulated time at which it arrived (on the bench,
+``log_clock: wall``: the system clock, as ``ros2 bag record`` without it), into an mcap
 (default) or sqlite3 bag with metadata version 9. Every 0.5 s of wall time the data written so
 far is pushed to the file, so a SIGKILL loses at most that much (recover with
 ``omni-micro bag-recover``). When it stops it finishes the bag (:mod:`omni_micro_tools.bag_order`):
@@ -12,8 +13,10 @@ Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``b
 create; required, must not exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic
 of the graph but the images), ``lockstep_frames`` (report written frames on /lockstep, so that a
 graph in lockstep waits for the disk as for its tracker), ``end_at_outcome`` (false: keep every
-message received, for a soak that counts them). ``omni-micro record`` and ``run --record`` start
-it.
+message received, for a soak that counts them), ``log_clock`` (sim: /clock; wall: the system
+clock, for a run with a real robot, which has no /clock), ``driver_images`` (a camera driver's
+image topics, any names, each with the ``camera_info`` beside it, read best effort).
+``omni-micro record`` and ``run --record`` start it.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
+from omni_micro_common.reader_matching import node_list_parameter
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
     GOAL_TOPIC,
@@ -51,9 +55,15 @@ from omni_micro_tools.errors import BagPathError
 from omni_micro_tools.topics import (
     GRAPH_TOPICS,
     IMAGE_TOPICS,
+    IMAGE_TYPES,
     RECEIVED_UP_TO_KEY,
     RECORDABLE_TOPICS,
+    driver_image_topics,
 )
+
+# Where the log time of a message comes from: the simulated clock on /clock, or the system clock
+# (the bench: a real robot has no /clock).
+LOG_CLOCKS = ('sim', 'wall')
 
 # Data written so far is pushed to the file this often: a SIGKILL loses at most this much.
 FLUSH_PERIOD_S = 0.5
@@ -76,6 +86,8 @@ class BagRecorder(Node):
         names = list(self.declare_parameter('topics', list(GRAPH_TOPICS)).value)
         lockstep_frames = bool(self.declare_parameter('lockstep_frames', False).value)
         self.end_at_outcome = bool(self.declare_parameter('end_at_outcome', True).value)
+        log_clock = self.declare_parameter('log_clock', 'sim').value
+        driver_images = node_list_parameter(self, 'driver_images')
         if str(bag) in ('', '.'):
             raise ParameterError('bag must name the folder to record into, got none')
         if storage not in STORAGES:
@@ -86,7 +98,15 @@ class BagRecorder(Node):
                                  f'got {names}')
         if bag.exists():
             raise ParameterError(f'bag {str(bag)!r} exists already: not recording over it')
+        if log_clock not in LOG_CLOCKS:
+            raise ParameterError(f'log_clock must be one of {list(LOG_CLOCKS)}, got '
+                                 f'{log_clock!r}')
         topics = {name: RECORDABLE_TOPICS[name] for name in names}
+        try:
+            topics.update(driver_image_topics(driver_images))
+        except ValueError as error:
+            raise ParameterError(f'driver_images: {error}') from None
+        self.wall_clock = log_clock == 'wall'
         self.bag = bag
         self.storage = storage
         self.topics = topics
@@ -112,7 +132,7 @@ class BagRecorder(Node):
             # A camera driver's images, recorded outside the lockstep, are read best effort: that
             # meets a reliable and a best-effort driver alike (REP-2003), as rosbag2 adapts to
             # what a publisher offers. In the lockstep no frame may be lost: reliable.
-            best_effort = topic in IMAGE_TOPICS and not lockstep_frames
+            best_effort = spec.msgtype in IMAGE_TYPES and not lockstep_frames
             qos = spec.reader_profile(max(spec.depth, RECORDER_DEPTH), best_effort)
             # Per-tick streams without QoS-event handlers, as in the nodes (omni_micro_common.qos).
             quiet = PER_TICK_SUBSCRIPTION_EVENTS if spec.depth >= 1000 else None
@@ -150,7 +170,8 @@ class BagRecorder(Node):
             if self.write_failure is not None:
                 return
             try:
-                self.writer.write(connection, self._clock_ns, data)
+                self.writer.write(connection,
+                                  time.time_ns() if self.wall_clock else self._clock_ns, data)
             except OSError as error:
                 self._writing_failed(error)
                 return

@@ -22,6 +22,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    camera_info_beside,
 )
 
 if TYPE_CHECKING:
@@ -91,6 +92,27 @@ IN_MOTION_TOPICS: dict[str, TopicSpec] = {
     topic: TopicSpec('geometry_msgs/msg/PoseWithCovarianceStamped', 100)
     for topic in CAPTURE_IN_MOTION_TOPICS.values()}
 RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS}
+# The types of the camera streams: a megabyte a frame, never held in memory while a bag is put
+# in order, and read best effort from a driver outside the lockstep (REP-2003).
+IMAGE_TYPES = ('sensor_msgs/msg/Image', 'sensor_msgs/msg/CameraInfo')
+
+
+def driver_image_topics(image_topics: list[str]) -> dict[str, TopicSpec]:
+    """A camera driver's image topics, any names, each with the CameraInfo beside it, as the
+    recorder records them.
+
+    Raises
+    ------
+    ValueError
+        A topic that is not absolute.
+    """
+    topics: dict[str, TopicSpec] = {}
+    for topic in image_topics:
+        if not topic.startswith('/') or topic.endswith('/'):
+            raise ValueError(f'expected absolute topic names (/camera/image_raw), got {topic!r}')
+        topics[topic] = TopicSpec(IMAGE_TYPES[0], 10)
+        topics[camera_info_beside(topic)] = TopicSpec(IMAGE_TYPES[1], 10)
+    return topics
 
 # Within one instant of simulated time a finished bag holds its topics in this order: what
 # causes before what it causes (the robot's sample, the frames, the captures, the controller's

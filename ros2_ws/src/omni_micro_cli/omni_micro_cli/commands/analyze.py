@@ -13,7 +13,9 @@ import numpy as np
 from omni_micro_cli.arguments import positive_int, whole_number_in
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import output_folder, staged_directory
+from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.topic_names import (
+    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
@@ -61,11 +63,12 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     from omni_micro_tools.bag_reading import read_bag
 
     data = read_bag(bag)
-    odometry = data.messages.get(ODOM_TOPIC, [])
-    if not odometry:
-        raise UsageError(f'{str(bag)!r} has no /odom messages: nothing to analyse')
-    route = np.array([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
-                      for m in odometry])
+    route, seen_only = route_of(data.messages)
+    if not len(route):
+        raise UsageError(f'{str(bag)!r} has no /odom and no captures: nothing to analyse')
+    if seen_only:
+        print(f'{bag}: no /odom (a run with a real robot, whose true pose nobody knows): the '
+              'route is where the cameras saw it', file=sys.stderr)
     statuses = [{'message': m.message, **{kv.key: kv.value for kv in m.values}}
                 for m in data.messages.get(CONTROLLER_STATUS_TOPIC, [])]
     goals = data.messages.get(GOAL_TOPIC, [])
@@ -97,6 +100,8 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
                          if goal else None),
         'periods': len(moves),
         'captures': len(captures),
+        'route_from': 'captures' if seen_only else 'odom',
+        'clock': 'wall' if is_wall_clock(float(route[0, 0])) else 'simulated',
         'duration_s': float(route[-1, 0] - route[0, 0]),
         'message_counts': {topic: len(raw) for topic, raw in data.raw.items()},
     }
@@ -107,16 +112,32 @@ def summarize(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
     return summary, arrays
 
 
+def route_of(messages: dict[str, list]) -> tuple[np.ndarray, bool]:
+    """The route (time, x, y) from /odom; from a run with a real robot, which has none, where
+    the cameras saw it (every capture, still or in motion, by its stamp), and True."""
+    odometry = messages.get(ODOM_TOPIC, [])
+    if odometry:
+        return np.array([(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
+                         for m in odometry]), False
+    seen = [(_stamp(m), m.pose.position.x, m.pose.position.y)
+            for topic in CAPTURE_TOPICS.values() for m in messages.get(topic, [])]
+    seen += [(_stamp(m), m.pose.pose.position.x, m.pose.pose.position.y)
+             for topic in CAPTURE_IN_MOTION_TOPICS.values() for m in messages.get(topic, [])]
+    return np.array(sorted(seen)).reshape(-1, 3), True
+
+
 def summary_markdown(summary: dict) -> str:
     rows = [('outcome', f"{summary['outcome']} {summary['reason']}".strip()),
             ('goal', f"({summary['goal_x_mm']:.4f}, {summary['goal_y_mm']:.4f}) mm"
              if summary['goal_x_mm'] is not None else 'not recorded'),
-            ('final position', f"({summary['final_x_mm']:.4f}, {summary['final_y_mm']:.4f}) mm"),
+            ('final position' + (' (as the cameras saw it)' if summary['route_from'] == 'captures'
+                                 else ''),
+             f"({summary['final_x_mm']:.4f}, {summary['final_y_mm']:.4f}) mm"),
             ('final deviation', f"{summary['deviation_mm'] * 1e3:.2f} um"
              if summary['deviation_mm'] is not None else 'unknown (no goal in the bag)'),
             ('periods', str(summary['periods'])),
             ('captures', str(summary['captures'])),
-            ('duration (simulated)', f"{summary['duration_s']:.2f} s")]
+            (f"duration ({summary['clock']} clock)", f"{summary['duration_s']:.2f} s")]
     lines = [f"# Run recorded in `{summary['bag']}`", '', '| | |', '|---|---|']
     lines += [f'| {name} | {value} |' for name, value in rows]
     lines += ['', '| topic | messages |', '|---|---|']
@@ -131,7 +152,9 @@ def run(args: argparse.Namespace) -> int:
     route, goal = arrays['route'], arrays['goal']
     with staged_directory(args.out) as scratch:
         ideal = np.array([route[0, 1:], goal])
-        plots.routes(scratch / 'route.png', {'recorded route': route[:, 1:]}, ideal_m=ideal,
+        label = ('as the cameras saw it' if summary['route_from'] == 'captures'
+                 else 'recorded route')
+        plots.routes(scratch / 'route.png', {label: route[:, 1:]}, ideal_m=ideal,
                      goal_m=goal, captures_m=arrays['captures'][:, 1:],
                      title='route against the ideal straight route (from the bag)')
         if len(arrays['slip']):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from omni_micro_cli.arguments import FACTOR_RANGE, domain_id, number_in, positive_float
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.lockstep import REPLAY_SYNC_WINDOW
 from omni_micro_common.topic_names import CLOCK_TOPIC
 
@@ -51,12 +52,18 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f'topic(s) {unknown} are not in the bag; it has {available}')
     if args.clock and CLOCK_TOPIC not in topics:
         if CLOCK_TOPIC not in available:
-            raise UsageError('--clock: the bag has no /clock')
+            raise UsageError('--clock: the bag has no /clock (a run with a real robot has none: '
+                             'its messages carry the wall clock)')
         topics.append(CLOCK_TOPIC)
     # Only what is replayed is read: a bag with images holds a megabyte a frame.
     data = read_bag(args.bag, topics=topics, decode=bool(args.sync))
     if not any(data.timestamps[topic] for topic in topics):
         raise UsageError(f'no messages to replay on {topics}')
+    first = min(stamps[0] for stamps in data.timestamps.values() if stamps)
+    if CLOCK_TOPIC not in available and is_wall_clock(first * 1e-9):
+        print(f'{args.bag}: recorded on the wall clock (a run with a real robot: no /clock, no '
+              '/odom); its messages go out with the stamps they were recorded with',
+              file=sys.stderr)
 
     from omni_micro_tools.bag_player import BagPlayer
     from omni_micro_tools.errors import ReplayError

@@ -59,8 +59,9 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'images and tracker_node finds the robot in them, as a real '
                              'camera and its tracker would (docs/images.md)')
     parser.add_argument('--record-images', action='store_true',
-                        help='with --record and --vision images: the images and camera infos '
-                             'too (about 80 MB per simulated second at the default sizes)')
+                        help='with --record and --vision images (or --camera external: the '
+                             "driver's): the images and camera infos too (about 80 MB per "
+                             'simulated second at the default sizes)')
     parser.add_argument('--captures-in-motion', action='store_true',
                         help='vision_node (or tracker_node, on images) also publishes captures '
                              'of the moving robot on /camera/<name>/pose_in_motion, stamped at '
@@ -214,11 +215,13 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     if external and args.rtf != 1.0:
         raise UsageError(f'with an external camera or robot the graph runs at real time: '
                          f'--rtf must be 1, got {args.rtf:g}')
-    if external and (faults or args.record_images):
-        raise UsageError('fault injection and --record-images are the simulated camera\'s: '
-                         'not with --camera external or --robot external')
-    if args.record_images and (args.vision != 'images' or args.record is None):
-        raise UsageError('--record-images needs --record BAG and --vision images')
+    if external and faults:
+        raise UsageError('fault injection is the simulated camera\'s: not with --camera '
+                         'external or --robot external')
+    if args.record_images and (args.record is None
+                               or (args.vision != 'images' and args.camera != 'external')):
+        raise UsageError('--record-images needs --record BAG and images to record: --vision '
+                         'images or --camera external')
     domain = getattr(args, 'domain_id', None)
     if external and domain is None:
         from_environment = os.environ.get('ROS_DOMAIN_ID', '')
@@ -239,7 +242,10 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                                               **preset_under_params(args, 'controller_node',
                                                                     'model.robot.')},
                         dynamics_overrides=preset_under_params(args, 'dynamics_node', 'robot.'),
-                        respawn=getattr(args, 'respawn', False), markers=args.markers,
+                        respawn=getattr(args, 'respawn', False),
+                        # markers_node draws the robot from its odometry, which a real robot
+                        # has not.
+                        markers=args.markers and getattr(args, 'robot', 'simulated') != 'external',
                         view=view_from_args(args), composed=args.composed,
                         camera=getattr(args, 'camera', 'simulated'),
                         robot=getattr(args, 'robot', 'simulated'),

@@ -1,0 +1,126 @@
+"""When a run on the bench may hand out its goal: once the controller has the real robot's state
+and the tracker has a frame of every real camera.
+
+Seeing a driver's publisher is not enough. Discovery runs each way at its own pace, so the
+controller's reader may match the robot's driver, and the tracker's the camera's, a second or
+more after the orchestrator saw them; a goal sent in between counts the controller's capture
+timeout (3 x 1 s) from the goal while the first capture is still on its way (a run once ended
+``lost`` at once, and one that reached had its first capture 1.9 s after the goal).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from omni_micro_bringup.errors import RunFailed
+from omni_micro_common.conventions import CAPTURE_AGE_KEY, FRAME_AGE_KEY, FRAME_RATE_KEY
+from omni_micro_common.errors import LockstepError
+from omni_micro_common.lockstep import ACK_TOPIC
+from omni_micro_common.lockstep_reporting import decode_ack_bytes
+from omni_micro_common.qos import LOCKSTEP_QOS, latched
+from omni_micro_common.topic_names import JOINT_STATES_TOPIC, TRACKER_STATUS_TOPICS
+
+if TYPE_CHECKING:
+    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.supervisor import Supervisor
+
+# What is still missing is named after this long (the drivers may take longer to start: the
+# run waits on, up to its bound).
+BENCH_NOTICE_S = 5.0
+# The controller node whose wheel state the goal waits for.
+CONTROLLER = 'controller_node'
+
+
+def wait_for_bench(monitor: GraphMonitor, graph: Supervisor, robot: bool,
+                   cameras: dict[str, str], timeout_s: float,
+                   ages: bool = False) -> dict[str, str]:
+    """Until the controller has had a wheel state (``robot``: the real robot's driver) and the
+    tracker has handled a frame of each of ``cameras`` (camera -> the driver's image topic;
+    with ``ages``, until it has said how old they come: a servo's corrections are timed by
+    it); returns what the tracker says of each camera's latest frame.
+
+    Raises
+    ------
+    RunFailed
+        Naming what is still missing after ``timeout_s``, and where to look.
+    """
+    node, echo = monitor.node, monitor.echo
+    has_robot_state = not robot
+    said: dict[str, str] = {}
+
+    def on_report(data: bytes) -> None:
+        nonlocal has_robot_state
+        try:
+            ack = decode_ack_bytes(data)
+        except LockstepError:
+            return   # not ours to judge: the nodes of the graph report well-formed
+        if ack is not None and ack.node == CONTROLLER and (ack.processed_ns or 0) > 0:
+            has_robot_state = True
+
+    def tracker_status_of(camera: str) -> Callable[[DiagnosticStatus], None]:
+        def on_status(msg: DiagnosticStatus) -> None:
+            values = {item.key: item.value for item in msg.values}
+            if not ages or CAPTURE_AGE_KEY in values:
+                said[camera] = msg.message + _ages_said(values)
+        return on_status
+
+    subscriptions = [node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report,
+                                              LOCKSTEP_QOS, raw=True)] if robot else []
+    subscriptions += [node.create_subscription(DiagnosticStatus, TRACKER_STATUS_TOPICS[camera],
+                                               tracker_status_of(camera), latched(1))
+                      for camera in cameras]
+
+    what = "frames' age" if ages else 'frame'
+
+    def missing() -> list[str]:
+        return ([] if has_robot_state else
+                [f"the robot's first {JOINT_STATES_TOPIC} at {CONTROLLER}"]) + \
+            [f"tracker_node's first {camera} {what} ({topic})"
+             for camera, topic in cameras.items() if camera not in said]
+
+    started = time.monotonic()
+    noticed = False
+    try:
+        if missing() and echo:
+            echo(f'[orchestration] waiting for {" and ".join(missing())} before the goal')
+        while missing():
+            graph.check_alive()
+            waited = time.monotonic() - started
+            hint = _hint(not has_robot_state, monitor.domain_id)
+            if waited > timeout_s:
+                raise RunFailed(f'no {" and no ".join(missing())} within {timeout_s:g} s: '
+                                f'{hint}; logs in {graph.log_dir}')
+            if waited > BENCH_NOTICE_S and not noticed and echo:
+                noticed = True
+                echo(f'[orchestration] still no {" and no ".join(missing())} after '
+                     f'{BENCH_NOTICE_S:g} s: {hint}')
+            monitor.spin_for(0.05)
+    finally:
+        for subscription in subscriptions:
+            node.destroy_subscription(subscription)
+    if echo:
+        echo('[orchestration] the bench is ready after '
+             f'{time.monotonic() - started:.2f} s'
+             + ''.join(f'; {camera}: {said[camera]}' for camera in cameras))
+    return said
+
+
+def _ages_said(values: dict[str, str]) -> str:
+    """', frames 79 ms old on arrival at 15.0 Hz' from a tracker status that says them."""
+    try:
+        return (f', frames {float(values[FRAME_AGE_KEY]) * 1e3:.0f} ms old on arrival at '
+                f'{float(values[FRAME_RATE_KEY]):.1f} Hz')
+    except (KeyError, ValueError):
+        return ''
+
+
+def _hint(robot_missing: bool, domain_id: int) -> str:
+    where = f'in ROS_DOMAIN_ID {domain_id} with ROS_AUTOMATIC_DISCOVERY_RANGE LOCALHOST'
+    if robot_missing:
+        return (f"is the robot's driver publishing {JOINT_STATES_TOPIC} {where} (a driver that "
+                'waits for its hardware says nothing until then)?')
+    return f'is the camera driver streaming {where}, and has it a frame to give?'
