@@ -127,13 +127,13 @@ def test_recovery_skips_a_damaged_chunk_and_counts_what_it_dropped(bag, tmp_path
     kept = read_bag(tmp_path / 'recovered').messages['/odom']
     stamps = [m.header.stamp.sec for m in kept]
     assert report.damaged_chunks == 1 and not report.cut_short
-    assert report.dropped == PER_CHUNK and report.kept == (CHUNKS - 1) * PER_CHUNK - 1
-    assert len(stamps) == report.kept and report.unsure_tail == 1
-    # The first and the last chunk are intact: all of theirs are back, in order (but the last
-    # second's).
+    # A file its recorder finished (its footer is there) keeps its last second: nothing in it
+    # was on its way when the recorder stopped.
+    assert report.dropped == PER_CHUNK and report.kept == (CHUNKS - 1) * PER_CHUNK
+    assert len(stamps) == report.kept and report.unsure_tail == 0
+    # The first and the last chunk are intact: all of theirs are back, in order.
     assert stamps[:PER_CHUNK] == list(range(PER_CHUNK))
-    assert stamps[-PER_CHUNK + 1:] == list(range((CHUNKS - 1) * PER_CHUNK,
-                                                 CHUNKS * PER_CHUNK - 1))
+    assert stamps[-PER_CHUNK:] == list(range((CHUNKS - 1) * PER_CHUNK, CHUNKS * PER_CHUNK))
 
 
 def test_bag_recover_says_how_many_it_dropped(bag, tmp_path, capsys):
@@ -176,7 +176,7 @@ def test_bytes_flipped_in_message_data_are_caught_by_the_chunks_crc(bag, command
     assert ('is damaged: Chunk checksum mismatch in chunk 3 of 4 of bag.mcap (messages from '
             '0.000 to 0.000 s)') in err, err
     report = recover(bag, tmp_path / 'recovered')
-    assert report.kept == (CHUNKS - 1) * PER_CHUNK - 1 and report.damaged_chunks == 1
+    assert report.kept == (CHUNKS - 1) * PER_CHUNK and report.damaged_chunks == 1
 
 
 def footer_of(data: bytes) -> tuple[int, int]:

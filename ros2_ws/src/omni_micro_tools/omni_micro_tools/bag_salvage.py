@@ -4,6 +4,7 @@ bag). The mcap file's walk is :mod:`omni_micro_tools.mcap_salvage`'s."""
 
 from __future__ import annotations
 
+import os
 import sqlite3
 import struct
 from collections.abc import Callable, Iterator
@@ -11,10 +12,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 
 from omni_micro_tools.bag_order import Stored
 from omni_micro_tools.errors import BagPathError
 
+# The mcap specification's magic, with which a file starts and ends, and its footer record's
+# size (opcode, length, two offsets and a CRC).
+MAGIC = b'\x89MCAP0\r\n'
+FOOTER_SIZE = 1 + 8 + 8 + 8 + 4
 # A damaged file can announce records of any length; nothing the recorder writes is this big.
 RECORD_SIZE_LIMIT = 1 << 30
 # What reading a damaged mcap file raises: the library's own errors, and what its parsers hit
@@ -68,6 +74,20 @@ def _sqlite_messages(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
             yield topic, msgtype, timestamp, bytes(data)
     finally:
         connection.close()
+
+
+def finished_by_its_recorder(file: Path) -> bool:
+    """Whether the recorder finished ``file``: an mcap file with its footer and closing magic
+    (whatever happened to it since); a sqlite3 database with its metadata.yaml beside it."""
+    if file.suffix == '.db3':
+        return (file.parent / 'metadata.yaml').is_file()
+    with open(file, 'rb') as stream:
+        size = stream.seek(0, os.SEEK_END)
+        if size < 2 * len(MAGIC) + FOOTER_SIZE:
+            return False
+        stream.seek(size - len(MAGIC) - FOOTER_SIZE)
+        tail = stream.read()
+    return tail[0] == Opcode.FOOTER and tail.endswith(MAGIC)
 
 
 def stored_file(folder: Path) -> Path:

@@ -20,7 +20,12 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, in_bag_order
-from omni_micro_tools.bag_salvage import Recovery, reader_of, stored_file
+from omni_micro_tools.bag_salvage import (
+    Recovery,
+    finished_by_its_recorder,
+    reader_of,
+    stored_file,
+)
 from omni_micro_tools.errors import BagDamagedError, BagPathError
 from omni_micro_tools.topics import GRAPH_TOPICS, STORAGE_NAMES, TopicSpec
 
@@ -28,6 +33,9 @@ TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 STORAGES = {'mcap': StoragePlugin.MCAP, 'sqlite3': StoragePlugin.SQLITE3}
 assert tuple(STORAGES) == STORAGE_NAMES
 BAG_VERSION: Final = 9
+# A finished bag's chunks span this much of its time at most (rosbags closes one at 1 MiB, half
+# of a Fig. 11 run): a damaged chunk then costs at most this much of the run.
+CHUNK_SPAN_NS = 500_000_000
 
 
 def open_writer(path: Path, storage: str, topics: dict[str, TopicSpec]) -> tuple[Writer, dict]:
@@ -121,11 +129,16 @@ def _write_in_order(source: Path, target: Path, storage: str, end: str,
             topic: writer.add_connection(topic, spec.msgtype, typestore=TYPESTORE,
                                          offered_qos_profiles=[spec.qos()])
             for topic, spec in topics.items()}
+        chunk_from = None
         for topic, msgtype, timestamp, data in messages:
             if topic not in connections:
                 spec = GRAPH_TOPICS.get(topic, TopicSpec(msgtype, 1000))
                 connections[topic] = writer.add_connection(
                     topic, msgtype, typestore=TYPESTORE, offered_qos_profiles=[spec.qos()])
+            if chunk_from is None or timestamp - chunk_from >= CHUNK_SPAN_NS:
+                if chunk_from is not None:
+                    flush(writer)
+                chunk_from = timestamp
             writer.write(connections[topic], timestamp, data)
     except BaseException:
         # A full disk fails the close too, and the storage may be closed already.
@@ -172,9 +185,10 @@ def recover(source: Path, target: Path, storage: str = 'mcap',
     """Write every intact message of a bag whose recorder died, or whose file was cut short or
     damaged, into a new readable bag, in bag order; a message that does not decode as its type
     is dropped (damaged bytes that the chunk's CRC did not catch), and so are the messages of
-    the last RECOVERY_WINDOW_S of simulated time, which may have been incomplete when the
-    recorder died: what is kept is a prefix of the bag the run would have recorded
-    (``keep_unsure_tail``: those are kept too, and it may not be).
+    the last RECOVERY_WINDOW_S of simulated time of a file its recorder did not finish (no
+    footer), which may have been incomplete when the recorder died: what is kept is a prefix of
+    the bag the run would have recorded (``keep_unsure_tail``: those are kept too, and it may
+    not be). A finished file damaged later (a bad disk, a copy) keeps its tail.
 
     Raises
     ------
@@ -186,11 +200,12 @@ def recover(source: Path, target: Path, storage: str = 'mcap',
     if not source.is_dir():
         raise BagPathError(f'{str(source)!r} is not a bag folder')
     try:
-        stored_file(source)
+        file = stored_file(source)
     except BagPathError:
         raise BagPathError(f'{str(source)!r} holds no .mcap or .db3 file to recover') from None
-    ordered, report = _write_in_order(source, target, storage,
-                                      'all' if keep_unsure_tail else 'recovered', None)
+    sure = keep_unsure_tail or finished_by_its_recorder(file)
+    ordered, report = _write_in_order(source, target, storage, 'all' if sure else 'recovered',
+                                      None)
     report.unsure_tail = ordered.after_end
     if not report.counts:
         shutil.rmtree(target, ignore_errors=True)

@@ -18,14 +18,14 @@ from mcap.opcode import Opcode
 
 from omni_micro_tools.bag_order import Stored
 from omni_micro_tools.bag_salvage import (
+    FOOTER_SIZE,
+    MAGIC,
     MCAP_DAMAGE,
     RECORD_SIZE_LIMIT,
     DroppedStretch,
     Recovery,
 )
 
-# The mcap specification's magic, with which a file starts and ends.
-MAGIC = b'\x89MCAP0\r\n'
 _LAST_OPCODE = max(Opcode)
 # The smallest message record: opcode, length, channel, sequence, log and publish time.
 _SMALLEST_MESSAGE = 1 + 8 + 2 + 4 + 8 + 8
@@ -318,7 +318,7 @@ class _McapSalvage:
         from mcap.records import Channel, Schema, Statistics
 
         data = self.data
-        footer = len(data) - len(MAGIC) - 29   # opcode, length, two offsets and a CRC
+        footer = len(data) - len(MAGIC) - FOOTER_SIZE
         if footer < len(MAGIC) or bytes(data[-len(MAGIC):]) != MAGIC \
                 or data[footer] != Opcode.FOOTER:
             return

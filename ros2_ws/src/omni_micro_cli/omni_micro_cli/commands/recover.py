@@ -16,12 +16,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description='A recorder killed with SIGKILL leaves a bag without metadata.yaml (and an '
                     'mcap file without its footer), which readers refuse; a copy cut short or a '
                     'bad disk leaves a file with damaged parts. This copies every intact '
-                    'message into a new bag (default BAG-recovered), skipping damaged chunks '
-                    'and messages that do not decode, and says how many it dropped. The '
-                    'recorder pushes its data to the file every 0.5 s, so a kill loses at most '
-                    'that much. The copy is in the order of simulated time, as a finished bag '
-                    'is, without its last 1 s (which may have been incomplete): a prefix of '
-                    'the bag the run would have recorded.')
+                    'message into a new bag (default BAG-recovered), the intact chunks after a '
+                    'damaged one too, skipping damaged chunks and messages that do not decode, '
+                    'and says how many it dropped and between which times. The recorder pushes '
+                    'its data to the file every 0.5 s, so a kill loses at most that much. The '
+                    'copy is in the order of the messages\' time, as a finished bag is; from a '
+                    'file its recorder did not finish, without its last 1 s (which may have been '
+                    'incomplete): a prefix of the bag the run would have recorded.')
     parser.add_argument('bag', type=Path, metavar='BAG',
                         help='the folder of a damaged bag, or of one whose recorder was killed '
                              '(an .mcap or .db3 file, with or without metadata.yaml)')
