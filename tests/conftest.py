@@ -1,32 +1,94 @@
-"""Test-wide settings: DDS stays on loopback even when pytest is started without scripts/test;
-the tiers.
+"""Test-wide settings: DDS stays on loopback and in a domain of this run's own, even when pytest
+is started without scripts/test; the tiers; the order tests run in; the time a test may take.
 
 Tests that start whole commands or the node graph as processes are marked ``slow``: every test
 under tests/graph/, and modules or tests that say ``pytest.mark.slow``. ``./scripts/test --fast``
 (pytest -m 'not slow') runs the rest, the in-process tier a developer runs after every edit.
+
+``./scripts/test`` runs the suite on every core (pytest-xdist): the slow tier first, longest
+first, so that the two workers finish together; each worker leases a DDS domain of its own.
+A test that takes more than ``TEST_LIMIT_S`` fails, unless ``LONG_TESTS`` names it with the
+reason it needs longer: the suite stays quick because nothing grows unseen.
 """
 
 import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('MPLBACKEND', 'Agg')
 
-GRAPH_TESTS = Path(__file__).parent / 'graph'
+# Property tests draw the same examples every run: a red run is a bug found, never chance.
+settings.register_profile('omni_micro', derandomize=True, database=None)
+settings.load_profile('omni_micro')
+
+TESTS = Path(__file__).parent
+GRAPH_TESTS = TESTS / 'graph'
+
+# The most a single test may take, wall clock, setup to teardown (the suite's aim: 8 minutes on
+# two cores; a test over a minute is a fifteenth of it).
+TEST_LIMIT_S = 60.0
+# Tests that may take longer, each with why. Measured on this 2-core machine, with the other
+# worker busy beside them.
+LONG_TESTS: dict[str, str] = {}
+# Tests that take longest, run first so that no worker is left with one at the end (seconds
+# each took in a run of the whole suite, both workers busy; the others keep their order).
+LONGEST_FIRST: dict[str, float] = {}
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         'markers', 'slow: starts whole commands or the node graph as processes '
                    "(./scripts/test --fast, i.e. -m 'not slow', leaves them out)")
+    _lease_a_domain(config)
+
+
+def _lease_a_domain(config: pytest.Config) -> None:
+    """A DDS domain of this pytest process's own (each xdist worker leases one), for the nodes
+    tests build in-process: another worker's, or another graph on this machine, is never
+    heard. Tests that start graphs lease one more each (tests/graph/conftest.py)."""
+    from omni_micro_bringup.processes import DomainLease
+
+    lease = DomainLease()
+    os.environ['ROS_DOMAIN_ID'] = str(lease.__enter__())
+    config.add_cleanup(lambda: lease.__exit__(None, None, None))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if GRAPH_TESTS in Path(item.fspath).parents:
             item.add_marker(pytest.mark.slow)
+    # The slow tier first, longest first; the quick in-process tests fill the end.
+    order = {id(item): index for index, item in enumerate(items)}
+    items.sort(key=lambda item: (item.get_closest_marker('slow') is None,
+                                 -LONGEST_FIRST.get(_short_id(item), 0.0), order[id(item)]))
+
+
+def _short_id(item: pytest.Item) -> str:
+    """The test's id from the tests folder: ``graph/test_loop.py::test_x[case]``."""
+    return item.nodeid.removeprefix('tests/')
+
+
+_SETUP_S = pytest.StashKey[float]()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """A test whose setup and call together take over TEST_LIMIT_S fails, naming both (a
+    module's shared fixture counts in the first test that sets it up)."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.when == 'setup':
+        item.stash[_SETUP_S] = report.duration
+    elif report.when == 'call' and report.passed:
+        took = item.stash.get(_SETUP_S, 0.0) + report.duration
+        if took > TEST_LIMIT_S and _short_id(item) not in LONG_TESTS:
+            report.outcome = 'failed'
+            report.longrepr = (f'{_short_id(item)} took {took:.1f} s, over the '
+                               f'{TEST_LIMIT_S:g} s a test may take: make it cheaper, or name '
+                               'it in LONG_TESTS (tests/conftest.py) with its reason')
 
 
 @pytest.fixture

@@ -28,6 +28,24 @@ if TYPE_CHECKING:
 
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
+# The RTPS port scheme (the DDSI-RTPS specification, 9.6.1.1; Fast DDS's defaults): every port a
+# participant of domain d binds lies in [PORT_BASE + DOMAIN_GAIN * d, + DOMAIN_GAIN).
+PORT_BASE, DOMAIN_GAIN = 7400, 250
+
+
+def domains_in_use() -> set[int]:
+    """The DDS domains some participant on this machine is in, by the UDP ports bound."""
+    ports: set[int] = set()
+    for table in ('/proc/net/udp', '/proc/net/udp6'):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            local = line.split()[1]                    # address:port, in hex
+            ports.add(int(local.rsplit(':', 1)[1], 16))
+    return {(port - PORT_BASE) // DOMAIN_GAIN for port in ports
+            if port >= PORT_BASE and (port - PORT_BASE) // DOMAIN_GAIN in DOMAIN_RANGE}
 
 
 
@@ -53,7 +71,12 @@ class DomainLease:
         folder.mkdir(exist_ok=True)
         candidates = ([self.requested] if self.requested is not None
                       else random.sample(list(DOMAIN_RANGE), len(DOMAIN_RANGE)))
+        # Another ROS graph on this machine that knows nothing of these locks (a lab's own, a
+        # test's stand-in) is seen by the ports its participants hold.
+        foreign = set() if self.requested is not None else domains_in_use()
         for candidate in candidates:
+            if candidate in foreign:
+                continue
             handle = open(folder / f'{candidate}.lock', 'w')
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)

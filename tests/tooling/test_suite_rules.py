@@ -1,0 +1,64 @@
+"""The suite's own rules (tests/conftest.py), checked on a suite of a few tests: a test over the
+time limit fails unless named with its reason; the slow tier runs first, longest first;
+property tests draw the same examples every run."""
+
+from pathlib import Path
+
+CONFTEST = (Path(__file__).resolve().parents[1] / 'conftest.py').read_text()
+
+
+def a_suite(pytester, limit_s: float, long_tests: str = '{}', longest: str = '{}') -> None:
+    pytester.makeconftest(
+        CONFTEST.replace('TEST_LIMIT_S = 60.0', f'TEST_LIMIT_S = {limit_s}')
+        .replace('LONG_TESTS: dict[str, str] = {}', f'LONG_TESTS: dict[str, str] = {long_tests}')
+        .replace('LONGEST_FIRST: dict[str, float] = {}',
+                 f'LONGEST_FIRST: dict[str, float] = {longest}'))
+    pytester.makepyfile(test_timing='''
+import time
+
+import pytest
+
+
+def test_quick():
+    pass
+
+
+def test_slow_and_named():
+    time.sleep(0.4)
+
+
+def test_slow_and_not_named():
+    time.sleep(0.4)
+
+
+@pytest.mark.slow
+def test_marked_slow():
+    pass
+
+
+@pytest.mark.slow
+def test_marked_slow_and_longest():
+    pass
+''')
+
+
+def test_a_test_over_the_limit_fails_unless_it_is_named_with_its_reason(pytester):
+    a_suite(pytester, 0.3, long_tests="{'test_timing.py::test_slow_and_named': 'sleeps'}")
+    result = pytester.runpytest('-p', 'no:cacheprovider')
+    result.assert_outcomes(passed=4, failed=1)
+    result.stdout.fnmatch_lines(['*test_timing.py::test_slow_and_not_named took 0.4 s, over the '
+                                 '0.3 s a test may take*'])
+
+
+def test_the_slow_tier_runs_first_and_the_longest_of_it_first(pytester):
+    a_suite(pytester, 60.0, longest="{'test_timing.py::test_marked_slow_and_longest': 30.0}")
+    result = pytester.runpytest('-p', 'no:cacheprovider', '--collect-only', '-q')
+    names = [line.split('::')[-1] for line in result.outlines if '::' in line]
+    assert names == ['test_marked_slow_and_longest', 'test_marked_slow', 'test_quick',
+                     'test_slow_and_named', 'test_slow_and_not_named']
+
+
+def test_property_tests_draw_the_same_examples_every_run():
+    from hypothesis import settings
+
+    assert settings.default.derandomize and settings.default.database is None
