@@ -61,4 +61,5 @@ def test_the_slow_tier_runs_first_and_the_longest_of_it_first(pytester):
 def test_property_tests_draw_the_same_examples_every_run():
     from hypothesis import settings
 
-    assert settings.default.derandomize and settings.default.database is None
+    current = settings.default
+    assert current is not None and current.derandomize and current.database is None
