@@ -32,10 +32,30 @@ GRAPH_TESTS = TESTS / 'graph'
 TEST_LIMIT_S = 60.0
 # Tests that may take longer, each with why. Measured on this 2-core machine, with the other
 # worker busy beside them.
-LONG_TESTS: dict[str, str] = {}
+LONG_TESTS: dict[str, str] = {
+    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph_and_records_it':
+        "the README's main command end to end, every row it prints checked: the paper's "
+        'figures and six recorded graph runs (46 s alone, 72 s beside the other worker)',
+}
 # Tests that take longest, run first so that no worker is left with one at the end (seconds
 # each took in a run of the whole suite, both workers busy; the others keep their order).
-LONGEST_FIRST: dict[str, float] = {}
+LONGEST_FIRST: dict[str, float] = {
+    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph_and_records_it': 72,
+    'cli/test_study.py::test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows':
+        46,
+    'graph/test_servo_loop.py::test_on_the_rendered_images_the_servo_reaches_and_records_the_'
+    'same_bag_at_any_speed': 30,
+    'graph/test_images_loop.py::test_same_seed_same_file_with_images_idle_and_busy_and_no_'
+    'frame_lost': 31,
+    'graph/test_bench_loop.py::test_the_loop_closes_with_a_standin_camera_and_robot_on_the_'
+    'wall_clock_and_a_lab_keeps_its_log': 29,
+    'graph/test_servo_loop.py::test_same_seed_same_bag_at_another_speed_busy_and_in_one_'
+    'process': 29,
+    'graph/test_same_bag.py::test_same_seed_same_file_at_another_real_time_factor': 31,
+    'graph/test_captures_in_motion.py::test_same_seed_same_bag_with_late_captures_in_motion_at_'
+    'another_speed': 30,
+    'graph/test_same_bag.py::test_same_seed_same_file_with_both_cores_kept_busy': 27,
+}
 
 
 def pytest_configure(config: pytest.Config) -> None:

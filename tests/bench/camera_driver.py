@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 import rclpy
-import rclpy.duration
+import rclpy.time
 from nav_msgs.msg import Odometry
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -71,6 +71,8 @@ class StandInCamera(Node):
         self.images = self.create_publisher(Image, 'image_raw', qos_profile_sensor_data)
         self.infos = self.create_publisher(CameraInfo, 'camera_info', qos_profile_sensor_data)
         self.truth: RobotState | None = None
+        self.truth_stamp_ns = 0
+        self.drawn_ns = -1     # the true pose's time the latest frame shows
         self.create_subscription(Odometry, '/bench_truth/odom', self.on_truth, 10)
         self.sensor = Sensor()
         self.target = (render_target(CAMERA, TARGET, OPTICS.yaw_rad)
@@ -84,21 +86,27 @@ class StandInCamera(Node):
         phi = 2.0 * math.atan2(pose.orientation.z, pose.orientation.w)
         self.truth = RobotState(pose.position.x, pose.position.y, phi, twist.linear.x,
                                 twist.linear.y, twist.angular.z)
+        self.truth_stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
     def on_frame(self) -> None:
         if time.monotonic() < self.device_open_at:
             return
-        # The system clock: when it was taken (on a machine whose clock may be off).
-        stamp = (self.get_clock().now()
-                 + rclpy.duration.Duration(nanoseconds=self.clock_offset_ns)).to_msg()
+        # When it was taken, by the system clock (on a machine whose clock may be off). The robot
+        # is drawn where it really was at a moment the stand-in knows: its latest true pose, and
+        # the frame stamped with that pose's time. (Drawn at the latest pose but stamped "now",
+        # a frame of a machine too busy to take every pose in time showed the robot where it had
+        # been: three such frames agree, and the tracker called a moving robot still there.)
         rng = np.random.default_rng([7, self.frame])
-        self.frame += 1
         if self.target is not None:
+            taken_ns = self.get_clock().now().nanoseconds
             ideal = expose(self.target, self.sensor, rng)
-        elif self.truth is not None:
+        elif self.truth is not None and self.truth_stamp_ns != self.drawn_ns:
+            taken_ns = self.drawn_ns = self.truth_stamp_ns
             ideal = render(CAMERA, self.sensor, self.truth, rng, OPTICS.yaw_rad)
         else:
-            return
+            return    # no pose yet, or none since the last frame: no frame to take
+        self.frame += 1
+        stamp = rclpy.time.Time(nanoseconds=taken_ns + self.clock_offset_ns).to_msg()
         samples = to_encoding(OPTICS.view(ideal), self.encoding)
         image = Image(height=samples.shape[0], width=samples.shape[1], encoding=self.encoding,
                       is_bigendian=0, step=samples.strides[0])

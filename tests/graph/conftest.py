@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 import os
 import subprocess
 import time
@@ -131,3 +132,23 @@ def omni_micro():
 def busy_machine():
     """``with busy_machine(): ...`` runs the block with every core kept busy."""
     return functools.partial(busy_cores, os.cpu_count() or 2)
+
+
+# The seed of the shared Fig. 11 run (fig11_recorded); a test comparing another run with it uses
+# the same.
+SHARED_SEED = 3
+
+
+@pytest.fixture(scope='session')
+def fig11_recorded(tmp_path_factory) -> tuple[Path, dict]:
+    """Fig. 11 through the graph as a user types it (``run --goal-mm 100,0 --rtf max --seed 3
+    --record BAG --json``): its bag and its JSON summary. One run per test process, read by every
+    test that only reads a plain run: each used to make its own (a graph run costs 7-10 s of
+    CPU, start-up included)."""
+    folder = tmp_path_factory.mktemp('fig11')
+    bag = folder / 'bag'
+    result = run_omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed',
+                            str(SHARED_SEED), '--json', '--quiet', '--record', str(bag),
+                            '--log-dir', str(folder / 'logs'))
+    assert result.returncode == 0, result.stderr[-3000:]
+    return bag, json.loads(result.stdout.strip().splitlines()[-1])

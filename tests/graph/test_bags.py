@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from conftest import SHARED_SEED
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -22,13 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope='module')
-def recorded(tmp_path_factory, omni_micro):
-    folder = tmp_path_factory.mktemp('bags')
-    bag = folder / 'fig11'
-    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', '5', '--seed', '1', '--json',
-                        '--quiet', '--record', str(bag), '--log-dir', str(folder / 'logs'))
-    assert result.returncode == 0, result.stderr[-3000:]
-    return bag, json.loads(result.stdout.strip().splitlines()[-1])
+def recorded(fig11_recorded):
+    """The shared Fig. 11 run, recorded (read only: every test here reads it)."""
+    return fig11_recorded
 
 
 def test_metadata_is_rosbag2_version_9_with_types_counts_and_qos(recorded):
@@ -192,7 +189,7 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
     from geometry_msgs.msg import PoseStamped
 
     bag, _ = recorded
-    start_node('omni_micro_vision', 'vision_node', 'seed:=1')
+    start_node('omni_micro_vision', 'vision_node', f'seed:={SHARED_SEED}')
     captures: list[PoseStamped] = []
     readers = [probe.node.create_subscription(
         PoseStamped, f'/camera/{camera}/pose', captures.append,

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import SHARED_SEED
 
 from omni_micro_common.conventions import CaptureUncertainty, stamp_ns
 from omni_micro_common.topic_names import (
@@ -25,16 +26,18 @@ HALF_EXPOSURE_NS = 2_000_000
 
 
 @pytest.fixture(scope='module')
-def runs(tmp_path_factory, omni_micro):
+def runs(tmp_path_factory, omni_micro, fig11_recorded):
+    """The shared Fig. 11 run, and the same with captures in motion (in one process: the loop
+    composed records what separate processes do, tests/graph/test_same_bag.py)."""
     folder = tmp_path_factory.mktemp('in_motion')
-    summaries = {}
-    for name, extra in (('moving', ['--captures-in-motion']), ('plain', [])):
-        result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--json', '--quiet',
-                            '--record', str(folder / name), '--log-dir', str(folder / 'logs'),
-                            *extra)
-        assert result.returncode == 0, result.stderr[-3000:]
-        summaries[name] = json.loads(result.stdout.strip().splitlines()[-1])
-    return folder, summaries
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed',
+                        str(SHARED_SEED), '--json', '--quiet', '--composed', '--record',
+                        str(folder / 'moving'), '--log-dir', str(folder / 'logs'),
+                        '--captures-in-motion')
+    assert result.returncode == 0, result.stderr[-3000:]
+    plain_bag, plain = fig11_recorded
+    bags = {'moving': folder / 'moving', 'plain': plain_bag}
+    return bags, {'moving': json.loads(result.stdout.strip().splitlines()[-1]), 'plain': plain}
 
 
 def odometry_at(stamps: np.ndarray, odometry: list) -> tuple[np.ndarray, np.ndarray]:
@@ -49,8 +52,8 @@ def odometry_at(stamps: np.ndarray, odometry: list) -> tuple[np.ndarray, np.ndar
 
 
 def test_captures_in_motion_are_at_mid_exposure_within_their_stated_spread(runs):
-    folder, _ = runs
-    bag = read_bag(folder / 'moving', [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])
+    bags, _ = runs
+    bag = read_bag(bags['moving'], [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])
     seen = {camera: bag.messages.get(topic, []) for camera, topic in
             CAPTURE_IN_MOTION_TOPICS.items()}
     # Fig. 11 rolls 7 s at up to cruise speed: some 200 macro frames.
@@ -70,12 +73,12 @@ def test_captures_in_motion_are_at_mid_exposure_within_their_stated_spread(runs)
 
 
 def test_the_stationary_captures_and_the_run_are_the_same_with_them(runs):
-    folder, summaries = runs
+    bags, summaries = runs
     moving, plain = summaries['moving'], summaries['plain']
     for key in ('outcome', 'periods', 'sim_time_s', 'final_x_mm', 'final_y_mm'):
         assert moving[key] == plain[key], key
     topics = list(CAPTURE_TOPICS.values())
-    with_them, without = read_bag(folder / 'moving', topics), read_bag(folder / 'plain', topics)
+    with_them, without = read_bag(bags['moving'], topics), read_bag(bags['plain'], topics)
     for topic in topics:
         assert with_them.raw.get(topic) == without.raw.get(topic), topic
     assert not set(CAPTURE_IN_MOTION_TOPICS.values()) & set(without.msgtypes)
@@ -87,7 +90,7 @@ def test_the_tracker_captures_the_rendered_robot_in_motion_at_mid_exposure(omni_
     half camera_node's exposure after the frame, within its stated spread of /odom."""
     bag = tmp_path / 'bag'
     result = omni_micro('run', '--goal-mm', '100,0', '--vision', 'images', '--rtf', 'max',
-                        '--captures-in-motion', '--quiet', '--record', str(bag),
+                        '--captures-in-motion', '--quiet', '--composed', '--record', str(bag),
                         '--log-dir', str(tmp_path / 'logs'))
     assert result.returncode == 0, result.stderr[-3000:]
     read = read_bag(bag, [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])

@@ -1,4 +1,6 @@
-"""`omni-micro identify BAG`: the offsets of robots with known offsets, from their bags alone."""
+"""`omni-micro identify BAG`: the offsets of robots with known offsets, from their bags alone.
+(The bags are recorded with the loop in one process: what identify reads is the bag, and the
+composed loop records what separate processes do, tests/graph/test_same_bag.py.)"""
 
 import json
 import math
@@ -27,7 +29,7 @@ def recorded(tmp_path_factory, robot_params, omni_micro):
             'tiny': ['--goal-mm', '100.3,0.2', '--open-loop', '0.001']}
     for name, args in runs.items():
         done = omni_micro('run', *args, '--rtf', 'max', '--params', str(robot_params),
-                          '--record', str(folder / name), '--quiet',
+                          '--record', str(folder / name), '--quiet', '--composed',
                           '--log-dir', str(folder / 'logs'))
         assert done.returncode == 0, done.stderr[-2000:]
     return folder
@@ -79,7 +81,7 @@ def test_a_known_backlash_comes_back_within_its_interval(tmp_path_factory, omni_
     bag = tmp_path / 'bag'
     done = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--steering', 'realistic',
                       '--params', str(robot), '--record', str(bag), '--quiet', '--no-markers',
-                      '--log-dir', str(tmp_path / 'logs'))
+                      '--composed', '--log-dir', str(tmp_path / 'logs'))
     assert done.returncode == 0, done.stderr[-2000:]
     params = tmp_path / 'identified.yaml'
     done = omni_micro('identify', str(bag), '--steering', 'realistic', '--fit',

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import SHARED_SEED
 
 from omni_micro_bringup.composition import GraphOptions, NodeSpec, default_nodes
 from omni_micro_bringup.graph import run_graph
@@ -16,7 +17,7 @@ from omni_micro_sim import paper
 from omni_micro_sim.parameters import steering_preset
 
 GOAL_MM = (100.0, 0.0)
-SEED = 3
+SEED = SHARED_SEED
 
 
 @pytest.fixture(scope='module')
@@ -54,18 +55,17 @@ def test_graph_adds_no_error_of_its_own(cli_run, in_process):
     assert summary['final_y_mm'] * 1e-3 == pytest.approx(in_process.final_state.y_m, abs=1e-7)
 
 
-def test_same_seed_same_pose_at_another_real_time_factor(cli_run, tmp_path):
+def test_same_seed_same_pose_at_another_real_time_factor(cli_run, fig11_recorded):
     summary, _ = cli_run
-    fast = run_graph(GraphOptions(goal_m=paper.FIG11_GOAL_M, seed=SEED,
-                                  real_time_factor=math.inf, log_dir=tmp_path))
-    assert fast.outcome == 'reached'
-    assert fast.sim_time_s / fast.wall_time_s > 5.0
+    _, fast = fig11_recorded     # the same seed, as fast as the lockstep allows, recorded
+    assert fast['outcome'] == 'reached'
+    assert fast['real_time_factor'] > 5.0
     # To the last digit: the final pose is the first odometry sample at or after the outcome's
     # capture, not the first one the orchestration happened to read (the robot at rest creeps
     # 1e-14 m a tick).
-    assert fast.final_x_m * 1e3 == summary['final_x_mm']
-    assert fast.final_y_m * 1e3 == summary['final_y_mm']
-    assert fast.periods == summary['periods']
+    assert fast['final_x_mm'] == summary['final_x_mm']
+    assert fast['final_y_mm'] == summary['final_y_mm']
+    assert fast['periods'] == summary['periods']
 
 
 def test_a_stand_in_camera_that_follows_the_contract_closes_the_loop(tmp_path):
@@ -118,12 +118,12 @@ def test_the_model_mode_over_the_graph_is_the_twin(tmp_path):
     twin = run_closed_loop(paper.FIG11_GOAL_M, robot=paper.FIG11_OPEN_LOOP.robot(), seed=SEED,
                            config=FeedbackConfig(mode='model'))
     graph = run_graph(GraphOptions(goal_m=paper.FIG11_GOAL_M, seed=SEED,
-                                   real_time_factor=math.inf, log_dir=tmp_path,
+                                   real_time_factor=math.inf, log_dir=tmp_path, composed=True,
                                    controller_overrides={'mode': 'model'}))
     assert graph.outcome == 'reached' and graph.periods == twin.periods <= 3
     assert graph.final_x_m == pytest.approx(twin.final_state.x_m, abs=1e-7)
     assert graph.final_y_m == pytest.approx(twin.final_state.y_m, abs=1e-7)
-    log = next(tmp_path.glob('*/controller_node.log')).read_text()
+    log = next(tmp_path.glob('*/loop_container.log')).read_text()
     assert 'period 2 (model)' in log and 'xi2 2.9' in log   # the offsets as it learns them
 
 
@@ -132,7 +132,7 @@ def test_realistic_steering_over_the_graph_is_the_twin(tmp_path, omni_micro):
     twin = run_closed_loop(paper.FIG11_GOAL_M, robot=robot, seed=SEED)
     result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', str(SEED),
                         '--steering', 'realistic', '--json', '--quiet', '--no-markers',
-                        '--log-dir', str(tmp_path))
+                        '--composed', '--log-dir', str(tmp_path))
     assert result.returncode == 0, result.stderr[-3000:]
     graph = json.loads(result.stdout.strip().splitlines()[-1])
     assert graph['periods'] == twin.periods
@@ -154,13 +154,13 @@ def test_the_model_mode_with_realistic_steering_over_the_graph_is_the_twin(tmp_p
                                wheel_offsets_rad=(0.0, 0.0, 0.0), steering=preset))
     result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', str(SEED),
                         '--steering', 'realistic', '--controller', 'model', '--json', '--quiet',
-                        '--no-markers', '--log-dir', str(tmp_path))
+                        '--no-markers', '--composed', '--log-dir', str(tmp_path))
     assert result.returncode == 0, result.stderr[-3000:]
     graph = json.loads(result.stdout.strip().splitlines()[-1])
     assert graph['periods'] == twin.periods <= 6
     assert graph['final_x_mm'] * 1e-3 == pytest.approx(twin.final_state.x_m, abs=1e-7)
     assert graph['final_y_mm'] * 1e-3 == pytest.approx(twin.final_state.y_m, abs=1e-7)
-    log = next(tmp_path.glob('*/controller_node.log')).read_text()
+    log = next(tmp_path.glob('*/loop_container.log')).read_text()
     assert 'backlash' in log   # it learns the backlash as it goes
 
 
@@ -172,7 +172,7 @@ def test_the_model_mode_with_realistic_steering_over_the_graph_is_the_twin(tmp_p
 def test_an_outcome_never_claims_more_than_the_camera_sees(goal_mm, outcome, exit_code, words,
                                                            tmp_path, omni_micro):
     result = omni_micro('run', '--goal-mm', goal_mm, '--rtf', 'max', '--json', '--quiet',
-                        '--log-dir', str(tmp_path))
+                        '--composed', '--log-dir', str(tmp_path))
     assert result.returncode == exit_code, result.stderr[-2000:]
     summary = json.loads(result.stdout.strip().splitlines()[-1])
     assert summary['outcome'] == outcome

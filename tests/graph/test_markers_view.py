@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 import websockets
+from conftest import SHARED_SEED
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from websockets.typing import Subprotocol
 
@@ -34,16 +35,17 @@ COMPARED_TOPICS = ('/camera/macro/pose', '/camera/micro/pose', '/wheel_trajector
 
 def _run(omni_micro, folder: Path, *extra: str):
     bag = folder / 'bag'
-    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', '3', '--json',
-                        '--quiet', '--record', str(bag), '--log-dir', str(folder / 'logs'),
-                        *extra)
+    result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed', str(SHARED_SEED),
+                        '--json', '--quiet', '--record', str(bag), '--log-dir',
+                        str(folder / 'logs'), *extra)
     assert result.returncode == 0, result.stderr[-3000:]
     return bag, json.loads(result.stdout.strip().splitlines()[-1])
 
 
 @pytest.fixture(scope='module')
-def with_markers(tmp_path_factory, omni_micro):
-    return _run(omni_micro, tmp_path_factory.mktemp('markers'))
+def with_markers(fig11_recorded):
+    """The shared Fig. 11 run (seed 3, with markers: the default)."""
+    return fig11_recorded
 
 
 def test_markers_draw_the_odometry_goal_and_fields_they_were_given(with_markers):

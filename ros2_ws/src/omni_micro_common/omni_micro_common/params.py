@@ -7,6 +7,8 @@ A params file is UTF-8 YAML mapping node names (``controller_node``, ``/controll
 
 from __future__ import annotations
 
+import copy
+import functools
 import re
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -17,10 +19,11 @@ import yaml
 from omni_micro_common.errors import ParamsFileError
 
 
-class _RosLoader(yaml.SafeLoader):
+class _RosLoader(getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):  # type: ignore[misc]
     """YAML as ROS 2 reads a params file: ``3e0`` and ``1.0e300`` are numbers (YAML 1.2, and
     rcl's parser), where YAML 1.1 takes a float without a dot or an exponent's sign for a
-    string."""
+    string. Parsed by libyaml where PyYAML has it (its wheels do): the pure-Python parser took a
+    second of a run's start-up, reading the graph's params file for each node."""
 
 
 _RosLoader.add_implicit_resolver(
@@ -33,7 +36,8 @@ WILDCARD_SECTIONS = ('/**', '**')
 
 
 def read_yaml(path: Path | str) -> Any:
-    """A params file's YAML content, not yet checked for shape.
+    """A params file's YAML content, not yet checked for shape (a copy: the caller may change
+    it). The same unchanged file is parsed once a process.
 
     Raises
     ------
@@ -44,6 +48,17 @@ def read_yaml(path: Path | str) -> Any:
     try:
         if not Path(path).is_file():
             raise ParamsFileError(f'{where} does not exist')
+        stat = Path(path).stat()
+    except OSError as error:
+        raise ParamsFileError(f'{where} cannot be read: {error.strerror}') from None
+    return copy.deepcopy(_parsed(str(path), stat.st_mtime_ns, stat.st_size))
+
+
+@functools.lru_cache(maxsize=32)
+def _parsed(path: str, mtime_ns: int, size: int) -> Any:
+    """The YAML of ``path`` as it is at ``mtime_ns`` and ``size`` (they key the cache)."""
+    where = f'params file {path!r}'
+    try:
         text = Path(path).read_text(encoding='utf-8')
     except UnicodeDecodeError as error:
         raise ParamsFileError(f'{where} is not UTF-8 text (byte {error.start}): '
