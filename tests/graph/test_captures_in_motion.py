@@ -31,7 +31,8 @@ def runs(tmp_path_factory, omni_micro, fig11_recorded):
     composed records what separate processes do, tests/graph/test_same_bag.py)."""
     folder = tmp_path_factory.mktemp('in_motion')
     result = omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed',
-                        str(SHARED_SEED), '--json', '--quiet', '--composed', '--record',
+                        str(SHARED_SEED), '--json', '--quiet', '--composed', '--no-markers',
+                        '--record',
                         str(folder / 'moving'), '--log-dir', str(folder / 'logs'),
                         '--captures-in-motion')
     assert result.returncode == 0, result.stderr[-3000:]
@@ -90,7 +91,8 @@ def test_the_tracker_captures_the_rendered_robot_in_motion_at_mid_exposure(omni_
     half camera_node's exposure after the frame, within its stated spread of /odom."""
     bag = tmp_path / 'bag'
     result = omni_micro('run', '--goal-mm', '100,0', '--vision', 'images', '--rtf', 'max',
-                        '--captures-in-motion', '--quiet', '--composed', '--record', str(bag),
+                        '--captures-in-motion', '--quiet', '--composed', '--no-markers',
+                        '--record', str(bag),
                         '--log-dir', str(tmp_path / 'logs'))
     assert result.returncode == 0, result.stderr[-3000:]
     read = read_bag(bag, [ODOM_TOPIC, *CAPTURE_IN_MOTION_TOPICS.values()])

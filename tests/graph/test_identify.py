@@ -29,7 +29,7 @@ def recorded(tmp_path_factory, robot_params, omni_micro):
             'tiny': ['--goal-mm', '100.3,0.2', '--open-loop', '0.001']}
     for name, args in runs.items():
         done = omni_micro('run', *args, '--rtf', 'max', '--params', str(robot_params),
-                          '--record', str(folder / name), '--quiet', '--composed',
+                          '--record', str(folder / name), '--quiet', '--composed', '--no-markers',
                           '--log-dir', str(folder / 'logs'))
         assert done.returncode == 0, done.stderr[-2000:]
     return folder

@@ -119,7 +119,7 @@ def test_the_model_mode_over_the_graph_is_the_twin(tmp_path):
                            config=FeedbackConfig(mode='model'))
     graph = run_graph(GraphOptions(goal_m=paper.FIG11_GOAL_M, seed=SEED,
                                    real_time_factor=math.inf, log_dir=tmp_path, composed=True,
-                                   controller_overrides={'mode': 'model'}))
+                                   markers=False, controller_overrides={'mode': 'model'}))
     assert graph.outcome == 'reached' and graph.periods == twin.periods <= 3
     assert graph.final_x_m == pytest.approx(twin.final_state.x_m, abs=1e-7)
     assert graph.final_y_m == pytest.approx(twin.final_state.y_m, abs=1e-7)
@@ -172,7 +172,7 @@ def test_the_model_mode_with_realistic_steering_over_the_graph_is_the_twin(tmp_p
 def test_an_outcome_never_claims_more_than_the_camera_sees(goal_mm, outcome, exit_code, words,
                                                            tmp_path, omni_micro):
     result = omni_micro('run', '--goal-mm', goal_mm, '--rtf', 'max', '--json', '--quiet',
-                        '--composed', '--log-dir', str(tmp_path))
+                        '--composed', '--no-markers', '--log-dir', str(tmp_path))
     assert result.returncode == exit_code, result.stderr[-2000:]
     summary = json.loads(result.stdout.strip().splitlines()[-1])
     assert summary['outcome'] == outcome

@@ -8,11 +8,10 @@ CONFTEST = (Path(__file__).resolve().parents[1] / 'conftest.py').read_text()
 
 
 def a_suite(pytester, limit_s: float, long_tests: str = '{}', longest: str = '{}') -> None:
-    pytester.makeconftest(
-        CONFTEST.replace('TEST_LIMIT_S = 60.0', f'TEST_LIMIT_S = {limit_s}')
-        .replace('LONG_TESTS: dict[str, str] = {}', f'LONG_TESTS: dict[str, str] = {long_tests}')
-        .replace('LONGEST_FIRST: dict[str, float] = {}',
-                 f'LONGEST_FIRST: dict[str, float] = {longest}'))
+    """The suite's conftest with its limit and lists set for the few tests below (the hooks
+    read them when they run)."""
+    pytester.makeconftest(CONFTEST + f'\nTEST_LIMIT_S = {limit_s}\nLONG_TESTS = {long_tests}\n'
+                                     f'LONGEST_FIRST = {longest}\n')
     pytester.makepyfile(test_timing='''
 import time
 
