@@ -33,16 +33,16 @@ TEST_LIMIT_S = 60.0
 # Tests that may take longer, each with why. Measured on this 2-core machine, with the other
 # worker busy beside them.
 LONG_TESTS: dict[str, str] = {
-    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph_and_records_it':
+    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph':
         "the README's main command end to end, every row it prints checked: the paper's "
-        'figures and six recorded graph runs (46 s alone, 72 s beside the other worker)',
+        'figures and six graph runs (32 s alone, 50-60 s beside the other worker)',
 }
 # Tests that take longest, run first so that no worker is left with one at the end (seconds
 # each took in a run of the whole suite, both workers busy; the others keep their order).
 LONGEST_FIRST: dict[str, float] = {
-    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph_and_records_it': 72,
+    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph': 60,
     'cli/test_study.py::test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows':
-        46,
+        25,
     'graph/test_servo_loop.py::test_on_the_rendered_images_the_servo_reaches_and_records_the_'
     'same_bag_at_any_speed': 30,
     'graph/test_images_loop.py::test_same_seed_same_file_with_images_idle_and_busy_and_no_'

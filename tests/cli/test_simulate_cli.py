@@ -97,9 +97,10 @@ def test_bench_reports_figures_and_agrees_with_its_reference():
     assert figures['batch_moves'] == 10
 
 
-def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
-    done = omni_micro('demo', '--out', str(tmp_path / 'demo'), '--rtf', 'max',
-                      '--record', str(tmp_path / 'bags'), check=True)
+def test_demo_runs_fig11_through_the_graph(tmp_path):
+    """The README's main command, as a newcomer runs it: every row it prints is the README's.
+    (What --record adds, a bag per run, is test_demo_records_each_run_into_a_bag_of_its_own.)"""
+    done = omni_micro('demo', '--out', str(tmp_path / 'demo'), '--rtf', 'max', check=True)
     assert '| Fig. 8: drift after 28.71 mm in 2 s (xi = 0, 3, 2 deg) | 0.4727 mm | 0.4727 mm |' \
         in done.stdout
     assert '| vision feedback: deviation | 0.0124 mm | 0.00' in done.stdout
@@ -132,6 +133,41 @@ def test_demo_runs_fig11_through_the_graph_and_records_it(tmp_path):
     servo = runs['servo']
     assert servo['outcome'] == 'reached' and servo['deviation_mm'] < 0.0005
     assert servo['periods'] == 1 and servo['sim_time_s'] <= 8.0
-    for name in ('fig11_open_loop', 'fig11_closed_loop', 'fig11_model', 'fig11_images',
-                 'fig11_realistic_steering', 'fig11_servo'):
-        assert (tmp_path / 'bags' / name / 'metadata.yaml').is_file()
+
+
+def test_demo_records_each_run_into_a_bag_of_its_own(tmp_path, monkeypatch, capsys):
+    """demo --record: each of its six runs is recorded into DIR/fig11_<run> (the recorder and
+    its bags are the graph's, tested in tests/graph); an existing bag is refused before anything
+    runs. The graph runs are stood in for here: what is checked is what demo asks of them."""
+    from omni_micro_bringup import graph
+    from omni_micro_bringup.graph import GraphResult
+    from omni_micro_cli.cli import main
+    from omni_micro_cli.commands import figures
+
+    asked: list[tuple[str | None, str, dict]] = []
+
+    def run_graph(options):
+        asked.append((options.record and options.record.name, options.vision,
+                      options.controller_overrides))
+        return GraphResult('completed' if options.open_loop_s else 'reached', '', 3, 0.1, 0.0,
+                           0.0, options.goal_m, 8.0, 1.0, options.log_dir, 1, {},
+                           route=[(0.0, 0.0, 0.0), (1.0, 0.1, 0.0)],
+                           captures=[(1.0, 0.1, 0.0, 'micro')])
+
+    monkeypatch.setattr(graph, 'run_graph', run_graph)
+    monkeypatch.setattr(figures, 'write_figures', lambda folder, **_: (folder / 'comparison.md')
+                        .write_text('| result |\n'))
+    assert main(['demo', '--out', str(tmp_path / 'demo'), '--record', str(tmp_path / 'bags')]) \
+        == 0
+    assert [bag for bag, _, _ in asked] == [
+        'fig11_open_loop', 'fig11_closed_loop', 'fig11_model', 'fig11_images',
+        'fig11_realistic_steering', 'fig11_servo']
+    assert [vision for _, vision, _ in asked].count('images') == 1
+    assert f'bags in {tmp_path / "bags"}/' in capsys.readouterr().out
+    # Asked again into the same folder: refused, naming the bag, before any run.
+    (tmp_path / 'bags' / 'fig11_servo').mkdir(parents=True)
+    (tmp_path / 'bags' / 'fig11_servo' / 'metadata.yaml').write_text('')
+    asked.clear()
+    assert main(['demo', '--out', str(tmp_path / 'again'), '--record',
+                 str(tmp_path / 'bags')]) == 2
+    assert asked == [] and 'fig11_' in capsys.readouterr().err

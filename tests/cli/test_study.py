@@ -196,7 +196,8 @@ def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
 
 
 def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_path):
-    text = SMALL_STUDY.replace('draws: 2', 'draws: 30').replace('[paper, model]', '[paper]')
+    # 40 runs: seconds of work on two workers, the first part written 2 s in.
+    text = SMALL_STUDY.replace('draws: 2', 'draws: 10').replace('[paper, model]', '[paper]')
     out = tmp_path / 'interrupted'
     # As a terminal's Ctrl-C does: SIGINT to the whole process group (the workers too).
     (tmp_path / 'study.yaml').write_text(text)

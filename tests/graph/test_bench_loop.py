@@ -69,10 +69,16 @@ def stop(process: subprocess.Popen) -> None:
     process.wait(10)
 
 
-def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro) -> Path:
+def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro, probe) -> Path:
     """As docs/images.md's bench procedure: the driver shows the target, a few seconds are
     recorded, calibrate-camera fits the camera (mirrored: the stand-in has a fold mirror)."""
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import CameraInfo
+
     camera = bench('camera_driver.py', '/camera/micro', 'bayer_rggb8', 'chessboard')
+    infos: list[CameraInfo] = []
+    probe.node.create_subscription(CameraInfo, '/camera/micro/camera_info', infos.append,
+                                   qos_profile_sensor_data)
     bag = tmp_path / 'target'
     recorder = subprocess.Popen(
         [str(ROOT / 'scripts' / 'omni-micro'), 'record', str(bag), '--topics',
@@ -86,7 +92,10 @@ def calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro) -> Path
             said.append(line)
             if 'recording 2 topics' in line:
                 break
-        time.sleep(4.0)                  # a few seconds of the target, as a user would record
+        # As a user starts recording once the camera shows the target (a busy machine takes
+        # seconds to start the driver), then a few seconds of it.
+        probe.spin_until(lambda: len(infos) >= 3, 60.0, "the stand-in camera's frames")
+        probe.spin_for(4.0)
         recorder.send_signal(signal.SIGINT)
         said.append(recorder.communicate(timeout=60)[0])
     finally:
@@ -139,7 +148,7 @@ def deviation_um(truth: list[Odometry]) -> float:
 
 def test_the_loop_closes_with_a_standin_camera_and_robot_on_the_wall_clock_and_a_lab_keeps_its_log(
         bench, domain_id, tmp_path, omni_micro, probe):
-    calibration = calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro)
+    calibration = calibrate_the_standin_camera(bench, domain_id, tmp_path, omni_micro, probe)
     truth = the_truth(probe)
     bench('robot_driver.py', '0.1', '0.0', '0.0')
     bench('camera_driver.py', '/bench/camera', 'bayer_rggb8', 'robot')
@@ -177,13 +186,15 @@ def check_the_bench_log(bag: Path, omni_micro, tmp_path: Path) -> None:
     assert is_wall_clock(stamps[0] * 1e-9) and (stamps[-1] - stamps[0]) * 1e-9 < 30.0
     # It ends 0.5 s after the outcome (BAG_TAIL_S): the wheels' last states are in.
     assert max(data.timestamps['/joint_states']) >= max(data.timestamps['/controller/status'])
-    # A still robot is captured at every frame, not once: no controller waits for one. Before
-    # the first move, each frame from the third (still_frames agree) has its capture.
+    # A still robot is captured at every frame the tracker gets, not once: no controller waits
+    # for one. Before the first move, the captures are of the recorded frames, and most of them
+    # (a best-effort driver's frame may be lost to the tracker on a busy machine, as to any
+    # reader: then that one has none).
     first_move = min(data.timestamps['/wheel_trajectory'])
     still = [t for t in data.timestamps['/camera/micro/pose_with_covariance'] if t < first_move]
     frames = [t for t in data.timestamps['/bench/camera/image_raw'] if still and t >= still[0]
               and t < first_move]
-    assert len(still) >= 3 and still == frames
+    assert len(still) >= 3 and set(still) <= set(frames) and len(still) >= 0.5 * len(frames)
     analyzed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'))
     assert analyzed.returncode == 0, analyzed.stderr
     assert 'no /odom (a run with a real robot' in analyzed.stderr

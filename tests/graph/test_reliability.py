@@ -50,12 +50,12 @@ def shm_files_in_use(pids: list[int] | None = None) -> set[str]:
     return in_use
 
 
-def leftovers_of(ours: set[str]) -> set[str]:
+def leftovers_of(ours: set[str], before: set[str]) -> set[str]:
     """The shared-memory files this test's run left: ``ours`` (what its processes used) still
-    there, used by no living process. Another ROS graph on the machine (other domains, another
-    test beside this one) makes and removes its own files meanwhile, and leaves its own when one
-    of its processes is killed: they are not this run's."""
-    return (shm_files() & ours) - shm_files_in_use()
+    there, not there ``before`` it, used by no living process. Another ROS graph on the machine
+    (other domains, another test beside this one) makes and removes its own files meanwhile,
+    and leaves its own when one of its processes is killed: they are not this run's."""
+    return (shm_files() & ours) - before - shm_files_in_use()
 
 
 def run(tmp_path: Path, **options: Any) -> GraphResult:
@@ -123,6 +123,7 @@ def kill_after(node: str, wall_s: float, record: dict):
 @pytest.mark.parametrize('node', ['dynamics_node', 'vision_node', 'controller_node',
                                   'bag_recorder'])
 def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_path):
+    before = shm_files()
     events: dict = {}
     noticed: list[float] = []
 
@@ -136,7 +137,7 @@ def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_pat
     assert noticed and noticed[0] - events['killed_at'] < 1.0
     bag = read_bag(tmp_path / 'bag', topics=['/odom'])
     assert len(bag.messages['/odom']) > 10
-    assert events['shm'] and leftovers_of(events['shm']) == set()   # none of this run's left
+    assert events['shm'] and leftovers_of(events['shm'], before) == set()   # none of this run's
 
 
 @pytest.mark.parametrize('node', ['vision_node', 'controller_node'])
