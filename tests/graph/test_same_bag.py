@@ -10,16 +10,18 @@ import os
 import signal
 import threading
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 from bag_compare import bag_digest, stored_messages
+from conftest import SHARED_SEED
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import Graph, GraphResult, run_graph
 from omni_micro_cli.errors import RunFailed
 
 
-def record(folder: Path, real_time_factor: float = math.inf, seed: int = 7,
+def record(folder: Path, real_time_factor: float = math.inf, seed: int = SHARED_SEED,
            **options: object) -> tuple[Path, GraphResult]:
     """Fig. 11's goal, recorded: 36 periods, 20 s of simulated time. Every bag is called 'bag'
     (in a folder of its own): rosbag2 names the storage file after the bag's folder, and
@@ -35,36 +37,44 @@ def record(folder: Path, real_time_factor: float = math.inf, seed: int = 7,
     return bag, result
 
 
-@pytest.fixture(scope='module')
-def reference(tmp_path_factory) -> tuple[Path, GraphResult]:
-    """As fast as the lockstep allows, on an idle machine, separate processes."""
-    return record(tmp_path_factory.mktemp('reference'))
+class Reference(NamedTuple):
+    bag: Path
+    sim_time_s: float
+
+
+@pytest.fixture
+def reference(fig11_recorded) -> Reference:
+    """The suite's shared Fig. 11 run: as fast as the lockstep allows, separate processes,
+    started as a user types it (`omni-micro run`), where the runs here go through
+    :func:`run_graph`: the two ways in are one graph too."""
+    bag, summary = fig11_recorded
+    return Reference(bag, summary['sim_time_s'])
 
 
 def test_same_seed_same_file_at_another_real_time_factor(reference, tmp_path):
     bag, result = record(tmp_path, real_time_factor=2.0)
-    assert result.sim_time_s == reference[1].sim_time_s
-    assert bag_digest(bag) == bag_digest(reference[0])
+    assert result.sim_time_s == reference.sim_time_s
+    assert bag_digest(bag) == bag_digest(reference.bag)
 
 
 def test_same_seed_same_file_with_both_cores_kept_busy(reference, tmp_path, busy_machine):
     with busy_machine():
         bag, _ = record(tmp_path)
-    assert bag_digest(bag) == bag_digest(reference[0])
+    assert bag_digest(bag) == bag_digest(reference.bag)
 
 
 def test_same_seed_same_file_with_the_loop_in_one_process(reference, tmp_path):
     bag, result = record(tmp_path, composed=True)
     assert (result.log_dir / 'loop_container.log').exists()
     assert not (result.log_dir / 'vision_node.log').exists()
-    assert bag_digest(bag) == bag_digest(reference[0])
+    assert bag_digest(bag) == bag_digest(reference.bag)
 
 
 def test_another_seed_another_file(reference, tmp_path):
-    bag, _ = record(tmp_path, seed=8)
-    assert bag_digest(bag) != bag_digest(reference[0])
+    bag, _ = record(tmp_path, seed=SHARED_SEED + 1)
+    assert bag_digest(bag) != bag_digest(reference.bag)
     # The same topics, both complete: what differs is the camera noise and what follows it.
-    ours, theirs = stored_messages(bag), stored_messages(reference[0])
+    ours, theirs = stored_messages(bag), stored_messages(reference.bag)
     assert {topic for topic, _, _ in ours} == {topic for topic, _, _ in theirs}
     assert ours[0] == theirs[0]     # time 0's clock: the seed has changed nothing yet
 
@@ -72,9 +82,8 @@ def test_another_seed_another_file(reference, tmp_path):
 def test_the_finished_bag_ends_a_fixed_simulated_time_after_the_outcome(reference):
     from omni_micro_tools.topics import BAG_TAIL_S
 
-    bag, result = reference
-    messages = stored_messages(bag)
-    outcome_ns = round(result.sim_time_s * 1e9)
+    messages = stored_messages(reference.bag)
+    outcome_ns = round(reference.sim_time_s * 1e9)
     assert max(time for _, time, _ in messages) == outcome_ns + round(BAG_TAIL_S * 1e9)
     times = [time for _, time, _ in messages]
     assert times == sorted(times)
@@ -98,6 +107,6 @@ def test_a_killed_recorder_leaves_a_prefix_of_the_finished_bag(reference, tmp_pa
     with pytest.raises(RunFailed, match='bag_recorder'):
         record(tmp_path, real_time_factor=4.0, on_running=kill_the_recorder_soon)
     recovered = stored_messages(tmp_path / 'bag')
-    finished = stored_messages(reference[0])
+    finished = stored_messages(reference.bag)
     assert len(finished) / 4 < len(recovered) < len(finished)
     assert recovered == finished[:len(recovered)]
