@@ -186,15 +186,19 @@ def check_the_bench_log(bag: Path, omni_micro, tmp_path: Path) -> None:
     assert is_wall_clock(stamps[0] * 1e-9) and (stamps[-1] - stamps[0]) * 1e-9 < 30.0
     # It ends 0.5 s after the outcome (BAG_TAIL_S): the wheels' last states are in.
     assert max(data.timestamps['/joint_states']) >= max(data.timestamps['/controller/status'])
+    # The log has the driver's frames from before the goal: the run waits for the first one.
+    first_frame = min(data.timestamps['/bench/camera/image_raw'])
+    assert first_frame < min(data.timestamps['/goal_pose'])
     # A still robot is captured at every frame the tracker gets, not once: no controller waits
-    # for one. Before the first move, the captures are of the recorded frames, and most of them
-    # (a best-effort driver's frame may be lost to the tracker on a busy machine, as to any
-    # reader: then that one has none).
+    # for one. Before the first move, the captures since the log's first frame are of recorded
+    # frames, and most of them (a best-effort driver's frame may be lost to the tracker on a
+    # busy machine, as to any reader: then that one has none).
     first_move = min(data.timestamps['/wheel_trajectory'])
-    still = [t for t in data.timestamps['/camera/micro/pose_with_covariance'] if t < first_move]
-    frames = [t for t in data.timestamps['/bench/camera/image_raw'] if still and t >= still[0]
-              and t < first_move]
-    assert len(still) >= 3 and set(still) <= set(frames) and len(still) >= 0.5 * len(frames)
+    captures = data.timestamps['/camera/micro/pose_with_covariance']
+    still = [t for t in captures if first_frame <= t < first_move]
+    frames = [t for t in data.timestamps['/bench/camera/image_raw'] if t < first_move]
+    assert len([t for t in captures if t < first_move]) >= 3
+    assert still and set(still) <= set(frames) and len(still) >= 0.5 * len(frames)
     analyzed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'))
     assert analyzed.returncode == 0, analyzed.stderr
     assert 'no /odom (a run with a real robot' in analyzed.stderr

@@ -181,7 +181,8 @@ class GraphMonitor:
             if markers and not self.node.count_publishers(MARKERS_TOPIC):
                 missing.append('(markers_node: no /markers publisher yet)')
             if recording and not self.recorder_ready:
-                missing.append('(the recorder: not matched to every publisher yet)')
+                missing.append('(the recorder: not matched to every publisher, or no driver '
+                               'frame written, yet)')
             if not missing and not silent and (not clock or self.parameters.service_is_ready()):
                 break
             if time.monotonic() > deadline:

@@ -103,9 +103,15 @@ class BagRecorder(Node):
                                  f'{log_clock!r}')
         topics = {name: RECORDABLE_TOPICS[name] for name in names}
         try:
-            topics.update(driver_image_topics(driver_images))
+            driver_topics = driver_image_topics(driver_images)
         except ValueError as error:
             raise ParameterError(f'driver_images: {error}') from None
+        topics.update(driver_topics)
+        # A driver publishes whether anyone runs or not: its first frame in the bag, not only its
+        # discovery, says the log has the scene from before the goal (a bench log on a busy
+        # machine lacked the driver's frames of its first 2 s, whose captures it had).
+        self._first_frame_awaited = [topic for topic in driver_topics
+                                     if topic.endswith('image_raw')]
         self.wall_clock = log_clock == 'wall'
         self.bag = bag
         self.storage = storage
@@ -209,9 +215,11 @@ class BagRecorder(Node):
             except OSError as error:
                 self._writing_failed(error)
             self._last_flush = time.monotonic()
-        # "recording" once every recorded topic has a matched publisher, so that whoever starts
-        # the graph's clock knows nothing will be missed from the beginning.
-        if not self._announced and all(sub.get_publisher_count() > 0 for sub in self._watched):
+        # "recording" once every recorded topic has a matched publisher (and a driver's images a
+        # frame written), so that whoever starts the graph's clock knows nothing will be missed
+        # from the beginning.
+        if not self._announced and all(sub.get_publisher_count() > 0 for sub in self._watched) \
+                and all(self.counts[topic] for topic in self._first_frame_awaited):
             self._announce()
             self._announced = True
         up_to = min(self._tick_stamps_ns.values(), default=-1)
