@@ -74,7 +74,7 @@ class ClosedLoopResult:
                           self.final_state.y_m - self.goal_m[1])
 
 
-def _observation(capture: Capture | MotionCapture) -> Observation:
+def capture_observation(capture: Capture | MotionCapture) -> Observation:
     """A capture as the controller node reads it from its message (the uncertainty crosses a
     PoseWithCovarianceStamped: variances)."""
     return Observation(through_stamp(capture.stamp_s), capture.x_m, capture.y_m,
@@ -82,7 +82,7 @@ def _observation(capture: Capture | MotionCapture) -> Observation:
                        CaptureUncertainty.from_covariance(capture.uncertainty.covariance()))
 
 
-def _schedule(grid: GridSimulator, steering_rad: float, profile: WheelSpeedProfile,
+def schedule_move(grid: GridSimulator, steering_rad: float, profile: WheelSpeedProfile,
               start_s: float, now_s: float, limits: MotorLimits) -> None:
     """A command as the dynamics node receives it: it crosses a JointTrajectory, so its knot
     times become nanosecond stamps."""
@@ -151,7 +151,7 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                                     math.hypot(forward, lateral), state.omega_rad_s)
         for event in events:
             if isinstance(event, Capture):
-                decisions.append(controller.on_capture(_observation(event)))
+                decisions.append(controller.on_capture(capture_observation(event)))
             else:
                 decisions.append(controller.on_out_of_field(through_stamp(event.stamp_s)))
         for decision in decisions:
@@ -160,7 +160,8 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                 moves.append(decision)
                 profile = move_profile(decision.duration_s, limits)
                 watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-                _schedule(grid, decision.steering_rad, profile, decision.start_s, stamp, limits)
+                schedule_move(grid, decision.steering_rad, profile, decision.start_s, stamp,
+                              limits)
             elif isinstance(decision, Finished):
                 finished = decision
                 if decision.observation is not None:
@@ -213,7 +214,8 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     session = ServoSession(config, limits, model_robot or RobotParameters())
 
     def schedule(command: ServoCommand, now_s: float) -> None:
-        _schedule(grid, command.steering_rad, command.profile, command.start_s, now_s, limits)
+        schedule_move(grid, command.steering_rad, command.profile, command.start_s, now_s,
+                      limits)
 
     session.set_goal(goal_m, 0.0)
     route: list[tuple[float, float, float]] = []
@@ -226,13 +228,14 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
         session.on_wheel_state(stamp, tuple(sample.wheel_speeds_rad_s))
         for capture in moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
                                           state.vy_m_s):
-            replanned = session.on_capture_in_motion(_observation(capture))
+            replanned = session.on_capture_in_motion(capture_observation(capture))
             if replanned is not None:
                 schedule(replanned, stamp)
         forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
         for event in still.on_odometry(stamp, state.x_m, state.y_m, phi,
                                        math.hypot(forward, lateral), state.omega_rad_s):
-            decision = (session.on_capture(_observation(event)) if isinstance(event, Capture)
+            decision = (session.on_capture(capture_observation(event))
+                        if isinstance(event, Capture)
                         else session.on_out_of_field(through_stamp(event.stamp_s)))
             if isinstance(decision, ServoCommand):
                 schedule(decision, stamp)
