@@ -1,0 +1,366 @@
+"""A plan for several robots on one platform: who drives where, and who waits for whom.
+
+The platform is reserved on a roadmap (:mod:`omni_micro_control.fleet_roadmap`). Prioritized
+planning gives every robot in turn a path of synchronous steps that keeps clear of the paths
+and final places of the robots planned before it (space-time A*); when one cannot be found,
+that robot is planned earlier and the plan tried again. Steps take no fixed time on the
+platform, so an action dependency graph (Hönig et al., "Persistent and robust execution of
+MAPF schedules in warehouses", RA-L 2019) turns them into *legs*: straight drives that start
+only once every earlier step of another robot passing within the clearance of theirs has
+ended. Whatever each leg then takes, two robots are never on conflicting segments at once,
+and since every leg waits only for legs that start earlier, nobody waits in a cycle.
+
+The micro field (2 mm) is smaller than a robot: the clearance alone gives it to one robot at
+a time.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import random
+from collections import deque
+from dataclasses import dataclass
+
+from omni_micro_common.conventions import GOAL_TOLERANCE_M
+from omni_micro_control.fleet_roadmap import (
+    CLEARANCE_M,
+    Roadmap,
+    build_roadmap,
+    check_on_platform,
+)
+from omni_micro_vision.camera import DEFAULT_RIG
+
+# A leg's end that is not a task's goal is reached this close (the macro camera's captures
+# scatter by 26 um at 95 %); the roadmap's clearance counts it.
+WAYPOINT_TOLERANCE_M = 0.2e-3
+# A goal the macro camera sees (outside the micro field) is reached this close.
+MACRO_GOAL_TOLERANCE_M = 50.0e-6
+# Steps a robot's path may take at most (a 150 mm platform is crossed in 15).
+MAX_STEPS = 400
+
+
+class PlanningError(ValueError):
+    """Tasks no plan can meet: a cycle of waits, two goals closer than the clearance."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """Reach ``goal_m``; with ``after`` = (robot, task index), not before that one is done."""
+
+    goal_m: tuple[float, float]
+    after: tuple[int, int] | None = None
+    tolerance_m: float | None = None      # None: the micro's 3 um in its field, else 50 um
+
+    def tolerance(self) -> float:
+        if self.tolerance_m is not None:
+            return self.tolerance_m
+        inside = DEFAULT_RIG.micro.contains(*self.goal_m)
+        return GOAL_TOLERANCE_M if inside else MACRO_GOAL_TOLERANCE_M
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One straight drive of one robot, and what must have ended before it starts."""
+
+    robot: int
+    index: int
+    start_m: tuple[float, float]
+    end_m: tuple[float, float]
+    steps: tuple[int, int]                       # the first and last planned step it covers
+    waits_for: tuple[tuple[int, int], ...]       # (robot, leg index) that must have ended
+    tasks: tuple[int, ...]                       # the tasks it completes (ends at their goal)
+    tolerance_m: float
+
+
+@dataclass(frozen=True)
+class FleetPlan:
+    starts_m: tuple[tuple[float, float], ...]
+    tasks: tuple[tuple[Task, ...], ...]
+    legs: tuple[tuple[Leg, ...], ...]            # per robot, in order
+    done_at_start: tuple[tuple[int, ...], ...]   # per robot: tasks whose goal is its start
+    paths: tuple[tuple[int, ...], ...]           # per robot: its roadmap place at each step
+    roadmap: Roadmap
+    priority: tuple[int, ...]
+
+    @property
+    def makespan_steps(self) -> int:
+        return max((len(path) - 1 for path in self.paths), default=0)
+
+
+def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, seed: int = 0,
+               clearance_m: float = CLEARANCE_M, attempts: int = 0) -> FleetPlan:
+    """Paths and legs for every robot (``tasks[k]``: robot k's goals, in order).
+
+    Raises
+    ------
+    PlanningError
+        Tasks that wait for each other in a cycle, places closer than the clearance that two
+        robots must hold at once, or no plan in ``attempts`` priority orders (default 4 N).
+    """
+    _check(starts_m, tasks, clearance_m)
+    points = list(starts_m) + [task.goal_m for robot in tasks for task in robot]
+    roadmap = build_roadmap(points, clearance_m=clearance_m)
+    order = _dependency_order(tasks)
+    rng = random.Random(seed)
+    failure = ''
+    for _ in range(attempts or 4 * len(starts_m)):
+        paths, arrivals, failed = _plan_in_order(roadmap, starts_m, tasks, order)
+        if failed is None:
+            legs, done_at_start = _legs(roadmap, paths, arrivals, tasks)
+            return FleetPlan(tuple(starts_m), tuple(tuple(robot) for robot in tasks), legs,
+                             done_at_start, tuple(tuple(path) for path in paths), roadmap,
+                             tuple(order))
+        failure = (f'robot {failed}: no path within {MAX_STEPS} steps that keeps clear of the '
+                   'others')
+        promoted = [failed] + [robot for robot in order if robot != failed]
+        order = _respecting_waits(promoted, tasks) or _respecting_waits(
+            rng.sample(order, len(order)), tasks) or order
+    raise PlanningError(f'no plan for the tasks: {failure}')
+
+
+def _check(starts_m: list[tuple[float, float]], tasks: list[list[Task]],
+           clearance_m: float) -> None:
+    if len(tasks) != len(starts_m):
+        raise PlanningError(f'{len(starts_m)} robots but tasks for {len(tasks)}')
+    for robot, start in enumerate(starts_m):
+        check_on_platform(start, f'robot {robot}\'s start')
+        for index, task in enumerate(tasks[robot]):
+            check_on_platform(task.goal_m, f'robot {robot}\'s goal {index}')
+            if task.after is not None:
+                other, goal = task.after
+                if not (0 <= other < len(tasks) and 0 <= goal < len(tasks[other])):
+                    raise PlanningError(f'robot {robot}\'s goal {index} waits for robot '
+                                        f'{other}\'s goal {goal}: there is no such goal')
+    for a, b in itertools.combinations(range(len(starts_m)), 2):
+        gap = math.dist(starts_m[a], starts_m[b])
+        if gap < clearance_m:
+            raise PlanningError(f'robots {a} and {b} start {gap * 1e3:.2f} mm apart: centres '
+                                f'must be {clearance_m * 1e3:g} mm apart (9 mm discs)')
+        finals = [tasks[k][-1].goal_m if tasks[k] else starts_m[k] for k in (a, b)]
+        gap = math.dist(*finals)
+        if gap < clearance_m:
+            raise PlanningError(f'robots {a} and {b} would end {gap * 1e3:.2f} mm apart: '
+                                f'their last goals must be {clearance_m * 1e3:g} mm apart')
+
+
+def _dependency_order(tasks: list[list[Task]]) -> list[int]:
+    order = _respecting_waits(list(range(len(tasks))), tasks)
+    if order is None:
+        waiting = sorted({k for k, robot in enumerate(tasks) for task in robot if task.after})
+        raise PlanningError(f'the tasks wait for each other in a cycle ("after" of robots '
+                            f'{waiting})')
+    return order
+
+
+def _respecting_waits(preferred: list[int], tasks: list[list[Task]]) -> list[int] | None:
+    """``preferred`` reordered as little as needed so that a robot whose goal waits for
+    another's comes after it (None: they wait in a cycle)."""
+    needs = {robot: {task.after[0] for task in tasks[robot]
+                     if task.after is not None and task.after[0] != robot}
+             for robot in preferred}
+    order: list[int] = []
+    while len(order) < len(preferred):
+        ready = [robot for robot in preferred if robot not in order and needs[robot] <= set(order)]
+        if not ready:
+            return None
+        order.append(ready[0])
+    return order
+
+
+class _Reservations:
+    """The segments the robots planned so far hold at each step, and where they rest after."""
+
+    def __init__(self, roadmap: Roadmap) -> None:
+        self.roadmap = roadmap
+        self.by_step: list[set[int]] = []
+        self.rests: list[tuple[int, int]] = []       # (stay segment, from step)
+        self.last_step_near: dict[int, int] = {}     # segment -> last step something near it
+
+    def add(self, path: list[int]) -> None:
+        for step in range(len(path) - 1):
+            segment = self.roadmap.segment(path[step], path[step + 1])
+            while len(self.by_step) <= step:
+                self.by_step.append(set())
+            self.by_step[step].add(segment)
+            for near in self.roadmap.conflicts[segment]:
+                self.last_step_near[near] = max(self.last_step_near.get(near, -1), step)
+        self.rests.append((self.roadmap.segment(path[-1], path[-1]), len(path) - 1))
+
+    def free(self, segment: int, step: int) -> bool:
+        conflicts = self.roadmap.conflicts[segment]
+        if step < len(self.by_step) and self.by_step[step] & conflicts:
+            return False
+        return not any(rest in conflicts and step >= since for rest, since in self.rests)
+
+    def can_rest(self, place: int, from_step: int) -> bool:
+        return self.last_step_near.get(self.roadmap.segment(place, place), -1) < from_step
+
+
+def _distances_to(roadmap: Roadmap, goal: int) -> dict[int, int]:
+    distances = {goal: 0}
+    queue = deque([goal])
+    while queue:
+        place = queue.popleft()
+        for near in roadmap.neighbours[place]:
+            if near not in distances:
+                distances[near] = distances[place] + 1
+                queue.append(near)
+    return distances
+
+
+def _search(roadmap: Roadmap, reserved: _Reservations, start: int, start_step: int, goal: int,
+            earliest: int, final: bool) -> list[int] | None:
+    """Space-time A*: places from ``start`` at ``start_step`` to ``goal`` at a step no earlier
+    than ``earliest`` (and, for a ``final`` goal, one it can stay at for good)."""
+    remaining = _distances_to(roadmap, goal)
+    if start not in remaining:
+        return None
+    frontier = [(start_step + remaining[start], start_step, start)]
+    came_from: dict[tuple[int, int], tuple[int, int] | None] = {(start, start_step): None}
+    while frontier:
+        _, step, place = heapq.heappop(frontier)
+        if place == goal and step >= earliest and (not final or reserved.can_rest(goal, step)):
+            path = [place]
+            node = came_from[(place, step)]
+            while node is not None:
+                path.append(node[0])
+                node = came_from[node]
+            return path[::-1]
+        if step - start_step >= MAX_STEPS:
+            continue
+        for near in (place, *roadmap.neighbours[place]):
+            key = (near, step + 1)
+            if key in came_from or near not in remaining:
+                continue
+            if near == goal != place and step + 1 < earliest:
+                continue        # not at a goal that waits for another robot's before it is done
+            if not reserved.free(roadmap.segment(place, near), step):
+                continue
+            came_from[key] = (place, step)
+            heapq.heappush(frontier, (step + 1 + remaining[near], step + 1, near))
+    return None
+
+
+def _plan_in_order(roadmap: Roadmap, starts_m: list[tuple[float, float]],
+                   tasks: list[list[Task]], order: list[int]
+                   ) -> tuple[list[list[int]], list[list[int]], int | None]:
+    """Every robot's path in ``order``; arrivals[k][i]: the step robot k reaches goal i."""
+    reserved = _Reservations(roadmap)
+    paths: list[list[int]] = [[] for _ in starts_m]
+    arrivals: list[list[int]] = [[] for _ in starts_m]
+    for robot in order:
+        path = [roadmap.place_of(starts_m[robot])]
+        for index, task in enumerate(tasks[robot]):
+            earliest = 0
+            if task.after is not None:
+                earliest = arrivals[task.after[0]][task.after[1]] + 1
+            piece = _search(roadmap, reserved, path[-1], len(path) - 1,
+                            roadmap.place_of(task.goal_m), earliest,
+                            final=index == len(tasks[robot]) - 1)
+            if piece is None:
+                return paths, arrivals, robot
+            path.extend(piece[1:])
+            # There since its last move (a wait at the goal after it counts as done).
+            arrived, piece_start = len(path) - 1, len(path) - len(piece)
+            while arrived > piece_start and path[arrived - 1] == path[arrived]:
+                arrived -= 1
+            arrivals[robot].append(arrived)
+        if not tasks[robot] and not reserved.can_rest(path[0], 0):
+            return paths, arrivals, robot
+        reserved.add(path)
+        paths[robot] = path
+    return paths, arrivals, None
+
+
+def _legs(roadmap: Roadmap, paths: list[list[int]], arrivals: list[list[int]],
+          tasks: list[list[Task]]
+          ) -> tuple[tuple[tuple[Leg, ...], ...], tuple[tuple[int, ...], ...]]:
+    """Straight legs from the paths' moves, each waiting for the legs of other robots that hold
+    a conflicting segment at an earlier step (the action dependency graph), and for the leg
+    that completes a goal its own waits for."""
+    moves = [[(step, path[step], path[step + 1]) for step in range(len(path) - 1)
+              if path[step] != path[step + 1]] for path in paths]
+    # The move that ends at each robot's arrival step (None: the goal was its start).
+    arriving = [{arrival: next((i for i, move in enumerate(own) if move[0] == arrival - 1),
+                               None) for arrival in robot_arrivals}
+                for own, robot_arrivals in zip(moves, arrivals, strict=True)]
+    # Per robot and conflicting segment: the steps of its moves there (ascending).
+    # [robot][move] -> [(other robot, its move index, that move's step)]
+    waits: list[list[list[tuple[int, int, int]]]] = []
+    for robot, own in enumerate(moves):
+        waits.append([])
+        for step, u, v in own:
+            conflicts = roadmap.conflicts[roadmap.segment(u, v)]
+            needed = []
+            for other, theirs in enumerate(moves):
+                if other == robot:
+                    continue
+                earlier = [index for index, (their_step, a, b) in enumerate(theirs)
+                           if their_step < step and roadmap.segment(a, b) in conflicts]
+                if earlier:
+                    needed.append((other, earlier[-1], theirs[earlier[-1]][0]))
+            for index, task in enumerate(tasks[robot]):
+                if task.after is not None and arrivals[robot][index] == step + 1:
+                    other, goal = task.after
+                    move = arriving[other][arrivals[other][goal]]
+                    if move is not None:
+                        needed.append((other, move, moves[other][move][0]))
+            waits[robot].append(needed)
+    goal_steps: list[dict[int, tuple[int, ...]]] = []
+    for robot_arrivals in arrivals:
+        by_step: dict[int, tuple[int, ...]] = {}
+        for index, step in enumerate(robot_arrivals):
+            by_step[step] = (*by_step.get(step, ()), index)
+        goal_steps.append(by_step)
+    leg_of: list[list[int]] = [[0] * len(own) for own in moves]
+    spans: list[list[list[int]]] = []
+    for robot, own in enumerate(moves):
+        spans.append([])
+        for index in range(len(own)):
+            if spans[robot] and _extends(roadmap, own, spans[robot][-1], index, waits[robot],
+                                         goal_steps[robot]):
+                spans[robot][-1].append(index)
+            else:
+                spans[robot].append([index])
+            leg_of[robot][index] = len(spans[robot]) - 1
+    legs = []
+    for robot, own in enumerate(moves):
+        robot_legs = []
+        for leg_index, span in enumerate(spans[robot]):
+            first_step, start, _ = own[span[0]]
+            last_step, _, end = own[span[-1]]
+            leg_waits = sorted({(other, leg_of[other][move]) for index in span
+                                for other, move, _ in waits[robot][index]})
+            reached = goal_steps[robot].get(last_step + 1, ())
+            tolerance = min((tasks[robot][task].tolerance() for task in reached),
+                            default=WAYPOINT_TOLERANCE_M)
+            robot_legs.append(Leg(robot, leg_index, _point(roadmap, start),
+                                  _point(roadmap, end), (first_step, last_step), tuple(leg_waits),
+                                  reached, tolerance))
+        legs.append(tuple(robot_legs))
+    done_at_start = tuple(goal_steps[robot].get(0, ()) for robot in range(len(paths)))
+    return tuple(legs), done_at_start
+
+
+def _extends(roadmap: Roadmap, own: list[tuple[int, int, int]], span: list[int], index: int,
+             waits: list[list[tuple[int, int, int]]],
+             goal_steps: dict[int, tuple[int, ...]]) -> bool:
+    """Whether move ``index`` may join the leg ``span``: straight on, right after it, not past
+    a goal, and waiting for nothing that starts after the leg does (no cycle of waits)."""
+    last_step, last_from, last_to = own[span[-1]]
+    step, start, end = own[index]
+    if step != last_step + 1 or start != last_to or last_step + 1 in goal_steps:
+        return False
+    before = roadmap.places_m[last_to] - roadmap.places_m[last_from]
+    after = roadmap.places_m[end] - roadmap.places_m[start]
+    if abs(before[0] * after[1] - before[1] * after[0]) > 1e-12 or before @ after <= 0.0:
+        return False
+    first_step = own[span[0]][0]
+    return all(their_step < first_step for _, _, their_step in waits[index])
+
+
+def _point(roadmap: Roadmap, place: int) -> tuple[float, float]:
+    x, y = roadmap.places_m[place]
+    return float(x), float(y)

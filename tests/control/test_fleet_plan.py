@@ -1,0 +1,195 @@
+"""The fleet planner: every leg a straight drive between roadmap places, no two robots ever
+closer than the clearance whatever each leg takes, nobody waiting for ever, goals in order."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import random
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from omni_micro_common.conventions import GOAL_TOLERANCE_M
+from omni_micro_control.fleet_plan import (
+    MACRO_GOAL_TOLERANCE_M,
+    WAYPOINT_TOLERANCE_M,
+    FleetPlan,
+    PlanningError,
+    Task,
+    plan_fleet,
+)
+from omni_micro_control.fleet_roadmap import (
+    CLEARANCE_M,
+    RoadmapError,
+    build_roadmap,
+    segment_distances,
+)
+
+MICRO = (0.1, 0.0)
+# Four robots on a cross, each to the opposite end: every path crosses every other's goal.
+CROSS_STARTS = [(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)]
+CROSS_TASKS = [[Task((0.1, 0.0))], [Task((0.0, 0.0))], [Task((0.05, -0.05))],
+               [Task((0.05, 0.05))]]
+
+
+def execute(plan: FleetPlan, durations: random.Random) -> tuple[float, list[list[float]]]:
+    """Run the legs as the platform would, each taking a random time, and return the closest
+    two centres came and when each robot ended each leg. Legs start as soon as what they wait
+    for has ended (an event simulation; robots drive their legs at constant speed)."""
+    ended: dict[tuple[int, int], float] = {}
+    ends = [[0.0] * len(legs) for legs in plan.legs]
+    spans: list[list[tuple[float, float, tuple, tuple]]] = [[] for _ in plan.legs]
+    pending = [(0.0, robot, 0) for robot, legs in enumerate(plan.legs) if legs]
+    while pending:
+        progressed = False
+        for entry in list(pending):
+            ready_at, robot, index = entry
+            leg = plan.legs[robot][index]
+            if all(need in ended for need in leg.waits_for):
+                start = max([ready_at] + [ended[need] for need in leg.waits_for])
+                finish = start + durations.uniform(0.1, 5.0)
+                ended[(robot, index)] = finish
+                ends[robot][index] = finish
+                spans[robot].append((start, finish, leg.start_m, leg.end_m))
+                pending.remove(entry)
+                if index + 1 < len(plan.legs[robot]):
+                    pending.append((finish, robot, index + 1))
+                progressed = True
+        assert progressed, f'the legs wait for each other: {pending}'
+    return closest_approach(plan, spans), ends
+
+
+def position(plan: FleetPlan, spans, robot: int, t: float) -> tuple[float, float]:
+    where = plan.starts_m[robot]
+    for start, finish, a, b in spans[robot]:
+        if t >= finish:
+            where = b
+        elif t >= start:
+            f = (t - start) / (finish - start)
+            return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]))
+    return where
+
+
+def closest_approach(plan: FleetPlan, spans) -> float:
+    """Exact: between two consecutive leg starts or ends every robot moves in a straight line
+    at constant speed, so each pair's offset does too; its closest to zero is on that segment."""
+    times = sorted({0.0} | {t for robot in spans for start, finish, *_ in robot
+                            for t in (start, finish)})
+    closest = math.inf
+    for t0, t1 in (itertools.pairwise(times) if len(times) > 1 else [(0.0, 0.0)]):
+        at0 = np.array([position(plan, spans, robot, t0) for robot in range(len(spans))])
+        at1 = np.array([position(plan, spans, robot, t1 - 1e-12 if t1 > t0 else t1)
+                        for robot in range(len(spans))])
+        for a in range(len(spans)):
+            for b in range(a + 1, len(spans)):
+                offsets = np.array([at0[a] - at0[b]]), np.array([at1[a] - at1[b]])
+                closest = min(closest, float(segment_distances(
+                    np.vstack([offsets[0], [[0.0, 0.0]]]),
+                    np.vstack([offsets[1], [[0.0, 0.0]]]))[0, 1]))
+    return closest
+
+
+def test_segments_distances_are_those_of_geometry():
+    starts = np.array([[0.0, 0.0], [0.0, 1.0], [0.5, -1.0], [3.0, 0.0], [2.0, 2.0]])
+    ends = np.array([[1.0, 0.0], [1.0, 1.0], [0.5, 1.0], [3.0, 0.0], [2.0, 2.0]])
+    d = segment_distances(starts, ends)
+    assert d[0, 1] == pytest.approx(1.0)      # parallel lanes
+    assert d[0, 2] == 0.0 and d[1, 2] == 0.0  # crossing, touching at an end
+    assert d[0, 3] == pytest.approx(2.0)      # a point beyond an end
+    assert d[3, 4] == pytest.approx(math.sqrt(5.0))   # two points
+    assert np.allclose(d, d.T)
+
+
+def test_the_micro_field_is_a_place_and_the_platform_edge_is_refused():
+    roadmap = build_roadmap([(0.0123, -0.0456)])
+    roadmap.place_of(MICRO)
+    roadmap.place_of((0.0123, -0.0456))
+    with pytest.raises(RoadmapError, match=r'robot 0\'s goal 0 \(130, 0\) mm is off the platform'):
+        plan_fleet([(0.0, 0.0)], [[Task((0.13, 0.0))]])
+
+
+def test_robots_crossing_each_others_goals_all_arrive_and_never_come_close():
+    plan = plan_fleet(CROSS_STARTS, CROSS_TASKS)
+    for robot, legs in enumerate(plan.legs):
+        assert legs[0].start_m == CROSS_STARTS[robot]
+        assert legs[-1].end_m == CROSS_TASKS[robot][-1].goal_m and legs[-1].tasks == (0,)
+        assert all(a.end_m == b.start_m for a, b in itertools.pairwise(legs))
+    # Waits point only to legs that start earlier: no cycle, whatever the durations.
+    for legs in plan.legs:
+        for leg in legs:
+            for other, index in leg.waits_for:
+                assert plan.legs[other][index].steps[0] < leg.steps[0]
+    for seed in range(20):
+        closest, _ = execute(plan, random.Random(seed))
+        assert closest >= CLEARANCE_M - 1e-9
+
+
+def test_the_micro_field_goal_is_reached_to_the_micro_s_tolerance_waypoints_coarser():
+    plan = plan_fleet([(0.0, 0.0)], [[Task((0.03, 0.02)), Task((0.1001, 0.0002))]])
+    tolerances = [leg.tolerance_m for leg in plan.legs[0]]
+    tasks = [leg.tasks[0] if leg.tasks else None for leg in plan.legs[0]]
+    assert tolerances[tasks.index(0)] == MACRO_GOAL_TOLERANCE_M
+    assert tolerances[tasks.index(1)] == GOAL_TOLERANCE_M
+    assert set(tolerances[i] for i, task in enumerate(tasks) if task is None) == {
+        WAYPOINT_TOLERANCE_M}
+    assert tasks.index(0) < tasks.index(1)
+
+
+def test_a_goal_after_another_robot_s_is_reached_after_it_whatever_the_durations():
+    # Robot 1 may bring its part to the micro field only once robot 0 has left its own there.
+    tasks = [[Task(MICRO), Task((0.05, 0.04))], [Task((0.1, -0.0003), after=(0, 1))]]
+    plan = plan_fleet([(0.0, 0.0), (0.05, -0.05)], tasks)
+    arrive_first = next(leg for leg in plan.legs[0] if leg.tasks == (1,))
+    arrive_second = next(leg for leg in plan.legs[1] if leg.tasks == (0,))
+    for seed in range(10):
+        closest, ends = execute(plan, random.Random(seed))
+        assert closest >= CLEARANCE_M - 1e-9
+        assert ends[1][arrive_second.index] > ends[0][arrive_first.index]
+
+
+@pytest.mark.parametrize('starts, tasks, message', [
+    ([(0.0, 0.0), (0.005, 0.0)], [[], []], 'robots 0 and 1 start 5.00 mm apart'),
+    ([(0.0, 0.0), (0.05, 0.0)], [[Task(MICRO)], [Task((0.1, 0.004))]],
+     'robots 0 and 1 would end 4.00 mm apart'),
+    ([(0.0, 0.0), (0.05, 0.0)], [[Task(MICRO, after=(1, 0))], [Task((0.0, 0.03), after=(0, 0))]],
+     'the tasks wait for each other in a cycle'),
+    ([(0.0, 0.0)], [[Task(MICRO, after=(3, 0))]], "waits for robot 3's goal 0: there is no"),
+])
+def test_tasks_no_plan_can_meet_are_named(starts, tasks, message):
+    with pytest.raises(PlanningError, match=message):
+        plan_fleet(starts, tasks)
+
+
+def spread(draw, count: int) -> list[tuple[float, float]]:
+    """``count`` places on a 20 mm lattice of the platform, all different."""
+    cells = draw(st.lists(st.tuples(st.integers(-1, 6), st.integers(-3, 3)), min_size=count,
+                          max_size=count, unique=True))
+    return [(0.0 + 0.02 * i, 0.02 * j) for i, j in cells]
+
+
+@st.composite
+def fleets(draw):
+    count = draw(st.integers(2, 5))
+    starts = spread(draw, count)
+    goals = spread(draw, count)
+    return starts, [[Task(goal)] for goal in goals], draw(st.integers(0, 1000))
+
+
+@settings(max_examples=30, deadline=None)
+@given(fleets())
+def test_any_fleet_keeps_its_clearance_whatever_each_leg_takes(fleet):
+    starts, tasks, seed = fleet
+    plan = plan_fleet(starts, tasks)
+    closest, _ = execute(plan, random.Random(seed))
+    assert closest >= CLEARANCE_M - 1e-9
+    for robot, legs in enumerate(plan.legs):
+        end = legs[-1].end_m if legs else starts[robot]
+        assert end == tasks[robot][0].goal_m
+
+
+def test_the_plan_is_the_same_for_the_same_tasks():
+    first = plan_fleet(CROSS_STARTS, CROSS_TASKS)
+    assert plan_fleet(CROSS_STARTS, CROSS_TASKS).legs == first.legs
