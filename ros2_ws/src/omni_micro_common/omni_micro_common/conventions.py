@@ -117,6 +117,9 @@ class CaptureUncertainty:
 # it. controller_node refuses a goal off it; the cameras' defaults are built on it.
 PLATFORM_CENTER_M = (0.05, 0.0)
 PLATFORM_SIZE_M = (0.15, 0.15)
+# The micro work platform the micro camera watches (m), centred on the goal of Fig. 11.
+MICRO_FIELD_CENTER_M = (0.1, 0.0)
+MICRO_FIELD_SIZE_M = (0.002, 0.002)
 # A goal is reached within this distance (m): the end rule the paper leaves open. The
 # controller's tolerance_m by default, and the circle a viewer draws around the goal.
 GOAL_TOLERANCE_M = 3.0e-6

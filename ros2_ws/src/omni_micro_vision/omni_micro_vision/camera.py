@@ -19,7 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
+from omni_micro_common.conventions import (
+    MICRO_FIELD_CENTER_M,
+    MICRO_FIELD_SIZE_M,
+    PLATFORM_CENTER_M,
+    PLATFORM_SIZE_M,
+    CaptureUncertainty,
+)
 from omni_micro_vision.errors import CameraConfigError
 
 
@@ -159,7 +165,7 @@ class CameraRig:
 # platform is centred on the goal of Fig. 11.
 DEFAULT_RIG = CameraRig(
     macro=CameraModel('macro', PLATFORM_CENTER_M, PLATFORM_SIZE_M),
-    micro=CameraModel('micro', (0.1, 0.0), (0.002, 0.002)),
+    micro=CameraModel('micro', MICRO_FIELD_CENTER_M, MICRO_FIELD_SIZE_M),
 )
 
 
