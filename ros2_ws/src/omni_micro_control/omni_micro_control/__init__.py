@@ -8,7 +8,9 @@ identify`` use, over the :mod:`chains` of stops and moves that :mod:`recorded_ru
 run's messages), :mod:`servo` (keeps the robot rolling, corrected from the captures in motion
 through :mod:`slip_filter`, a Kalman filter over the slip core, with its settings and commands
 in :mod:`servo_config`, driven goal after goal by :mod:`servo_session`), and
-:mod:`platform` (the rectangle goals must lie on), :mod:`errors`. Its node:
+:mod:`platform` (the rectangle goals must lie on), :mod:`errors`; for several robots on one
+platform, :mod:`fleet_plan` (legs that keep them apart, and who waits for whom) on the
+:mod:`fleet_roadmap` of the platform. Its node:
 :mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
 and :mod:`controller_messages` (the trajectories and statuses it publishes).
 """

@@ -23,14 +23,17 @@ import random
 from collections import deque
 from dataclasses import dataclass
 
-from omni_micro_common.conventions import GOAL_TOLERANCE_M
+from omni_micro_common.conventions import (
+    GOAL_TOLERANCE_M,
+    MICRO_FIELD_CENTER_M,
+    MICRO_FIELD_SIZE_M,
+)
 from omni_micro_control.fleet_roadmap import (
     CLEARANCE_M,
     Roadmap,
     build_roadmap,
     check_on_platform,
 )
-from omni_micro_vision.camera import DEFAULT_RIG
 
 # A leg's end that is not a task's goal is reached this close (the macro camera's captures
 # scatter by 26 um at 95 %); the roadmap's clearance counts it.
@@ -56,7 +59,8 @@ class Task:
     def tolerance(self) -> float:
         if self.tolerance_m is not None:
             return self.tolerance_m
-        inside = DEFAULT_RIG.micro.contains(*self.goal_m)
+        inside = all(abs(self.goal_m[axis] - MICRO_FIELD_CENTER_M[axis])
+                     <= MICRO_FIELD_SIZE_M[axis] / 2.0 for axis in (0, 1))
         return GOAL_TOLERANCE_M if inside else MACRO_GOAL_TOLERANCE_M
 
 

@@ -14,21 +14,22 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M
+from omni_micro_common.conventions import (
+    MICRO_FIELD_CENTER_M,
+    PLATFORM_CENTER_M,
+    PLATFORM_SIZE_M,
+)
 from omni_micro_sim.parameters import RobotParameters
-from omni_micro_vision.camera import DEFAULT_RIG
 
 # The chassis is a 9 mm disc (section 3.4; omni_micro_sim.parameters).
 ROBOT_DIAMETER_M = 2.0 * RobotParameters.chassis_radius_m
-# Centres are kept 10 mm apart: 1 mm more than touching, >10x the largest distance a robot
-# driven by the paper's rule strays from its straight leg (0.07 mm over a 100 mm leg, measured
-# with the twin) plus the waypoint tolerance (0.2 mm, omni_micro_control.fleet_plan).
-CLEARANCE_M = 10.0e-3
+# Centres are kept 12 mm apart: 3 mm more than touching, each robot's 1.5 mm twice the farthest
+# a robot driven by the paper's rule strayed from its straight leg with wheel offsets of up to
+# 3 deg (0.77 mm, measured with the fleet twin; 0.07 mm without offsets).
+CLEARANCE_M = 12.0e-3
 # Parallel lanes one pitch apart are then usable side by side.
 PITCH_M = CLEARANCE_M
-MICRO_FIELD_CENTER_M = DEFAULT_RIG.micro.center_m
 
 
 class RoadmapError(ValueError):
@@ -116,6 +117,8 @@ def build_roadmap(points_m: list[tuple[float, float]], *, pitch_m: float = PITCH
     ends = np.array(pairs)
     starts_m, ends_m = places_m[ends[:, 0]], places_m[ends[:, 1]]
     # Only segments whose midpoints are near can conflict: measured for those pairs alone.
+    from scipy.spatial import cKDTree  # here: the command line's help loads no scipy
+
     middles = (starts_m + ends_m) / 2.0
     reach = clearance_m + float(np.max(np.hypot(*(ends_m - starts_m).T)))
     candidates = np.array(sorted(cKDTree(middles).query_pairs(reach)), dtype=int).reshape(-1, 2)
