@@ -1,0 +1,173 @@
+"""`omni-micro fleet`: several robots on one platform (the micro-factory), in the fleet twin."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from omni_micro_cli.arguments import positive_int, seed_number, whole_number_in
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.fleet_inputs import MAX_ROBOTS, Fleet, fleet_from
+from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file
+from omni_micro_control.fleet_roadmap import CLEARANCE_M
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        'fleet',
+        description='Several robots on one platform, as in a micro-factory: each robot its '
+                    'own slip dynamics and wheel offsets, its own captures, the paper\'s '
+                    'controller on each; a planner reserves the platform (9 mm discs, centres '
+                    f'kept {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
+                    'time) and every robot '
+                    'drives its legs once those it waits for have ended. Runs in one process '
+                    '(the fleet twin), not through the node graph. Ends when every task is '
+                    'done, or at the first robot lost or two robots touching (exit 1).')
+    parser.add_argument('--robots', default='4', metavar='N|FILE',
+                        help=f'how many robots (1..{MAX_ROBOTS}, at lattice places from the '
+                             'platform\'s left edge, wheel offsets drawn from the seed), or a '
+                             'YAML file of robots (start_mm, wheel_offsets_deg; docs/fleet.md)')
+    parser.add_argument('--tasks', type=Path, metavar='FILE',
+                        help='a YAML file of goals per robot, in order, with "after" waits '
+                             '(docs/fleet.md); default: drawn from the seed, each robot to the '
+                             'micro field then to a place of its own, --goals-per-robot in all')
+    parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), default=2,
+                        metavar='K', help='goals drawn per robot without --tasks (default 2)')
+    parser.add_argument('--seed', type=seed_number, default=0,
+                        help='seed of the drawn offsets, tasks and capture noise (default 0)')
+    parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
+                        help='give up after this much simulated time (default 1800 s)')
+    parser.add_argument('--plot', type=output_file, metavar='PNG',
+                        help='draw every robot\'s route, in its colour, with its label')
+    parser.add_argument('--json', action='store_true',
+                        help='print one JSON object (per robot and for the whole) as the last '
+                             'line of stdout')
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from omni_micro_cli.fleet_twin import DONE, run_fleet
+    from omni_micro_control.fleet_plan import PlanningError, plan_fleet
+    from omni_micro_control.fleet_roadmap import RoadmapError
+
+    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot, args.seed)
+    started = time.perf_counter()
+    try:
+        plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=args.seed)
+    except (PlanningError, RoadmapError) as error:
+        raise UsageError(str(error)) from None
+    planned_s = time.perf_counter() - started
+    legs = sum(len(robot) for robot in plan.legs)
+    echo_to_stderr(f'planned {len(fleet.starts_m)} robots, {legs} legs in {planned_s:.2f} s')
+
+    def progress(done: int, total: int, sim_time_s: float) -> None:
+        echo_to_stderr(f'  {done}/{total} goals reached at {sim_time_s:.1f} s')
+
+    result = run_fleet(plan, robots=fleet.robots, seed=args.seed,
+                       max_sim_time_s=float(args.max_sim_time), on_progress=progress)
+    wall_s = time.perf_counter() - started
+    summary = summarize(fleet, plan, result, planned_s, wall_s)
+    print_table(summary)
+    if args.plot is not None:
+        atomic_bytes(args.plot, route_figure(plan, result))
+        echo_to_stderr(f'routes drawn in {args.plot}')
+    if args.json:
+        print(json.dumps(summary))
+    if result.outcome != DONE:
+        raise RunFailed(f'{result.outcome}: {result.reason}')
+    return 0
+
+
+def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
+              wall_s: float) -> dict[str, Any]:
+    robots = []
+    for k, run in enumerate(result.robots):
+        final = run.final_state
+        robots.append({
+            'robot': f'robot_{k}', 'start_mm': [v * 1e3 for v in fleet.starts_m[k]],
+            'wheel_offsets_deg': list(fleet.offsets_deg[k]),
+            'goals': len(fleet.tasks[k]), 'goals_reached': len(run.tasks_done_s),
+            'reached_at_s': run.tasks_done_s,
+            'deviation_um': [d * 1e6 for d in run.deviations_m],
+            'legs': len(plan.legs[k]), 'moves': run.moves,
+            'farthest_off_leg_mm': run.off_leg_m * 1e3,
+            'final_mm': [final.x_m * 1e3, final.y_m * 1e3], 'outcome': run.outcome or 'done'})
+    return {'outcome': result.outcome, 'reason': result.reason, 'robots': robots,
+            'sim_time_s': result.sim_time_s, 'goals_reached': result.tasks_done,
+            'goals_per_minute': result.goals_per_minute,
+            'closest_gap_mm': (result.closest_gap_m * 1e3
+                               if math.isfinite(result.closest_gap_m) else None),
+            'closest_pair': list(result.closest_pair) if result.closest_pair else None,
+            'planning_s': planned_s, 'wall_s': wall_s}
+
+
+def print_table(summary: dict[str, Any]) -> None:
+    print(f'{"robot":<8} {"goals":>7} {"last at s":>9} {"worst um":>9} {"legs":>5} '
+          f'{"moves":>6} {"off leg mm":>10}  outcome')
+    for robot in summary['robots']:
+        last = max(robot['reached_at_s'], default=float('nan'))
+        worst = max(robot['deviation_um'], default=float('nan'))
+        print(f'{robot["robot"]:<8} {robot["goals_reached"]:>3}/{robot["goals"]:<3} '
+              f'{last:>9.2f} {worst:>9.2f} {robot["legs"]:>5} {robot["moves"]:>6} '
+              f'{robot["farthest_off_leg_mm"]:>10.3f}  {robot["outcome"]}')
+    gap = summary['closest_gap_mm']
+    pair = summary['closest_pair']
+    print(f'{summary["outcome"]}: {summary["reason"]}; {summary["goals_reached"]} goals, '
+          f'{summary["goals_per_minute"]:.2f} per simulated minute; closest centres '
+          + (f'{gap:.2f} mm (robots {pair[0]} and {pair[1]})' if gap is not None else 'n/a')
+          + f'; planned in {summary["planning_s"]:.2f} s, {summary["wall_s"]:.1f} s wall')
+    sys.stdout.flush()
+
+
+def route_figure(plan: Any, result: Any) -> bytes:
+    """Each robot's route in its colour, its start (open) and end (filled) as 9 mm discs,
+    labelled, the micro field marked."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use('Agg')
+    from matplotlib import pyplot as plt
+    from matplotlib.patches import Circle, Rectangle
+
+    from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
+    from omni_micro_vision.camera import DEFAULT_RIG
+
+    figure, axes = plt.subplots(figsize=(7, 7))
+    colours = plt.get_cmap('tab10')
+    radius_mm = ROBOT_DIAMETER_M / 2.0 * 1e3
+    for k, run in enumerate(result.robots):
+        colour = colours(k % 10)
+        route = run.route_m
+        if len(route):
+            axes.plot(route[:, 1] * 1e3, route[:, 2] * 1e3, color=colour, lw=1.2,
+                      label=f'robot_{k}: {len(run.tasks_done_s)} goals')
+        start = plan.starts_m[k]
+        axes.add_patch(Circle((start[0] * 1e3, start[1] * 1e3), radius_mm, fill=False,
+                              color=colour, ls='--'))
+        final = run.final_state
+        axes.add_patch(Circle((final.x_m * 1e3, final.y_m * 1e3), radius_mm, color=colour,
+                              alpha=0.35))
+        axes.annotate(str(k), (final.x_m * 1e3, final.y_m * 1e3), ha='center', va='center')
+    micro = DEFAULT_RIG.micro
+    axes.add_patch(Rectangle(((micro.center_m[0] - micro.field_m[0] / 2) * 1e3,
+                              (micro.center_m[1] - micro.field_m[1] / 2) * 1e3),
+                             micro.field_m[0] * 1e3, micro.field_m[1] * 1e3, color='k',
+                             fill=False, lw=1.5, label='micro field'))
+    axes.set_xlim(-25, 125)
+    axes.set_ylim(-75, 75)
+    axes.set_aspect('equal')
+    axes.set_xlabel('x (mm)')
+    axes.set_ylabel('y (mm)')
+    axes.set_title(f'{len(result.robots)} robots: {result.outcome}, '
+                   f'{result.sim_time_s:.1f} s simulated')
+    axes.legend(loc='upper left', fontsize=8)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format='png', dpi=110)
+    plt.close(figure)
+    return buffer.getvalue()

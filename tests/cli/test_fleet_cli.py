@@ -1,0 +1,88 @@
+"""`omni-micro fleet` as a user runs it: robots and tasks from files, the table, the JSON, the
+routes' figure; every bad value of a file named in one line, nothing written."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[2]
+
+ROBOTS = """robots:
+  - start_mm: [0, 0]
+    wheel_offsets_deg: [0, 3, 2]
+  - start_mm: [100, 0]
+"""
+TASKS = """tasks:
+  robot_0:
+    - goal_mm: [100, 0.2]
+    - goal_mm: [40, 40]
+  robot_1:
+    - goal_mm: [0, 0]
+      after: [0, 0]
+"""
+
+
+def omni_micro(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, '-m', 'omni_micro_cli', *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
+    (tmp_path / 'robots.yaml').write_text(ROBOTS)
+    (tmp_path / 'tasks.yaml').write_text(TASKS)
+    plot = tmp_path / 'routes.png'
+    done = omni_micro('fleet', '--robots', str(tmp_path / 'robots.yaml'), '--tasks',
+                      str(tmp_path / 'tasks.yaml'), '--seed', '2', '--plot', str(plot),
+                      '--json')
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary['outcome'] == 'done' and summary['goals_reached'] == 3
+    first, second = summary['robots']
+    assert first['wheel_offsets_deg'] == [0, 3, 2]
+    # Robot 1 swaps places with robot 0, entering robot 0's start only after robot 0 has
+    # reached the micro field.
+    assert second['reached_at_s'][0] > first['reached_at_s'][0]
+    assert first['deviation_um'][0] <= 3.0 and second['deviation_um'][0] <= 50.0
+    assert summary['closest_gap_mm'] > 9.0
+    assert '2/2' in done.stdout and 'planned 2 robots' in done.stderr
+    assert '3/3 goals reached at' in done.stderr
+    assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+@pytest.mark.parametrize('robots, tasks, message', [
+    ('0', None, "--robots must be 1..42 or a YAML file, got '0'"),
+    ('ROBOTS', 'tasks:\n  robot_5:\n    - goal_mm: [1, 2]\n',
+     "names ['robot_5']: the robots are robot_0..robot_1"),
+    ('ROBOTS', 'tasks:\n  robot_0:\n    - goal_mm: [300, 0]\n',
+     "robot 0's goal 0 (300, 0) mm is off the platform"),
+    ('ROBOTS', 'tasks:\n  robot_0:\n    - goal_mm: [nan, 0]\n',
+     'goal_mm must be two finite numbers [x, y], got'),
+    ('ROBOTS', 'tasks:\n  robot_0:\n    - goal_mm: [10, 0]\n      after: [0]\n',
+     'after must be [robot, goal index], got [0]'),
+    ('ROBOTS', 'tasks: [1, 2\n', 'is not YAML'),
+    ('robots:\n  - start_mm: [0, 0]\n  - start_mm: [5, 0]\n', None,
+     'robots 0 and 1 start 5.00 mm apart'),
+])
+def test_a_bad_value_is_named_in_one_line_and_nothing_is_written(tmp_path, robots, tasks,
+                                                                message):
+    arguments = ['fleet', '--plot', str(tmp_path / 'routes.png')]
+    if robots == 'ROBOTS' or robots.startswith('robots:'):
+        (tmp_path / 'robots.yaml').write_text(ROBOTS if robots == 'ROBOTS' else robots)
+        arguments += ['--robots', str(tmp_path / 'robots.yaml')]
+    else:
+        arguments += ['--robots', robots]
+    if tasks is not None:
+        (tmp_path / 'tasks.yaml').write_text(tasks)
+        arguments += ['--tasks', str(tmp_path / 'tasks.yaml')]
+    done = omni_micro(*arguments)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], done.stderr
+    assert not (tmp_path / 'routes.png').exists()

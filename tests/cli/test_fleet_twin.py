@@ -1,0 +1,75 @@
+"""The micro-factory's twin: robots crossing each other's goals all arrive and never touch, a
+goal that waits for another robot's is reached after it, a contact is a fault naming both."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from omni_micro_cli.fleet_inputs import drawn_offsets, robot_parameters
+from omni_micro_cli.fleet_twin import CONTACT, DONE, run_fleet
+from omni_micro_control.fleet_plan import Task, plan_fleet
+from omni_micro_control.fleet_roadmap import CLEARANCE_M, ROBOT_DIAMETER_M
+
+CROSS_STARTS = [(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)]
+CROSS_TASKS = [[Task((0.1, 0.0))], [Task((0.0, 0.0))], [Task((0.05, -0.05))],
+               [Task((0.05, 0.05))]]
+
+
+def offset_robots(count: int, seed: int):
+    import random
+
+    rng = random.Random(seed)
+    return [robot_parameters(drawn_offsets(rng)) for _ in range(count)]
+
+
+@pytest.fixture(scope='module')
+def crossing():
+    plan = plan_fleet(CROSS_STARTS, CROSS_TASKS)
+    return plan, run_fleet(plan, robots=offset_robots(4, 7), seed=7)
+
+
+def test_robots_crossing_each_others_goals_all_arrive_without_touching(crossing):
+    _, result = crossing
+    assert result.outcome == DONE, result.reason
+    assert result.tasks_done == 4
+    for robot, run in enumerate(result.robots):
+        goal = CROSS_TASKS[robot][0]
+        final = run.final_state
+        # Each where it was sent, to its goal's tolerance (the macro's 50 um; the micro field's
+        # 3 um for the robot that ends in it).
+        assert math.dist((final.x_m, final.y_m), goal.goal_m) <= goal.tolerance()
+        assert run.deviations_m[0] <= goal.tolerance()
+        # Each kept to its legs as the clearance counts on (half the margin each).
+        assert run.off_leg_m < (CLEARANCE_M - ROBOT_DIAMETER_M) / 2.0
+    assert result.closest_gap_m > ROBOT_DIAMETER_M
+    assert result.closest_gap_m >= CLEARANCE_M - 2 * max(r.off_leg_m for r in result.robots)
+
+
+def test_the_same_seed_gives_the_same_run(crossing):
+    plan, result = crossing
+    again = run_fleet(plan, robots=offset_robots(4, 7), seed=7)
+    assert [r.final_state for r in again.robots] == [r.final_state for r in result.robots]
+    assert again.sim_time_s == result.sim_time_s
+
+
+def test_a_goal_after_another_robot_s_is_reached_after_it():
+    tasks = [[Task((0.1, 0.0002)), Task((0.04, 0.04))], [Task((0.1, -0.0003), after=(0, 1))]]
+    plan = plan_fleet([(0.0, 0.0), (0.04, -0.04)], tasks)
+    result = run_fleet(plan, robots=offset_robots(2, 3), seed=3)
+    assert result.outcome == DONE, result.reason
+    first, second = result.robots
+    assert second.tasks_done_s[0] > first.tasks_done_s[1]
+    # Both micro-field goals to the micro camera's 3 um.
+    assert first.deviations_m[0] <= 3e-6 and second.deviations_m[0] <= 3e-6
+
+
+def test_robots_that_touch_end_the_run_as_a_fault_naming_both():
+    # A plan that keeps centres only 5 mm apart: robot 1 drives past robot 0 7 mm away.
+    plan = plan_fleet([(0.052, 0.007), (0.004, 0.0)], [[], [Task((0.1, 0.0))]],
+                      clearance_m=5e-3)
+    result = run_fleet(plan, robots=offset_robots(2, 1), seed=1)
+    assert result.outcome == CONTACT
+    assert result.reason.startswith('robots 0 and 1 touched at ')
+    assert result.closest_gap_m < ROBOT_DIAMETER_M and result.closest_pair == (0, 1)
