@@ -86,3 +86,27 @@ def test_a_bad_value_is_named_in_one_line_and_nothing_is_written(tmp_path, robot
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], done.stderr
     assert not (tmp_path / 'routes.png').exists()
+
+
+def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
+    sweep = omni_micro('fleet-study', '--out', str(tmp_path / 'sweep'), '--robots-max', '2',
+                       '--draws', '1', '--goals-per-robot', '1', '--workers', '2')
+    assert sweep.returncode == 0, sweep.stderr
+    summary = json.loads((tmp_path / 'sweep' / 'summary.json').read_text())
+    assert [e['robots'] for e in summary['per_robot_count']] == [1, 2]
+    assert all(e['done'] == 1 for e in summary['per_robot_count'])
+    assert summary['contacts'] == 0
+    rows = (tmp_path / 'sweep' / 'runs.csv').read_text().splitlines()
+    assert rows[0].startswith('robots,seed,outcome,goals') and len(rows) == 3
+    assert (tmp_path / 'sweep' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
+    assert '[2/2] 2 robots, seed 0: done' in sweep.stderr
+    crossing = omni_micro('fleet-study', '--out', str(tmp_path / 'crossing'), '--crossing', '2',
+                          '--workers', '1', '--seed', '5')
+    assert crossing.returncode == 0, crossing.stderr
+    assert crossing.stdout.startswith('2 crossing runs of 4 robots: 2 done, 0 contacts')
+    result = json.loads((tmp_path / 'crossing' / 'summary.json').read_text())
+    assert result['closest_gap_mm'] > 9.0 and result['runs'] == 2
+    (tmp_path / 'a_file').write_text('')
+    refused = omni_micro('fleet-study', '--out', str(tmp_path / 'a_file'), '--crossing', '2')
+    assert refused.returncode == 2 and 'exists and is a file' in refused.stderr
+    assert refused.stderr.count('\n') == 1

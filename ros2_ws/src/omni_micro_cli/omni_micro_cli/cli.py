@@ -60,6 +60,8 @@ COMMANDS: dict[str, Command] = {
     'soak': Command('soak', 'many goals in one graph run: memory growth and bag completeness'),
     'fleet': Command('fleet', 'several robots on one platform (the micro-factory): a plan '
                               'that keeps them apart, driven in one process'),
+    'fleet-study': Command('fleet_study', 'the micro-factory measured: throughput against the '
+                                          'number of robots, crossing runs'),
     'simulate': Command('simulate', 'one open-loop move from rest at the origin (no ROS)'),
     'figures': Command('figures', "reproduce the paper's open-loop figures and compare its "
                                   'numbers'),
