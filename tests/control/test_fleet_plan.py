@@ -193,3 +193,16 @@ def test_any_fleet_keeps_its_clearance_whatever_each_leg_takes(fleet):
 def test_the_plan_is_the_same_for_the_same_tasks():
     first = plan_fleet(CROSS_STARTS, CROSS_TASKS)
     assert plan_fleet(CROSS_STARTS, CROSS_TASKS).legs == first.legs
+
+
+def test_a_robot_walled_in_by_those_planned_before_it_is_planned_first():
+    # Robots 0 and 1 end beside the platform's corner, robot 2 in it: planned in index order,
+    # 0 and 1 would rest across its only ways in.
+    starts = [(0.016, -0.06), (-0.02, -0.024), (0.1, 0.06)]
+    tasks = [[Task((-0.008, -0.06))], [Task((-0.02, -0.048))], [Task((-0.02, -0.06))]]
+    plan = plan_fleet(starts, tasks)
+    assert plan.priority[0] == 2
+    for seed in range(5):
+        closest, _ = execute(plan, random.Random(seed))
+        assert closest >= CLEARANCE_M - 1e-9
+    assert [legs[-1].end_m for legs in plan.legs] == [robot[0].goal_m for robot in tasks]

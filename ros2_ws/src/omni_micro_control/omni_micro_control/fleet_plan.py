@@ -30,6 +30,7 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_control.fleet_roadmap import (
     CLEARANCE_M,
+    ROUNDING_M,
     Roadmap,
     build_roadmap,
     check_on_platform,
@@ -118,9 +119,12 @@ def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, 
                              tuple(order))
         failure = (f'robot {failed}: no path within {MAX_STEPS} steps that keeps clear of the '
                    'others')
-        promoted = [failed] + [robot for robot in order if robot != failed]
-        order = _respecting_waits(promoted, tasks) or _respecting_waits(
-            rng.sample(order, len(order)), tasks) or order
+        # The robot that found no way planned earlier; if it was first already, another order.
+        promoted = _respecting_waits([failed] + [robot for robot in order if robot != failed],
+                                     tasks)
+        if promoted is None or promoted == order:
+            promoted = _respecting_waits(rng.sample(order, len(order)), tasks)
+        order = promoted or order
     raise PlanningError(f'no plan for the tasks: {failure}')
 
 
@@ -139,12 +143,12 @@ def _check(starts_m: list[tuple[float, float]], tasks: list[list[Task]],
                                         f'{other}\'s goal {goal}: there is no such goal')
     for a, b in itertools.combinations(range(len(starts_m)), 2):
         gap = math.dist(starts_m[a], starts_m[b])
-        if gap < clearance_m:
+        if gap < clearance_m - ROUNDING_M:
             raise PlanningError(f'robots {a} and {b} start {gap * 1e3:.2f} mm apart: centres '
                                 f'must be {clearance_m * 1e3:g} mm apart (9 mm discs)')
         finals = [tasks[k][-1].goal_m if tasks[k] else starts_m[k] for k in (a, b)]
         gap = math.dist(*finals)
-        if gap < clearance_m:
+        if gap < clearance_m - ROUNDING_M:
             raise PlanningError(f'robots {a} and {b} would end {gap * 1e3:.2f} mm apart: '
                                 f'their last goals must be {clearance_m * 1e3:g} mm apart')
 

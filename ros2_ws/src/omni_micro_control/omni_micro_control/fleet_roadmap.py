@@ -29,6 +29,9 @@ ROBOT_DIAMETER_M = 2.0 * RobotParameters.chassis_radius_m
 # of 4 robots with wheel offsets of up to 3 deg, long legs driven through points 24 mm apart
 # (omni_micro_cli.fleet_twin; measured by omni-micro fleet-study; 0.07 mm without offsets).
 CLEARANCE_M = 12.0e-3
+# Distances are compared to the clearance this much short of it: places one pitch apart may be
+# a rounding error closer than it in floating point, and are side by side all the same.
+ROUNDING_M = 1e-9
 # Parallel lanes one pitch apart are then usable side by side.
 PITCH_M = CLEARANCE_M
 
@@ -126,7 +129,7 @@ def build_roadmap(points_m: list[tuple[float, float]], *, pitch_m: float = PITCH
     distances = pair_distances(starts_m[candidates[:, 0]], ends_m[candidates[:, 0]],
                                starts_m[candidates[:, 1]], ends_m[candidates[:, 1]])
     close: list[set[int]] = [{index} for index in range(len(pairs))]
-    for a, b in candidates[distances < clearance_m]:
+    for a, b in candidates[distances < clearance_m - ROUNDING_M]:
         close[a].add(int(b))
         close[b].add(int(a))
     conflicts = tuple(frozenset(near) for near in close)
