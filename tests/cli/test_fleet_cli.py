@@ -69,6 +69,8 @@ def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
     ('ROBOTS', 'tasks: [1, 2\n', 'is not YAML'),
     ('robots:\n  - start_mm: [0, 0]\n  - start_mm: [5, 0]\n', None,
      'robots 0 and 1 start 5.00 mm apart'),
+    ('2 --goals-per-robot 3', 'tasks:\n  robot_0:\n    - goal_mm: [10, 0]\n',
+     '--goals-per-robot is how many goals to draw: not with --tasks'),
 ])
 def test_a_bad_value_is_named_in_one_line_and_nothing_is_written(tmp_path, robots, tasks,
                                                                 message):
@@ -77,7 +79,7 @@ def test_a_bad_value_is_named_in_one_line_and_nothing_is_written(tmp_path, robot
         (tmp_path / 'robots.yaml').write_text(ROBOTS if robots == 'ROBOTS' else robots)
         arguments += ['--robots', str(tmp_path / 'robots.yaml')]
     else:
-        arguments += ['--robots', robots]
+        arguments += ['--robots', *robots.split()]
     if tasks is not None:
         (tmp_path / 'tasks.yaml').write_text(tasks)
         arguments += ['--tasks', str(tmp_path / 'tasks.yaml')]

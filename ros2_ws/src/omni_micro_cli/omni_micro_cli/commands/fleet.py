@@ -36,8 +36,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='a YAML file of goals per robot, in order, with "after" waits '
                              '(docs/fleet.md); default: drawn from the seed, each robot to the '
                              'micro field then to a place of its own, --goals-per-robot in all')
-    parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), default=2,
-                        metavar='K', help='goals drawn per robot without --tasks (default 2)')
+    parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), metavar='K',
+                        help='goals drawn per robot without --tasks (default 2)')
     parser.add_argument('--seed', type=seed_number, default=0,
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
     parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
@@ -55,7 +55,10 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_control.fleet_plan import PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
 
-    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot, args.seed)
+    if args.tasks is not None and args.goals_per_robot is not None:
+        raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
+                         'goals are given')
+    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed)
     started = time.perf_counter()
     try:
         plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=args.seed)
