@@ -109,6 +109,34 @@ def test_bag_recorder_on_the_bench_logs_on_the_wall_clock_with_the_drivers_image
     assert data.messages['/bench/camera/image_raw'][0].data.tobytes() == b'\x01\x02'
 
 
+def test_bag_recorder_in_the_lockstep_counts_a_frame_written_once_its_camera_info_is(
+        context, tmp_path, monkeypatch):
+    """In the lockstep the robot waits for the recorder as for the tracker: for a frame's image
+    and its CameraInfo, of every camera (one CameraInfo lost from a bag made the same seed give
+    another file)."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from omni_micro_tools.topics import IMAGE_TOPICS
+
+    node = BagRecorder(context=context, parameter_overrides=[
+        Parameter('bag', value=str(tmp_path / 'bag')), Parameter('topics', value=[
+            '/odom', *IMAGE_TOPICS]), Parameter('lockstep_frames', value=True)])
+    reported: list[Ack] = []
+    assert node.lockstep is not None
+    monkeypatch.setattr(node.lockstep, 'report', reported.append)
+    streams = (('/camera/macro/image_raw', Image), ('/camera/micro/image_raw', Image),
+               ('/camera/micro/camera_info', CameraInfo),
+               ('/camera/macro/camera_info', CameraInfo))
+    for index, (topic, kind) in enumerate(streams):
+        message = kind()
+        message.header.stamp.nanosec = 33_333_333
+        node._writer_of(topic)(serialize_message(message))
+        # Written up to frame 1 only once all four streams have it; before, nothing of it.
+        assert reported[-1].frame_handled_ns == (33_333_333 if index == 3 else -1)
+    node.close()
+    node.destroy_node()
+
+
 @pytest.mark.parametrize(('values', 'named'), [
     ({}, 'bag must name'),
     ({'bag': 'x', 'log_clock': 'sundial'}, "'sundial'"),

@@ -124,12 +124,14 @@ class BagRecorder(Node):
         self._closed = False
         # Why writing stopped (a full disk, a removed drive): the bag keeps what was written.
         self.write_failure: str | None = None
-        # With lockstep_frames, the latest frame written per image topic (see _report_frame).
+        # With lockstep_frames, the latest frame written per image and CameraInfo topic (see
+        # _report_frame). A frame's CameraInfo counts as its image does: left out of the wait, one
+        # was lost from an idle run's bag (its writer keeps 10, and a sample the transport
+        # dropped is resent only while kept), and the same seed gave another file.
         self._frames_written: dict[str, int] = {}
         self.lockstep: LockstepReporter | None = None
         if lockstep_frames:
-            self._frames_written = {topic: -1 for topic in topics
-                                    if topic in IMAGE_TOPICS and topic.endswith('image_raw')}
+            self._frames_written = {topic: -1 for topic in topics if topic in IMAGE_TOPICS}
             self.lockstep = LockstepReporter(self)
         for topic, spec in topics.items():
             # A deep history on the reader's side whatever the topic's own depth: a latched
@@ -190,7 +192,7 @@ class BagRecorder(Node):
         return on_message
 
     def _report_frame(self, topic: str, data: bytes) -> None:
-        """Frames are written up to the oldest of every image topic's latest: the lockstep then
+        """Frames are written up to the oldest of every camera stream's latest: the lockstep then
         waits for the disk as for a tracker. The stamp is read from the raw CDR (little-endian
         after the 4-byte encapsulation: header.stamp.sec, .nanosec first)."""
         sec, nanosec = struct.unpack_from('<iI', data, 4)
