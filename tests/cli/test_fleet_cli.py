@@ -3,6 +3,7 @@ routes' figure; every bad value of a file named in one line, nothing written."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import subprocess
 import sys
@@ -112,3 +113,46 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     refused = omni_micro('fleet-study', '--out', str(tmp_path / 'a_file'), '--crossing', '2')
     assert refused.returncode == 2 and 'exists and is a file' in refused.stderr
     assert refused.stderr.count('\n') == 1
+
+
+def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_path):
+    from omni_micro_tools.bag_reading import read_bag
+
+    bag = tmp_path / 'fleet'
+    done = omni_micro('fleet', '--robots', '3', '--goals-per-robot', '1', '--seed', '2',
+                      '--record', str(bag), '--json')
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    data = read_bag(bag)
+    assert set(data.messages) == {'/clock'} | {f'/robot_{k}/{topic}' for k in range(3)
+                                               for topic in ('odom', 'goal_pose')}
+    for k, robot in enumerate(summary['robots']):
+        odometry = data.messages[f'/robot_{k}/odom']
+        # REP-105 frames per robot; the last sample where the run left the robot.
+        assert {(m.header.frame_id, m.child_frame_id) for m in odometry} == {
+            (f'robot_{k}/odom', f'robot_{k}/base_link')}
+        final = odometry[-1].pose.pose.position
+        assert final.x * 1e3 == pytest.approx(robot['final_mm'][0], abs=1e-3)
+        assert final.y * 1e3 == pytest.approx(robot['final_mm'][1], abs=1e-3)
+        (goal,) = data.messages[f'/robot_{k}/goal_pose']
+        assert goal.header.frame_id == f'robot_{k}/odom'
+    stamps = data.timestamps['/robot_0/odom']
+    assert all(later - earlier == 100_000_000 for earlier, later in itertools.pairwise(stamps))
+    # In this pytest process's own DDS domain (tests/conftest.py).
+    replayed = omni_micro('replay', str(bag), '--robot', '2', '--rate', '100')
+    assert replayed.returncode == 0, replayed.stderr
+    count = len(data.raw['/robot_2/odom']) + len(data.raw['/robot_2/goal_pose'])
+    assert f'replayed {count} messages on 2 topics' in replayed.stderr
+    refused = omni_micro('replay', str(bag), '--robot', '5')
+    assert refused.returncode == 2
+    assert refused.stderr.strip() == ('omni-micro replay: error: --robot 5: the bag has no '
+                                      '/robot_5/ topics (its robots: robot_0, robot_1, robot_2)')
+    analyzed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'))
+    assert analyzed.returncode == 0, analyzed.stderr
+    table = json.loads((tmp_path / 'analysis' / 'summary.json').read_text())['robots']
+    assert [row['robot'] for row in table] == ['robot_0', 'robot_1', 'robot_2']
+    for row, robot in zip(table, summary['robots'], strict=True):
+        assert row['goals'] == 1
+        assert row['last_goal_deviation_um'] == pytest.approx(robot['deviation_um'][0], abs=0.5)
+    assert (tmp_path / 'analysis' / 'route.png').exists()
+    assert '| robot_1 | 1 |' in analyzed.stdout

@@ -62,7 +62,7 @@ class RobotRun:
     off_leg_m: float = 0.0                   # the farthest it strayed from a leg's segment
     outcome: str = ''                        # the last leg's outcome when it was not reached
     final_state: RobotState | None = None
-    route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # t, x, y
+    route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))   # t, x, y, phi
 
 
 @dataclass
@@ -99,7 +99,7 @@ class _Robot:
         self.controller: VisionFeedbackController | None = None
         self.sub_goals: list[tuple[float, float]] = []   # of the leg under way, in order
         self.run = RobotRun(index)
-        self.route: list[tuple[float, float, float]] = []
+        self.route: list[tuple[float, float, float, float]] = []
 
     @property
     def leg(self) -> Leg | None:
@@ -129,7 +129,7 @@ class _Robot:
         """One period: the robot moves, the camera sees it, the controller decides."""
         sample = self.grid.advance()
         state = sample.state
-        self.route.append((sample.time_s, state.x_m, state.y_m))
+        self.route.append((sample.time_s, state.x_m, state.y_m, state.phi_rad))
         if self.controller is not None and self.leg is not None:
             self.run.off_leg_m = max(self.run.off_leg_m, _off_segment(
                 (state.x_m, state.y_m), self.leg.start_m, self.leg.end_m))

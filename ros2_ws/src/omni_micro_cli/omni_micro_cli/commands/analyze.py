@@ -147,7 +147,13 @@ def summary_markdown(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_cli import plots
+    from omni_micro_cli.fleet_analysis import fleet_robots
+    from omni_micro_tools.bag_reading import bag_topics, check_readable_bag
 
+    check_readable_bag(args.bag)
+    robots = fleet_robots(bag_topics(args.bag))
+    if robots:
+        return analyze_fleet(args, robots)
     summary, arrays = summarize(args.bag)
     route, goal = arrays['route'], arrays['goal']
     with staged_directory(args.out) as scratch:
@@ -173,5 +179,24 @@ def run(args: argparse.Namespace) -> int:
         (scratch / 'summary.json').write_text(json.dumps(summary, indent=2))
         (scratch / 'summary.md').write_text(summary_markdown(summary))
     print(summary_markdown(summary))
+    print(f'figures and summary in {args.out}/', file=sys.stderr)
+    return 0
+
+
+def analyze_fleet(args: argparse.Namespace, robots: list[int]) -> int:
+    """A fleet's bag: a table per robot and every robot's route in one figure."""
+    from omni_micro_cli import plots
+    from omni_micro_cli.fleet_analysis import fleet_markdown, summarize_fleet
+
+    if args.animate:
+        raise UsageError(f'{str(args.bag)!r} is a fleet\'s bag ({len(robots)} robots): '
+                         '--animate draws one robot\'s run; the routes are in route.png')
+    summary, routes = summarize_fleet(args.bag, robots)
+    with staged_directory(args.out) as scratch:
+        plots.routes(scratch / 'route.png', routes, title=f'{len(robots)} robots (from the bag)',
+                     equal_aspect=True)
+        (scratch / 'summary.json').write_text(json.dumps(summary, indent=2))
+        (scratch / 'summary.md').write_text(fleet_markdown(summary))
+    print(fleet_markdown(summary))
     print(f'figures and summary in {args.out}/', file=sys.stderr)
     return 0

@@ -42,6 +42,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
     parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
                         help='give up after this much simulated time (default 1800 s)')
+    parser.add_argument('--record', type=Path, metavar='BAG',
+                        help='write the run into a rosbag2 bag (mcap): each robot\'s odometry '
+                             'and goals under /robot_k/ (docs/fleet.md); replay --robot k plays '
+                             'one robot back')
     parser.add_argument('--plot', type=output_file, metavar='PNG',
                         help='draw every robot\'s route, in its colour, with its label')
     parser.add_argument('--json', action='store_true',
@@ -59,6 +63,10 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
     fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed)
+    if args.record is not None:
+        from omni_micro_tools.bags import check_bag_output
+
+        check_bag_output(args.record, force=False)   # refused before anything runs
     started = time.perf_counter()
     try:
         plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=args.seed)
@@ -76,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
     print_table(summary)
+    if args.record is not None:
+        record(args.record, plan, result)
     if args.plot is not None:
         atomic_bytes(args.plot, route_figure(plan, result))
         echo_to_stderr(f'routes drawn in {args.plot}')
@@ -84,6 +94,21 @@ def run(args: argparse.Namespace) -> int:
     if result.outcome != DONE:
         raise RunFailed(f'{result.outcome}: {result.reason}')
     return 0
+
+
+def record(bag: Path, plan: Any, result: Any) -> None:
+    """The bag whole, or none: a write that fails leaves nothing behind."""
+    import shutil
+
+    from omni_micro_cli.fleet_bag import write_fleet_bag
+    from omni_micro_sim.parameters import DEFAULT_PERIOD_S
+
+    try:
+        count = write_fleet_bag(bag, plan, result, DEFAULT_PERIOD_S)
+    except BaseException:
+        shutil.rmtree(bag, ignore_errors=True)
+        raise
+    echo_to_stderr(f'recorded {count} messages into {bag}')
 
 
 def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,

@@ -6,12 +6,22 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from omni_micro_cli.arguments import FACTOR_RANGE, domain_id, number_in, positive_float
+from omni_micro_cli.arguments import (
+    FACTOR_RANGE,
+    domain_id,
+    non_negative_int,
+    number_in,
+    positive_float,
+)
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.lockstep import REPLAY_SYNC_WINDOW
 from omni_micro_common.topic_names import CLOCK_TOPIC
+
+if TYPE_CHECKING:
+    from omni_micro_tools.bag_reading import BagMessages
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -28,6 +38,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--topics', nargs='+', metavar='T',
                         help='only these topics (default: every topic but /clock)')
     parser.add_argument('--clock', action='store_true', help='also publish the recorded /clock')
+    parser.add_argument('--robot', type=non_negative_int, metavar='K',
+                        help='of a fleet\'s bag (omni-micro fleet --record): robot K\'s topics '
+                             '(/robot_K/odom, ...) under the single robot\'s names (/odom, ...); '
+                             '--topics then names those')
     parser.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
     parser.add_argument('--wait-subscribers', type=positive_float, metavar='S',
                         help='first wait up to S seconds until every replayed topic has a '
@@ -46,7 +60,17 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.bag_reading import bag_topics, read_bag
 
     available = bag_topics(args.bag)
-    topics = args.topics or [t for t in available if t != CLOCK_TOPIC]
+    prefix = '' if args.robot is None else f'/robot_{args.robot}'
+    if prefix and not any(topic.startswith(prefix + '/') for topic in available):
+        robots = sorted({topic.split('/')[1] for topic in available
+                         if topic.startswith('/robot_')})
+        raise UsageError(f'--robot {args.robot}: the bag has no {prefix}/ topics (its robots: '
+                         f'{", ".join(robots) or "none, not a fleet bag"})')
+    if prefix:
+        topics = ([prefix + topic for topic in args.topics] if args.topics
+                  else [t for t in available if t.startswith(prefix + '/')])
+    else:
+        topics = args.topics or [t for t in available if t != CLOCK_TOPIC]
     unknown = sorted(set(topics) - set(available))
     if unknown:
         raise UsageError(f'topic(s) {unknown} are not in the bag; it has {available}')
@@ -69,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.errors import ReplayError
 
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    if prefix:
+        data, topics = _as_one_robot(data, topics, prefix)
     player = BagPlayer(data, topics, args.sync, args.domain_id)
     try:
         if args.wait_subscribers:
@@ -82,3 +108,18 @@ def run(args: argparse.Namespace) -> int:
         player.close()
     print(f'replayed {player.published} messages on {len(topics)} topics', file=sys.stderr)
     return 0
+
+
+def _as_one_robot(data: BagMessages, topics: list[str],
+                  prefix: str) -> tuple[BagMessages, list[str]]:
+    """The bag's messages with one robot's topics renamed to the single robot's."""
+    from omni_micro_tools.bag_reading import BagMessages
+
+    def renamed(topic: str) -> str:
+        return topic[len(prefix):] if topic.startswith(prefix + '/') else topic
+
+    return (BagMessages({renamed(topic): value for topic, value in data.timestamps.items()},
+                        {renamed(topic): value for topic, value in data.messages.items()},
+                        {renamed(topic): value for topic, value in data.raw.items()},
+                        {renamed(topic): value for topic, value in data.msgtypes.items()}),
+            [renamed(topic) for topic in topics])
