@@ -186,7 +186,9 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
             run.kill()
         for pid in processes_of_run(log_root):
             os.kill(pid, signal.SIGKILL)
-    assert gone_after < 1.0, f'children still there {gone_after:.2f} s after the kill'
+    # 0.4-0.7 s alone and beside two busy processes, 1.04 s once beside the suite's other
+    # worker; a shared-memory stall would add a second per port (2.8-3.3 s, measured).
+    assert gone_after < 2.0, f'children still there {gone_after:.2f} s after the kill'
     # The recorder closed its bag on the way out: readable as it is, no recovery needed.
     assert (bag / 'metadata.yaml').exists()
     # It holds the run up to the kill: the first move was sent a whole period before it (the
