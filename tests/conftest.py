@@ -12,6 +12,7 @@ reason it needs longer: the suite stays quick because nothing grows unseen.
 """
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,11 @@ from hypothesis import settings
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('MPLBACKEND', 'Agg')
+# A suite started as a background job of a non-interactive shell (`./scripts/test &`, nohup)
+# inherits SIGINT ignored, and so would every process it starts: a test that stops a command as
+# a terminal's Ctrl-C does found it ignored (a Ctrl-C'd study ran on to its end; a stand-in
+# needed SIGTERM). The suite's processes take SIGINT as if started from a terminal.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # Property tests draw the same examples every run: a red run is a bug found, never chance.
 settings.register_profile('omni_micro', derandomize=True, database=None)

@@ -209,8 +209,8 @@ def test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows(tmp_p
     while not list((out / 'parts').glob('part-*.parquet')):
         assert time.monotonic() < deadline and study.poll() is None, 'ended early'
         time.sleep(0.05)
-    # How the study's process takes SIGINT when it comes (an in-suite run once finished all its
-    # runs as if it never came: said beside the failure, to find why).
+    # How the study's process takes SIGINT, said beside a failure (a suite started as a shell's
+    # background job passed SIGINT on ignored, SigIgn bit 2, until tests/conftest.py restored it).
     dispositions = [line for line in Path(f'/proc/{study.pid}/status').read_text().splitlines()
                     if line.startswith(('SigBlk', 'SigIgn', 'SigCgt'))]
     os.killpg(study.pid, signal.SIGINT)
