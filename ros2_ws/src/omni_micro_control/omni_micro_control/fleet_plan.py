@@ -89,10 +89,6 @@ class FleetPlan:
     roadmap: Roadmap
     priority: tuple[int, ...]
 
-    @property
-    def makespan_steps(self) -> int:
-        return max((len(path) - 1 for path in self.paths), default=0)
-
 
 def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, seed: int = 0,
                clearance_m: float = CLEARANCE_M, attempts: int = 0) -> FleetPlan:
