@@ -154,7 +154,10 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
     The kill comes with the robot's clock held, as in the node kills below: the orchestrator is
     a DDS participant too, and killed mid-traffic it left a shared-memory port lock held in
     about one kill in ten beside two busy processes: its children then waited a second per
-    port for it, 2.8-3.3 s in all, before they could leave (docs/reliability.md)."""
+    port for it, 2.8-3.3 s in all, before they could leave (docs/reliability.md). With the
+    clock held the graph's own traffic stops but DDS's discovery does not: one kill in a suite
+    run still caught the orchestrator's port mid-announcement (children gone 2.27 s after, two
+    ports' stall). So the test asks that they all leave within the stall's bound."""
     log_root = tmp_path / 'logs'
     bag = tmp_path / 'bag'
     run = subprocess.Popen(
@@ -178,7 +181,12 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
         run.kill()
         killed_at = time.monotonic()
         run.wait(5.0)
-        while processes_of_run(log_root) and time.monotonic() - killed_at < 10.0:
+        left: dict[str, float] = {}
+        while (alive := processes_of_run(log_root)) and time.monotonic() - killed_at < 10.0:
+            for pid, command in children.items():
+                if pid not in alive:
+                    left.setdefault(command.split()[1].rsplit('/', 1)[-1],
+                                    time.monotonic() - killed_at)
             time.sleep(0.05)
         gone_after = time.monotonic() - killed_at
     finally:
@@ -186,9 +194,12 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
             run.kill()
         for pid in processes_of_run(log_root):
             os.kill(pid, signal.SIGKILL)
-    # 0.4-0.7 s alone and beside two busy processes, 1.04 s once beside the suite's other
-    # worker; a shared-memory stall would add a second per port (2.8-3.3 s, measured).
-    assert gone_after < 2.0, f'children still there {gone_after:.2f} s after the kill'
+    # 0.3-0.7 s alone and beside two to five busy processes (the recorder last, the controller
+    # 0.3 s), 1.04 s once beside the suite's other worker; a shared-memory stall adds a second
+    # per port of the dead orchestrator (2.27 s and 2.8-3.3 s, measured). A child the lifeline
+    # missed would stay the whole 10 s.
+    assert gone_after < 5.0, f'children still there {gone_after:.2f} s after the kill; ' \
+        f'those gone, in s: {left}'
     # The recorder closed its bag on the way out: readable as it is, no recovery needed.
     assert (bag / 'metadata.yaml').exists()
     # It holds the run up to the kill: the first move was sent a whole period before it (the
