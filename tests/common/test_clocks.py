@@ -80,7 +80,7 @@ def test_the_simulated_robot_stamps_the_wall_clock_from_when_time_starts(context
     node = DynamicsNode(context=context, parameter_overrides=overrides(stamp_origin='wall'))
     try:
         published: list[bytes] = []
-        node.joint_pub.publish = published.append
+        node.robots[0].joint_pub.publish = published.append
         before = time.time()
         for _ in range(50):
             node._advance()
@@ -94,7 +94,7 @@ def test_the_simulated_robot_stamps_the_wall_clock_from_when_time_starts(context
         move.header.stamp.sec = 3
         logged: list[str] = []
         node.get_logger().error = lambda message, **_: logged.append(message)
-        node._schedule_trajectory(move)
+        node._schedule_trajectory(node.robots[0], move)
         assert logged and logged[-1].startswith('rejected: a /wheel_trajectory is stamped '
                                                 '3.000 s (a clock from 0: simulated time) but '
                                                 'this robot runs on ')

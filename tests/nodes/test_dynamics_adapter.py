@@ -63,10 +63,11 @@ def test_dynamics_node_publishes_the_slip_on_one_tick_in_wheel_slip_every(contex
     node = DynamicsNode(context=context, parameter_overrides=overrides(wheel_slip_every=3))
     try:
         published: list[bytes] = []
-        node.slip_pub.publish = published.append
-        node.odom_pub.publish = lambda data: None
+        robot = node.robots[0]
+        robot.slip_pub.publish = published.append
+        robot.odom_pub.publish = lambda data: None
         for _ in range(9):
-            node._publish(node.grid.advance())
+            node._publish([node.grid.advance()])
         assert len(published) == 3
     finally:
         node.destroy_node()
@@ -87,11 +88,12 @@ def test_dynamics_node_throttles_odometry_and_joints_for_who_only_watches(contex
     node = DynamicsNode(context=context, parameter_overrides=overrides(throttle_every=4))
     try:
         sent: dict[str, list[bytes]] = {}
-        for publisher in (node.odom_pub, node.joint_pub, node.odom_throttle_pub,
-                          node.joint_throttle_pub):
+        robot = node.robots[0]
+        for publisher in (robot.odom_pub, robot.joint_pub, robot.odom_throttle_pub,
+                          robot.joint_throttle_pub):
             publisher.publish = sent.setdefault(publisher.topic_name, []).append
         for _ in range(12):
-            node._publish(node.grid.advance())
+            node._publish([node.grid.advance()])
         # The same messages, those of ticks 4, 8 and 12.
         assert sent['/odom_throttle'] == sent['/odom'][3::4]
         assert sent['/joint_states_throttle'] == sent['/joint_states'][3::4]

@@ -24,10 +24,12 @@ from omni_micro_common.params import flatten, load_params_file
 
 # Parameters a node declares that the file leaves to the command line, the bringup or another
 # file: the bag to write (and a camera driver's images in it), who takes part in the lockstep,
-# whose readers a node waits for (the bringup's composition sets them for each run), a camera's
-# calibration (what `omni-micro calibrate-camera` writes), and rclpy's own.
+# whose readers a node waits for (the bringup's composition sets them for each run), a
+# micro-factory's robots (run --robots), a camera's calibration (what `omni-micro
+# calibrate-camera` writes), and rclpy's own.
 LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
-                   'dynamics_node': {'lockstep_nodes', 'awaited_readers'},
+                   'dynamics_node': {'lockstep_nodes', 'awaited_readers', 'robots',
+                                     'robot_poses', 'robot_wheel_offsets_rad'},
                    'vision_node': {'capture_readers', 'covariance_readers'},
                    'tracker_node': {'capture_readers', 'covariance_readers'},
                    'camera_node': {'image_readers'}}

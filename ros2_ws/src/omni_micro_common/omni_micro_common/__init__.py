@@ -2,7 +2,8 @@
 
 :mod:`conventions` (stamps, quaternions, joint names, status keys, capture uncertainty),
 :mod:`topic_names` (every topic's name, defined once), :mod:`qos` (their QoS), :mod:`lockstep` (the
-gate and its reports, plain Python), :mod:`lockstep_reporting` (those reports on /lockstep),
+gate and its reports, plain Python), :mod:`lockstep_groups` (one lockstep over several robots),
+:mod:`lockstep_reporting` (those reports on /lockstep),
 :mod:`clocks` (which clock a stamp is on, and when two cannot share one), :mod:`node_runtime` (how
 a node process starts, spins and stops), :mod:`parameter_checks` (what rclpy would pass over in
 silence at start-up), :mod:`reader_matching` (readers a node waits to have matched),

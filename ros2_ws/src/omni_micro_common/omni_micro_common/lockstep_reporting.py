@@ -11,6 +11,7 @@ from rclpy.node import Node
 from omni_micro_common.cdr import diagnostic_status_bytes, read_diagnostic_status
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_MESSAGE, ACK_TOPIC, Ack
+from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.qos import LOCKSTEP_QOS, PER_TICK_PUBLISHER_EVENTS
 
 
@@ -18,10 +19,11 @@ class LockstepReporter:
     """Publishes this node's lockstep reports (see :mod:`omni_micro_common.lockstep`).
 
     Not counted among the node's publications: they are the graph's plumbing, not its data.
+    A node in a robot's namespace reports as ``robot_k/name`` (several robots, one lockstep).
     """
 
     def __init__(self, node: Node) -> None:
-        self._name = node.get_name()
+        self._name = qualified_node_name(node.get_namespace(), node.get_name())
         self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS)
 

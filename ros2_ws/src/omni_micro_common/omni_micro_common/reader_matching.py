@@ -12,6 +12,8 @@ from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy
 from rclpy.timer import Timer
 
+from omni_micro_common.lockstep_groups import qualified_node_name
+
 
 def node_list_parameter(node: Node, name: str) -> list[str]:
     """A read-only list of node names (empty by default: ROS has no empty-list default)."""
@@ -21,7 +23,8 @@ def node_list_parameter(node: Node, name: str) -> list[str]:
 
 
 def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str]) -> list[str]:
-    """Which of ``reader_nodes``' readers of ``publisher``'s topic it has not matched yet.
+    """Which of ``reader_nodes``' readers of ``publisher``'s topic it has not matched yet
+    (each named as :func:`~omni_micro_common.lockstep_groups.qualified_node_name` says).
 
     A sample sent before a reliable, volatile reader is matched is lost to that reader; seeing
     the reader in the ROS graph is not enough (discovery between two peers completes at its own
@@ -32,7 +35,8 @@ def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str])
     readers = [info for info in node.get_subscriptions_info_by_topic(topic)
                if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
     return [f"{name}'s reader of {topic}" for name in reader_nodes
-            if not any(info.node_name == name for info in readers)
+            if not any(qualified_node_name(info.node_namespace, info.node_name) == name
+                       for info in readers)
             or publisher.get_subscription_count() < len(readers)]
 
 

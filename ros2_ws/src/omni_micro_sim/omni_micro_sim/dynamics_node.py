@@ -43,25 +43,22 @@ from typing import Any
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
-from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
-    body_twist,
     join_stamp,
     split_stamp,
     stamp_ns,
-    yaw_to_quaternion,
 )
 from omni_micro_common.errors import LockstepError
-from omni_micro_common.lockstep import ACK_TOPIC, LockstepGate
+from omni_micro_common.lockstep import ACK_TOPIC
+from omni_micro_common.lockstep_groups import LockstepGroups
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack_bytes
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
@@ -70,15 +67,10 @@ from omni_micro_common.reader_matching import unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
-    JOINT_STATES_THROTTLE_TOPIC,
-    JOINT_STATES_TOPIC,
-    ODOM_THROTTLE_TOPIC,
-    ODOM_TOPIC,
-    WHEEL_SLIP_TOPIC,
-    WHEEL_TRAJECTORY_TOPIC,
 )
 from omni_micro_sim.dynamics_parameters import checked_rtf, declare_dynamics_parameters
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
+from omni_micro_sim.simulated_robots import SimulatedRobot
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
@@ -116,14 +108,20 @@ class DynamicsNode(Node):
         self.paused = settings.paused
         # The readers time waits for at its start, by node (see the module docstring).
         self.awaited_readers = settings.awaited_readers
-        initial = settings.initial_pose
-        self.grid = GridSimulator(
-            settings.robot, period_s=period, limits=settings.limits,
-            state=RobotState(x_m=initial[0], y_m=initial[1], phi_rad=initial[2]))
-        self.grid.load_kernels()
+        # One robot under the graph's names, or each of a micro-factory's under its namespace.
+        namespaces = settings.robots or ['']
+        poses = settings.robot_poses or [settings.initial_pose]
+        models = settings.robot_models or [settings.robot]
+        grids = [GridSimulator(model, period_s=period, limits=settings.limits,
+                               state=RobotState(x_m=pose[0], y_m=pose[1], phi_rad=pose[2]))
+                 for model, pose in zip(models, poses, strict=True)]
+        grids[0].load_kernels()
+        # Every robot is on this grid's ticks (one clock).
+        self.grid = grids[0]
         try:
-            self.lockstep = LockstepGate(settings.lockstep_nodes, round(period * 1e9),
-                                         round(float(settings.max_lead_s) * 1e9))
+            self.lockstep = LockstepGroups(namespaces, settings.lockstep_nodes,
+                                           round(period * 1e9),
+                                           round(float(settings.max_lead_s) * 1e9))
         except (LockstepError, TypeError, ValueError) as error:
             raise ParameterError(f'lockstep_max_lead_s: {error}') from None
         if math.isinf(self.real_time_factor) and not self.lockstep.enabled:
@@ -131,7 +129,6 @@ class DynamicsNode(Node):
                                  'the other nodes could not keep up with an unbounded clock')
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self._make_messages()
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
 
@@ -139,15 +136,16 @@ class DynamicsNode(Node):
             return count(self.create_publisher(msg_type, topic, DATA_QOS,
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS))
 
+        # Serialized once and patched in place each tick: converting a Python message to C
+        # cost more than everything else the node does per tick (an Odometry: 74 us against
+        # 5 us). The bytes are what serialize_message gives (tests/nodes).
+        self._clock_template = tick_templates(self.odom_frame, self.base_frame).clock
         self.clock_pub = per_tick(Clock, CLOCK_TOPIC)
-        self.odom_pub = per_tick(Odometry, ODOM_TOPIC)
-        self.joint_pub = per_tick(JointState, JOINT_STATES_TOPIC)
-        self.slip_pub = per_tick(JointState, WHEEL_SLIP_TOPIC)
-        self.odom_throttle_pub = per_tick(Odometry, ODOM_THROTTLE_TOPIC)
-        self.joint_throttle_pub = per_tick(JointState, JOINT_STATES_THROTTLE_TOPIC)
+        self.robots = [SimulatedRobot(self, namespace, grid, self.odom_frame, self.base_frame,
+                                      per_tick, self._on_trajectory)
+                       for namespace, grid in zip(namespaces, grids, strict=True)]
         self._publishers_of = {pub.topic_name: pub for pub in (
-            self.clock_pub, self.odom_pub, self.joint_pub, self.slip_pub,
-            self.odom_throttle_pub, self.joint_throttle_pub)}
+            self.clock_pub, *(pub for robot in self.robots for pub in robot.publishers))}
         for node, topics in self.awaited_readers.items():
             unknown = [topic for topic in topics if topic not in self._publishers_of]
             if unknown:
@@ -155,8 +153,6 @@ class DynamicsNode(Node):
                                      f'node does not publish ({sorted(self._publishers_of)})')
         # Time starts (and resumes) only once the awaited readers are matched.
         self._readers_pending = True
-        self.create_subscription(JointTrajectory, WHEEL_TRAJECTORY_TOPIC, self._on_trajectory,
-                                 DATA_QOS)
         if self.lockstep.enabled:
             self.create_subscription(DiagnosticStatus, ACK_TOPIC, self._on_ack, LOCKSTEP_QOS,
                                      raw=True,
@@ -172,6 +168,8 @@ class DynamicsNode(Node):
         self.get_logger().info(
             f'robot ready: grid {period * 1e3:g} ms, real-time factor '
             f'{self.real_time_factor:g}, '
+            + (f'{len(self.robots)} robots ({", ".join(settings.robots)}), '
+               if settings.robots else '')
             + (f'lockstep with {list(self.lockstep.nodes)}' if self.lockstep.enabled
                else 'free-running') + (', paused' if self.paused else ''))
 
@@ -290,23 +288,18 @@ class DynamicsNode(Node):
         steps = 0 if due == -math.inf else int(min(due - self.grid.tick, 50))
         for _ in range(steps):
             try:
-                sample = self.grid.advance()
+                samples = [robot.grid.advance() for robot in self.robots]
             except SimulationError as error:
-                self.get_logger().error(f'{error}; stopping the robot')
-                self.grid.schedule_stop()
+                self.get_logger().error(f'{error}; stopping the robots')
+                for robot in self.robots:
+                    robot.grid.schedule_stop()
                 return
-            self._publish(sample)
+            self._publish(samples)
         if self._due_tick() - self.grid.tick > 200 and not math.isinf(self.real_time_factor):
             # Far behind the wall clock (held by the lockstep, or a busy machine): pace again
             # from here instead of racing to catch up.
             self._wall_origin = time.monotonic()
             self._tick_origin = self.grid.tick
-
-    def _make_messages(self) -> None:
-        # Serialized once and patched in place each tick: converting a Python message to C
-        # cost more than everything else the node does per tick (an Odometry: 74 us against
-        # 5 us). The bytes are what serialize_message gives (tests/nodes).
-        self._templates = tick_templates(self.odom_frame, self.base_frame)
 
     def _stamp(self, time_s: float) -> tuple[int, int]:
         """Simulated time as the messages carry it (from 0, or on the wall clock)."""
@@ -314,40 +307,26 @@ class DynamicsNode(Node):
             return split_stamp(time_s)
         return divmod(self._origin_ns + round(time_s * 1e9), 1_000_000_000)
 
-    def _publish(self, sample: Sample) -> None:
-        sec, nanosec = self._stamp(sample.time_s)
-        templates = self._templates
-        self.clock_pub.publish(templates.clock.encode((sec, nanosec)))
-        state = sample.state
-        odometry = templates.odometry.encode((
-            sec, nanosec, state.x_m, state.y_m, *yaw_to_quaternion(state.phi_rad),
-            *body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s), state.omega_rad_s))
-        self.odom_pub.publish(odometry)
-        joint_state = templates.joint_state.encode((
-            sec, nanosec, sample.steering_rad, *map(float, sample.wheel_rotations_rad),
-            sample.steering_rate_rad_s, *map(float, sample.wheel_speeds_rad_s)))
-        self.joint_pub.publish(joint_state)
-        if self.grid.tick % self.throttle_every == 0:
-            self.odom_throttle_pub.publish(odometry)
-            self.joint_throttle_pub.publish(joint_state)
-        if self.grid.tick % self.slip_every:
-            return
-        self.slip_pub.publish(templates.slip.encode((
-            sec, nanosec, *(float(value) for pair in zip(sample.slip.longitudinal_m_s,
-                                                          sample.slip.transverse_m_s,
-                                                          strict=True) for value in pair))))
+    def _publish(self, samples: list[Sample]) -> None:
+        sec, nanosec = self._stamp(samples[0].time_s)
+        self.clock_pub.publish(self._clock_template.encode((sec, nanosec)))
+        tick = self.grid.tick
+        for robot, sample in zip(self.robots, samples, strict=True):
+            robot.publish(sample, sec, nanosec, throttle=tick % self.throttle_every == 0,
+                          slip=tick % self.slip_every == 0)
 
     # -- commands ----------------------------------------------------------------------------
-    def _on_trajectory(self, msg: JointTrajectory) -> None:
-        self._schedule_trajectory(msg)
+    def _on_trajectory(self, robot: SimulatedRobot, msg: JointTrajectory) -> None:
+        self._schedule_trajectory(robot, msg)
         if self.lockstep.enabled:
             self._advance()   # time may have been waiting for this very command
 
-    def _schedule_trajectory(self, msg: JointTrajectory) -> None:
+    def _schedule_trajectory(self, robot: SimulatedRobot, msg: JointTrajectory) -> None:
         stamp = stamp_ns(msg.header.stamp) - self._origin_ns
-        self.lockstep.on_command(stamp)
+        self.lockstep.on_command(robot.namespace, stamp)
+        grid = robot.grid
         mismatch = clock_mismatch('a /wheel_trajectory', stamp_seconds(msg.header.stamp),
-                                  'this robot', join_stamp(*self._stamp(self.grid.time_s)))
+                                  'this robot', join_stamp(*self._stamp(grid.time_s)))
         if mismatch is not None and msg.points:
             self.get_logger().error(f'rejected: {mismatch}; the robot stays as it is',
                                     throttle_duration_sec=1.0)
@@ -357,18 +336,21 @@ class DynamicsNode(Node):
         try:
             start_s = join_stamp(*divmod(stamp, 1_000_000_000))
             command = command_from_points(msg.joint_names, points, start_s,
-                                          self.grid.time_s, self.grid.limits)
-            scheduled = self.grid.schedule(command)
+                                          grid.time_s, grid.limits)
+            scheduled = grid.schedule(command)
         except CommandError as error:
-            self.get_logger().error(f'rejected wheel trajectory: {error}; stopping the robot')
-            self.grid.schedule_stop()
+            self.get_logger().error(f'rejected wheel trajectory: {error}; stopping '
+                                    f'{robot.label}')
+            grid.schedule_stop()
             return
         if command.is_stop:
-            self.get_logger().info(f'stop at t={scheduled.start_s:.3f} s')
+            self.get_logger().info(f'stop at t={scheduled.start_s:.3f} s'
+                                   + (f' ({robot.namespace})' if robot.namespace else ''))
             return
         if scheduled.late_by_s > 0.0:
             self.get_logger().warning(
-                f'wheel trajectory arrived {scheduled.late_by_s:.3f} s (simulated) after its '
+                (f'{robot.namespace}: ' if robot.namespace else '')
+                + f'wheel trajectory arrived {scheduled.late_by_s:.3f} s (simulated) after its '
                 f'start stamp; it runs in full from t={scheduled.start_s:.3f} s')
 
 

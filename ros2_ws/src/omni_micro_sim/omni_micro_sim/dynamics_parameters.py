@@ -6,10 +6,10 @@ what each becomes.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
 
 from omni_micro_common.lockstep import DEFAULT_MAX_LEAD_S
@@ -22,6 +22,7 @@ from omni_micro_sim.parameters import (
     RobotParameters,
     robot_parameter_values,
 )
+from omni_micro_sim.simulated_robots import check_namespaces
 
 # Fixed at start-up: they define the robot, and changing them mid-run would change physics.
 READ_ONLY = ParameterDescriptor(read_only=True)
@@ -54,6 +55,11 @@ class DynamicsParameters:
     lockstep_nodes: list[str]
     awaited_readers: dict[str, tuple[str, ...]]
     max_lead_s: float
+    # Several robots on the one clock (a micro-factory): their namespaces, and each one's
+    # start pose and true robot (its wheel offsets); none: the one robot above.
+    robots: list[str] = field(default_factory=list)
+    robot_poses: list[list[float]] = field(default_factory=list)
+    robot_models: list[RobotParameters] = field(default_factory=list)
 
 
 def declare_dynamics_parameters(node: Node) -> DynamicsParameters:
@@ -103,10 +109,32 @@ def declare_dynamics_parameters(node: Node) -> DynamicsParameters:
         raise ParameterError(f'initial_pose must be [x_m, y_m, phi_rad], got {list(initial)}')
     robot_values['wheel_offsets_rad'] = tuple(robot_values['wheel_offsets_rad'])
     robot_values['center_of_mass_m'] = tuple(robot_values['center_of_mass_m'])
+    robot = RobotParameters.from_mapping(robot_values)
+    robots = node_list_parameter(node, 'robots')
+    check_namespaces(robots)
+    poses = _per_robot(node, 'robot_poses', robots, [0.0, 0.0, 0.0])
+    offsets = _per_robot(node, 'robot_wheel_offsets_rad', robots,
+                         list(robot.wheel_offsets_rad))
     return DynamicsParameters(
-        RobotParameters.from_mapping(robot_values), MotorLimits(**limit_values), period,
+        robot, MotorLimits(**limit_values), period,
         slip_every, throttle_every, list(initial), odom_frame, base_frame, real_time_factor,
-        stamp_origin, paused, lockstep_nodes, awaited, max_lead_s)
+        stamp_origin, paused, lockstep_nodes, awaited, max_lead_s, robots, poses,
+        [replace(robot, wheel_offsets_rad=(a, b, c)) for a, b, c in offsets])
+
+
+def _per_robot(node: Node, name: str, robots: list[str],
+               default: list[float]) -> list[list[float]]:
+    """Three numbers per robot, flat (ROS has no nested arrays); empty: ``default`` each."""
+    descriptor = ParameterDescriptor(read_only=True, type=ParameterType.PARAMETER_DOUBLE_ARRAY)
+    values = list(node.declare_parameter(name, [0.0], descriptor).value or [])
+    if values == [0.0] or not robots:
+        values = []
+    if not values:
+        return [list(default) for _ in robots]
+    if len(values) != 3 * len(robots) or not all(math.isfinite(v) for v in values):
+        raise ParameterError(f'{name}: 3 finite numbers for each of the {len(robots)} robots '
+                             f'({3 * len(robots)}), got {values}')
+    return [values[3 * k:3 * k + 3] for k in range(len(robots))]
 
 
 def checked_rtf(value: Any) -> float:

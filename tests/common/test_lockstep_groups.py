@@ -1,0 +1,94 @@
+"""One lockstep over several robots: each robot's captures and commands held by its own nodes,
+time no further than the slowest robot allows, a node outside every namespace in all."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from omni_micro_common.errors import LockstepError
+from omni_micro_common.lockstep import Ack, LockstepGate
+from omni_micro_common.lockstep_groups import LockstepGroups, qualified_node_name
+
+MS = 1_000_000
+PERIOD = 20 * MS
+LEAD = 40 * MS
+
+
+def test_a_node_names_itself_with_its_robots_namespace():
+    assert qualified_node_name('/', 'controller_node') == 'controller_node'
+    assert qualified_node_name('/robot_1', 'controller_node') == 'robot_1/controller_node'
+    assert qualified_node_name('robot_1/', 'vision_node') == 'robot_1/vision_node'
+
+
+def test_the_slowest_robot_holds_every_robot():
+    groups = LockstepGroups(['robot_0', 'robot_1'],
+                            ['robot_0/controller_node', 'robot_1/controller_node'], PERIOD, LEAD)
+    groups.on_ack(Ack('robot_0/controller_node', 500 * MS))
+    groups.on_ack(Ack('robot_1/controller_node', 100 * MS))
+    assert groups.reachable_ns() == 100 * MS + LEAD
+    assert groups.waiting_for() == 'robot_1: robot_1/controller_node at 100000000 ns'
+    groups.on_ack(Ack('robot_1/controller_node', 600 * MS))
+    assert groups.reachable_ns() == 500 * MS + LEAD
+
+
+def test_a_command_holds_time_until_its_own_robot_has_it():
+    groups = LockstepGroups(['robot_0', 'robot_1'],
+                            ['robot_0/controller_node', 'robot_1/controller_node'], PERIOD, LEAD)
+    groups.on_ack(Ack('robot_0/controller_node', 100 * MS))
+    groups.on_ack(Ack('robot_1/controller_node', 100 * MS, command_ns=120 * MS))
+    assert groups.reachable_ns() == -math.inf
+    groups.on_command('robot_0', 120 * MS)   # robot 0 receiving it changes nothing
+    assert groups.reachable_ns() == -math.inf
+    groups.on_command('robot_1', 120 * MS)
+    assert groups.reachable_ns() == 100 * MS + LEAD
+
+
+def test_a_capture_is_held_for_its_own_robots_controller_only():
+    """Robot 0's camera reports a capture: robot 0's controller must handle it; robot 1's
+    controller, which never sees it, does not hold time for it."""
+    nodes = ['robot_0/vision_node', 'robot_0/controller_node', 'robot_1/vision_node',
+             'robot_1/controller_node']
+    groups = LockstepGroups(['robot_0', 'robot_1'], nodes, PERIOD, LEAD)
+    for name in nodes:
+        groups.on_ack(Ack(name, 200 * MS, capture_handled_ns=0
+                          if name.endswith('controller_node') else None))
+    groups.on_ack(Ack('robot_0/vision_node', 200 * MS, captures_ns=(180 * MS, 180 * MS)))
+    assert groups.reachable_ns() == 180 * MS + LEAD
+    groups.on_ack(Ack('robot_1/controller_node', 220 * MS, capture_handled_ns=200 * MS))
+    assert groups.reachable_ns() == 180 * MS + LEAD
+    groups.on_ack(Ack('robot_0/controller_node', 220 * MS, capture_handled_ns=180 * MS))
+    assert groups.reachable_ns() == 200 * MS + LEAD
+
+
+def test_a_node_outside_every_namespace_takes_part_for_every_robot():
+    groups = LockstepGroups(['robot_0', 'robot_1'],
+                            ['robot_0/controller_node', 'robot_1/controller_node', 'recorder'],
+                            PERIOD, LEAD)
+    for name in ('robot_0/controller_node', 'robot_1/controller_node'):
+        groups.on_ack(Ack(name, 400 * MS))
+    groups.on_ack(Ack('recorder', 60 * MS))
+    assert groups.reachable_ns() == 60 * MS + LEAD
+    assert [gate.nodes for gate in groups.gates.values()] == [
+        ('robot_0/controller_node', 'recorder'), ('robot_1/controller_node', 'recorder')]
+
+
+def test_one_robot_is_the_single_gate():
+    """The graph of one robot: its nodes in no namespace, the one gate as before."""
+    nodes = ['vision_node', 'controller_node']
+    groups, gate = LockstepGroups([''], nodes, PERIOD, LEAD), LockstepGate(nodes, PERIOD, LEAD)
+    for lockstep in (groups, gate):
+        lockstep.on_ack(Ack('vision_node', 300 * MS, captures_ns=(260 * MS, 280 * MS)))
+        lockstep.on_ack(Ack('controller_node', 280 * MS, capture_handled_ns=240 * MS,
+                            command_ns=300 * MS))
+    assert groups.reachable_ns() == gate.reachable_ns() == -math.inf
+    groups.on_command('', 300 * MS)
+    gate.on_command(300 * MS)
+    assert groups.reachable_ns() == gate.reachable_ns() == 260 * MS + LEAD
+    assert groups.waiting_for() == gate.waiting_for()
+
+
+def test_a_node_in_no_robots_namespace_is_refused_by_name():
+    with pytest.raises(LockstepError, match=r"\['robot_2/controller_node'\] are in no robot"):
+        LockstepGroups(['robot_0', 'robot_1'], ['robot_2/controller_node'], PERIOD, LEAD)
