@@ -92,3 +92,41 @@ def test_one_robot_is_the_single_gate():
 def test_a_node_in_no_robots_namespace_is_refused_by_name():
     with pytest.raises(LockstepError, match=r"\['robot_2/controller_node'\] are in no robot"):
         LockstepGroups(['robot_0', 'robot_1'], ['robot_2/controller_node'], PERIOD, LEAD)
+
+
+def test_a_goals_end_holds_time_until_the_coordinator_has_handed_out_the_next_goals():
+    """A controller reports the end of its goal; once a coordinator takes part, time stands
+    still until it says it has handled that end (its next goals taken), in every robot."""
+    nodes = ['robot_0/controller_node', 'robot_1/controller_node', 'fleet_coordinator']
+    groups = LockstepGroups(['robot_0', 'robot_1'], nodes, PERIOD, LEAD)
+    groups.on_ack(Ack('fleet_coordinator', None, outcome_handled_ns=-1))
+    for name in nodes[:2]:
+        groups.on_ack(Ack(name, 100 * MS))
+    assert groups.reachable_ns() == 100 * MS + LEAD
+    groups.on_ack(Ack('robot_0/controller_node', 120 * MS, outcome_ns=110 * MS))
+    assert groups.reachable_ns() == -math.inf
+    assert groups.waiting_for() == ('robot_0: fleet_coordinator to handle the end of a goal at '
+                                    '110000000 ns')
+    groups.on_ack(Ack('fleet_coordinator', None, outcome_handled_ns=110 * MS))
+    assert groups.reachable_ns() == 100 * MS + LEAD   # robot 1's controller is the slowest
+    # A resume after a pause: the controller says its last end again; it was handled.
+    groups.reset(140 * MS)
+    groups.on_ack(Ack('robot_0/controller_node', 140 * MS, outcome_ns=110 * MS))
+    groups.on_ack(Ack('robot_1/controller_node', 140 * MS))
+    assert groups.reachable_ns() == 140 * MS + LEAD
+
+
+def test_without_a_coordinator_a_goals_end_holds_nothing():
+    """One robot's graph: the orchestration hands out goals on its own, nothing waits."""
+    gate = LockstepGate(['controller_node'], PERIOD, LEAD)
+    gate.on_ack(Ack('controller_node', 100 * MS, outcome_ns=90 * MS))
+    assert gate.reachable_ns() == 100 * MS + LEAD
+
+
+def test_an_outcome_report_round_trips_and_a_coordinators_stands_alone():
+    ack = Ack('fleet_coordinator', None, outcome_handled_ns=5)
+    assert Ack.from_values('fleet_coordinator', ack.to_values()) == ack
+    ack = Ack('controller_node', 7, outcome_ns=3)
+    assert Ack.from_values('controller_node', ack.to_values()) == ack
+    with pytest.raises(LockstepError, match='none of processed_ns'):
+        Ack.from_values('controller_node', [('outcome_ns', '3')])

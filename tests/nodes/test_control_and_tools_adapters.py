@@ -229,3 +229,38 @@ def test_controller_node_refuses_bad_servo_parameters_naming_them(context, name,
     with pytest.raises(ControllerConfigError, match=name.rsplit('.', 1)[-1]):
         ControllerNode(context=context, parameter_overrides=[
             Parameter('mode', value='servo'), Parameter(name, value=value)])
+
+
+@pytest.mark.parametrize('goal_time, counts_from_s', [('arrival', 7.0), ('stamp', 5.0)])
+def test_controller_node_counts_a_goal_from_its_arrival_or_its_stamp(context, spy, goal_time,
+                                                                      counts_from_s):
+    """A fleet's coordinator stamps each goal with the end it follows (goal_time: stamp): timer2
+    counts from there, however late the goal came; the end of a goal is reported on /lockstep
+    for the coordinator to hold time by."""
+    from omni_micro_common.lockstep_reporting import decode_ack_bytes
+    from omni_micro_control.feedback import Finished, Outcome
+
+    node = ControllerNode(context=context, parameter_overrides=overrides(goal_time=goal_time))
+    try:
+        spy(node.status_pub)
+        reports = spy(node.lockstep._publisher)
+        node.robot_time_s = 7.0   # the robot's time when the goal arrives
+        goal = PoseStamped()
+        goal.header.frame_id = 'platform'
+        goal.header.stamp.sec = 5
+        goal.pose.position.x = 0.01
+        node._on_goal(goal)
+        assert isinstance(node.controller, VisionFeedbackController)
+        settle = node.controller.config.settle_wait_s
+        assert node.controller.deadline_s == pytest.approx(counts_from_s + settle)
+        node.report(Finished(Outcome.REACHED, 'there', 1, None), at_s=7.25)
+        node._report_lockstep()
+        ack = decode_ack_bytes(reports.messages[-1])
+        assert ack is not None and ack.outcome_ns == 7_250_000_000
+    finally:
+        node.destroy_node()
+
+
+def test_controller_node_refuses_an_unknown_goal_time(context):
+    with pytest.raises(ParameterError, match=r"goal_time must be one of \['arrival', 'stamp'\]"):
+        ControllerNode(context=context, parameter_overrides=overrides(goal_time='soon'))

@@ -22,7 +22,12 @@ step; this does the same with a bounded lead. Every node that takes part reports
   ``capture_handled_ns``: a *watcher*, a node that reads no odometry but must see every capture
   and command before time goes on (markers_node, so that what it draws for a tick never depends
   on which message reached it first). A watcher holds time at most one period past a capture
-  it has not handled, and holds it still while a command it has not handled is on its way.
+  it has not handled, and holds it still while a command it has not handled is on its way;
+- ``outcome_ns``: the stamp of the last goal's end it published (a controller), and
+  ``outcome_handled_ns``: the end of a goal it has just handled, every goal that end gives
+  already taken by its controller (a *coordinator*, who hands several robots their goals as
+  others' end). Once a coordinator has reported, time stands still while an end it has not
+  handled is on its way, so that the next goals start from the same simulated time every run.
 
 A plain "processed up to" stamp is not enough: a capture, a command and a report travel on
 different topics, and DDS orders messages per writer only. So the robot also waits until the
@@ -55,7 +60,7 @@ REPLAY_SYNC_WINDOW = 10
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
            'frame_handled_ns', 'command_handled_ns', 'motion_first_ns', 'motion_last_ns',
-           'motion_handled_ns')
+           'motion_handled_ns', 'outcome_ns', 'outcome_handled_ns')
 # What a watcher reports before it has handled any capture or command.
 NOTHING_HANDLED_NS = -1
 
@@ -75,6 +80,8 @@ class Ack:
     command_handled_ns: int | None = None
     motion_ns: tuple[int, int] | None = None
     motion_handled_ns: int | None = None
+    outcome_ns: int | None = None
+    outcome_handled_ns: int | None = None
 
     @property
     def watcher(self) -> bool:
@@ -87,7 +94,8 @@ class Ack:
             if span is not None:
                 values += [(f'{kind}_first_ns', str(span[0])), (f'{kind}_last_ns', str(span[1]))]
         for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns',
-                     'command_handled_ns', 'motion_handled_ns'):
+                     'command_handled_ns', 'motion_handled_ns', 'outcome_ns',
+                     'outcome_handled_ns'):
             value = getattr(self, name)
             if value is not None:
                 values.append((name, str(value)))
@@ -105,9 +113,10 @@ class Ack:
             except ValueError:
                 raise LockstepError(f'lockstep report of {node!r}: {key} must be a whole '
                                     f'number of nanoseconds, got {text!r}') from None
-        if not {'processed_ns', 'frame_handled_ns', 'command_handled_ns'} & set(fields):
+        if not {'processed_ns', 'frame_handled_ns', 'command_handled_ns',
+                'outcome_handled_ns'} & set(fields):
             raise LockstepError(f'lockstep report of {node!r} has none of processed_ns, '
-                                f'frame_handled_ns and command_handled_ns')
+                                f'frame_handled_ns, command_handled_ns and outcome_handled_ns')
         if ('command_handled_ns' in fields) != ('capture_handled_ns' in fields) \
                 and 'processed_ns' not in fields:
             raise LockstepError(f'lockstep report of {node!r}: a watcher reports '
@@ -123,7 +132,8 @@ class Ack:
                    fields.get('capture_handled_ns'), fields.get('command_ns'),
                    fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'),
                    fields.get('command_handled_ns'), spans['motion'],
-                   fields.get('motion_handled_ns'))
+                   fields.get('motion_handled_ns'), fields.get('outcome_ns'),
+                   fields.get('outcome_handled_ns'))
 
 
 class LockstepGate:
@@ -170,6 +180,11 @@ class LockstepGate:
         # Nodes known to report without processed_ns: a reset does not wait for their stamp
         # (a watcher reports when a throttled sample comes, maybe beyond the lead).
         self._reads_no_odometry: set[str] = set()
+        # Goals' ends (controllers' outcome_ns) and who hands out the next goals (coordinators,
+        # known from their first report on, as what they handled, across resets).
+        self._awaited_outcomes: dict[str, int] = {}
+        self._handled_outcomes: dict[str, deque[int]] = {}
+        self._coordinators: set[str] = set()
         self.reset(0)
 
     @property
@@ -195,6 +210,8 @@ class LockstepGate:
         self._watched_up_to.clear()
         self._watched_commands.clear()
         self._unwatched_captures.clear()
+        # A coordinator's handled ends are kept: a controller reports its last end again.
+        self._awaited_outcomes.clear()
 
     def on_ack(self, ack: Ack) -> None:
         if ack.node not in self.nodes:
@@ -219,6 +236,13 @@ class LockstepGate:
                 del self._pending_motion[:-self.RECEIVED_COMMANDS_KEPT]
         if ack.motion_handled_ns is not None:
             self._motion_handled[ack.node] = ack.motion_handled_ns
+        if ack.outcome_ns is not None:
+            self._awaited_outcomes[ack.node] = ack.outcome_ns
+        if ack.outcome_handled_ns is not None:
+            self._coordinators.add(ack.node)
+            self._handled_outcomes.setdefault(
+                ack.node, deque(maxlen=self.RECEIVED_COMMANDS_KEPT)).append(
+                    ack.outcome_handled_ns)
         if ack.watcher:
             assert ack.command_handled_ns is not None
             self._watched_up_to[ack.node] = max(
@@ -257,6 +281,9 @@ class LockstepGate:
                      for ns in self._awaited_commands.values() if ns not in handled]
         if unwatched:
             return ', '.join(unwatched)
+        unhandled = self._unhandled_outcomes()
+        if unhandled:
+            return ', '.join(unhandled)
         if self._watched_up_to and self._unwatched_captures:
             watcher = min(self._watched_up_to, key=self._watched_up_to.__getitem__)
             return f'{watcher} to handle the capture at {self._unwatched_captures[0][0]} ns'
@@ -278,6 +305,12 @@ class LockstepGate:
         slowest = min(self._processed, key=self._processed.__getitem__, default=None)
         return None if slowest is None else f'{slowest} at {self._processed[slowest]} ns'
 
+    def _unhandled_outcomes(self) -> list[str]:
+        return [f'{coordinator} to handle the end of a goal at {ns} ns'
+                for coordinator in self._coordinators
+                for ns in self._awaited_outcomes.values()
+                if ns not in self._handled_outcomes.get(coordinator, ())]
+
     def reachable_ns(self) -> int | float:
         """The latest grid time the robot may reach now (``inf`` when nobody takes part)."""
         if not self.nodes:
@@ -287,6 +320,8 @@ class LockstepGate:
         if any(ns not in handled for handled in self._watched_commands.values()
                for ns in self._awaited_commands.values()):
             return -math.inf   # ... and for every watcher to have it
+        if self._unhandled_outcomes():
+            return -math.inf   # a goal's end: the next goals start from it, whatever the load
         reachable = min(self._processed.values(), default=math.inf)
         if not math.isinf(reachable):
             reachable += self.lead_ticks * self.period_ns

@@ -14,8 +14,9 @@ Publishes:
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_common.lockstep)
 Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken
-on capture stamps, see :mod:`omni_micro_control.feedback`. ``mode: model`` plans the moves
-through the slip core and identifies the robot as it goes
+on capture stamps, see :mod:`omni_micro_control.feedback`; a goal counts from its arrival, or
+from its stamp (``goal_time: stamp``, as a fleet's coordinator hands them out).
+``mode: model`` plans the moves through the slip core and identifies the robot as it goes
 (:mod:`omni_micro_control.model_based`); ``mode: servo`` keeps it rolling and corrects it from
 the captures in motion (:mod:`omni_micro_control.servo_session`). On shutdown the robot is told
 to stop.
@@ -112,6 +113,8 @@ class ControllerNode(Node):
         # A servo reports the captures in motion it has handled; the others read none.
         self._motion_handled_ns = -1 if isinstance(self.controller, ServoSession) else None
         self._command_ns: int | None = None
+        self._outcome_ns: int | None = None   # the last goal's end, for a coordinator
+        self.goals_at_stamp = settings.goal_time == 'stamp'
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
         self.trajectory_pub = count(self.create_publisher(JointTrajectory, WHEEL_TRAJECTORY_TOPIC,
@@ -161,7 +164,9 @@ class ControllerNode(Node):
             self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
                                  reason=problem)
             return
-        self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=self.robot_time_s)
+        self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=(
+            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec) if self.goals_at_stamp
+            else self.robot_time_s))
 
     def _accept_goal(self, x_m: float, y_m: float, stopped_at_s: float) -> None:
         problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
@@ -194,8 +199,7 @@ class ControllerNode(Node):
             self.controller.on_wheel_state(stamp, wheels.speeds_rad_s)
         elif stopped:
             self._act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
-        # The capture timeouts every TIMEOUT_CHECK_S of the robot's time, on its own wheel
-        # states: no /clock subscription (one message less per tick).
+        # The capture timeouts on the robot's own wheel states' time (no /clock subscription).
         check = int(self.robot_time_s // TIMEOUT_CHECK_S)
         if check > self._timeout_checks:
             self._timeout_checks = check
@@ -217,8 +221,7 @@ class ControllerNode(Node):
 
     def _take(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty | None,
               camera: str, in_motion: bool = False) -> None:
-        """A capture (``in_motion``: of the rolling robot, for the servo) handled, then said
-        handled on /lockstep, usable or not."""
+        """A capture (``in_motion``: of the rolling robot) handled, said so on /lockstep."""
         seen = None if uncertainty is None else self._observation(header, pose, uncertainty,
                                                                   camera)
         if seen is not None:
@@ -232,13 +235,12 @@ class ControllerNode(Node):
             self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(header.stamp))
         self._report_lockstep()
 
-    def _report_lockstep(self) -> None:
-        """Everything received so far is handled and what it caused is published."""
+    def _report_lockstep(self) -> None:   # all received is handled, and its results published
         self.lockstep.report(Ack(
             self.get_name(), self._robot_time_ns, capture_handled_ns=self._capture_handled_ns,
             command_ns=self._command_ns,
             command_lead_ns=round(self.controller.config.command_lead_s * 1e9),
-            motion_handled_ns=self._motion_handled_ns))
+            motion_handled_ns=self._motion_handled_ns, outcome_ns=self._outcome_ns))
 
     def _observation(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
                      camera: str) -> Observation | None:
@@ -269,8 +271,7 @@ class ControllerNode(Node):
         return seen
 
     def _act(self, decision: Move | ServoCommand | Finished | None, at_s: float) -> None:
-        """``at_s``: the simulated time of what caused the decision (a capture's stamp, a wheel
-        state's, a camera status's), which a finished goal's status carries."""
+        """``at_s``: the simulated time of its cause, which a finished goal's status carries."""
         if isinstance(decision, Move):
             self._command(decision)
         elif isinstance(decision, ServoCommand):
@@ -295,8 +296,7 @@ class ControllerNode(Node):
             self._report_lockstep()
 
     def _on_tracker_status(self, msg: DiagnosticStatus, camera: str) -> None:
-        """How old a driver's captures in motion come (the tracker measures it from the frames'
-        stamps): the servo's bound grows to it, said once."""
+        """How old a driver's captures in motion come: the servo's bound grows to it."""
         assert isinstance(self.controller, ServoSession)
         values = {item.key: item.value for item in msg.values}
         own = self.controller.config.capture_age_s
@@ -309,8 +309,7 @@ class ControllerNode(Node):
         return reconfigure(self.controller, {p.name: p.value for p in params})
 
     def _on_timer(self) -> None:
-        """The capture timeouts, every TIMEOUT_CHECK_S of the robot's time (none in the servo
-        mode: the run's own timeout catches a silent camera)."""
+        """The capture timeouts (none in the servo mode: the run's timeout catches a silence)."""
         if isinstance(self.controller, ServoSession):
             return
         tries_before = self.controller.tries
@@ -365,9 +364,9 @@ class ControllerNode(Node):
             self.get_logger().warning(line)
         self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, at_s=at_s,
                              **values)
+        self._outcome_ns = round(at_s * 1e9)
 
     def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
-        """``at_s``: the simulated time of what the status says (controller_messages)."""
         self.status_pub.publish(status_message(level, message, at_s, values))
 
     def stop_robot(self) -> None:

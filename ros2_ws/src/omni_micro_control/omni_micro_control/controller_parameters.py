@@ -24,6 +24,10 @@ from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parame
 
 # FeedbackConfig fields that are no parameter of their own: derived (the motors' cruise speed).
 DERIVED_CONFIG = ('cruise_speed_rad_s',)
+# When a goal counts from: its arrival (the robot's time then), or its stamp (a coordinator
+# hands several robots their goals, each stamped with the end it follows; the lockstep holds
+# time until they are taken, so the same run follows whatever the load).
+GOAL_TIMES = ('arrival', 'stamp')
 # ServoConfig fields that are the controller's own parameters, shared with the other modes.
 SHARED_WITH_SERVO = ('tolerance_m', 'settle_wait_s', 'captures_per_stop')
 
@@ -41,6 +45,7 @@ class ControllerParameters:
     model_robot: RobotParameters
     model_config: ModelConfig
     servo: ServoConfig | None           # in the servo mode: its settings, the shared ones too
+    goal_time: str = 'arrival'          # when a goal counts from (GOAL_TIMES)
 
     def controller(self) -> VisionFeedbackController | ServoSession:
         """What decides in the mode these parameters say."""
@@ -76,11 +81,14 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
     goal = list(node.declare_parameter('goal_m', [0.0]).value)
     if len(goal) != 2 and goal != [0.0]:
         raise ParameterError(f'goal_m must be [x_m, y_m] (or [0.0] for none), got {goal}')
+    goal_time = node.declare_parameter('goal_time', 'arrival').value
+    if goal_time not in GOAL_TIMES:
+        raise ParameterError(f'goal_time must be one of {list(GOAL_TIMES)}, got {goal_time!r}')
     source, fixed = _declare_uncertainty(node)
     return ControllerParameters(limits, config, frame_id, platform_center, platform_size,
                                 goal if len(goal) == 2 else None,
                                 source, fixed, _declare_model_robot(node),
-                                _declare_model_config(node), servo)
+                                _declare_model_config(node), servo, goal_time)
 
 
 def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> FeedbackConfig | str:
