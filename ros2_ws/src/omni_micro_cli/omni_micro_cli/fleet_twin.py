@@ -32,8 +32,9 @@ from omni_micro_control.feedback import (
     Outcome,
     VisionFeedbackController,
 )
-from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, FleetPlan, Leg
-from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
+from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
+from omni_micro_control.fleet_plan import FleetPlan
+from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M, point_segment_distance
 from omni_micro_control.model_based import planner_for
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
@@ -42,10 +43,6 @@ from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator
 from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, Capture, CaptureRule, StationaryCamera
 
-# A long leg is driven through points this far apart: a wheel offset turns each move a little, so
-# a robot sent 140 mm at once strayed 1.61 mm from its leg (8 robots, offsets up to 3 deg), more
-# than the 1.5 mm per robot the planner's clearance leaves (omni_micro_control.fleet_roadmap).
-SUB_GOAL_SPACING_M = 24e-3
 # What ended a fleet run.
 DONE, LOST, CONTACT, TIMEOUT = 'done', 'lost', 'contact', 'timeout'
 
@@ -86,7 +83,7 @@ class FleetResult:
 class _Robot:
     """One robot of the fleet: its dynamics, its camera's view of it, its controller."""
 
-    def __init__(self, index: int, legs: tuple[Leg, ...], robot: RobotParameters,
+    def __init__(self, index: int, legs: LegDispatcher, robot: RobotParameters,
                  start: RobotState, seed: int, config: FeedbackConfig, limits: MotorLimits,
                  rig: CameraRig, rule: CaptureRule | None, period_s: float) -> None:
         self.index = index
@@ -97,42 +94,25 @@ class _Robot:
         self.camera = StationaryCamera(rig, rule, seed)
         self.watcher = MoveWatcher()
         self.controller: VisionFeedbackController | None = None
-        self.sub_goals: list[tuple[float, float]] = []   # of the leg under way, in order
         self.run = RobotRun(index)
         self.route: list[tuple[float, float, float, float]] = []
 
-    @property
-    def leg(self) -> Leg | None:
-        return self.legs[self.run.legs_done] if self.run.legs_done < len(self.legs) else None
-
-    def start_leg(self, now_s: float) -> None:
-        leg = self.leg
-        assert leg is not None
-        pieces = max(1, math.ceil(math.dist(leg.start_m, leg.end_m) / SUB_GOAL_SPACING_M))
-        self.sub_goals = [(leg.start_m[0] + (leg.end_m[0] - leg.start_m[0]) * k / pieces,
-                           leg.start_m[1] + (leg.end_m[1] - leg.start_m[1]) * k / pieces)
-                          for k in range(1, pieces + 1)]
-        self._aim(now_s)
-
-    def _aim(self, now_s: float) -> None:
-        """The controller, sent to the next point of the leg (its end to the leg's tolerance)."""
-        leg = self.leg
-        assert leg is not None
-        goal = self.sub_goals.pop(0)
-        tolerance = leg.tolerance_m if not self.sub_goals else WAYPOINT_TOLERANCE_M
-        config = replace(self.config, tolerance_m=tolerance)
+    def aim(self, order: GoalOrder, now_s: float) -> None:
+        """The controller, sent to the next point of its leg, as the dispatcher says."""
+        config = replace(self.config, tolerance_m=order.tolerance_m)
         self.controller = VisionFeedbackController(config, planner_for(config, None,
                                                                        self.limits, None))
-        self.controller.set_goal(goal, now_s)
+        self.controller.set_goal(order.goal_m, now_s)
 
     def step(self) -> Finished | None:
         """One period: the robot moves, the camera sees it, the controller decides."""
         sample = self.grid.advance()
         state = sample.state
         self.route.append((sample.time_s, state.x_m, state.y_m, state.phi_rad))
-        if self.controller is not None and self.leg is not None:
-            self.run.off_leg_m = max(self.run.off_leg_m, _off_segment(
-                (state.x_m, state.y_m), self.leg.start_m, self.leg.end_m))
+        leg = self.legs.leg(self.index)
+        if self.controller is not None and leg is not None:
+            self.run.off_leg_m = max(self.run.off_leg_m, float(point_segment_distance(
+                np.array((state.x_m, state.y_m)), np.array(leg.start_m), np.array(leg.end_m))))
         stamp = through_stamp(sample.time_s)
         forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
         events = self.camera.on_odometry(stamp, state.x_m, state.y_m,
@@ -163,12 +143,12 @@ class _Robot:
 
     def _finish_leg(self, finished: Finished, now_s: float) -> Finished | None:
         self.controller = None
-        leg = self.leg
-        assert leg is not None
-        if finished.outcome is Outcome.REACHED and self.sub_goals:
-            self._aim(now_s)
-            return None
         if finished.outcome is Outcome.REACHED:
+            following, leg = self.legs.reached(self.index)
+            if following is not None:
+                self.aim(following, now_s)
+                return None
+            assert leg is not None
             self.run.legs_done += 1
             state = self.grid.simulator.state
             for _ in leg.tasks:
@@ -178,15 +158,6 @@ class _Robot:
         else:
             self.run.outcome = f'{finished.outcome.value}: {finished.reason}'
         return finished
-
-
-def _off_segment(point: tuple[float, float], start: tuple[float, float],
-                 end: tuple[float, float]) -> float:
-    dx, dy = end[0] - start[0], end[1] - start[1]
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 == 0.0 else min(1.0, max(0.0, ((point[0] - start[0]) * dx
-                                                     + (point[1] - start[1]) * dy) / length2))
-    return math.hypot(point[0] - start[0] - t * dx, point[1] - start[1] - t * dy)
 
 
 def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
@@ -202,7 +173,8 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
     """
     config = config or FeedbackConfig()
     limits = limits or MotorLimits()
-    fleet = [_Robot(k, plan.legs[k], robots[k],
+    dispatcher = LegDispatcher(plan)
+    fleet = [_Robot(k, dispatcher, robots[k],
                     RobotState(x_m=plan.starts_m[k][0], y_m=plan.starts_m[k][1]),
                     seed * 1000 + k, config, limits, rig, rule, period_s)
              for k in range(len(plan.starts_m))]
@@ -215,11 +187,9 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
     total = sum(len(tasks) for tasks in plan.tasks)
     done = 0
     while True:
-        for robot in fleet:
-            if robot.controller is None and robot.leg is not None and all(
-                    fleet[other].run.legs_done > leg for other, leg in robot.leg.waits_for):
-                robot.start_leg(now_s)
-        if all(robot.leg is None for robot in fleet):
+        for order in dispatcher.startable():
+            fleet[order.robot].aim(order, now_s)
+        if dispatcher.finished:
             reason = f'every task done in {now_s:.2f} s'
             break
         if now_s > max_sim_time_s:

@@ -137,7 +137,7 @@ def build_roadmap(points_m: list[tuple[float, float]], *, pitch_m: float = PITCH
                    conflicts, clearance_m)
 
 
-def _point_segment(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+def point_segment_distance(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Distances of points to segments, elementwise over the leading axes."""
     along = ends - starts
     length2 = np.sum(along * along, axis=-1)
@@ -156,8 +156,9 @@ def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def pair_distances(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarray
                    ) -> np.ndarray:
     """Closest distances between segments a0[i]-a1[i] and b0[i]-b1[i] (2-D), elementwise."""
-    distance = np.minimum.reduce([_point_segment(a0, b0, b1), _point_segment(a1, b0, b1),
-                                  _point_segment(b0, a0, a1), _point_segment(b1, a0, a1)])
+    distance = np.minimum.reduce([
+        point_segment_distance(a0, b0, b1), point_segment_distance(a1, b0, b1),
+        point_segment_distance(b0, a0, a1), point_segment_distance(b1, a0, a1)])
     # Proper crossings (each segment's ends on either side of the other) touch: distance 0.
     crossing = ((_cross(b0, b1, a0) * _cross(b0, b1, a1) < 0.0)
                 & (_cross(a0, a1, b0) * _cross(a0, a1, b1) < 0.0))

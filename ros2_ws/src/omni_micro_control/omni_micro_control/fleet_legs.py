@@ -1,0 +1,99 @@
+"""Which goal each robot of a fleet is given next, as goals are reached: the plan's legs in order,
+each driven through points at most ``SUB_GOAL_SPACING_M`` apart, a leg started only once the legs
+it waits for have ended (the action dependency graph of :mod:`omni_micro_control.fleet_plan`).
+
+Plain Python, shared by the fleet twin (one process) and the fleet graph's coordinator (goals
+on each robot's ``/robot_k/goal_pose``), so that both hand out the same goals in the same order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, FleetPlan, Leg
+
+# A long leg is driven through points this far apart: a wheel offset turns each move a little, so
+# a robot sent 140 mm at once strayed 1.61 mm from its leg (8 robots, offsets up to 3 deg), more
+# than the 1.5 mm per robot the planner's clearance leaves (omni_micro_control.fleet_roadmap).
+SUB_GOAL_SPACING_M = 24e-3
+
+
+@dataclass(frozen=True)
+class GoalOrder:
+    """Robot ``robot`` is to go to ``goal_m``, reached within ``tolerance_m``."""
+
+    robot: int
+    goal_m: tuple[float, float]
+    tolerance_m: float
+
+
+@dataclass
+class _Progress:
+    legs: tuple[Leg, ...]
+    legs_done: int = 0
+    points: list[tuple[float, float]] = field(default_factory=list)   # of the leg under way
+    driving: bool = False
+
+    @property
+    def leg(self) -> Leg | None:
+        return self.legs[self.legs_done] if self.legs_done < len(self.legs) else None
+
+
+class LegDispatcher:
+    """Hands out each robot's goals for ``plan``: :meth:`startable` at the start and after each
+    leg's end, :meth:`reached` as a robot reaches the goal it was given."""
+
+    def __init__(self, plan: FleetPlan) -> None:
+        self.robots = [_Progress(legs) for legs in plan.legs]
+
+    def legs_done(self, robot: int) -> int:
+        return self.robots[robot].legs_done
+
+    def leg(self, robot: int) -> Leg | None:
+        """The leg robot ``robot`` drives, or drives next (None: it has driven them all)."""
+        return self.robots[robot].leg
+
+    def driving(self, robot: int) -> bool:
+        return self.robots[robot].driving
+
+    @property
+    def finished(self) -> bool:
+        return all(progress.leg is None for progress in self.robots)
+
+    def startable(self) -> list[GoalOrder]:
+        """The first goal of every robot now free to start its next leg (in robot order)."""
+        orders = []
+        for index, progress in enumerate(self.robots):
+            leg = progress.leg
+            if progress.driving or leg is None or not all(
+                    self.robots[other].legs_done > other_leg
+                    for other, other_leg in leg.waits_for):
+                continue
+            pieces = max(1, math.ceil(math.dist(leg.start_m, leg.end_m) / SUB_GOAL_SPACING_M))
+            progress.points = [
+                (leg.start_m[0] + (leg.end_m[0] - leg.start_m[0]) * k / pieces,
+                 leg.start_m[1] + (leg.end_m[1] - leg.start_m[1]) * k / pieces)
+                for k in range(1, pieces + 1)]
+            progress.driving = True
+            orders.append(self._next_point(index))
+        return orders
+
+    def _next_point(self, robot: int) -> GoalOrder:
+        progress = self.robots[robot]
+        assert progress.leg is not None
+        goal = progress.points.pop(0)
+        # The leg's end to the leg's tolerance (its task's camera), the points on the way looser.
+        tolerance = progress.leg.tolerance_m if not progress.points else WAYPOINT_TOLERANCE_M
+        return GoalOrder(robot, goal, tolerance)
+
+    def reached(self, robot: int) -> tuple[GoalOrder | None, Leg | None]:
+        """Robot ``robot`` reached its goal: its next point (None when that ended its leg), and
+        the leg it ended (whose tasks are then done; then call :meth:`startable`)."""
+        progress = self.robots[robot]
+        if progress.points:
+            return self._next_point(robot), None
+        ended = progress.leg
+        progress.legs_done += 1
+        progress.driving = False
+        return None, ended
