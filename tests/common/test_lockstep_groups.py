@@ -130,3 +130,20 @@ def test_an_outcome_report_round_trips_and_a_coordinators_stands_alone():
     assert Ack.from_values('controller_node', ack.to_values()) == ack
     with pytest.raises(LockstepError, match='none of processed_ns'):
         Ack.from_values('controller_node', [('outcome_ns', '3')])
+
+
+def test_two_robots_goals_ending_at_the_same_stamp_are_each_held_for_their_own_robot():
+    """The coordinator reports for each robot in its namespace: robot 0's end handled does not
+    release robot 1's end at the same stamp (it once did, with one coordinator for all)."""
+    nodes = [f'robot_{k}/{node}' for k in (0, 1)
+             for node in ('controller_node', 'omni_micro_orchestration')]
+    groups = LockstepGroups(['robot_0', 'robot_1'], nodes, PERIOD, LEAD)
+    for k in (0, 1):
+        groups.on_ack(Ack(f'robot_{k}/omni_micro_orchestration', None, outcome_handled_ns=-1))
+        groups.on_ack(Ack(f'robot_{k}/controller_node', 600 * MS, outcome_ns=600 * MS))
+    groups.on_ack(Ack('robot_0/omni_micro_orchestration', None, outcome_handled_ns=600 * MS))
+    assert groups.reachable_ns() == -math.inf
+    assert groups.waiting_for() == ('robot_1: robot_1/omni_micro_orchestration to handle the '
+                                    'end of a goal at 600000000 ns')
+    groups.on_ack(Ack('robot_1/omni_micro_orchestration', None, outcome_handled_ns=600 * MS))
+    assert groups.reachable_ns() == 600 * MS + LEAD

@@ -87,10 +87,16 @@ class NodeSpec:
     lockstep: bool = False
     # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
     hosts: tuple[NodeSpec, ...] = ()
+    # A robot's namespace in a micro-factory's graph (omni_micro_bringup.fleet_composition).
+    namespace: str = ''
 
     @property
     def name(self) -> str:
-        return LOOP_CONTAINER if self.hosts else self.executable
+        """The process's name (its log is <name>.log): ``robot_1.controller_node`` in a
+        robot's namespace."""
+        if self.hosts:
+            return LOOP_CONTAINER
+        return f'{self.namespace}.{self.executable}' if self.namespace else self.executable
 
     @property
     def reports_lockstep(self) -> bool:

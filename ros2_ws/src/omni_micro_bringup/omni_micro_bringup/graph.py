@@ -138,7 +138,7 @@ class Graph:
     RESPAWNABLE = ('vision_node', 'controller_node')
 
     def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path,
-                 lease_fd: int | None = None) -> None:
+                 lease_fd: int | None = None, specs: list[NodeSpec] | None = None) -> None:
         self.options = options
         self.domain_id = domain_id
         self.log_dir = log_dir
@@ -149,7 +149,7 @@ class Graph:
         self._lifeline_read, self._lifeline_write = os.pipe()
         env[LIFELINE_ENV] = str(self._lifeline_read)
         inherited = (self._lifeline_read,) + (() if lease_fd is None else (lease_fd,))
-        specs = all_specs(options)
+        specs = all_specs(options) if specs is None else specs
         if options.respawn:
             specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
                      for spec in specs]
@@ -228,8 +228,9 @@ class Graph:
         codes: dict[str, int | None] = {}
         took: dict[str, float] = {}
         for phase in SHUTDOWN_PHASES:
+            # Every robot's controller with the controllers.
             members = [p for p in self.processes
-                       if (p.name in phase if phase else p.name not in named)]
+                       if (p.role in phase if phase else p.role not in named)]
             # The recorder finishes its bag after its signal: it reads the bag back and writes
             # it again in the order of simulated time (a gigabyte of images takes seconds).
             recorder = phase is not None and 'bag_recorder' in phase

@@ -122,6 +122,11 @@ class NodeProcess:
     def name(self) -> str:
         return self.spec.name
 
+    @property
+    def role(self) -> str:
+        """What the node is, whichever robot's: ``controller_node`` for ``robot_1``'s too."""
+        return self.spec.executable if self.spec.namespace else self.name
+
     def start(self) -> None:
         self.starts += 1
         self._ready.clear()

@@ -183,7 +183,7 @@ class LockstepGate:
         # Goals' ends (controllers' outcome_ns) and who hands out the next goals (coordinators,
         # known from their first report on, as what they handled, across resets).
         self._awaited_outcomes: dict[str, int] = {}
-        self._handled_outcomes: dict[str, deque[int]] = {}
+        self._handled_outcomes: dict[str, set[int]] = {}   # all kept: one per goal
         self._coordinators: set[str] = set()
         self.reset(0)
 
@@ -240,9 +240,7 @@ class LockstepGate:
             self._awaited_outcomes[ack.node] = ack.outcome_ns
         if ack.outcome_handled_ns is not None:
             self._coordinators.add(ack.node)
-            self._handled_outcomes.setdefault(
-                ack.node, deque(maxlen=self.RECEIVED_COMMANDS_KEPT)).append(
-                    ack.outcome_handled_ns)
+            self._handled_outcomes.setdefault(ack.node, set()).add(ack.outcome_handled_ns)
         if ack.watcher:
             assert ack.command_handled_ns is not None
             self._watched_up_to[ack.node] = max(

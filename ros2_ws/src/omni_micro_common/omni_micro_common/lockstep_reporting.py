@@ -19,11 +19,12 @@ class LockstepReporter:
     """Publishes this node's lockstep reports (see :mod:`omni_micro_common.lockstep`).
 
     Not counted among the node's publications: they are the graph's plumbing, not its data.
-    A node in a robot's namespace reports as ``robot_k/name`` (several robots, one lockstep).
+    A node in a robot's namespace reports as ``robot_k/name`` (several robots, one lockstep);
+    ``name`` reports under another (a fleet's coordinator, once for each robot).
     """
 
-    def __init__(self, node: Node) -> None:
-        self._name = qualified_node_name(node.get_namespace(), node.get_name())
+    def __init__(self, node: Node, name: str | None = None) -> None:
+        self._name = name or qualified_node_name(node.get_namespace(), node.get_name())
         self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS)
 

@@ -178,7 +178,8 @@ class ControllerNode(Node):
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
         if replaced is not None:
             self.report(replaced, at_s=stopped_at_s)
-        self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm')
+        self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm, still since '
+                               f'{stopped_at_s:.3f} s')
         self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
 
     # -- events ------------------------------------------------------------------------------

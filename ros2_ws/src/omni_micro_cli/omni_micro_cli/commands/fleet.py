@@ -10,10 +10,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import positive_int, seed_number, whole_number_in
+from omni_micro_cli.arguments import (
+    positive_int,
+    real_time_factor,
+    seed_number,
+    whole_number_in,
+)
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.fleet_inputs import MAX_ROBOTS, Fleet, fleet_from
-from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file
+from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file, output_folder
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 
@@ -26,8 +31,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     f'kept {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
                     'time) and every robot '
                     'drives its legs once those it waits for have ended. Runs in one process '
-                    '(the fleet twin), not through the node graph. Ends when every task is '
-                    'done, or at the first robot lost or two robots touching (exit 1).')
+                    '(the fleet twin), or with --graph through the node graph (one '
+                    'dynamics_node for all robots, each robot\'s vision_node and '
+                    'controller_node under /robot_k). Ends when every task is done, or at the '
+                    'first robot lost or two robots touching (exit 1).')
     parser.add_argument('--robots', default='4', metavar='N|FILE',
                         help=f'how many robots (1..{MAX_ROBOTS}, at lattice places from the '
                              'platform\'s left edge, wheel offsets drawn from the seed), or a '
@@ -42,6 +49,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
     parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
                         help='give up after this much simulated time (default 1800 s)')
+    parser.add_argument('--graph', action='store_true',
+                        help='run through the node graph, in lockstep (loopback only, a '
+                             'private ROS_DOMAIN_ID; logs in out/runs/)')
+    parser.add_argument('--rtf', type=real_time_factor, default=math.inf, metavar='R',
+                        help='with --graph: simulated seconds per wall second, or max (the '
+                             'default): as fast as the nodes allow; the run is the same')
+    parser.add_argument('--log-dir', type=output_folder, default='out/runs', metavar='DIR',
+                        help='with --graph: where each node\'s log goes, in a folder per run '
+                             '(default out/runs)')
     parser.add_argument('--record', type=Path, metavar='BAG',
                         help='write the run into a rosbag2 bag (mcap): each robot\'s odometry '
                              'and goals under /robot_k/ (docs/fleet.md); replay --robot k plays '
@@ -59,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_control.fleet_plan import PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
 
+    if args.graph and args.record is not None:
+        raise UsageError('--record with --graph is not built yet: record the fleet twin\'s run '
+                         '(leave --graph out)')
+    if not args.graph and args.rtf != math.inf:
+        raise UsageError('--rtf paces the node graph: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
@@ -79,8 +100,11 @@ def run(args: argparse.Namespace) -> int:
     def progress(done: int, total: int, sim_time_s: float) -> None:
         echo_to_stderr(f'  {done}/{total} goals reached at {sim_time_s:.1f} s')
 
-    result = run_fleet(plan, robots=fleet.robots, seed=args.seed,
-                       max_sim_time_s=float(args.max_sim_time), on_progress=progress)
+    if args.graph:
+        result = through_graph(plan, fleet, args, progress)
+    else:
+        result = run_fleet(plan, robots=fleet.robots, seed=args.seed,
+                           max_sim_time_s=float(args.max_sim_time), on_progress=progress)
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
     print_table(summary)
@@ -94,6 +118,47 @@ def run(args: argparse.Namespace) -> int:
     if result.outcome != DONE:
         raise RunFailed(f'{result.outcome}: {result.reason}')
     return 0
+
+
+def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: Any) -> Any:
+    """The run through the node graph, told as the fleet twin tells its own."""
+    import numpy as np
+
+    from omni_micro_bringup.fleet_graph import run_fleet_graph
+    from omni_micro_cli.fleet_twin import FleetResult, RobotRun
+    from omni_micro_control.fleet_roadmap import point_segment_distance
+    from omni_micro_sim.state import RobotState
+
+    result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
+                             log_root=args.log_dir, timeout_s=float(args.max_sim_time),
+                             on_progress=progress)
+    echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
+                   f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
+    runs = []
+    for k, log in enumerate(result.robots):
+        route = np.array(log.route) if log.route else np.zeros((0, 4))
+        off_leg = 0.0
+        for started, ended, leg in log.legs:
+            during = route[(route[:, 0] >= started) & (route[:, 0] <= ended)] \
+                if len(route) else route
+            if len(during):
+                off_leg = max(off_leg, float(np.max(point_segment_distance(
+                    during[:, 1:3], np.array(leg.start_m), np.array(leg.end_m)))))
+        deviations = []
+        for done_s, goal in zip(log.tasks_done_s, [task.goal_m for task in plan.tasks[k]],
+                                strict=False):
+            after = route[route[:, 0] >= done_s] if len(route) else route
+            deviations.append(math.dist(after[0, 1:3], goal) if len(after) else math.nan)
+        # Where it was when the run ended (a robot at rest still creeps by 1e-14 m a tick: the
+        # last sample received would depend on when the graph was stopped).
+        at_end = route[route[:, 0] >= result.sim_time_s] if len(route) else route
+        final = at_end[0] if len(at_end) else (0.0, *plan.starts_m[k], 0.0)
+        runs.append(RobotRun(k, len(log.legs), log.tasks_done_s, deviations, log.moves,
+                             off_leg, log.outcome,
+                             RobotState(x_m=float(final[1]), y_m=float(final[2]),
+                                        phi_rad=float(final[3])), route))
+    return FleetResult(result.outcome, result.reason, result.sim_time_s, runs,
+                       result.closest_gap_m, result.closest_pair)
 
 
 def record(bag: Path, plan: Any, result: Any) -> None:

@@ -1,0 +1,124 @@
+"""What a micro-factory's graph starts: one dynamics_node simulating every robot on one clock,
+and per robot ``robot_k`` its vision_node and controller_node in the namespace ``/robot_k``.
+
+One dynamics process for all (not one per robot): the robots share one ``/clock`` and one
+lockstep, which one process owning time gives by construction; N processes would each need a
+clock of their own and a protocol to keep them level. A robot's nodes are the single robot's,
+unchanged: their topics, absolute in the code (``/odom``), are remapped into the namespace
+(``/robot_k/odom``), their sections of the params files read as ``/robot_k/<node>`` (ROS matches
+a bare section name only in the root namespace), and they report on the one ``/lockstep`` as
+``robot_k/<node>`` (:mod:`omni_micro_common.lockstep_groups`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE, NodeSpec
+from omni_micro_bringup.parameters import (
+    format_parameter,
+    graph_params_file,
+    resolve_executable,
+)
+from omni_micro_common.lockstep_groups import qualified_node_name
+from omni_micro_common.params import load_params_file
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_THROTTLE_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_THROTTLE_TOPIC,
+    ODOM_TOPIC,
+    TRACKER_STATUS_TOPICS,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
+from omni_micro_sim.parameters import RobotParameters
+
+# Every topic that is a robot's own; /clock and /lockstep stay the graph's.
+ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
+                JOINT_STATES_THROTTLE_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
+                CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, *CAPTURE_TOPICS.values(),
+                *CAPTURE_COVARIANCE_TOPICS.values(), *CAPTURE_IN_MOTION_TOPICS.values(),
+                *TRACKER_STATUS_TOPICS.values())
+# A robot's nodes, each with its package.
+ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
+
+
+def robot_name(index: int) -> str:
+    return f'robot_{index}'
+
+
+def robot_topic(index: int, topic: str) -> str:
+    return f'/{robot_name(index)}{topic}'
+
+
+def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Path]:
+    """Each params file with its robot nodes' sections renamed ``/<robot>/<node>``, written in
+    ``folder`` (the run's log folder)."""
+    written = []
+    for number, source in enumerate(sources):
+        sections = load_params_file(source)
+        renamed = {f'/{robot}/{node}': {'ros__parameters': values}
+                   for node, values in sections.items()
+                   if node in {name for _, name in ROBOT_NODES}}
+        path = folder / f'{robot}.params.{number}.yaml'
+        path.write_text(yaml.safe_dump(renamed, sort_keys=False))
+        written.append(path)
+    return written
+
+
+def _command(package: str, executable: str, params: list[Path],
+             overrides: dict[str, object], remaps: tuple[str, ...] = ()) -> tuple[str, ...]:
+    argv = [str(resolve_executable(package, executable)), '--ros-args']
+    for rule in remaps:
+        argv += ['-r', rule]
+    for path in params:
+        argv += ['--params-file', str(path)]
+    for name, value in overrides.items():
+        argv += ['-p', f'{name}:={format_parameter(value)}']
+    return tuple(argv)
+
+
+def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
+                real_time_factor: float, params_files: tuple[Path, ...],
+                folder: Path) -> list[NodeSpec]:
+    """The processes of a fleet's graph: dynamics for all, then each robot's two nodes."""
+    shipped = [graph_params_file(), *params_files]
+    count = len(starts_m)
+    # Each robot's nodes, and the orchestration as each robot's coordinator (fleet_graph).
+    taking_part = [qualified_node_name(robot_name(k), node) for k in range(count)
+                   for node in (*(name for _, name in ROBOT_NODES), ORCHESTRATOR_NODE)]
+    awaited = [entry for k in range(count) for entry in (
+        f'{robot_name(k)}/vision_node:{robot_topic(k, ODOM_TOPIC)}',
+        f'{robot_name(k)}/controller_node:{robot_topic(k, JOINT_STATES_TOPIC)}',
+        f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}')]
+    dynamics = {
+        'paused': True, 'real_time_factor': float(real_time_factor),
+        'robots': [robot_name(k) for k in range(count)],
+        'robot_poses': [float(v) for x, y in starts_m for v in (x, y, 0.0)],
+        'robot_wheel_offsets_rad': [float(v) for robot in robots
+                                    for v in robot.wheel_offsets_rad],
+        'lockstep_nodes': taking_part, 'awaited_readers': awaited}
+    specs = [NodeSpec('omni_micro_sim', 'dynamics_node', command=_command(
+        'omni_micro_sim', 'dynamics_node', shipped, dynamics))]
+    for k in range(count):
+        robot = robot_name(k)
+        remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
+                                       for topic in ROBOT_TOPICS))
+        params = namespaced_params(shipped, robot, folder)
+        own: dict[str, dict[str, object]] = {'vision_node': {
+                   # Each robot's captures their own noise, as the fleet twin draws it.
+                   'seed': int(seed) * 1000 + k,
+                   'covariance_readers': [f'{robot}/controller_node']},
+               'controller_node': {'goal_time': 'stamp'}}
+        for package, node in ROBOT_NODES:
+            specs.append(NodeSpec(package, node, namespace=robot, command=_command(
+                package, node, params, own[node], remaps)))
+    return specs

@@ -1,0 +1,320 @@
+"""A micro-factory run through the node graph: the robots of a fleet plan, each driven by its own
+controller_node on its own vision_node's captures, one dynamics_node simulating them all.
+
+The orchestration is the coordinator: it hands each robot its goals on ``/robot_k/goal_pose``
+as :class:`~omni_micro_control.fleet_legs.LegDispatcher` says (the fleet twin's dispatcher),
+each goal's tolerance set on that robot's controller first. It takes part in the lockstep: once
+a controller reports the end of a goal, simulated time stands still until the coordinator has
+handed out what that end allows and reported it handled, and every goal is stamped with the end
+it follows (the later of the ends a leg waits for), which the controller counts from
+(``goal_time: stamp``). The same plan and seed so give the same run at any speed and load.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
+from omni_micro_bringup.errors import RunFailed, UsageError
+from omni_micro_bringup.fleet_composition import fleet_specs, robot_name, robot_topic
+from omni_micro_bringup.graph import Graph, new_log_dir
+from omni_micro_bringup.monitor import GraphMonitor
+from omni_micro_bringup.processes import DomainLease
+from omni_micro_bringup.supervisor import Supervisor
+from omni_micro_common.conventions import (
+    STATUS_TIME_KEY,
+    join_stamp,
+    quaternion_to_yaw,
+    split_stamp,
+)
+from omni_micro_common.lockstep import Ack
+from omni_micro_common.lockstep_reporting import LockstepReporter
+from omni_micro_common.qos import DATA_QOS, STATUS_QOS
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CONTROLLER_STATUS_TOPIC,
+    GOAL_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_THROTTLE_TOPIC,
+    ODOM_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+)
+from omni_micro_control.feedback import OUTCOME_NAMES
+from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
+from omni_micro_control.fleet_plan import FleetPlan, Leg
+from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
+from omni_micro_sim.parameters import RobotParameters
+
+# How long a goal waits for its controller to take it before it is sent again.
+GOAL_RESEND_S = 2.0
+
+
+@dataclass
+class RobotLog:
+    """One robot's part of a fleet graph run, as the coordinator saw it."""
+
+    tasks_done_s: list[float] = field(default_factory=list)
+    moves: int = 0
+    outcome: str = ''
+    route: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, phi
+    legs: list[tuple[float, float, Leg]] = field(default_factory=list)   # started, ended, leg
+
+
+@dataclass
+class FleetGraphResult:
+    outcome: str                        # done, lost, contact or timeout (as the fleet twin's)
+    reason: str
+    sim_time_s: float
+    robots: list[RobotLog]
+    closest_gap_m: float                # of the centres, on the robots' 10 Hz odometry
+    closest_pair: tuple[int, int] | None
+    wall_time_s: float
+    log_dir: Path
+    domain_id: int
+
+
+class FleetMonitor(GraphMonitor):
+    """The orchestration's node with every robot's goals, statuses and odometry, and its part
+    in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
+
+    def __init__(self, domain_id: int, count: int,
+                 echo: Callable[[str], None] | None = None) -> None:
+        super().__init__(domain_id, echo=echo)
+        self.count = count
+        self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
+        self.robots = [RobotLog() for _ in range(count)]
+        self.goal_publishers = [self.node.create_publisher(
+            PoseStamped, robot_topic(k, GOAL_TOPIC), 10) for k in range(count)]
+        self.tolerance_clients = [self.node.create_client(
+            SetParameters, f'/robot_{k}/controller_node/set_parameters') for k in range(count)]
+        for k in range(count):
+            self.node.create_subscription(
+                DiagnosticStatus, robot_topic(k, CONTROLLER_STATUS_TOPIC),
+                functools.partial(self._on_robot_status, k), STATUS_QOS)
+            self.node.create_subscription(
+                Odometry, robot_topic(k, ODOM_THROTTLE_TOPIC),
+                functools.partial(self._on_robot_odometry, k), DATA_QOS)
+        # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
+        # and each end is held until that robot's is handled.
+        self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
+
+    def _on_robot_status(self, robot: int, msg: DiagnosticStatus) -> None:
+        values = {item.key: item.value for item in msg.values}
+        values['message'] = msg.message
+        self.fleet_statuses.append((robot, values))
+
+    def _on_robot_odometry(self, robot: int, msg: Odometry) -> None:
+        pose = msg.pose.pose
+        self.robots[robot].route.append((
+            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec), pose.position.x,
+            pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
+
+    def report_handled(self, robot: int, outcome_ns: int) -> None:
+        self.reporters[robot].report(Ack(coordinator_name(robot), None,
+                                         outcome_handled_ns=outcome_ns))
+
+    def give(self, graph: Supervisor, order: GoalOrder, stamp_s: float,
+             timeout_s: float = 30.0) -> None:
+        """Set the robot's controller to the order's tolerance, then hand it the goal stamped
+        ``stamp_s``, and wait until it has taken it."""
+        deadline = time.monotonic() + timeout_s
+        client = self.tolerance_clients[order.robot]
+        request = SetParameters.Request(parameters=[Parameter(
+            name='tolerance_m', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                     double_value=float(order.tolerance_m)))])
+        while True:
+            graph.check_alive()
+            future = client.call_async(request)
+            self.executor.spin_until_future_complete(future, timeout_sec=GOAL_RESEND_S)
+            if future.done() and future.result() is not None:
+                break
+            client.remove_pending_request(future)
+            if time.monotonic() > deadline:
+                raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its '
+                                f'tolerance within {timeout_s:g} s')
+        result = future.result()
+        if not result.results[0].successful:
+            raise UsageError(f'robot_{order.robot}\'s controller_node refused tolerance_m '
+                             f'{order.tolerance_m!r}: {result.results[0].reason}')
+        publisher = self.goal_publishers[order.robot]
+        while publisher.get_subscription_count() < 1:
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'nobody reads {publisher.topic_name} within {timeout_s:g} s')
+            self.spin_for(0.05)
+        goal = PoseStamped()
+        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
+        goal.header.frame_id = 'platform'
+        goal.pose.position.x, goal.pose.position.y = map(float, order.goal_m)
+        goal.pose.orientation.w = 1.0
+        seen = len(self.fleet_statuses)
+        publisher.publish(goal)
+        resend_at = time.monotonic() + GOAL_RESEND_S
+        while True:
+            for robot, status in self.fleet_statuses[seen:]:
+                if robot != order.robot:
+                    continue
+                if status['message'] == 'goal rejected':
+                    raise UsageError(f'robot_{robot}\'s controller_node rejected the goal '
+                                     f'{order.goal_m}: {status.get("reason")}')
+                if status['message'] == 'settling':
+                    return
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its goal '
+                                f'within {timeout_s:g} s')
+            if time.monotonic() > resend_at:
+                publisher.publish(goal)
+                resend_at = time.monotonic() + GOAL_RESEND_S
+            self.spin_for(0.02)
+
+    def wait_for_routes_past(self, graph: Supervisor, stamp_s: float, timeout_s: float) -> None:
+        deadline = time.monotonic() + timeout_s
+        while any(not log.route or log.route[-1][0] < stamp_s for log in self.robots):
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'no odometry of every robot at or after t={stamp_s:.3f} s')
+            self.spin_for(0.05)
+
+
+def coordinator_name(robot: int) -> str:
+    """How the coordinator reports on /lockstep for robot ``robot``: in its namespace."""
+    return f'{robot_name(robot)}/{ORCHESTRATOR_NODE}'
+
+
+def ready_topics(count: int) -> list[tuple[str, ...]]:
+    """What must be read before time starts: each robot's trajectories (the dynamics), wheels
+    (its controller), odometry (its camera) and captures (its controller)."""
+    return [(robot_topic(k, topic),) for k in range(count)
+            for topic in (WHEEL_TRAJECTORY_TOPIC, JOINT_STATES_TOPIC, ODOM_TOPIC,
+                          *CAPTURE_COVARIANCE_TOPICS.values())]
+
+
+def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int = 0,
+                    real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
+                    log_root: Path = Path('out/runs'), timeout_s: float = 1800.0,
+                    echo: Callable[[str], None] | None = None,
+                    on_progress: Callable[[int, int, float], None] | None = None,
+                    ) -> FleetGraphResult:
+    """Drive every robot of ``plan`` through the graph (``robots[k]``: robot k's true robot).
+
+    Raises
+    ------
+    RunFailed
+        A node died, the graph did not come up, or a controller did not take its goal.
+    """
+    count = len(plan.starts_m)
+    lease = DomainLease(None)
+    with lease as domain_id:
+        log_dir = new_log_dir(log_root)
+        specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
+                            log_dir)
+        graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root), domain_id,
+                      log_dir, lease.fileno, specs=specs)
+        monitor = FleetMonitor(domain_id, count, echo)
+        logs = monitor.robots
+        outcome, reason, now_s = 'done', '', 0.0
+        total = sum(len(tasks) for tasks in plan.tasks)
+        for log, tasks in zip(logs, plan.done_at_start, strict=True):
+            log.tasks_done_s += [0.0] * len(tasks)
+        try:
+            graph.start()
+            monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(count))
+            for k in range(count):
+                monitor.report_handled(k, -1)   # the coordinator takes part from here
+            dispatcher = LegDispatcher(plan)
+            ended_at: dict[tuple[int, int], float] = {}
+            last_end = [0.0] * count
+            started: dict[int, float] = {}
+
+            def give(order: GoalOrder, stamp_s: float) -> None:
+                started.setdefault(order.robot, stamp_s)
+                monitor.give(graph, order, stamp_s)
+
+            for order in dispatcher.startable():
+                give(order, 0.0)
+            monitor.set_paused(graph, False)
+            wall_start = time.monotonic()
+            seen = 0
+            while not dispatcher.finished:
+                if time.monotonic() - wall_start > timeout_s:
+                    outcome, reason = 'timeout', f'tasks left after {timeout_s:g} s of wall time'
+                    break
+                if seen == len(monitor.fleet_statuses):
+                    graph.check_alive()
+                    monitor.spin_for(0.02)
+                    continue
+                robot, status = monitor.fleet_statuses[seen]
+                seen += 1
+                if status['message'] == 'moving':
+                    logs[robot].moves += 1
+                if status['message'] not in OUTCOME_NAMES:
+                    continue
+                at_s = float(status[STATUS_TIME_KEY])
+                now_s = max(now_s, at_s)
+                if status['message'] != 'reached':
+                    outcome = 'lost'
+                    logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
+                    reason = f'robot {robot} {logs[robot].outcome}'
+                    break
+                following, ended = dispatcher.reached(robot)
+                if following is not None:
+                    give(following, at_s)
+                else:
+                    assert ended is not None
+                    ended_at[(robot, ended.index)] = at_s
+                    last_end[robot] = at_s
+                    logs[robot].legs.append((started.pop(robot), at_s, ended))
+                    logs[robot].tasks_done_s += [at_s] * len(ended.tasks)
+                    if on_progress is not None and ended.tasks:
+                        on_progress(sum(len(log.tasks_done_s) for log in logs), total, at_s)
+                    for order in dispatcher.startable():
+                        leg = dispatcher.leg(order.robot)
+                        assert leg is not None
+                        # From the later of the ends it follows: whichever came in first.
+                        give(order, max([last_end[order.robot],
+                                         *(ended_at[need] for need in leg.waits_for)]))
+                monitor.report_handled(robot, round(at_s * 1e9))
+            wall_time = time.monotonic() - wall_start
+            if outcome == 'done':
+                reason = f'every task done in {now_s:.2f} s'
+                monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
+        finally:
+            # Every robot's statuses as the coordinator took them, in its order.
+            (log_dir / 'statuses.jsonl').write_text(''.join(
+                json.dumps({'robot': robot, **status}) + '\n'
+                for robot, status in monitor.fleet_statuses))
+            monitor.close()
+            graph.stop()
+    gap, pair = closest_approach(logs)
+    if outcome == 'done' and gap < ROBOT_DIAMETER_M and pair is not None:
+        outcome = 'contact'
+        reason = (f'robots {pair[0]} and {pair[1]} touched: centres {gap * 1e3:.2f} mm apart, '
+                  '9 mm discs')
+    return FleetGraphResult(outcome, reason, now_s, logs, gap, pair, wall_time, log_dir,
+                            domain_id)
+
+
+def closest_approach(logs: list[RobotLog]) -> tuple[float, tuple[int, int] | None]:
+    """The closest two robots' centres came, at the stamps both have odometry for."""
+    closest, pair = math.inf, None
+    for a, b in itertools.combinations(range(len(logs)), 2):
+        positions = {t: (x, y) for t, x, y, _ in logs[b].route}
+        for t, x, y, _ in logs[a].route:
+            other = positions.get(t)
+            if other is not None and math.dist((x, y), other) < closest:
+                closest, pair = math.dist((x, y), other), (a, b)
+    return closest, pair

@@ -1,0 +1,82 @@
+"""A micro-factory through the node graph (`fleet --graph`): three robots crossing each other's
+goals, one dynamics_node for all, each robot's vision_node and controller_node under /robot_k:
+every goal reached within its tolerance, no two discs ever touching, and the same run, goal for
+goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time with
+both cores kept busy (docs/fleet.md, "Through the node graph")."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+ROBOTS = """robots:
+  - start_mm: [30, 0]
+    wheel_offsets_deg: [0, 3, 2]
+  - start_mm: [70, 0]
+    wheel_offsets_deg: [1, -2, 0]
+  - start_mm: [50, 24]
+"""
+# Each to where another starts or passes: every path crosses another's.
+TASKS = """tasks:
+  robot_0:
+    - goal_mm: [70, 0]
+  robot_1:
+    - goal_mm: [30, 0]
+  robot_2:
+    - goal_mm: [50, -24]
+"""
+GOALS_MM = [(70.0, 0.0), (30.0, 0.0), (50.0, -24.0)]
+
+
+def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / 'robots.yaml').write_text(ROBOTS)
+    (folder / 'tasks.yaml').write_text(TASKS)
+    done = omni_micro('fleet', '--graph', '--robots', str(folder / 'robots.yaml'), '--tasks',
+                      str(folder / 'tasks.yaml'), '--seed', '5', '--json', '--log-dir',
+                      str(folder / 'logs'), *extra)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    # One dynamics process for all, each robot's two nodes in their namespace.
+    (logs,) = (folder / 'logs').iterdir()
+    assert sorted(path.name for path in logs.glob('*.log')) == [
+        'dynamics_node.log', *(f'robot_{k}.{node}.log' for k in range(3)
+                               for node in ('controller_node', 'vision_node'))]
+    assert '3 robots (robot_0, robot_1, robot_2)' in (logs / 'dynamics_node.log').read_text()
+    return summary
+
+
+@pytest.fixture(scope='module')
+def as_fast_as_it_goes(omni_micro, tmp_path_factory) -> dict:
+    return fleet_through_graph(omni_micro, tmp_path_factory.mktemp('fleet') / 'max')
+
+
+def test_three_robots_cross_through_the_graph_clear_of_each_other(as_fast_as_it_goes):
+    fastest = as_fast_as_it_goes
+    assert fastest['outcome'] == 'done', fastest['reason']
+    # Clear of each other all along (9 mm discs; the planner keeps centres 12 mm apart, each
+    # robot within 1.5 mm of its legs).
+    assert fastest['closest_gap_mm'] > 9.0
+    for robot, goal in zip(fastest['robots'], GOALS_MM, strict=True):
+        assert robot['goals_reached'] == 1 and robot['outcome'] == 'done'
+        # Outside the micro field: reached to the macro camera's 50 um, true distance.
+        assert robot['deviation_um'][0] < 50.0
+        assert math.dist(robot['final_mm'], goal) < 0.05
+        assert robot['farthest_off_leg_mm'] < 1.5
+
+
+def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy(as_fast_as_it_goes,
+                                                                     omni_micro, tmp_path,
+                                                                     busy_machine):
+    """Two robots' goals ended at the same stamp once, and the coordinator's word for one
+    released the other's before its next goal was taken (robot 0 started 0.17 s later at full
+    speed): each robot has its own coordinator in the lockstep since."""
+    with busy_machine():
+        paced = fleet_through_graph(omni_micro, tmp_path / 'rtf2', '--rtf', '2')
+    fastest = dict(as_fast_as_it_goes)
+    for summary in (fastest, paced):
+        del summary['wall_s'], summary['planning_s']
+    assert paced == fastest
