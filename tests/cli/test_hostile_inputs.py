@@ -194,8 +194,17 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
 @pytest.mark.parametrize(('argv', 'line'), [
     (['rn'], "omni-micro: error: 'rn' is not a command; did you mean run? (omni-micro --help "
              'lists them)'),
-    (['run', '--goal', '100,0'], 'omni-micro run: error: the following arguments are required: '
-                                 '--goal-mm (omni-micro run --help lists the arguments)'),
+    (['run', '--goal', '100,0'], 'omni-micro: error: unrecognized arguments: --goal 100,0 '
+                                 '(omni-micro --help lists the arguments)'),
+    (['run'], 'omni-micro run: error: --goal-mm X,Y is needed (or --robots N|FILE for several '
+              'robots)'),
+    (['run', '--robots', '3', '--open-loop', '3', '--composed'],
+     "omni-micro run: error: --composed, --open-loop: a single robot's run only; with --robots "
+     'give --tasks, --seed, --rtf, --timeout, --log-dir, --json, --quiet'),
+    (['run', '--goal-mm', '1,0', '--tasks', 'tasks.yaml'],
+     'omni-micro run: error: --tasks gives several robots their goals: with --robots'),
+    (['fleet', '--rtf', '2'], 'omni-micro fleet: error: --rtf paces the node graph: give it with '
+                              '--graph'),
     (['run', '--goal-mm', '1,0', '--seed', '100000000000000000000000'],
      "omni-micro run: error: argument --seed: expected a whole number in [0, "
      "9223372036854775807] (a seed: a ROS integer parameter), got '100000000000000000000000' "

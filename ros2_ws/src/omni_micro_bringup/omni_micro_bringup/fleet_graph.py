@@ -205,11 +205,14 @@ def ready_topics(count: int) -> list[tuple[str, ...]]:
 
 def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int = 0,
                     real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
-                    log_root: Path = Path('out/runs'), timeout_s: float = 1800.0,
+                    log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
+                    timeout_s: float = 3600.0,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
-    """Drive every robot of ``plan`` through the graph (``robots[k]``: robot k's true robot).
+    """Drive every robot of ``plan`` through the graph (``robots[k]``: robot k's true robot),
+    up to ``max_sim_time_s`` of simulated time (looked at as goals end) and ``timeout_s`` of
+    wall time.
 
     Raises
     ------
@@ -252,6 +255,10 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             while not dispatcher.finished:
                 if time.monotonic() - wall_start > timeout_s:
                     outcome, reason = 'timeout', f'tasks left after {timeout_s:g} s of wall time'
+                    break
+                if now_s > max_sim_time_s:
+                    outcome = 'timeout'
+                    reason = f'tasks left after {max_sim_time_s:g} s of simulated time'
                     break
                 if seen == len(monitor.fleet_statuses):
                     graph.check_alive()

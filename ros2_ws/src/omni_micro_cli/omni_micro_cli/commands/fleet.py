@@ -120,6 +120,10 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+# How long a run through the graph may take on the wall clock (run --robots: its --timeout).
+WALL_TIMEOUT_S = 3600.0
+
+
 def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: Any) -> Any:
     """The run through the node graph, told as the fleet twin tells its own."""
     import numpy as np
@@ -130,7 +134,8 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
     from omni_micro_sim.state import RobotState
 
     result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
-                             log_root=args.log_dir, timeout_s=float(args.max_sim_time),
+                             log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
+                             timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
                              on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')

@@ -157,8 +157,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'controller gave up or was lost, or the camera that sees the goal cannot '
                     'resolve the tolerance: unresolved), 2 for a bad argument or parameter '
                     '(nothing is started).')
-    parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'), required=True,
-                        metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0')
+    parser.add_argument('--goal-mm', type=float_list(2, 'numbers X,Y in mm'),
+                        metavar='X,Y', help='goal in the platform frame, mm, e.g. 100,0 (needed '
+                                            'unless --robots)')
     parser.add_argument('--open-loop', type=open_loop_seconds, metavar='S',
                         help='no feedback: one move of S seconds toward the goal (the paper '
                              'uses 7 s for 100 mm)')
@@ -178,7 +179,39 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='which camera the faults hit (default both)')
     faults.add_argument('--respawn', action='store_true',
                         help='restart a crashed vision_node or controller_node and go on')
+    fleet = parser.add_argument_group('several robots on one platform (docs/fleet.md)')
+    fleet.add_argument('--robots', metavar='N|FILE',
+                       help='a micro-factory: N robots (or a YAML file of robots), each with '
+                            'its vision_node and controller_node under /robot_k, one '
+                            'dynamics_node for all; with --tasks (or drawn goals), --seed, --rtf, '
+                            '--timeout, '
+                            '--log-dir, --json; what omni-micro fleet --graph runs')
+    fleet.add_argument('--tasks', type=Path, metavar='FILE',
+                       help='with --robots: a YAML file of goals per robot (docs/fleet.md)')
     parser.set_defaults(handler=run)
+    _DEFAULTS.update({action.dest: action.default for action in parser._actions})
+
+
+# What run's options are when not given: with --robots, one given that only a single robot's run
+# reads is refused, named.
+_DEFAULTS: dict[str, object] = {}
+# What a run of several robots reads (the rest is the single robot's).
+FLEET_OPTIONS = ('robots', 'tasks', 'seed', 'rtf', 'timeout', 'log_dir', 'json', 'quiet', 'help')
+
+
+def fleet_run(args: argparse.Namespace) -> int:
+    """``run --robots``: the micro-factory through the graph, as ``fleet --graph`` runs it."""
+    from omni_micro_cli.commands import fleet
+
+    others = sorted(f'--{dest.replace("_", "-")}' for dest, default in _DEFAULTS.items()
+                    if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
+    if others:
+        raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
+                         'give --tasks, --seed, --rtf, --timeout, --log-dir, --json, --quiet')
+    return fleet.run(argparse.Namespace(
+        robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
+        max_sim_time=1800, record=None, plot=None, json=args.json, graph=True, rtf=args.rtf,
+        log_dir=args.log_dir, wall_timeout=args.timeout))
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
@@ -277,6 +310,12 @@ def summary_line(result: GraphResult, external: bool = False) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.robots is not None:
+        return fleet_run(args)
+    if args.tasks is not None:
+        raise UsageError('--tasks gives several robots their goals: with --robots')
+    if args.goal_mm is None:
+        raise UsageError('--goal-mm X,Y is needed (or --robots N|FILE for several robots)')
     goal = (args.goal_mm[0] * 1e-3, args.goal_mm[1] * 1e-3)
     options = options_from_args(args, goal, args.open_loop)
     result = run_graph(options)
