@@ -12,5 +12,7 @@ shared-memory clean-up), :mod:`graph` (start, supervise, stop in phases; run_gra
 (the orchestrator's own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node
 brought back mid-run), :mod:`supervisor` (what the monitor needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load` (other
-programs keeping the cores busy, for benchmarks and tests), :mod:`errors`.
+programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several robots,
+:mod:`fleet_composition` (one dynamics for all, each robot's nodes in its namespace) and
+:mod:`fleet_graph` (the run, the orchestration as each robot's coordinator).
 """

@@ -60,6 +60,8 @@ from omni_micro_sim.parameters import RobotParameters
 
 # How long a goal waits for its controller to take it before it is sent again.
 GOAL_RESEND_S = 2.0
+# How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
+REPORT_REPEAT_S = 0.1
 
 
 @dataclass
@@ -110,6 +112,8 @@ class FleetMonitor(GraphMonitor):
         # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
         # and each end is held until that robot's is handled.
         self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
+        self._handled = [-1] * count
+        self._reported_at = 0.0
 
     def _on_robot_status(self, robot: int, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
@@ -123,8 +127,19 @@ class FleetMonitor(GraphMonitor):
             pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
 
     def report_handled(self, robot: int, outcome_ns: int) -> None:
+        self._handled[robot] = outcome_ns
         self.reporters[robot].report(Ack(coordinator_name(robot), None,
                                          outcome_handled_ns=outcome_ns))
+
+    def repeat_reports(self) -> None:
+        """Every robot's last report again, every REPORT_REPEAT_S of wall time: a report sent
+        before the robot's reader matched this writer is lost, and time would stand at the lead
+        (as markers_node's once did)."""
+        if time.monotonic() - self._reported_at < REPORT_REPEAT_S:
+            return
+        self._reported_at = time.monotonic()
+        for robot, handled in enumerate(self._handled):
+            self.report_handled(robot, handled)
 
     def give(self, graph: Supervisor, order: GoalOrder, stamp_s: float,
              timeout_s: float = 30.0) -> None:
@@ -262,6 +277,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     break
                 if seen == len(monitor.fleet_statuses):
                     graph.check_alive()
+                    monitor.repeat_reports()
                     monitor.spin_for(0.02)
                     continue
                 robot, status = monitor.fleet_statuses[seen]
