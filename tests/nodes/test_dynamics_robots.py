@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pytest
 from adapter_helpers import overrides
+from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 
@@ -47,6 +48,24 @@ def test_each_robot_publishes_under_its_namespace_and_moves_on_its_own_commands(
         assert {(p.x, p.y) for p in still} == {(0.0, 0.0)}   # the other stood
         assert set(sent) == {'/clock', *(f'/robot_{k}/{topic}' for k in (0, 1) for topic in (
             'odom', 'joint_states', 'wheel_slip', 'odom_throttle', 'joint_states_throttle'))}
+    finally:
+        node.destroy_node()
+
+
+def test_two_robots_touching_are_reported_once_naming_both(context, spy):
+    """Two 9 mm discs 8 mm apart: a contact at the first tick, said once, latched."""
+    node = DynamicsNode(context=context, parameter_overrides=overrides(
+        robots=['robot_0', 'robot_1', 'robot_2'],
+        robot_poses=[0.0, 0.0, 0.0, 0.008, 0.0, 0.0, 0.05, 0.0, 0.0]))
+    try:
+        said = spy(node.contact_pub).messages
+        for _ in range(3):
+            samples = [robot.grid.advance() for robot in node.robots]
+            node._report_contacts(samples)
+        assert len(said) == 1
+        values = {item.key: item.value for item in said[0].values}
+        assert said[0].level == DiagnosticStatus.ERROR and values['robots'] == 'robot_0,robot_1'
+        assert float(values['gap_m']) == pytest.approx(0.008)
     finally:
         node.destroy_node()
 

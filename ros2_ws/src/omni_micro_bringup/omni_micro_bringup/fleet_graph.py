@@ -45,6 +45,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.qos import DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
+    CONTACT_TOPIC,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     JOINT_STATES_TOPIC,
@@ -55,7 +56,6 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.feedback import OUTCOME_NAMES
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan, Leg
-from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
 from omni_micro_sim.parameters import RobotParameters
 
 # How long a goal waits for its controller to take it before it is sent again.
@@ -81,7 +81,8 @@ class FleetGraphResult:
     reason: str
     sim_time_s: float
     robots: list[RobotLog]
-    closest_gap_m: float                # of the centres, on the robots' 10 Hz odometry
+    closest_gap_m: float                # of the centres, on the robots' 10 Hz odometry (a contact
+                                        # is dynamics_node's, every tick)
     closest_pair: tuple[int, int] | None
     wall_time_s: float
     log_dir: Path
@@ -113,7 +114,13 @@ class FleetMonitor(GraphMonitor):
         # and each end is held until that robot's is handled.
         self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
         self._handled = [-1] * count
+        self.contacts: list[dict[str, str]] = []   # dynamics_node's: two chassis touching
+        self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
+                                      STATUS_QOS)
         self._reported_at = 0.0
+
+    def _on_contact(self, msg: DiagnosticStatus) -> None:
+        self.contacts.append({item.key: item.value for item in msg.values})
 
     def _on_robot_status(self, robot: int, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
@@ -268,6 +275,13 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             wall_start = time.monotonic()
             seen = 0
             while not dispatcher.finished:
+                if monitor.contacts:
+                    contact = monitor.contacts[0]
+                    a, b = contact['robots'].split(',')
+                    outcome = 'contact'
+                    reason = (f'{a} and {b} touched at {float(contact["time_s"]):.2f} s: centres '
+                              f'{float(contact["gap_m"]) * 1e3:.2f} mm apart, 9 mm discs')
+                    break
                 if time.monotonic() - wall_start > timeout_s:
                     outcome, reason = 'timeout', f'tasks left after {timeout_s:g} s of wall time'
                     break
@@ -323,10 +337,6 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             monitor.close()
             graph.stop()
     gap, pair = closest_approach(logs)
-    if outcome == 'done' and gap < ROBOT_DIAMETER_M and pair is not None:
-        outcome = 'contact'
-        reason = (f'robots {pair[0]} and {pair[1]} touched: centres {gap * 1e3:.2f} mm apart, '
-                  '9 mm discs')
     return FleetGraphResult(outcome, reason, now_s, logs, gap, pair, wall_time, log_dir,
                             domain_id)
 

@@ -32,6 +32,8 @@ CAPTURE_IN_MOTION_TOPICS = {'macro': '/camera/macro/pose_in_motion',
                             'micro': '/camera/micro/pose_in_motion'}
 # Latched statuses.
 CONTROLLER_STATUS_TOPIC = '/controller/status'
+# dynamics_node's, with several robots: two chassis touching, both named.
+CONTACT_TOPIC = '/robot_contacts'
 # tracker_node's, per camera: what its latest frame gave (or why it was refused), and, for frames
 # stamped on the wall clock (a driver's), how old they are when they arrive.
 TRACKER_STATUS_TOPICS = {'macro': '/camera/macro/tracker_status',

@@ -13,6 +13,10 @@ Publishes, once per grid period of simulated time (``publish_period_s``):
                   ``throttle_every`` (5 by default): for who only watches (markers_node), to
                   whom every tick would be a delivery it does not need (topic_tools throttle's
                   names, so that a real robot's driver can be throttled the same way)
+With several robots (``robots``: a micro-factory), each robot's streams and commands are under
+its namespace (omni_micro_sim.simulated_robots), /clock is one for all, and
+  /robot_contacts diagnostic_msgs/DiagnosticStatus, latched: two robots' chassis discs
+                  touching (``robots``: both, ``time_s``, ``gap_m``), once per pair
 Subscribes:
   /wheel_trajectory  trajectory_msgs/JointTrajectory (contract in omni_micro_sim.wheel_trajectory)
 
@@ -42,7 +46,7 @@ import time
 from typing import Any
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RclpyClock
 from rclpy.clock import ClockType
@@ -62,15 +66,21 @@ from omni_micro_common.lockstep_groups import LockstepGroups
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack_bytes
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
-from omni_micro_common.qos import DATA_QOS, PER_TICK_PUBLISHER_EVENTS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.qos import (
+    DATA_QOS,
+    PER_TICK_PUBLISHER_EVENTS,
+    PER_TICK_SUBSCRIPTION_EVENTS,
+    STATUS_QOS,
+)
 from omni_micro_common.reader_matching import unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
+    CONTACT_TOPIC,
 )
 from omni_micro_sim.dynamics_parameters import checked_rtf, declare_dynamics_parameters
 from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
-from omni_micro_sim.simulated_robots import SimulatedRobot
+from omni_micro_sim.simulated_robots import SimulatedRobot, touching
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator, Sample
 from omni_micro_sim.wheel_trajectory import (
@@ -144,6 +154,9 @@ class DynamicsNode(Node):
         self.robots = [SimulatedRobot(self, namespace, grid, self.odom_frame, self.base_frame,
                                       per_tick, self._on_trajectory)
                        for namespace, grid in zip(namespaces, grids, strict=True)]
+        # Two robots' chassis touching: said once per pair, latched, both named.
+        self.contact_pub = self.create_publisher(DiagnosticStatus, CONTACT_TOPIC, STATUS_QOS)
+        self._touching: set[tuple[str, str]] = set()
         self._publishers_of = {pub.topic_name: pub for pub in (
             self.clock_pub, *(pub for robot in self.robots for pub in robot.publishers))}
         for node, topics in self.awaited_readers.items():
@@ -295,6 +308,8 @@ class DynamicsNode(Node):
                     robot.grid.schedule_stop()
                 return
             self._publish(samples)
+            if len(samples) > 1:
+                self._report_contacts(samples)
         if self._due_tick() - self.grid.tick > 200 and not math.isinf(self.real_time_factor):
             # Far behind the wall clock (held by the lockstep, or a busy machine): pace again
             # from here instead of racing to catch up.
@@ -314,6 +329,19 @@ class DynamicsNode(Node):
         for robot, sample in zip(self.robots, samples, strict=True):
             robot.publish(sample, sec, nanosec, throttle=tick % self.throttle_every == 0,
                           slip=tick % self.slip_every == 0)
+
+    def _report_contacts(self, samples: list[Sample]) -> None:
+        for a, b, gap in touching(self.robots, samples):
+            if (a.namespace, b.namespace) in self._touching:
+                continue
+            self._touching.add((a.namespace, b.namespace))
+            self.get_logger().error(f'{a.namespace} and {b.namespace} touch at '
+                                    f'{samples[0].time_s:.3f} s: centres {gap * 1e3:.3f} mm apart')
+            self.contact_pub.publish(DiagnosticStatus(
+                level=DiagnosticStatus.ERROR, name='dynamics_node', message='contact',
+                values=[KeyValue(key='robots', value=f'{a.namespace},{b.namespace}'),
+                        KeyValue(key='time_s', value=repr(samples[0].time_s)),
+                        KeyValue(key='gap_m', value=repr(gap))]))
 
     # -- commands ----------------------------------------------------------------------------
     def _on_trajectory(self, robot: SimulatedRobot, msg: JointTrajectory) -> None:

@@ -8,6 +8,8 @@ multi-robot TF trees do) and takes its commands on ``/robot_k/wheel_trajectory``
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -49,6 +51,21 @@ def check_namespaces(robots: list[str]) -> None:
     twice = sorted({name for name in robots if robots.count(name) > 1})
     if twice:
         raise ParameterError(f'robots: {twice} named more than once')
+
+
+def touching(robots: list[SimulatedRobot], samples: list[Sample]
+             ) -> list[tuple[SimulatedRobot, SimulatedRobot, float]]:
+    """Every two robots whose chassis discs overlap in ``samples``, with their centres'
+    distance (contact forces are not simulated: the slip model has no force between robots)."""
+    found = []
+    for a, b in itertools.combinations(range(len(robots)), 2):
+        gap = math.hypot(samples[a].state.x_m - samples[b].state.x_m,
+                         samples[a].state.y_m - samples[b].state.y_m)
+        reach = (robots[a].grid.simulator.params.chassis_radius_m
+                 + robots[b].grid.simulator.params.chassis_radius_m)
+        if gap < reach:
+            found.append((robots[a], robots[b], gap))
+    return found
 
 
 class SimulatedRobot:
