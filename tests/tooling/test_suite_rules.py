@@ -1,6 +1,6 @@
 """The suite's own rules (tests/conftest.py), checked on a suite of a few tests: a test over the
-time limit fails unless named with its reason; the slow tier runs first, longest first;
-property tests draw the same examples every run."""
+CPU limit fails unless named with its reason, a test that only waits does not; the slow tier
+runs first, longest first; property tests draw the same examples every run."""
 
 from pathlib import Path
 
@@ -13,21 +13,32 @@ def a_suite(pytester, limit_s: float, long_tests: str = '{}', longest: str = '{}
     pytester.makeconftest(CONFTEST + f'\nTEST_LIMIT_S = {limit_s}\nLONG_TESTS = {long_tests}\n'
                                      f'LONGEST_FIRST = {longest}\n')
     pytester.makepyfile(test_timing='''
+import subprocess
+import sys
 import time
 
 import pytest
 
 
+def burn(seconds):
+    end = time.process_time() + seconds
+    while time.process_time() < end:
+        pass
+
+
 def test_quick():
-    pass
+    time.sleep(0.5)   # waits, uses no CPU
 
 
 def test_slow_and_named():
-    time.sleep(0.4)
+    burn(0.4)
 
 
 def test_slow_and_not_named():
-    time.sleep(0.4)
+    # Under the limit in this process, over it with the process it starts and waits for.
+    burn(0.2)
+    subprocess.run([sys.executable, '-c', 'import time\\nend = time.process_time() + 0.25'
+                    '\\nwhile time.process_time() < end: pass'], check=True)
 
 
 @pytest.mark.slow
@@ -45,8 +56,9 @@ def test_a_test_over_the_limit_fails_unless_it_is_named_with_its_reason(pytester
     a_suite(pytester, 0.3, long_tests="{'test_timing.py::test_slow_and_named': 'sleeps'}")
     result = pytester.runpytest('-p', 'no:cacheprovider')
     result.assert_outcomes(passed=4, failed=1)
-    result.stdout.fnmatch_lines(['*test_timing.py::test_slow_and_not_named took 0.4 s, over the '
-                                 '0.3 s a test may take*'])
+    # Its own 0.2 s alone would pass: the process it waited for counts too.
+    result.stdout.fnmatch_lines(['*test_timing.py::test_slow_and_not_named used * s of CPU '
+                                 '(* s of wall time), over the 0.3 s a test may use*'])
 
 
 def test_the_slow_tier_runs_first_and_the_longest_of_it_first(pytester):
