@@ -154,8 +154,10 @@ class DynamicsNode(Node):
         self.robots = [SimulatedRobot(self, namespace, grid, self.odom_frame, self.base_frame,
                                       per_tick, self._on_trajectory)
                        for namespace, grid in zip(namespaces, grids, strict=True)]
-        # Two robots' chassis touching: said once per pair, latched, both named.
-        self.contact_pub = self.create_publisher(DiagnosticStatus, CONTACT_TOPIC, STATUS_QOS)
+        # Two robots' chassis touching: said once per pair, latched, both named (a graph of one
+        # robot has no such topic).
+        self.contact_pub = (self.create_publisher(DiagnosticStatus, CONTACT_TOPIC, STATUS_QOS)
+                            if len(self.robots) > 1 else None)
         self._touching: set[tuple[str, str]] = set()
         self._publishers_of = {pub.topic_name: pub for pub in (
             self.clock_pub, *(pub for robot in self.robots for pub in robot.publishers))}
@@ -335,6 +337,7 @@ class DynamicsNode(Node):
             if (a.namespace, b.namespace) in self._touching:
                 continue
             self._touching.add((a.namespace, b.namespace))
+            assert self.contact_pub is not None   # touching needs two robots
             self.get_logger().error(f'{a.namespace} and {b.namespace} touch at '
                                     f'{samples[0].time_s:.3f} s: centres {gap * 1e3:.3f} mm apart')
             self.contact_pub.publish(DiagnosticStatus(
