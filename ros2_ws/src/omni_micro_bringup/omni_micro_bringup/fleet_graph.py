@@ -53,13 +53,16 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
 )
-from omni_micro_control.feedback import OUTCOME_NAMES
+from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan, Leg
 from omni_micro_sim.parameters import RobotParameters
 
-# How long a goal waits for its controller to take it before it is sent again.
-GOAL_RESEND_S = 2.0
+# How long a request to a controller's parameter service waits before it goes again (a server
+# may answer before its response writer has matched this client: the answer is lost). A goal is
+# sent once, to a reader already matched (reliable): sent again, the controller takes the second
+# for a new goal and ends the first as replaced.
+SERVICE_RESEND_S = 2.0
 # How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
 REPORT_REPEAT_S = 0.1
 
@@ -160,7 +163,7 @@ class FleetMonitor(GraphMonitor):
         while True:
             graph.check_alive()
             future = client.call_async(request)
-            self.executor.spin_until_future_complete(future, timeout_sec=GOAL_RESEND_S)
+            self.executor.spin_until_future_complete(future, timeout_sec=SERVICE_RESEND_S)
             if future.done() and future.result() is not None:
                 break
             client.remove_pending_request(future)
@@ -184,7 +187,6 @@ class FleetMonitor(GraphMonitor):
         goal.pose.orientation.w = 1.0
         seen = len(self.fleet_statuses)
         publisher.publish(goal)
-        resend_at = time.monotonic() + GOAL_RESEND_S
         while True:
             for robot, status in self.fleet_statuses[seen:]:
                 if robot != order.robot:
@@ -198,9 +200,6 @@ class FleetMonitor(GraphMonitor):
             if time.monotonic() > deadline:
                 raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its goal '
                                 f'within {timeout_s:g} s')
-            if time.monotonic() > resend_at:
-                publisher.publish(goal)
-                resend_at = time.monotonic() + GOAL_RESEND_S
             self.spin_for(0.02)
 
     def wait_for_routes_past(self, graph: Supervisor, stamp_s: float, timeout_s: float) -> None:
@@ -301,6 +300,10 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                 if status['message'] not in OUTCOME_NAMES:
                     continue
                 at_s = float(status[STATUS_TIME_KEY])
+                if status.get('reason') == REPLACED_REASON:
+                    # Not an end that gives a goal: said handled, so that time goes on.
+                    monitor.report_handled(robot, round(at_s * 1e9))
+                    continue
                 now_s = max(now_s, at_s)
                 if status['message'] != 'reached':
                     outcome = 'lost'
