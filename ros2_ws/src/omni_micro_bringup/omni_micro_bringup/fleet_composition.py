@@ -40,6 +40,7 @@ from omni_micro_common.topic_names import (
     WHEEL_TRAJECTORY_TOPIC,
 )
 from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.simulated_robots import robot_topic as namespaced_topic
 
 # Every topic that is a robot's own; /clock and /lockstep stay the graph's.
 ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
@@ -56,7 +57,8 @@ def robot_name(index: int) -> str:
 
 
 def robot_topic(index: int, topic: str) -> str:
-    return f'/{robot_name(index)}{topic}'
+    """Robot ``index``'s ``topic``, named as dynamics_node names it."""
+    return namespaced_topic(robot_name(index), topic)
 
 
 def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Path]:
