@@ -128,6 +128,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     elif report.when == 'call' and report.passed:
         used = cpu_seconds() - item.stash.get(_CPU_AT_START, cpu_seconds())
         took = item.stash.get(_SETUP_S, 0.0) + report.duration
+        # In --junitxml's report beside the wall time: what a test costs whatever else runs.
+        item.user_properties.append(('cpu_s', round(used, 2)))
         if used > TEST_LIMIT_S and _short_id(item) not in LONG_TESTS:
             report.outcome = 'failed'
             report.longrepr = (f'{_short_id(item)} used {used:.1f} s of CPU ({took:.1f} s of '
