@@ -91,6 +91,16 @@ def test_a_bad_value_is_named_in_one_line_and_nothing_is_written(tmp_path, robot
     assert not (tmp_path / 'routes.png').exists()
 
 
+def test_a_graph_run_refuses_to_record_over_a_bag_before_anything_starts(tmp_path):
+    (tmp_path / 'bag').mkdir()
+    done = omni_micro('run', '--robots', '2', '--record', str(tmp_path / 'bag'), '--log-dir',
+                      str(tmp_path / 'logs'))
+    assert done.returncode == 2
+    assert done.stderr.strip() == (f"omni-micro run: error: '{tmp_path / 'bag'}' exists "
+                                   'already; give --force to replace it')
+    assert not (tmp_path / 'logs').exists()
+
+
 def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     sweep = omni_micro('fleet-study', '--out', str(tmp_path / 'sweep'), '--robots-max', '2',
                        '--draws', '1', '--goals-per-robot', '1', '--workers', '2')

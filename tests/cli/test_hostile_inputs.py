@@ -200,7 +200,7 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
               'robots)'),
     (['run', '--robots', '3', '--open-loop', '3', '--composed'],
      "omni-micro run: error: --composed, --open-loop: a single robot's run only; with --robots "
-     'give --tasks, --seed, --rtf, --timeout, --log-dir, --json, --quiet'),
+     'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, --json, --quiet'),
     (['run', '--goal-mm', '1,0', '--tasks', 'tasks.yaml'],
      'omni-micro run: error: --tasks gives several robots their goals: with --robots'),
     (['fleet', '--rtf', '2'], 'omni-micro fleet: error: --rtf paces the node graph: give it with '

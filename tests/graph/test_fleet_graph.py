@@ -2,7 +2,8 @@
 goals, one dynamics_node for all, each robot's vision_node and controller_node under /robot_k:
 every goal reached within its tolerance, no two discs ever touching, and the same run, goal for
 goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time with
-both cores kept busy (docs/fleet.md, "Through the node graph")."""
+both cores kept busy, recorded into the same bag byte for byte (docs/fleet.md, "Through the
+node graph")."""
 
 from __future__ import annotations
 
@@ -37,21 +38,23 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
     (folder / 'tasks.yaml').write_text(TASKS)
     done = omni_micro('fleet', '--graph', '--robots', str(folder / 'robots.yaml'), '--tasks',
                       str(folder / 'tasks.yaml'), '--seed', '5', '--json', '--log-dir',
-                      str(folder / 'logs'), *extra)
+                      str(folder / 'logs'), '--record', str(folder / 'bag'), *extra)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     # One dynamics process for all, each robot's two nodes in their namespace.
     (logs,) = (folder / 'logs').iterdir()
     assert sorted(path.name for path in logs.glob('*.log')) == [
-        'dynamics_node.log', *(f'robot_{k}.{node}.log' for k in range(3)
-                               for node in ('controller_node', 'vision_node'))]
+        'bag_recorder.log', 'dynamics_node.log',
+        *(f'robot_{k}.{node}.log' for k in range(3)
+          for node in ('controller_node', 'vision_node'))]
     assert '3 robots (robot_0, robot_1, robot_2)' in (logs / 'dynamics_node.log').read_text()
     return summary
 
 
 @pytest.fixture(scope='module')
 def as_fast_as_it_goes(omni_micro, tmp_path_factory) -> dict:
-    return fleet_through_graph(omni_micro, tmp_path_factory.mktemp('fleet') / 'max')
+    folder = tmp_path_factory.mktemp('fleet') / 'max'
+    return {**fleet_through_graph(omni_micro, folder), 'bag': folder / 'bag'}
 
 
 def test_three_robots_cross_through_the_graph_clear_of_each_other(as_fast_as_it_goes):
@@ -68,6 +71,40 @@ def test_three_robots_cross_through_the_graph_clear_of_each_other(as_fast_as_it_
         assert robot['farthest_off_leg_mm'] < 1.5
 
 
+def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_as_it_goes):
+    from omni_micro_cli.fleet_analysis import fleet_robots, summarize_fleet
+    from omni_micro_tools.bag_reading import read_bag
+
+    summary, bag = as_fast_as_it_goes, as_fast_as_it_goes['bag']
+    own = ('odom', 'goal_pose', 'camera/macro/pose', 'controller/status')
+    data = read_bag(bag, topics=['/clock', *(f'/robot_{k}/{topic}' for k in range(3)
+                                              for topic in own)])
+    assert fleet_robots(list(data.timestamps)) == [0, 1, 2]
+    end_s = summary['sim_time_s'] + 0.5    # the last goal's end and the bag's tail
+    clock = [m.clock.sec + m.clock.nanosec * 1e-9 for m in data.messages['/clock']]
+    assert clock[0] == 0.02 and abs(clock[-1] - end_s) < 0.021   # from the first tick
+    for k, robot in enumerate(summary['robots']):
+        odometry = data.messages[f'/robot_{k}/odom']
+        # Every tick (50 Hz), in the robot's own REP-105 frames.
+        assert len(odometry) == len(clock)
+        assert (odometry[0].header.frame_id, odometry[0].child_frame_id) == (
+            f'robot_{k}/odom', f'robot_{k}/base_link')
+        last = odometry[-1].pose.pose.position
+        assert math.dist((last.x * 1e3, last.y * 1e3), robot['final_mm']) < 1e-3
+        # Its legs' goals (sub-goals on the way), the task's last.
+        last_goal = data.messages[f'/robot_{k}/goal_pose'][-1].pose.position
+        assert math.dist((last_goal.x * 1e3, last_goal.y * 1e3), GOALS_MM[k]) < 1e-9
+        assert data.messages[f'/robot_{k}/camera/macro/pose']
+        outcomes = [m.message for m in data.messages[f'/robot_{k}/controller/status']]
+        assert outcomes[-1] == 'reached'
+    # analyze's table per robot reads it as it reads the fleet twin's bag.
+    table, _ = summarize_fleet(bag, [0, 1, 2])
+    for k, (row, robot) in enumerate(zip(table['robots'], summary['robots'], strict=True)):
+        assert row['goals'] == len(data.messages[f'/robot_{k}/goal_pose'])
+        assert row['last_goal_deviation_um'] < 50.0
+        assert math.dist((row['final_x_mm'], row['final_y_mm']), robot['final_mm']) < 1e-3
+
+
 def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy(as_fast_as_it_goes,
                                                                      omni_micro, tmp_path,
                                                                      busy_machine):
@@ -77,6 +114,9 @@ def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy(as_fast_as_i
     with busy_machine():
         paced = fleet_through_graph(omni_micro, tmp_path / 'rtf2', '--rtf', '2')
     fastest = dict(as_fast_as_it_goes)
+    bag = fastest.pop('bag')
     for summary in (fastest, paced):
         del summary['wall_s'], summary['planning_s']
     assert paced == fastest
+    (recorded,) = bag.glob('*.mcap')
+    assert (tmp_path / 'rtf2' / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()

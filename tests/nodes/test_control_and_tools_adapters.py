@@ -13,6 +13,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from omni_micro_common.conventions import JOINT_NAMES, CaptureUncertainty, stamp_ns
@@ -142,6 +143,9 @@ def test_bag_recorder_in_the_lockstep_counts_a_frame_written_once_its_camera_inf
     ({'bag': 'x', 'log_clock': 'sundial'}, "'sundial'"),
     ({'bag': 'x', 'driver_images': ['camera/image_raw']}, 'camera/image_raw'),
     ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
+    # A micro-factory robot's clock is the graph's; a namespace is one plain name.
+    ({'bag': 'x', 'topics': ['/robot_1/clock']}, "'/robot_1/clock'"),
+    ({'bag': 'x', 'topics': ['/robot 1/odom']}, "'/robot 1/odom'"),
     ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
 ])
 def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, named):
@@ -150,6 +154,29 @@ def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, n
     with pytest.raises(ParameterError, match=named):
         BagRecorder(context=context, parameter_overrides=overrides(**values))
     assert not (tmp_path / 'x').exists()
+
+
+def test_bag_recorder_records_each_robot_of_a_micro_factory_and_says_how_far_it_has_all(
+        context, tmp_path):
+    """Each robot's per-tick streams count: it has everything up to the oldest of them."""
+    topics = ['/clock', *(f'/robot_{k}/{stream}' for k in (0, 1)
+                          for stream in ('odom', 'joint_states', 'wheel_slip', 'goal_pose'))]
+    node = BagRecorder(context=context, parameter_overrides=overrides(
+        bag=str(tmp_path / 'bag'), topics=topics))
+    try:
+        assert {sub.topic_name for sub in node.subscriptions} == set(topics)
+        assert sorted(node._tick_stamps_ns) == sorted(t for t in topics if 'goal' not in t)
+        for topic in node._tick_stamps_ns:
+            kind = Clock if topic == '/clock' else Odometry if 'odom' in topic else JointState
+            message = kind()
+            stamp = message.clock if kind is Clock else message.header.stamp
+            stamp.sec = 0 if topic == '/robot_1/wheel_slip' else 2
+            node._writer_of(topic)(serialize_message(message))
+        assert min(node._tick_stamps_ns.values()) == 0   # robot 1's slip is behind
+    finally:
+        node.close()
+        node.destroy_node()
+    assert sorted(read_bag(tmp_path / 'bag').timestamps) == sorted(topics)
 
 
 def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):

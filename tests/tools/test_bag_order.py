@@ -17,7 +17,7 @@ from rosgraph_msgs.msg import Clock
 from omni_micro_common.conventions import STATUS_TIME_KEY
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.bags import TYPESTORE, finish_in_order, open_writer
-from omni_micro_tools.topics import BAG_TAIL_S, GRAPH_TOPICS
+from omni_micro_tools.topics import BAG_TAIL_S, GRAPH_TOPICS, TopicSpec, recordable_spec
 
 TICK_NS = 20_000_000
 TOPICS = {topic: GRAPH_TOPICS[topic] for topic in ('/clock', '/odom', '/controller/status')}
@@ -54,12 +54,13 @@ def a_run(ticks: int, outcome_tick: int) -> list[tuple[str, bytes]]:
     return run
 
 
-def recorded(path: Path, run: list[tuple[str, bytes]], seed: int) -> Path:
+def recorded(path: Path, run: list[tuple[str, bytes]], seed: int,
+             topics: dict[str, TopicSpec] = TOPICS) -> Path:
     """The run as a recorder receives it: each topic in its order, the topics interleaved at
     random, each stamped with an arrival time of its own."""
     rng = random.Random(seed)
-    streams = {topic: [data for t, data in run if t == topic] for topic in TOPICS}
-    writer, connections = open_writer(path, 'mcap', TOPICS)
+    streams = {topic: [data for t, data in run if t == topic] for topic in topics}
+    writer, connections = open_writer(path, 'mcap', topics)
     arrival = 0
     while any(streams.values()):
         topic = rng.choice([t for t, left in streams.items() if left])
@@ -118,6 +119,25 @@ def test_the_finished_bag_is_in_simulated_time_and_ends_a_tail_after_the_outcome
     assert at_60 == ['/clock', '/odom', '/controller/status']
     times = [time for _, time, _ in stored]
     assert times == sorted(times)
+
+
+def test_a_micro_factory_bag_holds_each_instant_robot_by_robot_whatever_the_arrival(tmp_path):
+    """Each robot's topics rank where the single robot's do, then by robot: two robots'
+    odometry of one tick never stays in the order it happened to arrive in."""
+    topics = {topic: spec for topic in ('/clock', '/robot_0/odom', '/robot_1/odom',
+                                        '/robot_0/controller/status')
+              if (spec := recordable_spec(topic)) is not None}
+    run = [('/clock', clock(t)) for t in range(1, 80)]
+    run += [(f'/robot_{k}/odom', odometry(t)) for k in (0, 1) for t in range(1, 80)]
+    run += [('/robot_0/controller/status', status('reached', 30, outcome=True))]
+    bags = [recorded(tmp_path / str(seed) / 'bag', run, seed, topics) for seed in range(3)]
+    for bag in bags:
+        finish_in_order(bag, 'mcap', topics)
+    assert len({digest(bag) for bag in bags}) == 1
+    at_30 = [topic for topic, time, _ in stored_messages(bags[0]) if time == 30 * TICK_NS]
+    assert at_30 == ['/clock', '/robot_0/odom', '/robot_1/odom', '/robot_0/controller/status']
+    # The robot's outcome ends the bag as the single robot's does.
+    assert read_bag(bags[0]).timestamps['/clock'][-1] == 30 * TICK_NS + round(BAG_TAIL_S * 1e9)
 
 
 def test_padding_a_publisher_left_dirty_is_written_as_zeros(tmp_path):

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from omni_micro_bringup.composition import ORCHESTRATOR_NODE, NodeSpec
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE, READS_FROM_ROBOT, NodeSpec
 from omni_micro_bringup.parameters import (
     format_parameter,
     graph_params_file,
@@ -29,10 +29,12 @@ from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
+    CLOCK_TOPIC,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
+    MARKERS_TOPIC,
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
     TRACKER_STATUS_TOPICS,
@@ -41,6 +43,7 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.simulated_robots import robot_topic as namespaced_topic
+from omni_micro_tools.topics import GRAPH_TOPICS, robot_and_topic
 
 # Every topic that is a robot's own; /clock and /lockstep stay the graph's.
 ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
@@ -48,6 +51,7 @@ ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_
                 CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, *CAPTURE_TOPICS.values(),
                 *CAPTURE_COVARIANCE_TOPICS.values(), *CAPTURE_IN_MOTION_TOPICS.values(),
                 *TRACKER_STATUS_TOPICS.values())
+RECORDER_NODE = 'bag_recorder'
 # A robot's nodes, each with its package.
 ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
 
@@ -88,10 +92,18 @@ def _command(package: str, executable: str, params: list[Path],
     return tuple(argv)
 
 
+def recorded_topics(count: int) -> list[str]:
+    """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
+    its namespace (no /markers: markers_node draws one robot)."""
+    return [CLOCK_TOPIC, *(robot_topic(k, topic) for k in range(count) for topic in GRAPH_TOPICS
+                           if topic not in (CLOCK_TOPIC, MARKERS_TOPIC))]
+
+
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
-                folder: Path) -> list[NodeSpec]:
-    """The processes of a fleet's graph: dynamics for all, then each robot's two nodes."""
+                folder: Path, record: tuple[Path, str] | None = None) -> list[NodeSpec]:
+    """The processes of a fleet's graph: dynamics for all, each robot's two nodes, and with
+    ``record`` (the bag, its storage) the recorder of every robot's topics."""
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
     # Each robot's nodes, and the orchestration as each robot's coordinator (fleet_graph).
@@ -101,6 +113,10 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         f'{robot_name(k)}/vision_node:{robot_topic(k, ODOM_TOPIC)}',
         f'{robot_name(k)}/controller_node:{robot_topic(k, JOINT_STATES_TOPIC)}',
         f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}')]
+    if record is not None:
+        # The recorder keeps every tick from the first (composition.READS_FROM_ROBOT).
+        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count)
+                    if robot_and_topic(topic)[1] in READS_FROM_ROBOT[RECORDER_NODE]]
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
         'robots': [robot_name(k) for k in range(count)],
@@ -123,4 +139,9 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         for package, node in ROBOT_NODES:
             specs.append(NodeSpec(package, node, namespace=robot, command=_command(
                 package, node, params, own[node], remaps)))
+    if record is not None:
+        bag, storage = record
+        specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
+            'omni_micro_tools', RECORDER_NODE, shipped,
+            {'bag': str(bag), 'storage': storage, 'topics': recorded_topics(count)})))
     return specs

@@ -227,27 +227,34 @@ def ready_topics(count: int) -> list[tuple[str, ...]]:
 def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int = 0,
                     real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
                     log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
-                    timeout_s: float = 3600.0,
+                    timeout_s: float = 3600.0, record: Path | None = None,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
     """Drive every robot of ``plan`` through the graph (``robots[k]``: robot k's true robot),
     up to ``max_sim_time_s`` of simulated time (looked at as goals end) and ``timeout_s`` of
-    wall time.
+    wall time. With ``record`` the run is recorded into that bag (mcap): /clock and every
+    robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
 
     Raises
     ------
     RunFailed
         A node died, the graph did not come up, or a controller did not take its goal.
     """
+    from omni_micro_tools.bags import check_bag_output
+    from omni_micro_tools.topics import BAG_TAIL_S
+
+    if record is not None:
+        check_bag_output(record, force=False)   # refused before anything runs
     count = len(plan.starts_m)
     lease = DomainLease(None)
     with lease as domain_id:
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
-                            log_dir)
-        graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root), domain_id,
-                      log_dir, lease.fileno, specs=specs)
+                            log_dir, record=None if record is None else (record, 'mcap'))
+        # The graph's options say the bag: one its recorder left unfinished is recovered.
+        graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
+                                   record=record), domain_id, log_dir, lease.fileno, specs=specs)
         monitor = FleetMonitor(domain_id, count, echo)
         logs = monitor.robots
         outcome, reason, now_s = 'done', '', 0.0
@@ -256,7 +263,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             log.tasks_done_s += [0.0] * len(tasks)
         try:
             graph.start()
-            monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(count))
+            monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(count),
+                                     recording=record is not None)
             for k in range(count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
             dispatcher = LegDispatcher(plan)
@@ -290,6 +298,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     break
                 if seen == len(monitor.fleet_statuses):
                     graph.check_alive()
+                    monitor.check_recorder()
                     monitor.repeat_reports()
                     monitor.spin_for(0.02)
                     continue
@@ -332,6 +341,9 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             if outcome == 'done':
                 reason = f'every task done in {now_s:.2f} s'
                 monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
+            if record is not None:
+                # The bag ends BAG_TAIL_S after the last end: all of it received before the stop.
+                monitor.wait_for_recorder_past(graph, now_s + BAG_TAIL_S, timeout_s=60.0)
         finally:
             # Every robot's statuses as the coordinator took them, in its order.
             (log_dir / 'statuses.jsonl').write_text(''.join(

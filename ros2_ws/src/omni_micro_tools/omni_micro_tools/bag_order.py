@@ -8,7 +8,8 @@ depends on the machine's load. A finished bag instead holds each message
   (omni_micro_common.conventions.STATUS_TIME_KEY); a message without one, or with a time from 0
   in a bag recorded on the wall clock (a real robot's run), keeps its arrival time;
   never earlier than the message before it on its topic (a topic keeps its publication order);
-- in one order: by event time, then by topic (``TOPIC_ORDER``), then by publication order;
+- in one order: by event time, then by topic (``TOPIC_ORDER``; a micro-factory robot's topics
+  where the single robot's are, robot by robot), then by publication order;
 - serialized canonically (rosbags' CDR, padding zeroed: a publisher may leave garbage in it);
 - up to an end the run defines: its last outcome plus ``BAG_TAIL_S`` of simulated time, or, for
   a bag whose recorder died, ``RECOVERY_WINDOW_S`` before the latest message (what came later may
@@ -28,7 +29,7 @@ from typing import Any
 
 from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.conventions import OUTCOME_KEY, STATUS_TIME_KEY
-from omni_micro_tools.topics import BAG_TAIL_S, IMAGE_TYPES, TOPIC_ORDER
+from omni_micro_tools.topics import BAG_TAIL_S, IMAGE_TYPES, TOPIC_ORDER, robot_and_topic
 
 # A killed recorder's last messages of a tick may still have been on their way: a recovered
 # bag ends this far (simulated time) before its latest message.
@@ -98,15 +99,19 @@ class Ordered:
 @dataclass(order=True)
 class _Entry:
     time_ns: int
-    rank: int
+    rank: tuple[int, str]
     index: int
     topic: str = field(compare=False)
     msgtype: str = field(compare=False)
     data: bytes | None = field(compare=False)   # None: an image, read again when written
 
 
-def _rank(topic: str) -> int:
-    return TOPIC_ORDER.index(topic) if topic in TOPIC_ORDER else len(TOPIC_ORDER)
+def _rank(topic: str) -> tuple[int, str]:
+    """Where a topic comes within an instant: by TOPIC_ORDER (a micro-factory robot's topic
+    where the single robot's is), then by name (robot_0's before robot_1's; two topics of one
+    rank never left to the order they arrived in)."""
+    own = robot_and_topic(topic)[1]
+    return (TOPIC_ORDER.index(own) if own in TOPIC_ORDER else len(TOPIC_ORDER), topic)
 
 
 def in_bag_order(read: Callable[[], Iterable[Stored]], typestore: Any,

@@ -11,7 +11,8 @@ each message at the simulated time it belongs to, in one order, serialized canon
 
 Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``bag`` (the folder to
 create; required, must not exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic
-of the graph but the images), ``lockstep_frames`` (report written frames on /lockstep, so that a
+of the graph but the images; in a micro-factory each robot's under its namespace,
+``/robot_k/odom``), ``lockstep_frames`` (report written frames on /lockstep, so that a
 graph in lockstep waits for the disk as for its tracker), ``end_at_outcome`` (false: keep every
 message received, for a soak that counts them), ``log_clock`` (sim: /clock; wall: the system
 clock, for a run with a real robot, which has no /clock), ``driver_images`` (a camera driver's
@@ -59,6 +60,8 @@ from omni_micro_tools.topics import (
     RECEIVED_UP_TO_KEY,
     RECORDABLE_TOPICS,
     driver_image_topics,
+    recordable_spec,
+    robot_and_topic,
 )
 
 # Where the log time of a message comes from: the simulated clock on /clock, or the system clock
@@ -70,9 +73,9 @@ FLUSH_PERIOD_S = 0.5
 
 
 RECORDER_DEPTH = 1000
-# The robot's per-tick streams: the recorder says how far it has received all of them
-# (RECEIVED_UP_TO_KEY of /bag_recorder/status), so that whoever stops the graph knows the bag
-# has everything up to a time. Each comes from one writer, in order.
+# The robot's per-tick streams (each robot's, in a micro-factory): the recorder says how far it
+# has received all of them (RECEIVED_UP_TO_KEY of /bag_recorder/status), so that whoever stops
+# the graph knows the bag has everything up to a time. Each comes from one writer, in order.
 TICK_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)
 
 
@@ -92,16 +95,16 @@ class BagRecorder(Node):
             raise ParameterError('bag must name the folder to record into, got none')
         if storage not in STORAGES:
             raise ParameterError(f'storage must be one of {sorted(STORAGES)}, got {storage!r}')
-        unknown = [name for name in names if name not in RECORDABLE_TOPICS]
+        unknown = [name for name in names if recordable_spec(name) is None]
         if unknown or not names:
-            raise ParameterError(f'topics must be some of {sorted(RECORDABLE_TOPICS)}, '
-                                 f'got {names}')
+            raise ParameterError(f'topics must be some of {sorted(RECORDABLE_TOPICS)}, or a '
+                                 f'micro-factory robot\'s (/robot_1/odom), got {names}')
         if bag.exists():
             raise ParameterError(f'bag {str(bag)!r} exists already: not recording over it')
         if log_clock not in LOG_CLOCKS:
             raise ParameterError(f'log_clock must be one of {list(LOG_CLOCKS)}, got '
                                  f'{log_clock!r}')
-        topics = {name: RECORDABLE_TOPICS[name] for name in names}
+        topics = {name: spec for name in names if (spec := recordable_spec(name)) is not None}
         try:
             driver_topics = driver_image_topics(driver_images)
         except ValueError as error:
@@ -158,7 +161,8 @@ class BagRecorder(Node):
                                                 latched(1))
         self._announced = False
         # The latest stamp received per tick topic, and what was last said of their minimum.
-        self._tick_stamps_ns = {topic: -1 for topic in TICK_TOPICS if topic in topics}
+        self._tick_stamps_ns = {topic: -1 for topic in topics
+                                if robot_and_topic(topic)[1] in TICK_TOPICS}
         self._said_up_to_ns = -1
         self._last_flush = time.monotonic()
         self.create_timer(0.1, self._on_wall_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))

@@ -92,6 +92,27 @@ IN_MOTION_TOPICS: dict[str, TopicSpec] = {
     topic: TopicSpec('geometry_msgs/msg/PoseWithCovarianceStamped', 100)
     for topic in CAPTURE_IN_MOTION_TOPICS.values()}
 RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS}
+
+
+def robot_and_topic(topic: str) -> tuple[str, str]:
+    """A micro-factory robot's namespace and the single robot's name of its topic:
+    ``/robot_1/odom`` -> ``('robot_1', '/odom')``; a graph topic (``/clock``, ``/odom``) or any
+    other name -> ``('', topic)``. /clock is the graph's, never a robot's."""
+    if topic in RECORDABLE_TOPICS:
+        return '', topic
+    robot, separator, rest = topic[1:].partition('/')
+    own = f'/{rest}'
+    plain = robot[:1].isalpha() and robot.replace('_', 'a').isalnum()
+    if topic.startswith('/') and separator and plain and own in RECORDABLE_TOPICS \
+            and own != CLOCK_TOPIC:
+        return robot, own
+    return '', topic
+
+
+def recordable_spec(topic: str) -> TopicSpec | None:
+    """What the recorder records a topic as: a graph topic, or one robot's of a micro-factory
+    (``/robot_k/odom``); None for a topic it cannot record."""
+    return RECORDABLE_TOPICS.get(robot_and_topic(topic)[1])
 # The types of the camera streams: a megabyte a frame, never held in memory while a bag is put
 # in order, and read best effort from a driver outside the lockstep (REP-2003).
 IMAGE_TYPES = ('sensor_msgs/msg/Image', 'sensor_msgs/msg/CameraInfo')

@@ -59,9 +59,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='with --graph: where each node\'s log goes, in a folder per run '
                              '(default out/runs)')
     parser.add_argument('--record', type=Path, metavar='BAG',
-                        help='write the run into a rosbag2 bag (mcap): each robot\'s odometry '
-                             'and goals under /robot_k/ (docs/fleet.md); replay --robot k plays '
-                             'one robot back')
+                        help='write the run into a rosbag2 bag (mcap), each robot\'s topics '
+                             'under /robot_k/: the twin its odometry and goals, --graph every '
+                             'robot topic its recorder reads (docs/fleet.md); replay --robot k '
+                             'plays one robot back')
     parser.add_argument('--plot', type=output_file, metavar='PNG',
                         help='draw every robot\'s route, in its colour, with its label')
     parser.add_argument('--json', action='store_true',
@@ -75,9 +76,6 @@ def run(args: argparse.Namespace) -> int:
     from omni_micro_control.fleet_plan import PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
 
-    if args.graph and args.record is not None:
-        raise UsageError('--record with --graph is not built yet: record the fleet twin\'s run '
-                         '(leave --graph out)')
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
@@ -108,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
     print_table(summary)
-    if args.record is not None:
+    if args.record is not None and not args.graph:   # the graph's recorder wrote its own
         record(args.record, plan, result)
     if args.plot is not None:
         atomic_bytes(args.plot, route_figure(plan, result))
@@ -136,7 +134,7 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
     result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
-                             on_progress=progress)
+                             record=args.record, on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
     runs = []
