@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import functools
 import json
 import os
@@ -140,15 +141,24 @@ SHARED_SEED = 3
 
 
 @pytest.fixture(scope='session')
-def fig11_recorded(tmp_path_factory) -> tuple[Path, dict]:
+def fig11_recorded(tmp_path_factory, worker_id) -> tuple[Path, dict]:
     """Fig. 11 through the graph as a user types it (``run --goal-mm 100,0 --rtf max --seed 3
-    --record BAG --json``): its bag and its JSON summary. One run per test process, read by every
-    test that only reads a plain run: each used to make its own (a graph run costs 7-10 s of
-    CPU, start-up included)."""
-    folder = tmp_path_factory.mktemp('fig11')
-    bag = folder / 'bag'
-    result = run_omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed',
-                            str(SHARED_SEED), '--json', '--quiet', '--record', str(bag),
-                            '--log-dir', str(folder / 'logs'))
-    assert result.returncode == 0, result.stderr[-3000:]
-    return bag, json.loads(result.stdout.strip().splitlines()[-1])
+    --record BAG --json``): its bag and its JSON summary. One run per suite, read by every test
+    that only reads a plain run: each used to make its own (a graph run costs 7-10 s of CPU,
+    start-up included). The xdist workers share it, as pytest-xdist's documentation shows: the
+    first to need it makes it under a lock in their common temporary folder, the other waits."""
+    shared = tmp_path_factory.getbasetemp()
+    if worker_id != 'master':
+        shared = shared.parent   # this run's, above each worker's own
+    folder = shared / 'fig11'
+    bag, summary = folder / 'bag', folder / 'summary.json'
+    with open(shared / 'fig11.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not summary.exists():
+            folder.mkdir(exist_ok=True)
+            result = run_omni_micro('run', '--goal-mm', '100,0', '--rtf', 'max', '--seed',
+                                    str(SHARED_SEED), '--json', '--quiet', '--record', str(bag),
+                                    '--log-dir', str(folder / 'logs'))
+            assert result.returncode == 0, result.stderr[-3000:]
+            summary.write_text(result.stdout.strip().splitlines()[-1])
+    return bag, json.loads(summary.read_text())
