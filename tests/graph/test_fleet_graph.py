@@ -2,8 +2,8 @@
 goals, one dynamics_node for all, each robot's vision_node and controller_node under /robot_k:
 every goal reached within its tolerance, no two discs ever touching, and the same run, goal for
 goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time with
-both cores kept busy, recorded into the same bag byte for byte (docs/fleet.md, "Through the
-node graph")."""
+both cores kept busy and composed in one process, recorded into the same bag byte for byte
+(docs/fleet.md, "Through the node graph")."""
 
 from __future__ import annotations
 
@@ -41,13 +41,15 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
                       str(folder / 'logs'), '--record', str(folder / 'bag'), *extra)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
-    # One dynamics process for all, each robot's two nodes in their namespace.
     (logs,) = (folder / 'logs').iterdir()
-    assert sorted(path.name for path in logs.glob('*.log')) == [
-        'bag_recorder.log', 'dynamics_node.log',
-        *(f'robot_{k}.{node}.log' for k in range(3)
-          for node in ('controller_node', 'vision_node'))]
-    assert '3 robots (robot_0, robot_1, robot_2)' in (logs / 'dynamics_node.log').read_text()
+    if '--composed' in extra:   # the dynamics and every robot's nodes in one process
+        processes = ['bag_recorder.log', 'loop_container.log']
+    else:   # one dynamics process for all, each robot's two nodes in their namespace
+        processes = ['bag_recorder.log', 'dynamics_node.log',
+                     *(f'robot_{k}.{node}.log' for k in range(3)
+                       for node in ('controller_node', 'vision_node'))]
+    assert sorted(path.name for path in logs.glob('*.log')) == processes
+    assert '3 robots (robot_0, robot_1, robot_2)' in (logs / processes[1]).read_text()
     return summary
 
 
@@ -120,3 +122,15 @@ def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy(as_fast_as_i
     assert paced == fastest
     (recorded,) = bag.glob('*.mcap')
     assert (tmp_path / 'rtf2' / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()
+
+
+def test_composed_in_one_process_the_same_run_and_the_same_bag(as_fast_as_it_goes, omni_micro,
+                                                               tmp_path):
+    composed = fleet_through_graph(omni_micro, tmp_path / 'composed', '--composed')
+    fastest = dict(as_fast_as_it_goes)
+    bag = fastest.pop('bag')
+    for summary in (fastest, composed):
+        del summary['wall_s'], summary['planning_s']
+    assert composed == fastest
+    (recorded,) = bag.glob('*.mcap')
+    assert (tmp_path / 'composed' / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()

@@ -99,11 +99,24 @@ def recorded_topics(count: int) -> list[str]:
                            if topic not in (CLOCK_TOPIC, MARKERS_TOPIC))]
 
 
+def hosting(specs: list[NodeSpec]) -> NodeSpec:
+    """omni_micro_common's container running ``specs``: each node module with the ROS arguments
+    its own process would have (its namespace and remaps among them)."""
+    argv = [str(resolve_executable('omni_micro_common', 'container'))]
+    for spec in specs:
+        assert spec.command is not None and spec.command[1] == '--ros-args', spec.command
+        argv += [f'{spec.package}.{spec.executable}', *spec.command[1:], '--']
+    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs), command=tuple(argv))
+
+
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
-                folder: Path, record: tuple[Path, str] | None = None) -> list[NodeSpec]:
+                folder: Path, record: tuple[Path, str] | None = None,
+                composed: bool = False) -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes, and with
-    ``record`` (the bag, its storage) the recorder of every robot's topics."""
+    ``record`` (the bag, its storage) the recorder of every robot's topics. ``composed``:
+    dynamics and every robot's nodes in one process (the container), each node with the same
+    arguments as on its own; the recorder stays a process of its own, as a single robot's."""
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
     # Each robot's nodes, and the orchestration as each robot's coordinator (fleet_graph).
@@ -139,6 +152,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         for package, node in ROBOT_NODES:
             specs.append(NodeSpec(package, node, namespace=robot, command=_command(
                 package, node, params, own[node], remaps)))
+    if composed:
+        specs = [hosting(specs)]
     if record is not None:
         bag, storage = record
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(

@@ -228,6 +228,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
                     log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
                     timeout_s: float = 3600.0, record: Path | None = None,
+                    composed: bool = False,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
@@ -235,6 +236,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     up to ``max_sim_time_s`` of simulated time (looked at as goals end) and ``timeout_s`` of
     wall time. With ``record`` the run is recorded into that bag (mcap): /clock and every
     robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
+    ``composed``: the dynamics and every robot's nodes in one process.
 
     Raises
     ------
@@ -251,7 +253,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     with lease as domain_id:
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
-                            log_dir, record=None if record is None else (record, 'mcap'))
+                            log_dir, record=None if record is None else (record, 'mcap'),
+                            composed=composed)
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)

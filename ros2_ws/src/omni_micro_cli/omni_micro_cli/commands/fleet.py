@@ -55,6 +55,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--rtf', type=real_time_factor, default=math.inf, metavar='R',
                         help='with --graph: simulated seconds per wall second, or max (the '
                              'default): as fast as the nodes allow; the run is the same')
+    parser.add_argument('--composed', action='store_true',
+                        help='with --graph: dynamics_node and every robot\'s nodes in one '
+                             'process (omni_micro_common\'s container); the run is the same')
     parser.add_argument('--log-dir', type=output_folder, default='out/runs', metavar='DIR',
                         help='with --graph: where each node\'s log goes, in a folder per run '
                              '(default out/runs)')
@@ -78,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
+    if not args.graph and args.composed:
+        raise UsageError('--composed puts the node graph in one process: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
@@ -134,7 +139,8 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
     result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
-                             record=args.record, on_progress=progress)
+                             record=args.record, composed=args.composed,
+                             on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
     runs = []

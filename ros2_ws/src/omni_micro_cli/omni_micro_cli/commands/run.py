@@ -196,8 +196,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 # reads is refused, named.
 _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
-FLEET_OPTIONS = ('robots', 'tasks', 'seed', 'rtf', 'timeout', 'log_dir', 'record', 'json', 'quiet',
-                 'help')
+FLEET_OPTIONS = ('robots', 'tasks', 'seed', 'rtf', 'timeout', 'log_dir', 'record', 'composed',
+                 'json', 'quiet', 'help')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -208,12 +208,12 @@ def fleet_run(args: argparse.Namespace) -> int:
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
-                         'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, --json, '
-                         '--quiet')
+                         'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, '
+                         '--composed, --json, --quiet')
     return fleet.run(argparse.Namespace(
         robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
         max_sim_time=1800, record=args.record, plot=None, json=args.json, graph=True, rtf=args.rtf,
-        log_dir=args.log_dir, wall_timeout=args.timeout))
+        log_dir=args.log_dir, wall_timeout=args.timeout, composed=args.composed))
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
