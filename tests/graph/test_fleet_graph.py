@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from omni_micro_vision.scene import FLEET_COLOURS
+
 ROBOTS = """robots:
   - start_mm: [30, 0]
     wheel_offsets_deg: [0, 3, 2]
@@ -38,7 +40,7 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
     (folder / 'tasks.yaml').write_text(TASKS)
     done = omni_micro('fleet', '--graph', '--robots', str(folder / 'robots.yaml'), '--tasks',
                       str(folder / 'tasks.yaml'), '--seed', '5', '--json', '--log-dir',
-                      str(folder / 'logs'), '--record', str(folder / 'bag'), *extra)
+                      str(folder / 'logs'), '--record', str(folder / 'bag'), '--markers', *extra)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     (logs,) = (folder / 'logs').iterdir()
@@ -47,7 +49,7 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
     else:   # one dynamics process for all, each robot's two nodes in their namespace
         processes = ['bag_recorder.log', 'dynamics_node.log',
                      *(f'robot_{k}.{node}.log' for k in range(3)
-                       for node in ('controller_node', 'vision_node'))]
+                       for node in ('controller_node', 'markers_node', 'vision_node'))]
     assert sorted(path.name for path in logs.glob('*.log')) == processes
     assert '3 robots (robot_0, robot_1, robot_2)' in (logs / processes[1]).read_text()
     return summary
@@ -78,7 +80,7 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
     from omni_micro_tools.bag_reading import read_bag
 
     summary, bag = as_fast_as_it_goes, as_fast_as_it_goes['bag']
-    own = ('odom', 'goal_pose', 'camera/macro/pose', 'controller/status')
+    own = ('odom', 'goal_pose', 'camera/macro/pose', 'controller/status', 'markers')
     data = read_bag(bag, topics=['/clock', *(f'/robot_{k}/{topic}' for k in range(3)
                                               for topic in own)])
     assert fleet_robots(list(data.timestamps)) == [0, 1, 2]
@@ -99,6 +101,16 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
         assert data.messages[f'/robot_{k}/camera/macro/pose']
         outcomes = [m.message for m in data.messages[f'/robot_{k}/controller/status']]
         assert outcomes[-1] == 'reached'
+        # Drawn by its own markers_node: its chassis in its colour (tab10, as fleet --plot
+        # draws its route), labelled with its name, where the robot ended.
+        drawn = {(m.ns, m.id): m for array in data.messages[f'/robot_{k}/markers']
+                 for m in array.markers}
+        chassis, label = drawn[('robot/chassis', 0)], drawn[('robot/label', 0)]
+        assert (chassis.color.r, chassis.color.g, chassis.color.b) == pytest.approx(
+            FLEET_COLOURS[k][:3])
+        assert label.text == f'robot_{k}'
+        assert math.dist((chassis.pose.position.x * 1e3, chassis.pose.position.y * 1e3),
+                         robot['final_mm']) < 0.01
     # analyze's table per robot reads it as it reads the fleet twin's bag.
     table, _ = summarize_fleet(bag, [0, 1, 2])
     for k, (row, robot) in enumerate(zip(table['robots'], summary['robots'], strict=True)):

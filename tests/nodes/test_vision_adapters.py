@@ -221,6 +221,12 @@ def test_markers_node_refuses_a_turned_field_that_is_not_a_number(context):
         MarkersNode(context=context, parameter_overrides=overrides(macro__yaw_rad=math.nan))
 
 
+@pytest.mark.parametrize('colour', [[1.0, 0.5, 0.0], [1.0, 0.5, 0.0, 1.5], [math.nan] * 4])
+def test_markers_node_refuses_a_robot_colour_that_is_not_rgba_in_0_1(context, colour):
+    with pytest.raises(CameraConfigError, match=r'robot\.colour must be four numbers in \[0, 1\]'):
+        MarkersNode(context=context, parameter_overrides=overrides(robot__colour=colour))
+
+
 def _arrays_drawn(context, spy, period_ticks: int) -> list[tuple[int, bool]]:
     """(stamp in ns, whether it holds the camera fields) of each array markers_node publishes
     from 3 s of odometry, one sample in ``period_ticks`` of the 20 ms grid."""

@@ -10,6 +10,7 @@ import pytest
 
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.scene import (
+    FLEET_COLOURS,
     ROUTE_SEGMENT_POINTS,
     ROUTE_SPACING_M,
     RobotGeometry,
@@ -42,6 +43,22 @@ def test_the_robot_is_drawn_where_the_odometry_puts_it_with_wheels_along_the_ste
         assert math.atan2(y1 - y0, x1 - x0) == pytest.approx(0.5)     # phi + steering
     assert shapes['robot/wheel_1'].points[0] == pytest.approx(
         RobotGeometry().wheel_contacts(0.05, -0.01, 0.3)[0])
+
+
+def test_a_micro_factory_robot_is_drawn_in_its_colour_with_its_label_above_it():
+    scene = Scene(DEFAULT_RIG, robot_colour=FLEET_COLOURS[2], label='robot_2')
+    scene.on_odometry(0.05, -0.01, 0.3)
+    shapes = {shape.namespace: shape for shape in scene.robot_shapes()}
+    assert shapes['robot/chassis'].colour == FLEET_COLOURS[2]
+    label = shapes['robot/label']
+    assert (label.kind, label.text) == ('text', 'robot_2')
+    (x, y), = label.points
+    assert x == 0.05 and y > -0.01 + 4.5e-3     # above the 9 mm chassis
+    # A single robot: no label, its own colour.
+    alone = Scene(DEFAULT_RIG)
+    alone.on_odometry(0.05, -0.01, 0.3)
+    assert 'robot/label' not in {shape.namespace for shape in alone.robot_shapes()}
+    assert len(set(FLEET_COLOURS)) == 10
 
 
 def test_the_route_is_decimated_into_segments_of_which_only_the_last_changes():

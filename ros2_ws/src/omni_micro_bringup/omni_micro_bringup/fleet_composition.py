@@ -44,6 +44,7 @@ from omni_micro_common.topic_names import (
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.simulated_robots import robot_topic as namespaced_topic
 from omni_micro_tools.topics import GRAPH_TOPICS, robot_and_topic
+from omni_micro_vision.scene import FLEET_COLOURS
 
 # Every topic that is a robot's own; /clock and /lockstep stay the graph's.
 ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
@@ -52,8 +53,9 @@ ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_
                 *CAPTURE_COVARIANCE_TOPICS.values(), *CAPTURE_IN_MOTION_TOPICS.values(),
                 *TRACKER_STATUS_TOPICS.values())
 RECORDER_NODE = 'bag_recorder'
-# A robot's nodes, each with its package.
+# A robot's nodes, each with its package; and, drawing it on /robot_k/markers, its markers_node.
 ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
+MARKERS_NODE = ('omni_micro_vision', 'markers_node')
 
 
 def robot_name(index: int) -> str:
@@ -73,7 +75,7 @@ def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Pat
         sections = load_params_file(source)
         renamed = {f'/{robot}/{node}': {'ros__parameters': values}
                    for node, values in sections.items()
-                   if node in {name for _, name in ROBOT_NODES}}
+                   if node in {name for _, name in (*ROBOT_NODES, MARKERS_NODE)}}
         path = folder / f'{robot}.params.{number}.yaml'
         path.write_text(yaml.safe_dump(renamed, sort_keys=False))
         written.append(path)
@@ -92,11 +94,11 @@ def _command(package: str, executable: str, params: list[Path],
     return tuple(argv)
 
 
-def recorded_topics(count: int) -> list[str]:
+def recorded_topics(count: int, markers: bool) -> list[str]:
     """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
-    its namespace (no /markers: markers_node draws one robot)."""
+    its namespace (``/robot_k/markers`` with ``markers``)."""
     return [CLOCK_TOPIC, *(robot_topic(k, topic) for k in range(count) for topic in GRAPH_TOPICS
-                           if topic not in (CLOCK_TOPIC, MARKERS_TOPIC))]
+                           if topic != CLOCK_TOPIC and (markers or topic != MARKERS_TOPIC))]
 
 
 def hosting(specs: list[NodeSpec]) -> NodeSpec:
@@ -112,23 +114,28 @@ def hosting(specs: list[NodeSpec]) -> NodeSpec:
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
                 folder: Path, record: tuple[Path, str] | None = None,
-                composed: bool = False) -> list[NodeSpec]:
-    """The processes of a fleet's graph: dynamics for all, each robot's two nodes, and with
+                composed: bool = False, markers: bool = False) -> list[NodeSpec]:
+    """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
+    ``markers`` its markers_node too, the robot in its colour and labelled), and with
     ``record`` (the bag, its storage) the recorder of every robot's topics. ``composed``:
     dynamics and every robot's nodes in one process (the container), each node with the same
     arguments as on its own; the recorder stays a process of its own, as a single robot's."""
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
-    # Each robot's nodes, and the orchestration as each robot's coordinator (fleet_graph).
+    nodes = (*ROBOT_NODES, *((MARKERS_NODE,) if markers else ()))
+    # Each robot's nodes (markers_node a watcher), and the orchestration as each robot's
+    # coordinator (fleet_graph).
     taking_part = [qualified_node_name(robot_name(k), node) for k in range(count)
-                   for node in (*(name for _, name in ROBOT_NODES), ORCHESTRATOR_NODE)]
+                   for node in (*(name for _, name in nodes), ORCHESTRATOR_NODE)]
     awaited = [entry for k in range(count) for entry in (
         f'{robot_name(k)}/vision_node:{robot_topic(k, ODOM_TOPIC)}',
         f'{robot_name(k)}/controller_node:{robot_topic(k, JOINT_STATES_TOPIC)}',
-        f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}')]
+        f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}',
+        *(f'{robot_name(k)}/{MARKERS_NODE[1]}:{robot_topic(k, topic)}'
+          for topic in (READS_FROM_ROBOT[MARKERS_NODE[1]] if markers else ())))]
     if record is not None:
         # The recorder keeps every tick from the first (composition.READS_FROM_ROBOT).
-        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count)
+        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count, markers)
                     if robot_and_topic(topic)[1] in READS_FROM_ROBOT[RECORDER_NODE]]
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
@@ -142,14 +149,19 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
-                                       for topic in ROBOT_TOPICS))
+                                       for topic in (*ROBOT_TOPICS, MARKERS_TOPIC)))
         params = namespaced_params(shipped, robot, folder)
         own: dict[str, dict[str, object]] = {'vision_node': {
                    # Each robot's captures their own noise, as the fleet twin draws it.
                    'seed': int(seed) * 1000 + k,
-                   'covariance_readers': [f'{robot}/controller_node']},
-               'controller_node': {'goal_time': 'stamp'}}
-        for package, node in ROBOT_NODES:
+                   'covariance_readers': [f'{robot}/{name}' for _, name in nodes
+                                          if name != 'vision_node']},
+               'controller_node': {'goal_time': 'stamp'},
+               'markers_node': {
+                   'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
+                   'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
+                   'robot.label': robot}}
+        for package, node in nodes:
             specs.append(NodeSpec(package, node, namespace=robot, command=_command(
                 package, node, params, own[node], remaps)))
     if composed:
@@ -158,5 +170,5 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         bag, storage = record
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
             'omni_micro_tools', RECORDER_NODE, shipped,
-            {'bag': str(bag), 'storage': storage, 'topics': recorded_topics(count)})))
+            {'bag': str(bag), 'storage': storage, 'topics': recorded_topics(count, markers)})))
     return specs

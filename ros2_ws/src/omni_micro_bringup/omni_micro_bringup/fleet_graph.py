@@ -30,7 +30,7 @@ from rcl_interfaces.srv import SetParameters
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import fleet_specs, robot_name, robot_topic
-from omni_micro_bringup.graph import Graph, new_log_dir
+from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
 from omni_micro_bringup.monitor import GraphMonitor
 from omni_micro_bringup.processes import DomainLease
 from omni_micro_bringup.supervisor import Supervisor
@@ -228,7 +228,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
                     log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
                     timeout_s: float = 3600.0, record: Path | None = None,
-                    composed: bool = False,
+                    composed: bool = False, markers: bool = False,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
@@ -236,7 +236,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     up to ``max_sim_time_s`` of simulated time (looked at as goals end) and ``timeout_s`` of
     wall time. With ``record`` the run is recorded into that bag (mcap): /clock and every
     robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
-    ``composed``: the dynamics and every robot's nodes in one process.
+    ``composed``: the dynamics and every robot's nodes in one process. ``markers``: each robot
+    drawn on ``/robot_k/markers`` by a markers_node of its own, in its colour, labelled.
 
     Raises
     ------
@@ -254,7 +255,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
                             log_dir, record=None if record is None else (record, 'mcap'),
-                            composed=composed)
+                            composed=composed, markers=markers)
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)
@@ -345,8 +346,11 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                 reason = f'every task done in {now_s:.2f} s'
                 monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
             if record is not None:
-                # The bag ends BAG_TAIL_S after the last end: all of it received before the stop.
-                monitor.wait_for_recorder_past(graph, now_s + BAG_TAIL_S, timeout_s=60.0)
+                # The bag ends BAG_TAIL_S after the last end: all of it received before the stop
+                # (and the markers' arrays up to there drawn: they lag the odometry).
+                monitor.wait_for_recorder_past(
+                    graph, now_s + BAG_TAIL_S + (RUN_ON_PAST_BAG_END_S if markers else 0.0),
+                    timeout_s=60.0)
         finally:
             # Every robot's statuses as the coordinator took them, in its order.
             (log_dir / 'statuses.jsonl').write_text(''.join(

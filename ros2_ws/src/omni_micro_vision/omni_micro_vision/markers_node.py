@@ -69,7 +69,7 @@ from omni_micro_common.topic_names import (
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checked_yaw
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.marker_messages import MarkerArrayEncoder
-from omni_micro_vision.scene import RobotGeometry, Scene, Shape, move_of, slip_of
+from omni_micro_vision.scene import ROBOT, RobotGeometry, Scene, Shape, move_of, slip_of
 
 
 def header_stamp_ns(data: bytes) -> int:
@@ -127,6 +127,11 @@ class MarkersNode(Node):
         if len(offsets) != 3 or not all(math.isfinite(v) for v in offsets):
             raise CameraConfigError(
                 f'robot.wheel_offsets_rad must be three finite angles, got {list(offsets)}')
+        colour = self.declare_parameter('robot.colour', list(ROBOT)).value
+        if len(colour) != 4 or not all(0.0 <= v <= 1.0 for v in colour):
+            raise CameraConfigError(f'robot.colour must be four numbers in [0, 1] (red, green, '
+                                    f'blue, alpha), got {list(colour)}')
+        label = str(self.declare_parameter('robot.label', '').value)
         tolerance = float(self.declare_parameter('tolerance_m', GOAL_TOLERANCE_M).value)
         slip_arrow = float(self.declare_parameter('slip_arrow_s', 2.0).value)
         if not (tolerance > 0 and slip_arrow > 0):
@@ -134,7 +139,9 @@ class MarkersNode(Node):
                                     f'{tolerance} and {slip_arrow}')
         self.scene = Scene(CameraRig(**cameras), RobotGeometry(
             wheel_offsets_rad=(float(offsets[0]), float(offsets[1]), float(offsets[2]))),
-                           tolerance_m=tolerance, slip_arrow_s=slip_arrow, camera_yaw_rad=yaws)
+                           tolerance_m=tolerance, slip_arrow_s=slip_arrow, camera_yaw_rad=yaws,
+                           robot_colour=(float(colour[0]), float(colour[1]), float(colour[2]),
+                                         float(colour[3])), label=label)
         self.handled = 0          # messages taken in (the drain at shutdown watches it)
         self._changed: set[str] = set()     # event groups to send with the next array
         self._stamp = Time()

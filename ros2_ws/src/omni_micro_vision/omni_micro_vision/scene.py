@@ -47,6 +47,14 @@ GOAL: Colour = (0.17, 0.63, 0.17, 1.0)
 MOVE: Colour = (0.58, 0.4, 0.74, 1.0)
 SLIP_LONGITUDINAL: Colour = (0.84, 0.15, 0.16, 1.0)
 SLIP_TRANSVERSE: Colour = (0.12, 0.47, 0.71, 1.0)
+# Robot k of a micro-factory in FLEET_COLOURS[k % 10] (matplotlib's tab10, as fleet --plot
+# draws the routes), its chassis a little transparent as the single robot's.
+FLEET_COLOURS: tuple[Colour, ...] = tuple(
+    (int(code[0:2], 16) / 255, int(code[2:4], 16) / 255, int(code[4:6], 16) / 255, 0.85)
+    for code in ('1f77b4', 'ff7f0e', '2ca02c', 'd62728', '9467bd', '8c564b', 'e377c2',
+                 '7f7f7f', 'bcbd22', '17becf'))
+LABEL: Colour = (0.1, 0.1, 0.1, 1.0)
+LABEL_HEIGHT_M = 3.0e-3
 
 
 @dataclass(frozen=True)
@@ -119,6 +127,10 @@ class Scene:
     robot: RobotGeometry = field(default_factory=RobotGeometry)
     tolerance_m: float = GOAL_TOLERANCE_M
     slip_arrow_s: float = 2.0            # arrow length (m) per slip speed (m/s)
+    # Who the robot is, on a platform shared with others: its chassis's colour, and a label
+    # beside it ('' for none: a single robot).
+    robot_colour: Colour = ROBOT
+    label: str = ''
     # How each camera is turned about its centre (``yaw_rad`` of camera_node, tracker_node).
     camera_yaw_rad: dict[str, float] = field(default_factory=dict)
     pose: tuple[float, float, float] | None = None
@@ -192,7 +204,7 @@ class Scene:
         nose = (x + self.robot.chassis_radius_m * math.cos(phi),
                 y + self.robot.chassis_radius_m * math.sin(phi))
         shapes = [
-            Shape('robot/chassis', 0, 'disc', ((x, y),), ROBOT,
+            Shape('robot/chassis', 0, 'disc', ((x, y),), self.robot_colour,
                   2.0 * self.robot.chassis_radius_m),
             Shape('robot/wheels', 0, 'line_list', tuple(wheels), (0.2, 0.2, 0.2, 1.0),
                   4.0 * MACRO_WIDTH_M),
@@ -210,6 +222,10 @@ class Scene:
                 shapes.append(Shape(name, k, 'arrow', ((cx, cy), (
                     cx + length * math.cos(angle), cy + length * math.sin(angle))), colour,
                     MACRO_WIDTH_M))
+        if self.label:
+            above = (x, y + self.robot.chassis_radius_m + LABEL_HEIGHT_M)
+            shapes.append(Shape('robot/label', 0, 'text', (above,), LABEL, LABEL_HEIGHT_M,
+                                text=self.label))
         return shapes
 
     def route_shapes(self, only_last: bool) -> list[Shape]:

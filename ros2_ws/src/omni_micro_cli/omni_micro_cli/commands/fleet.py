@@ -55,6 +55,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--rtf', type=real_time_factor, default=math.inf, metavar='R',
                         help='with --graph: simulated seconds per wall second, or max (the '
                              'default): as fast as the nodes allow; the run is the same')
+    parser.add_argument('--markers', action='store_true',
+                        help='with --graph: a markers_node per robot draws it on '
+                             '/robot_k/markers (RViz 2, Foxglove), in its colour, labelled')
     parser.add_argument('--composed', action='store_true',
                         help='with --graph: dynamics_node and every robot\'s nodes in one '
                              'process (omni_micro_common\'s container); the run is the same')
@@ -81,8 +84,9 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
-    if not args.graph and args.composed:
-        raise UsageError('--composed puts the node graph in one process: give it with --graph')
+    for option in ('composed', 'markers'):
+        if not args.graph and getattr(args, option):
+            raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
@@ -139,7 +143,7 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
     result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
-                             record=args.record, composed=args.composed,
+                             record=args.record, composed=args.composed, markers=args.markers,
                              on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
@@ -239,12 +243,12 @@ def route_figure(plan: Any, result: Any) -> bytes:
 
     from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
     from omni_micro_vision.camera import DEFAULT_RIG
+    from omni_micro_vision.scene import FLEET_COLOURS
 
     figure, axes = plt.subplots(figsize=(7, 7))
-    colours = plt.get_cmap('tab10')
     radius_mm = ROBOT_DIAMETER_M / 2.0 * 1e3
     for k, run in enumerate(result.robots):
-        colour = colours(k % 10)
+        colour = FLEET_COLOURS[k % len(FLEET_COLOURS)][:3]   # as /robot_k/markers draws it
         route = run.route_m
         if len(route):
             axes.plot(route[:, 1] * 1e3, route[:, 2] * 1e3, color=colour, lw=1.2,
