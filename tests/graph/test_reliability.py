@@ -50,12 +50,28 @@ def shm_files_in_use(pids: list[int] | None = None) -> set[str]:
     return in_use
 
 
-def leftovers_of(ours: set[str], before: set[str]) -> set[str]:
-    """The shared-memory files this test's run left: ``ours`` (what its processes used) still
-    there, not there ``before`` it, used by no living process. Another ROS graph on the machine
-    (other domains, another test beside this one) makes and removes its own files meanwhile,
-    and leaves its own when one of its processes is killed: they are not this run's."""
-    return (shm_files() & ours) - before - shm_files_in_use()
+def identities(names: set[str]) -> set[tuple[str, int]]:
+    """Each file's name and inode: a file of the same name made again later is another file."""
+    found = set()
+    for name in names:
+        try:
+            found.add((name, os.stat(f'/dev/shm/{name}').st_ino))
+        except FileNotFoundError:
+            continue
+    return found
+
+
+def leftovers_of(ours: set[tuple[str, int]], before: set[str]) -> set[str]:
+    """The shared-memory files this test's run left: ``ours`` (what its processes used, by name
+    and inode) still there, not there ``before`` it, used by no living process. Another ROS graph
+    on the machine (other domains, another test beside this one) makes and removes its own files
+    meanwhile, and leaves its own when one of its processes is killed: they are not this run's.
+    Nor is a file of one of ours' names made again: besides its domain's port, each participant
+    takes the first free of fastrtps_port7000, 7001, ..., whatever its domain (measured: two
+    processes in domains 17 and 201 took 7000 and 7001), so a participant of another graph
+    takes the port a killed node held once it is cleaned, under the same name (a suite run once
+    found the killed controller's port7000_el left, though this run cleaned it)."""
+    return {name for name, _ in identities(shm_files()) & ours} - before - shm_files_in_use()
 
 
 def run(tmp_path: Path, **options: Any) -> GraphResult:
@@ -113,7 +129,7 @@ def kill_after(node: str, wall_s: float, record: dict):
         def kill():
             time.sleep(wall_s)
             pids = [os.getpid(), *(p.process.pid for p in graph.processes if p.process)]
-            record['shm'] = shm_files_in_use(pids)
+            record['shm'] = identities(shm_files_in_use(pids))
             record['killed_at'] = time.monotonic()
             os.kill(graph.process(node).process.pid, signal.SIGKILL)
         threading.Thread(target=kill, daemon=True).start()
