@@ -9,7 +9,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 pytestmark = pytest.mark.slow
 
@@ -157,8 +159,19 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
     assert refused.returncode == 2
     assert refused.stderr.strip() == ('omni-micro replay: error: --robot 5: the bag has no '
                                       '/robot_5/ topics (its robots: robot_0, robot_1, robot_2)')
-    analyzed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'))
+    analyzed = omni_micro('analyze', str(bag), '--out', str(tmp_path / 'analysis'),
+                          '--animate', '--frames', '3')
     assert analyzed.returncode == 0, analyzed.stderr
+    # Every robot drawn, each in its colour (its chassis half transparent on white).
+    from matplotlib.image import imread
+
+    from omni_micro_vision.scene import FLEET_COLOURS
+
+    assert getattr(Image.open(tmp_path / 'analysis' / 'run.gif'), 'n_frames', 1) == 3
+    pixels = imread(tmp_path / 'analysis' / 'run_last_frame.png')[:, :, :3].reshape(-1, 3)
+    for k in range(3):
+        blended = (np.array(FLEET_COLOURS[k][:3]) + 1.0) / 2.0
+        assert np.any(np.all(np.abs(pixels - blended) < 0.02, axis=1)), f'robot_{k} not drawn'
     table = json.loads((tmp_path / 'analysis' / 'summary.json').read_text())['robots']
     assert [row['robot'] for row in table] == ['robot_0', 'robot_1', 'robot_2']
     for row, robot in zip(table, summary['robots'], strict=True):

@@ -3,7 +3,9 @@
 The bag's messages are fed, in the order they were recorded, to the same
 :class:`omni_micro_vision.scene.Scene` that ``markers_node`` draws from; each frame draws the
 scene at one simulated time: the platform with the route forming, captures landing, moves and
-the robot, and an inset of the micro field.
+the robot, and an inset of the micro field. A micro-factory's bag (each robot's topics under
+``/robot_k/``) gets a scene per robot, each robot in its colour and labelled, as
+``/robot_k/markers`` draws it.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
-from omni_micro_vision.scene import Scene, Shape, move_of, slip_of
+from omni_micro_vision.scene import FLEET_COLOURS, Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
 DPI = 100                      # frames of 1000 x 450 pixels
@@ -40,32 +42,43 @@ TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, WHEEL_TRAJECTORY_TOP
           *CAPTURE_TOPICS.values(), *CAPTURE_COVARIANCE_TOPICS.values())
 
 
-def _events(bag: Path) -> list[tuple[int, str, Any]]:
-    """Every message that changes the scene, with the simulated time it was recorded at."""
-    data = read_bag(bag, list(TOPICS))
-    events = [(stamp, topic, message)
-              for topic in TOPICS
-              for stamp, message in zip(data.timestamps.get(topic, []),
-                                        data.messages.get(topic, []), strict=True)]
-    if not data.messages.get(ODOM_TOPIC):
-        # A run with a real robot: the robot drawn where the cameras saw it.
-        events += [(stamp, SEEN, message) for topic in CAPTURE_TOPICS.values()
-                   for stamp, message in zip(data.timestamps.get(topic, []),
-                                             data.messages.get(topic, []), strict=True)]
-    if not any(topic in (ODOM_TOPIC, SEEN) for _, topic, _ in events):
+# One message that changes a scene: the simulated time it was recorded at, whose scene (a robot's
+# namespace, '' for a single robot), its topic as a single robot names it, the message.
+Event = tuple[int, str, str, Any]
+
+
+def _events(bag: Path, robots: list[str]) -> list[Event]:
+    """Every message that changes a robot's scene (``robots``: the namespaces of a
+    micro-factory's bag; ``['']`` for a single robot's)."""
+    data = read_bag(bag, [f'/{robot}{topic}' if robot else topic
+                          for robot in robots for topic in TOPICS])
+    events: list[Event] = []
+    for robot in robots:
+        def of(topic: str, robot: str = robot) -> list[tuple[int, Any]]:
+            named = f'/{robot}{topic}' if robot else topic
+            return list(zip(data.timestamps.get(named, []), data.messages.get(named, []),
+                            strict=True))
+        events += [(stamp, robot, topic, message) for topic in TOPICS
+                   for stamp, message in of(topic)]
+        if not of(ODOM_TOPIC):
+            # A run with a real robot: the robot drawn where the cameras saw it.
+            events += [(stamp, robot, SEEN, message) for topic in CAPTURE_TOPICS.values()
+                       for stamp, message in of(topic)]
+    if not any(topic in (ODOM_TOPIC, SEEN) for _, _, topic, _ in events):
         raise UsageError(f'{str(bag)!r} has no /odom and no captures: nothing to animate')
     # The recorder's stamps are simulated time; ties keep the topics' order above.
     events.sort(key=lambda event: event[0])
     return events
 
 
-def _first_position(events: list[tuple[int, str, Any]]) -> tuple[float, float]:
-    """Where the robot is first placed (x, y)."""
-    for _, topic, message in events:
-        if topic in (ODOM_TOPIC, SEEN):
+def _first_positions(events: list[Event]) -> list[tuple[float, float]]:
+    """Where each robot is first placed (x, y)."""
+    first: dict[str, tuple[float, float]] = {}
+    for _, robot, topic, message in events:
+        if topic in (ODOM_TOPIC, SEEN) and robot not in first:
             pose = message.pose.pose if topic == ODOM_TOPIC else message.pose
-            return pose.position.x, pose.position.y
-    raise AssertionError('_events checked there is one')
+            first[robot] = (pose.position.x, pose.position.y)
+    return list(first.values())
 
 
 def _apply(scene: Scene, topic: str, message: Any) -> None:
@@ -114,14 +127,18 @@ def _draw(axis: Any, shapes: list[Shape], micro: bool) -> None:
         elif shape.kind == 'disc':
             axis.add_patch(Circle(tuple(points[0]), shape.size_m * 1e3 / 2, color=colour,
                                   alpha=min(colour[3], 0.5), zorder=2))
+        elif shape.kind == 'text' and shape.namespace == 'robot/label':
+            axis.annotate(shape.text, tuple(points[0]), ha='center', va='bottom', fontsize=8,
+                          color=colour)
         elif shape.kind == 'arrow' and math.dist(*shape.points) > 0:
             axis.annotate('', xy=tuple(points[1]), xytext=tuple(points[0]),
                           arrowprops={'arrowstyle': '->', 'color': colour, 'lw': 1.2})
 
 
-def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
+def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
+            robots: list[int] | None = None) -> int:
     """Render ``frames`` frames to ``target`` (.gif, or .mp4 where ffmpeg exists), and the
-    last one to ``still`` (a PNG)."""
+    last one to ``still`` (a PNG). ``robots``: the robots of a micro-factory's bag, all drawn."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -131,12 +148,15 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
 
     if target.suffix == '.mp4' and shutil.which('ffmpeg') is None:
         raise UsageError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
-    events = _events(bag)
+    names = [f'robot_{k}' for k in robots] if robots else ['']
+    events = _events(bag, names)
     first, last = events[0][0], events[-1][0]
-    start = _first_position(events)
+    starts = _first_positions(events)
     clock = 'on the wall clock' if is_wall_clock(first * 1e-9) else 'simulated'
     times = np.linspace(first, last, frames)
-    scene = Scene(DEFAULT_RIG)
+    scenes = {name: Scene(DEFAULT_RIG) for name in names} if not robots else {
+        name: Scene(DEFAULT_RIG, robot_colour=FLEET_COLOURS[k % len(FLEET_COLOURS)], label=name)
+        for k, name in zip(robots, names, strict=True)}
     fig = plt.figure(figsize=FIGURE_SIZE_IN, dpi=DPI)
     main = fig.add_axes((0.07, 0.12, 0.6, 0.76))
     inset = fig.add_axes((0.72, 0.12, 0.26, 0.76))
@@ -147,20 +167,23 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
     def frame(index: int) -> None:
         nonlocal cursor
         while cursor < len(events) and events[cursor][0] <= times[index]:
-            _apply(scene, events[cursor][1], events[cursor][2])
+            _, robot, topic, message = events[cursor]
+            _apply(scenes[robot], topic, message)
             cursor += 1
-        shapes = (scene.static_shapes() + scene.route_shapes(only_last=False)
-                  + scene.robot_shapes())
+        shapes = [shape for scene in scenes.values()
+                  for shape in (scene.static_shapes() + scene.route_shapes(only_last=False)
+                                + scene.robot_shapes())]
         for axis, micro in ((main, False), (inset, True)):
             axis.cla()
             _draw(axis, shapes, micro)
             axis.set_aspect('equal')
             axis.grid(True, alpha=0.3)
-        # Before the robot is first placed (a real robot's run shows it at its first capture):
+        # Before a robot is first placed (a real robot's run shows it at its first capture):
         # where it will be.
-        seen = scene.route or [start]
-        x_values = [x for x, _ in seen] + ([scene.goal_m[0]] if scene.goal_m else [])
-        y_values = [y for _, y in seen] + ([scene.goal_m[1]] if scene.goal_m else [])
+        seen = [point for scene in scenes.values() for point in scene.route] or starts
+        goals = [scene.goal_m for scene in scenes.values() if scene.goal_m is not None]
+        x_values = [x for x, _ in seen + goals]
+        y_values = [y for _, y in seen + goals]
         margin = 6.0
         main.set_xlim(min(x_values) * 1e3 - margin, max(x_values) * 1e3 + margin)
         main.set_ylim(min(y_values) * 1e3 - margin - 20, max(y_values) * 1e3 + margin + 20)
@@ -169,8 +192,10 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path) -> int:
         (cx, cy), (w, h) = DEFAULT_RIG.micro.center_m, DEFAULT_RIG.micro.field_m
         inset.set_xlim((cx - w / 2) * 1e3, (cx + w / 2) * 1e3)
         inset.set_ylim((cy - h / 2) * 1e3, (cy + h / 2) * 1e3)
-        if scene.pose is not None:
-            inset.plot(scene.pose[0] * 1e3, scene.pose[1] * 1e3, 'x', color='k')
+        for scene in scenes.values():
+            if scene.pose is not None:
+                inset.plot(scene.pose[0] * 1e3, scene.pose[1] * 1e3, 'x',
+                           color=scene.robot_colour[:3] if robots else 'k')
         inset.set_title('micro field (2 mm)', fontsize=9)
         inset.tick_params(labelsize=7)
         inset.locator_params(nbins=5)

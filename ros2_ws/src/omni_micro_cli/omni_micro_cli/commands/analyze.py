@@ -44,7 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         metavar='gif|mp4',
                         help='also render the run as DIR/run.gif (or .mp4, needs ffmpeg) and '
                              'its last frame as DIR/run_last_frame.png: the route forming, '
-                             'captures landing, a micro-field inset, simulated time shown')
+                             'captures landing, a micro-field inset, simulated time shown; '
+                             'of a micro-factory\'s bag, every robot in its colour, labelled')
     parser.add_argument('--frames', type=whole_number_in(1, MAX_FRAMES), default=100,
                         metavar='N',
                         help='frames of the animation, evenly spaced in simulated time '
@@ -188,13 +189,15 @@ def analyze_fleet(args: argparse.Namespace, robots: list[int]) -> int:
     from omni_micro_cli import plots
     from omni_micro_cli.fleet_analysis import fleet_markdown, summarize_fleet
 
-    if args.animate:
-        raise UsageError(f'{str(args.bag)!r} is a fleet\'s bag ({len(robots)} robots): '
-                         '--animate draws one robot\'s run; the routes are in route.png')
     summary, routes = summarize_fleet(args.bag, robots)
     with staged_directory(args.out) as scratch:
         plots.routes(scratch / 'route.png', routes, title=f'{len(robots)} robots (from the bag)',
                      equal_aspect=True)
+        if args.animate:
+            from omni_micro_cli.animate import animate
+
+            animate(args.bag, scratch / f'run.{args.animate}', args.frames, args.fps,
+                    scratch / 'run_last_frame.png', robots=robots)
         (scratch / 'summary.json').write_text(json.dumps(summary, indent=2))
         (scratch / 'summary.md').write_text(fleet_markdown(summary))
     print(fleet_markdown(summary))
