@@ -52,8 +52,11 @@ def robot(start_node, probe):
     probe.node.create_subscription(JointState, '/wheel_slip', lambda m: seen['slip'].append(m),
                                    QOS)
     publisher = probe.node.create_publisher(JointTrajectory, '/wheel_trajectory', QOS)
-    probe.spin_until(lambda: len(seen['odom']) > 5 and publisher.get_subscription_count() > 0,
-                     30.0, 'odometry from dynamics_node')
+    # Every stream heard from: each reader matches at its own pace (beside two busy processes
+    # /wheel_slip's had nothing yet when /odom had six samples).
+    probe.spin_until(lambda: len(seen['odom']) > 5 and all(seen.values())
+                     and publisher.get_subscription_count() > 0,
+                     30.0, 'every stream of dynamics_node')
     return process, seen, publisher
 
 
