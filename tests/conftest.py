@@ -126,7 +126,13 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     if report.when == 'setup':
         item.stash[_SETUP_S] = report.duration
     elif report.when == 'call' and report.passed:
-        used = cpu_seconds() - item.stash.get(_CPU_AT_START, cpu_seconds())
+        # Less the CPU of busy processes a test ran beside on purpose (busy_machine): the load
+        # it asked for, not its cost.
+        load = 0.0
+        for name, value in item.user_properties:
+            if name == 'busy_cpu_s' and isinstance(value, float):
+                load += value
+        used = cpu_seconds() - item.stash.get(_CPU_AT_START, cpu_seconds()) - load
         took = item.stash.get(_SETUP_S, 0.0) + report.duration
         # In --junitxml's report beside the wall time: what a test costs whatever else runs.
         item.user_properties.append(('cpu_s', round(used, 2)))
