@@ -1,5 +1,7 @@
 """What a micro-factory's graph starts: one dynamics_node simulating every robot on one clock,
-and per robot ``robot_k`` its vision_node and controller_node in the namespace ``/robot_k``.
+per robot ``robot_k`` its vision_node and controller_node (and, drawing it, its markers_node) in
+the namespace ``/robot_k``, and the recorder of every robot's topics; all but the recorder in
+one process when composed.
 
 One dynamics process for all (not one per robot): the robots share one ``/clock`` and one
 lockstep, which one process owning time gives by construction; N processes would each need a
