@@ -48,3 +48,9 @@ def camera_info_beside(image_topic: str) -> str:
     """Where a camera driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside
     it (image_transport's convention)."""
     return image_topic.rsplit('/', 1)[0] + '/camera_info'
+
+
+def is_plain_name(name: str) -> bool:
+    """One ROS name token (letters, digits and _, a letter first): what a micro-factory robot's
+    namespace must be (``robot_1``), whose topics are then ``/robot_1/odom``, ..."""
+    return name[:1].isalpha() and name.replace('_', 'a').isalnum()

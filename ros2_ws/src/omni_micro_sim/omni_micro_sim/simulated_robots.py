@@ -28,6 +28,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    is_plain_name,
 )
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.stepper import GridSimulator, Sample
@@ -45,7 +46,7 @@ def robot_frame(namespace: str, frame: str) -> str:
 def check_namespaces(robots: list[str]) -> None:
     """Raises ParameterError for a namespace that is not one plain ROS name, or twice."""
     for name in robots:
-        if not name or not (name[0].isalpha() and name.replace('_', 'a').isalnum()):
+        if not is_plain_name(name):
             raise ParameterError(f'robots: each must be a plain name (letters, digits, _; '
                                  f'a letter first), got {name!r}')
     twice = sorted({name for name in robots if robots.count(name) > 1})

@@ -23,6 +23,7 @@ from omni_micro_common.topic_names import (
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
     camera_info_beside,
+    is_plain_name,
 )
 
 if TYPE_CHECKING:
@@ -102,8 +103,7 @@ def robot_and_topic(topic: str) -> tuple[str, str]:
         return '', topic
     robot, separator, rest = topic[1:].partition('/')
     own = f'/{rest}'
-    plain = robot[:1].isalpha() and robot.replace('_', 'a').isalnum()
-    if topic.startswith('/') and separator and plain and own in RECORDABLE_TOPICS \
+    if topic.startswith('/') and separator and is_plain_name(robot) and own in RECORDABLE_TOPICS \
             and own != CLOCK_TOPIC:
         return robot, own
     return '', topic
