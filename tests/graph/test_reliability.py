@@ -18,6 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.processes import shared_memory_files_in_use
 from omni_micro_cli.errors import RunFailed
 from omni_micro_tools.bag_reading import read_bag
 
@@ -28,26 +29,6 @@ STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
 
 def shm_files() -> set[str]:
     return {name for name in os.listdir('/dev/shm') if name.startswith('fastrtps')}
-
-
-def shm_files_in_use(pids: list[int] | None = None) -> set[str]:
-    """The Fast DDS shared-memory files some living process (of ``pids``: any) uses: maps (its
-    segments and ports) or holds open (their ``_el`` lock files)."""
-    in_use: set[str] = set()
-    processes = (Path('/proc').glob('[0-9]*') if pids is None
-                 else [Path(f'/proc/{pid}') for pid in pids])
-    for process in processes:
-        try:
-            in_use.update(line.rsplit('/', 1)[-1]
-                          for line in (process / 'maps').read_text().splitlines()
-                          if '/dev/shm/fastrtps' in line)
-            for fd in (process / 'fd').iterdir():
-                target = os.readlink(fd)
-                if target.startswith('/dev/shm/fastrtps'):
-                    in_use.add(target.rsplit('/', 1)[-1])
-        except OSError:   # the process ended while we looked, or is not ours to read
-            continue
-    return in_use
 
 
 def identities(names: set[str]) -> set[tuple[str, int]]:
@@ -71,7 +52,8 @@ def leftovers_of(ours: set[tuple[str, int]], before: set[str]) -> set[str]:
     processes in domains 17 and 201 took 7000 and 7001), so a participant of another graph
     takes the port a killed node held once it is cleaned, under the same name (a suite run once
     found the killed controller's port7000_el left, though this run cleaned it)."""
-    return {name for name, _ in identities(shm_files()) & ours} - before - shm_files_in_use()
+    left = {name for name, _ in identities(shm_files()) & ours}
+    return left - before - shared_memory_files_in_use()
 
 
 def run(tmp_path: Path, **options: Any) -> GraphResult:
@@ -129,7 +111,7 @@ def kill_after(node: str, wall_s: float, record: dict):
         def kill():
             time.sleep(wall_s)
             pids = [os.getpid(), *(p.process.pid for p in graph.processes if p.process)]
-            record['shm'] = identities(shm_files_in_use(pids))
+            record['shm'] = identities(shared_memory_files_in_use(pids))
             record['killed_at'] = time.monotonic()
             os.kill(graph.process(node).process.pid, signal.SIGKILL)
         threading.Thread(target=kill, daemon=True).start()

@@ -46,7 +46,6 @@ from omni_micro_bringup.processes import (
     NodeProcess,
     clean_shared_memory,
     node_environment,
-    shared_memory_files,
     stop_together,
 )
 from omni_micro_bringup.readiness import (
@@ -142,7 +141,6 @@ class Graph:
         self.options = options
         self.domain_id = domain_id
         self.log_dir = log_dir
-        self.shm_before = shared_memory_files()
         env = node_environment(domain_id, log_dir)
         # Only this process holds the write end (os.pipe() fds are not inherited); the read end
         # goes to every child, which stops when it reads end-of-file.
@@ -244,7 +242,7 @@ class Graph:
                               + (f' (the slowest, {slowest}, {took[slowest]:.2f} s after its '
                                  'signal)' if slowest else '') + '; exit codes: '
                               + ', '.join(f'{name} {code}' for name, code in codes.items()))
-        clean_shared_memory(self.shm_before)
+        clean_shared_memory()
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
             self._recover_bag(record)

@@ -1,0 +1,47 @@
+"""What a graph's stop removes from /dev/shm: a killed process's orphaned Fast DDS port, made by
+whichever run, and nothing a living process maps or listens on."""
+
+from __future__ import annotations
+
+import mmap
+import uuid
+from pathlib import Path
+
+import pytest
+
+from omni_micro_bringup import processes
+
+SHM = Path('/dev/shm')
+
+
+@pytest.fixture
+def port_file():
+    """Makes port files under names no participant takes (Fast DDS numbers its ports from 7000)
+    and removes whatever the test left."""
+    made: list[Path] = []
+
+    def make(name: str) -> Path:
+        path = SHM / name
+        path.write_bytes(b'\0' * 4096)
+        made.append(path)
+        return path
+    yield make
+    for path in made:
+        path.unlink(missing_ok=True)
+
+
+@pytest.mark.skipif(not SHM.is_dir(), reason='no /dev/shm on this system')
+def test_an_orphaned_port_goes_whoever_made_it_and_a_port_in_use_stays(port_file, monkeypatch):
+    # Only this function's own rule, not the fastdds tool's cleaning of dead owners' segments.
+    monkeypatch.setattr(processes.shutil, 'which', lambda *args, **kwargs: None)
+    first = 900_000_000 + uuid.uuid4().int % 10**8 * 3
+    orphan = port_file(f'fastrtps_port{first}')          # there before the run or not: alike
+    listened = port_file(f'fastrtps_port{first + 1}')
+    lock = port_file(f'fastrtps_port{first + 1}_el')
+    mapped = port_file(f'fastrtps_port{first + 2}')      # a writer opened it before any reader
+    with open(mapped, 'r+b') as handle, mmap.mmap(handle.fileno(), 4096):
+        assert mapped.name in processes.shared_memory_files_in_use()
+        processes.clean_shared_memory()
+        assert mapped.exists()
+    assert not orphan.exists()
+    assert listened.exists() and lock.exists()
