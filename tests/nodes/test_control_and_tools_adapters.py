@@ -83,6 +83,31 @@ def test_bag_recorder_writes_what_it_receives_into_a_readable_bag(context, tmp_p
     assert odom.pose.pose.position.x == 0.0123 and odom.header.stamp.sec == 3
 
 
+def test_bag_recorder_keeps_logging_by_simulated_time_when_a_clock_of_another_kind_comes(
+        context, tmp_path, monkeypatch):
+    """One /clock message on the wall clock in a simulated run (another graph's on this domain)
+    would place every later message at its time, past the bag's end: the recorder says so once
+    and goes on logging by simulated time."""
+    bag = tmp_path / 'bag'
+    node = BagRecorder(context=context, parameter_overrides=overrides(
+        bag=str(bag), topics=['/odom']))
+    warnings: list[str] = []
+    logger = node.get_logger()
+    monkeypatch.setattr(logger, 'warning', lambda message, **kwargs: warnings.append(message))
+    for sec in (1, int(time.time()), int(time.time()) + 1, 2):
+        clock = Clock()
+        clock.clock.sec = sec
+        node._on_clock(serialize_message(clock))
+    odometry = Odometry()
+    odometry.header.stamp.sec = 2
+    node._writer_of('/odom')(serialize_message(odometry))
+    node.close()
+    node.destroy_node()
+    assert read_bag(bag).timestamps['/odom'] == [2_000_000_000]
+    assert len(warnings) == 1 and 'another graph publishes /clock' in warnings[0]
+    assert '(the wall clock' in warnings[0]
+
+
 def test_bag_recorder_on_the_bench_logs_on_the_wall_clock_with_the_drivers_images(context,
                                                                                   tmp_path):
     """A real robot has no /clock: each message is logged when it came, by the system clock,

@@ -35,6 +35,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMessage
 
+from omni_micro_common.clocks import describe_clock, is_wall_clock
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
@@ -152,6 +153,7 @@ class BagRecorder(Node):
         # Simulated time, from the /clock messages themselves (what use_sim_time would give,
         # without a second /clock subscription per tick).
         self._clock_ns = 0
+        self._other_clock_said = False
         if CLOCK_TOPIC not in topics:
             self.create_subscription(ClockMessage, CLOCK_TOPIC, self._on_clock, DATA_QOS,
                                      raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
@@ -170,7 +172,19 @@ class BagRecorder(Node):
 
     def _on_clock(self, data: bytes) -> None:
         sec, nanosec = struct.unpack_from('<iI', data, 4)   # after the CDR encapsulation
-        self._clock_ns = max(self._clock_ns, sec * 1_000_000_000 + nanosec)
+        clock_ns = sec * 1_000_000_000 + nanosec
+        if self._clock_ns and is_wall_clock(clock_ns * 1e-9) != is_wall_clock(
+                self._clock_ns * 1e-9):
+            # One message of another clock would place every later one at its time (the bag's
+            # order keeps a message where it was logged when its stamp is on another clock).
+            if not self._other_clock_said:
+                self._other_clock_said = True
+                self.get_logger().warning(
+                    f'/clock said {describe_clock(clock_ns * 1e-9)} after '
+                    f'{describe_clock(self._clock_ns * 1e-9)}: another graph publishes /clock '
+                    'on this domain? The bag keeps its messages but logs by the first clock')
+            return
+        self._clock_ns = max(self._clock_ns, clock_ns)
 
     def _writer_of(self, topic: str) -> Callable[[bytes], None]:
         connection = self.connections[topic]
