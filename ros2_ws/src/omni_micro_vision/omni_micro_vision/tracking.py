@@ -104,26 +104,15 @@ def _locate(image: np.ndarray, plane: PlaneMap, pixel_m: tuple[float, float],
     whole frame)."""
     import cv2
 
-    columns, rows = plane.resolution_px
     r0, r1, c0, c1 = region
     part = image[r0:r1, c0:c1]
     px, py = pixel_m
-    # The surround as the median level, the peak as the tenth brightest pixel: both from the
-    # histogram (one pass over the frame, no sort or float copy of a megapixel).
-    histogram = cv2.calcHist([part], [0], None, [full_scale + 1], [0, full_scale + 1]).ravel()
-    cumulative = np.cumsum(histogram)
-    background = float(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
-    peak = float(np.searchsorted(cumulative, cumulative[-1] - 10))
-    if peak - background < 0.2 * full_scale * (DOT_LEVEL - PLATFORM_LEVEL):
+    levels = bright_blobs(part, full_scale)
+    if levels is None:
         return Track(reason='no fiducial: nothing brighter than the platform')
-    threshold = 0.5 * (background + peak)
-    binary = np.asarray(cv2.compare(part, np.array([threshold]), cv2.CMP_GT))
-    # Blobs as outer contours (a few on a megapixel: far cheaper than labelling every pixel);
-    # a blob's area is its pixels above the threshold inside its bounding box.
-    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    binary, part_boxes, _ = levels
     # In frame pixels: the region's offset added.
-    boxes = [(left + c0, top + r0, width, height) for left, top, width, height in
-             (cv2.boundingRect(contour) for contour in contours)]
+    boxes = [(left + c0, top + r0, width, height) for left, top, width, height in part_boxes]
     expected = {name: math.pi * dot.radius_m ** 2 / (px * py)
                 for name, dot in (('front', fiducial.front), ('back', fiducial.back))}
     found: dict[str, list[int]] = {'front': [], 'back': []}
@@ -152,29 +141,71 @@ def _locate(image: np.ndarray, plane: PlaneMap, pixel_m: tuple[float, float],
                             'back dot candidates')
     centres: dict[str, tuple[float, float]] = {}
     for name in ('front', 'back'):
-        left, top, width, height = boxes[found[name][0]]
-        pad = max(2, round(1.5 * min(width, height) / 4) + 2)
-        y0, y1 = max(0, top - pad), min(rows, top + height + pad)
-        x0, x1 = max(0, left - pad), min(columns, left + width + pad)
-        window = image[y0:y1, x0:x1].astype(np.float32)
-        # Intensity-weighted centroid above the local surround (the chassis around the dot).
-        surround = float(np.median(np.concatenate([window[0], window[-1], window[:, 0],
-                                                   window[:, -1]])))
-        weights = np.clip(window - surround, 0.0, None)
-        total = float(weights.sum())
-        if total <= 0.0:
+        centre = dot_centre(image, boxes[found[name][0]])
+        if centre is None:
             return Track(reason=f'{name} dot has no contrast')
-        rows_index, columns_index = np.mgrid[y0:y1, x0:x1]
-        centres[name] = (float((weights * columns_index).sum() / total),
-                         float((weights * rows_index).sum() / total))
+        centres[name] = centre[:2]
     # Each dot's centre through the lens and onto the platform: the heading is read there, so
     # a turned or mirrored image gives the platform's heading.
-    (fx, fy), (bx, by) = plane.to_platform(np.array([centres['front'], centres['back']]))
+    front, back = plane.to_platform(np.array([centres['front'], centres['back']]))
+    return Track(pair_pose(fiducial, front, back))
+
+
+def bright_blobs(part: np.ndarray, full_scale: int) -> tuple[
+        np.ndarray, list[tuple[int, int, int, int]], tuple[float, float]] | None:
+    """What stands out of the platform in ``part``: the pixels above the threshold, each
+    blob's bounding box (left, top, width, height) and the levels (surround, peak) the
+    threshold lies halfway between; None when nothing is brighter than the platform."""
+    import cv2
+
+    # The surround as the median level, the peak as the tenth brightest pixel: both from the
+    # histogram (one pass over the frame, no sort or float copy of a megapixel).
+    histogram = cv2.calcHist([part], [0], None, [full_scale + 1], [0, full_scale + 1]).ravel()
+    cumulative = np.cumsum(histogram)
+    background = float(np.searchsorted(cumulative, 0.5 * cumulative[-1]))
+    peak = float(np.searchsorted(cumulative, cumulative[-1] - 10))
+    if peak - background < 0.2 * full_scale * (DOT_LEVEL - PLATFORM_LEVEL):
+        return None
+    threshold = 0.5 * (background + peak)
+    binary = np.asarray(cv2.compare(part, np.array([threshold]), cv2.CMP_GT))
+    # Blobs as outer contours (a few on a megapixel: far cheaper than labelling every pixel);
+    # a blob's area is its pixels above the threshold inside its bounding box.
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    boxes = [(left, top, width, height) for left, top, width, height in
+             (cv2.boundingRect(contour) for contour in contours)]
+    return binary, boxes, (background, peak)
+
+
+def dot_centre(image: np.ndarray, box: tuple[int, int, int, int]) -> tuple[
+        float, float, float] | None:
+    """The intensity-weighted centroid (column, row) of the dot in ``box`` above its local
+    surround (the chassis around it), and that surround's level; None without contrast."""
+    rows, columns = image.shape
+    left, top, width, height = box
+    pad = max(2, round(1.5 * min(width, height) / 4) + 2)
+    y0, y1 = max(0, top - pad), min(rows, top + height + pad)
+    x0, x1 = max(0, left - pad), min(columns, left + width + pad)
+    window = image[y0:y1, x0:x1].astype(np.float32)
+    surround = float(np.median(np.concatenate([window[0], window[-1], window[:, 0],
+                                               window[:, -1]])))
+    weights = np.clip(window - surround, 0.0, None)
+    total = float(weights.sum())
+    if total <= 0.0:
+        return None
+    rows_index, columns_index = np.mgrid[y0:y1, x0:x1]
+    return (float((weights * columns_index).sum() / total),
+            float((weights * rows_index).sum() / total), surround)
+
+
+def pair_pose(fiducial: Fiducial, front: Sequence[float],
+              back: Sequence[float]) -> tuple[float, float, float]:
+    """The robot's pose from its pair's dot centres on the platform."""
+    (fx, fy), (bx, by) = front, back
     # The dots sit symmetrically about the centre on the robot's X axis.
     offset = 0.5 * (fiducial.front.x_m + fiducial.back.x_m)
     heading = math.atan2(fy - by, fx - bx)
-    return Track((float(0.5 * (fx + bx) - offset * math.cos(heading)),
-                  float(0.5 * (fy + by) - offset * math.sin(heading)), heading))
+    return (float(0.5 * (fx + bx) - offset * math.cos(heading)),
+            float(0.5 * (fy + by) - offset * math.sin(heading)), heading)
 
 
 T = TypeVar('T')
