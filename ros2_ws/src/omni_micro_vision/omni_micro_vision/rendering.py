@@ -7,7 +7,8 @@ No rclpy: ``camera_node`` is a thin adapter of :func:`render`. The printed patte
 printed fiducial: for the macro camera two white dots 4 mm apart on the robot's X axis (the
 front one larger, so that the heading has a sign), and at the centre a smaller pair the micro
 camera sees whole (0.6 mm apart). Both patterns are always there; each camera's tracker looks
-for the pair whose size its pixels resolve.
+for the pair whose size its pixels resolve. Several robots on one platform (a micro-factory)
+are drawn in one frame, each with its code dots beside the pairs (:func:`render_robots`).
 
 **The camera.** A sensor of ``resolution_px`` pixels over the camera's field (so 117 um and
 1.56 um per pixel by default), a Gaussian point spread of ``psf_sigma_px``, photon shot noise
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +37,8 @@ from omni_micro_vision.fiducial import (
     MACRO_FIDUCIAL,
     MICRO_FIDUCIAL,
     PLATFORM_LEVEL,
+    Dot,
+    code_dots,
 )
 
 
@@ -84,13 +88,25 @@ def pixel_centres(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
     return left + (np.arange(columns) + 0.5) * px, top - (np.arange(rows) + 0.5) * py
 
 
-_DOTS = tuple(dot for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL)
-              for dot in (fiducial.front, fiducial.back))
-_DOT_RADII = np.array([dot.radius_m for dot in _DOTS])
+_PAIRS = tuple(dot for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL)
+               for dot in (fiducial.front, fiducial.back))
+
+
+@dataclass(frozen=True)
+class InView:
+    """A robot in a frame: its state at the start of the exposure (platform frame) and the
+    code it carries (``fiducial.code_dots``; None: a single robot's uncoded top)."""
+
+    motion: RobotState
+    code: int | None = None
+
+    @property
+    def dots(self) -> tuple[Dot, ...]:
+        return _PAIRS + code_dots(self.code)
 
 
 def _reflectance(xs: np.ndarray, ys: np.ndarray, poses: list[tuple[float, float, float]],
-                 pixel_m: float) -> np.ndarray:
+                 pixel_m: float, dots: tuple[Dot, ...] = _PAIRS) -> np.ndarray:
     """The scene's reflectance at the pixel centres ``xs`` x ``ys``, summed over the robot at
     each of ``poses`` (the instants of an exposure): the platform, the chassis's disc and the
     dots over it, each disc's edge a linear ramp one pixel wide (area-exact to first order)."""
@@ -102,15 +118,15 @@ def _reflectance(xs: np.ndarray, ys: np.ndarray, poses: list[tuple[float, float,
                                  max(abs(y_span[0] - y), abs(y_span[1] - y))) + pixel_m
                       < CHASSIS_RADIUS_M for x, y, _ in poses])
     turns = [(math.cos(phi), math.sin(phi)) for _, _, phi in poses]
-    dots_x = np.array([[x + cos * dot.x_m - sin * dot.y_m for dot in _DOTS]
+    dots_x = np.array([[x + cos * dot.x_m - sin * dot.y_m for dot in dots]
                        for (x, _, _), (cos, sin) in zip(poses, turns, strict=True)])
-    dots_y = np.array([[y + sin * dot.x_m + cos * dot.y_m for dot in _DOTS]
+    dots_y = np.array([[y + sin * dot.x_m + cos * dot.y_m for dot in dots]
                        for (_, y, _), (cos, sin) in zip(poses, turns, strict=True)])
     result: np.ndarray = reflectance_sum(
         np.ascontiguousarray(xs, np.float64), np.ascontiguousarray(ys, np.float64),
         np.array([pose[0] for pose in poses]), np.array([pose[1] for pose in poses]), fills,
-        dots_x, dots_y, _DOT_RADII, pixel_m, CHASSIS_RADIUS_M, PLATFORM_LEVEL, CHASSIS_LEVEL,
-        DOT_LEVEL)
+        dots_x, dots_y, np.array([dot.radius_m for dot in dots]), pixel_m, CHASSIS_RADIUS_M,
+        PLATFORM_LEVEL, CHASSIS_LEVEL, DOT_LEVEL)
     return result
 
 
@@ -151,9 +167,22 @@ def _distance_range(x0: np.ndarray, x1: np.ndarray, y0: np.ndarray, y1: np.ndarr
     return np.hypot(near_x, near_y), np.hypot(far_x, far_y)
 
 
-def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotState,
+def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, robots: Sequence[InView],
              exposure_s: float, steps: int) -> np.ndarray:
-    """The scene at ``xs`` x ``ys`` averaged over the exposure (float32), at ``steps`` instants.
+    """The scene at ``xs`` x ``ys`` averaged over the exposure (float32), at ``steps`` instants:
+    each robot's over the platform, added (their discs never overlap, so each pixel is one
+    robot's or the platform's).
+    """
+    first, *others = (_exposed_one(camera, xs, ys, robot, exposure_s, steps)
+                      for robot in robots)
+    for other in others:
+        first = first + (other - np.float32(PLATFORM_LEVEL))
+    return first
+
+
+def _exposed_one(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, robot: InView,
+                 exposure_s: float, steps: int) -> np.ndarray:
+    """One robot's scene at ``xs`` x ``ys`` over the platform, averaged over the exposure.
 
     A robot that turns by less than a quarter pixel is only translated: the scene is then
     computed once, at mid-exposure, on a window wider by the travel, and smeared along it by
@@ -162,12 +191,14 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
     """
     import cv2
 
+    motion, dots = robot.motion, robot.dots
     px, py = camera.pixel_size_m
     pixel_m = math.sqrt(px * py)
     instants = [exposure_s * (step + 0.5) / steps for step in range(steps)]
     turn_px = abs(motion.omega_rad_s) * exposure_s * CHASSIS_RADIUS_M / pixel_m
     if steps == 1 or turn_px >= 0.25:
-        patch = _reflectance(xs, ys, [_pose_at(motion, t) for t in instants], pixel_m)
+        patch = _reflectance(xs, ys, [_pose_at(motion, t) for t in instants], pixel_m,
+                             dots)
         return (patch / steps).astype(np.float32)
     middle = 0.5 * exposure_s
     # Each instant's shift from mid-exposure in pixels (rows grow downwards, against y).
@@ -178,7 +209,7 @@ def _exposed(camera: CameraModel, xs: np.ndarray, ys: np.ndarray, motion: RobotS
                               xs[-1] + px * np.arange(1, margin + 1)])
     wide_ys = np.concatenate([ys[0] + py * np.arange(margin, 0, -1), ys,
                               ys[-1] - py * np.arange(1, margin + 1)])
-    scene = _reflectance(wide_xs, wide_ys, [_pose_at(motion, middle)], pixel_m).astype(
+    scene = _reflectance(wide_xs, wide_ys, [_pose_at(motion, middle)], pixel_m, dots).astype(
         np.float32)
     # filter2D correlates: the value at a pixel is the scene an instant's shift behind it.
     kernel = np.zeros((2 * margin + 1, 2 * margin + 1), np.float32)
@@ -205,65 +236,93 @@ def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
     drawn from ``rng``; the others are computed from the scene, blurred and given fresh noise
     from ``rng``.
     """
+    return render_robots(camera, sensor, [InView(motion)], rng, yaw_rad)
+
+
+@dataclass(frozen=True)
+class _Reach:
+    """Where one robot can touch a frame: its mid-exposure pose and how far past an outline
+    (the edge ramp, the blur, half its motion) a pixel is still touched."""
+
+    pose: tuple[float, float, float]
+    reach_m: float
+    turn_rad: float
+    dots: tuple[Dot, ...]
+
+
+def render_robots(camera: CameraModel, sensor: Sensor, robots: Sequence[InView],
+                  rng: np.random.Generator, yaw_rad: float = 0.0) -> np.ndarray:
+    """One frame of ``camera`` seeing ``robots`` (a micro-factory's, each with its code), as
+    :func:`render` sees one: the same frame for one uncoded robot."""
     import cv2
 
+    if not robots:
+        raise CameraConfigError('a frame needs at least one robot to draw')
     if yaw_rad:
         cos, sin = math.cos(yaw_rad), math.sin(yaw_rad)
-        motion = RobotState(*camera_frame(camera, yaw_rad, motion.x_m, motion.y_m,
-                                          motion.phi_rad),
-                            cos * motion.vx_m_s + sin * motion.vy_m_s,
-                            -sin * motion.vx_m_s + cos * motion.vy_m_s, motion.omega_rad_s)
+        robots = [InView(RobotState(*camera_frame(camera, yaw_rad, robot.motion.x_m,
+                                                  robot.motion.y_m, robot.motion.phi_rad),
+                                    cos * robot.motion.vx_m_s + sin * robot.motion.vy_m_s,
+                                    -sin * robot.motion.vx_m_s + cos * robot.motion.vy_m_s,
+                                    robot.motion.omega_rad_s), robot.code) for robot in robots]
     xs, ys = pixel_centres(camera)
     columns, rows = xs.size, ys.size
     px, py = camera.pixel_size_m
     pixel_m = math.sqrt(px * py)
-    start, end = _pose_at(motion, 0.0), _pose_at(motion, sensor.exposure_s)
-    middle = _pose_at(motion, 0.5 * sensor.exposure_s)
-    shift_m = 0.5 * math.hypot(end[0] - start[0], end[1] - start[1])
-    turn_rad = 0.5 * abs(end[2] - start[2])
-    travel_px = 2 * max(shift_m, turn_rad * CHASSIS_RADIUS_M) / pixel_m
-    steps = int(min(32, max(1, math.ceil(travel_px / 0.5))))
     halo_px = math.ceil(4 * sensor.psf_sigma_px) + 1
-    # How far from the mid-exposure outline a pixel can still be touched: the edge ramp, the
-    # blur and half the motion.
-    reach_m = (halo_px + 1) * pixel_m + shift_m
+    reaches, steps = [], 1
+    for robot in robots:
+        start, end = _pose_at(robot.motion, 0.0), _pose_at(robot.motion, sensor.exposure_s)
+        shift_m = 0.5 * math.hypot(end[0] - start[0], end[1] - start[1])
+        turn_rad = 0.5 * abs(end[2] - start[2])
+        travel_px = 2 * max(shift_m, turn_rad * CHASSIS_RADIUS_M) / pixel_m
+        steps = max(steps, int(min(32, max(1, math.ceil(travel_px / 0.5)))))
+        reaches.append(_Reach(_pose_at(robot.motion, 0.5 * sensor.exposure_s),
+                              (halo_px + 1) * pixel_m + shift_m, turn_rad, robot.dots))
 
     offset = int(rng.integers(0, rows * columns))
     window = slice(offset, offset + rows * columns)
     frame = _flat_field(sensor, PLATFORM_LEVEL, rows * columns)[window].reshape(rows, columns)
     frame = frame.copy()
     flat_fields: dict[float, np.ndarray] = {}
-    x, y, phi = middle
-    dots = [(x + math.cos(phi) * dot.x_m - math.sin(phi) * dot.y_m,
-             y + math.sin(phi) * dot.x_m + math.cos(phi) * dot.y_m,
-             dot.radius_m, reach_m + turn_rad * math.hypot(dot.x_m, dot.y_m))
-            for fiducial in (MACRO_FIDUCIAL, MICRO_FIDUCIAL) for dot in (fiducial.front,
-                                                                           fiducial.back)]
-    # Only the blocks the chassis (and its reach) may cover are looked at.
-    extent = CHASSIS_RADIUS_M + reach_m
-    first_row = max(0, int((camera.center_m[1] + camera.field_m[1] / 2 - (y + extent)) / py))
-    last_row = min(rows, int((camera.center_m[1] + camera.field_m[1] / 2 - (y - extent)) / py)
-                   + 1)
-    first_column = max(0, int((x - extent - (camera.center_m[0] - camera.field_m[0] / 2)) / px))
-    last_column = min(columns, int((x + extent - (camera.center_m[0] - camera.field_m[0] / 2))
-                                   / px) + 1)
+    # Only the blocks a chassis (and its reach) may cover are looked at.
+    top_m = camera.center_m[1] + camera.field_m[1] / 2
+    left_m = camera.center_m[0] - camera.field_m[0] / 2
+    extents = [(reach.pose[0], reach.pose[1], CHASSIS_RADIUS_M + reach.reach_m)
+               for reach in reaches]
+    first_row = max(0, min(int((top_m - (y + extent)) / py) for x, y, extent in extents))
+    last_row = min(rows, max(int((top_m - (y - extent)) / py) + 1 for x, y, extent in extents))
+    first_column = max(0, min(int((x - extent - left_m) / px) for x, y, extent in extents))
+    last_column = min(columns, max(int((x + extent - left_m) / px) + 1
+                                   for x, y, extent in extents))
     tops = np.arange(first_row // BLOCK_PX * BLOCK_PX, last_row, BLOCK_PX)
     lefts = np.arange(first_column // BLOCK_PX * BLOCK_PX, last_column, BLOCK_PX)
     bottoms, rights = np.minimum(tops + BLOCK_PX, rows), np.minimum(lefts + BLOCK_PX, columns)
     # Each block's span in metres, rows x columns of blocks.
     y_low, y_high = ys[bottoms - 1][:, None], ys[tops][:, None]
     x_low, x_high = xs[lefts][None, :], xs[rights - 1][None, :]
-    near, far = _distance_range(x_low, x_high, y_low, y_high, x, y)
-    inside = near <= CHASSIS_RADIUS_M + reach_m        # else the platform only
-    # An outline (the chassis's or a dot's) within reach: computed; else the block is wholly
-    # inside the chassis, or inside a dot (the macro dots fill micro blocks).
-    touched = far > CHASSIS_RADIUS_M - reach_m
+    # Per robot, the blocks within its reach (else the platform only, as far as it goes), and
+    # of those the ones an outline (its chassis's or a dot's) reaches: computed. A block within
+    # a robot's reach that no outline touches is wholly inside its chassis, or inside a dot
+    # (the macro dots fill micro blocks).
+    within = np.zeros((tops.size, lefts.size, len(reaches)), dtype=bool)
+    touched = np.zeros((tops.size, lefts.size), dtype=bool)
     in_dot = np.zeros_like(touched)
-    for cx, cy, radius, reach in dots:
-        near, far = _distance_range(x_low, x_high, y_low, y_high, cx, cy)
-        touched |= (near < radius + reach) & (far > radius - reach)
-        in_dot |= far <= radius - reach
-    for (i, j) in zip(*np.nonzero(inside), strict=True):
+    for index, reach in enumerate(reaches):
+        x, y, phi = reach.pose
+        near, far = _distance_range(x_low, x_high, y_low, y_high, x, y)
+        within[:, :, index] = near <= CHASSIS_RADIUS_M + reach.reach_m
+        outline = far > CHASSIS_RADIUS_M - reach.reach_m
+        for dot in reach.dots:
+            dot_reach = reach.reach_m + reach.turn_rad * math.hypot(dot.x_m, dot.y_m)
+            near, far = _distance_range(
+                x_low, x_high, y_low, y_high,
+                x + math.cos(phi) * dot.x_m - math.sin(phi) * dot.y_m,
+                y + math.sin(phi) * dot.x_m + math.cos(phi) * dot.y_m)
+            outline |= (near < dot.radius_m + dot_reach) & (far > dot.radius_m - dot_reach)
+            in_dot |= within[:, :, index] & (far <= dot.radius_m - dot_reach)
+        touched |= within[:, :, index] & outline
+    for (i, j) in zip(*np.nonzero(within.any(axis=2)), strict=True):
         top, bottom, left, right = int(tops[i]), int(bottoms[i]), int(lefts[j]), int(rights[j])
         if not touched[i, j]:
             level = DOT_LEVEL if in_dot[i, j] else CHASSIS_LEVEL
@@ -275,7 +334,8 @@ def render(camera: CameraModel, sensor: Sensor, motion: RobotState,
         # The block and a halo around it, so that the blur at its border is the scene's.
         r0, r1 = max(0, top - halo_px), min(rows, bottom + halo_px)
         c0, c1 = max(0, left - halo_px), min(columns, right + halo_px)
-        signal = _exposed(camera, xs[c0:c1], ys[r0:r1], motion, sensor.exposure_s, steps)
+        near_robots = [robot for index, robot in enumerate(robots) if within[i, j, index]]
+        signal = _exposed(camera, xs[c0:c1], ys[r0:r1], near_robots, sensor.exposure_s, steps)
         if sensor.psf_sigma_px > 0:
             signal = np.asarray(cv2.GaussianBlur(signal, (0, 0), sensor.psf_sigma_px,
                                                  borderType=cv2.BORDER_REPLICATE), np.float32)
