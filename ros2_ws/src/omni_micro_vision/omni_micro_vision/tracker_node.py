@@ -36,40 +36,30 @@ that none of them misses the first captures.
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
-from rclpy.qos import QoSPolicyKind, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import join_stamp, split_stamp, stamp_ns
+from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
+from omni_micro_common.qos import IMAGE_QOS
 from omni_micro_common.reader_matching import when_capture_readers_matched
 from omni_micro_common.topic_names import (
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
-    TRACKER_STATUS_TOPICS,
 )
 from omni_micro_vision.camera import checked_cameras
-from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.errors import CameraConfigError
-from omni_micro_vision.frame_ages import FrameAges
-from omni_micro_vision.image_messages import ImageLike, image_array, read_image
-from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.rendering import Sensor
-from omni_micro_vision.tracked_camera import TrackedCamera, tracked_camera
-from omni_micro_vision.tracking import CameraArbiter, FrameTracker, StillnessRule
+from omni_micro_vision.tracked_camera import tracked_camera
+from omni_micro_vision.tracker_reader import CameraReader, HeldCapture, HeldInMotion
+from omni_micro_vision.tracking import CameraArbiter
 
 RELIABILITIES = {'reliable': ReliabilityPolicy.RELIABLE,
                  'best_effort': ReliabilityPolicy.BEST_EFFORT}
@@ -109,8 +99,8 @@ class TrackerNode(Node):
         image_qos = QoSProfile(depth=IMAGE_QOS.depth,
                                reliability=RELIABILITIES[self.reliability])
         self.lockstep = LockstepReporter(self)
-        self.readers: list[_CameraReader] = []
-        inputs: list[tuple[str, str, _CameraReader]] = []
+        self.readers: list[CameraReader] = []
+        inputs: list[tuple[str, str, CameraReader]] = []
         fields: dict[str, float] = {}
         # Every camera's parameters are declared (one params file serves any choice of cameras);
         # only those in ``cameras`` are read.
@@ -135,7 +125,7 @@ class TrackerNode(Node):
                                         f'{after_stamp!r}')
             if name not in cameras:
                 continue
-            reader = _CameraReader(self, camera, exposure, after_stamp, image_topic)
+            reader = CameraReader(self, camera, exposure, after_stamp, image_topic)
             self.readers.append(reader)
             fields[name] = min(camera.model.field_m)
             inputs.append((image_topic, info_topic, reader))
@@ -147,11 +137,11 @@ class TrackerNode(Node):
                    'the nominal geometry (no calibration: a real camera needs omni-micro '
                    'calibrate-camera)'))
         # The smaller field has the finer pixel.
-        self.arbiter: CameraArbiter[_Capture] = CameraArbiter(
+        self.arbiter: CameraArbiter[HeldCapture] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
         # The same for the captures in motion: one capture per frame time, whose stamp then says
         # which have been handled (omni_micro_common.lockstep).
-        self.motion_arbiter: CameraArbiter[_InMotion] = CameraArbiter(
+        self.motion_arbiter: CameraArbiter[HeldInMotion] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
 
         def read_images() -> None:
@@ -180,8 +170,8 @@ class TrackerNode(Node):
                 name, None, ParameterDescriptor(dynamic_typing=True)).value
         return self.declare_parameter(name, default).value
 
-    def on_frame(self, reader: _CameraReader, stamp: int, found: bool,
-                 capture: _Capture | None, in_motion: _InMotion | None = None) -> None:
+    def on_frame(self, reader: CameraReader, stamp: int, found: bool,
+                 capture: HeldCapture | None, in_motion: HeldInMotion | None = None) -> None:
         """Publish what is due, then report: every camera's frames are handled up to the oldest
         of their latest (a capture from a frame still on its way could come later)."""
         reader.handled_ns = max(reader.handled_ns, stamp)
@@ -200,168 +190,6 @@ class TrackerNode(Node):
             frame_handled_ns=min(r.handled_ns for r in self.readers),
             motion_ns=(stamp_ns(moving[0].header.stamp), stamp_ns(moving[-1].header.stamp))
             if moving else None))
-
-
-class _CameraReader:
-    """One camera's frames: check them against the camera's geometry, track, decide stillness,
-    publish."""
-
-    def __init__(self, node: TrackerNode, camera: TrackedCamera, exposure_s: float,
-                 mid_exposure_after_stamp_s: float, image_topic: str) -> None:
-        self.node = node
-        self.image_topic = image_topic
-        # A driver's frames (wall-clock stamps): how old they come, said in the status.
-        self.ages = FrameAges(mid_exposure_after_stamp_s)
-        self._age_values: list[KeyValue] = []
-        self.camera = camera
-        self.exposure_s = exposure_s
-        self.mid_exposure_after_stamp_s = mid_exposure_after_stamp_s
-        # The last pose found, and when: the robot's velocity over a frame, for the blur.
-        self._last_seen: tuple[float, float, float] | None = None
-        self.name = camera.plane.name
-        self.handled_ns = -1
-        # Why the latest CameraInfo rules its frames out (None: it does not, or none came yet).
-        self.info_refusal: str | None = None
-        self.stillness = StillnessRule(node.still_frames,
-                                       node.still_px * min(camera.plane.pixel_size_m))
-        self.tracker = FrameTracker(camera.plane, camera.bit_depth)
-        self.capture_pub = node.create_publisher(PoseStamped, CAPTURE_TOPICS[self.name],
-                                                 CAPTURE_QOS)
-        self.covariance_pub = node.create_publisher(
-            PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[self.name], CAPTURE_QOS)
-        self.status_pub = node.create_publisher(DiagnosticStatus,
-                                                TRACKER_STATUS_TOPICS[self.name], latched(1))
-        self.in_motion_pub = node.create_publisher(
-            PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[self.name],
-            CAPTURE_QOS) if node.captures_in_motion else None
-        self._said: str | None = None
-        self._said_level = DiagnosticStatus.OK
-
-    def events(self, topic: str) -> SubscriptionEventCallbacks:
-        """rclpy's incompatible-QoS event, said by this node in its status and log."""
-        def on_incompatible(event: QoSRequestedIncompatibleQoSInfo) -> None:
-            policy = QoSPolicyKind(event.last_policy_kind).name.lower()
-            hint = ('set image_reliability: best_effort (it meets reliable and best-effort '
-                    'drivers)' if policy == 'reliability' else
-                    f"make the driver's {policy} QoS match a volatile reader")
-            message = (f'{topic}: a publisher offers QoS incompatible with this reader '
-                       f'({policy}; image_reliability is {self.node.reliability}): {hint}')
-            self.node.get_logger().warning(message)
-            self._say(DiagnosticStatus.ERROR, message)
-        return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)
-
-    def on_info(self, msg: CameraInfo) -> None:
-        refusal = self.camera.refusal(int(msg.width), int(msg.height), list(msg.k), list(msg.d))
-        if refusal != self.info_refusal and refusal is not None:
-            self.node.get_logger().warning(f'{self.name}: frames refused: {refusal}')
-        self.info_refusal = refusal
-
-    def _say(self, level: bytes, message: str, again: bool = False) -> None:
-        """A status on each change (``again``: even without one, with new ages); it carries the
-        frames' ages once they are measured (frame_ages)."""
-        if message != self._said or again:
-            self._said, self._said_level = message, level
-            self.status_pub.publish(DiagnosticStatus(level=level, name=f'tracker {self.name}',
-                                                     message=message, values=self._age_values))
-
-    def on_image(self, data: bytes) -> None:
-        arrived_ns = time.time_ns()
-        try:
-            msg = read_image(data)
-        except CameraConfigError as error:
-            self._refuse(error)   # no stamp to report it under: as a frame lost on the way
-            return
-        found, capture, in_motion = self._see(msg)
-        stamp = stamp_ns(msg.header.stamp)
-        self.node.on_frame(self, stamp, found, capture, in_motion)
-        if self.ages.add(stamp, arrived_ns, time.time_ns()):
-            self._state_ages()
-
-    def _state_ages(self) -> None:
-        """How old the driver's frames come (frame_ages), in the status and, the first time,
-        in the log."""
-        if not self._age_values:
-            self.node.get_logger().info(
-                f'{self.name}: frames from {self.image_topic} arrive up to '
-                f'{self.ages.frame_age_s * 1e3:.1f} ms after their stamps, at '
-                f'{self.ages.frame_rate_hz:.1f} Hz; a capture in motion is up to '
-                f'{self.ages.capture_age_s * 1e3:.1f} ms old when published')
-        self._age_values = [KeyValue(key=key, value=value)
-                            for key, value in self.ages.values(self.image_topic)]
-        if self._said is not None:
-            self._say(self._said_level, self._said, again=True)
-
-    def _refuse(self, error: CameraConfigError | str) -> None:
-        if not isinstance(error, str):
-            self.node.get_logger().warning(f'{self.name}: frame refused: {error}')
-        self._say(DiagnosticStatus.ERROR, f'frame refused: {error}')
-        self.stillness.reset()
-        self.tracker.reset()
-        self._last_seen = None
-
-    def _see(self, msg: ImageLike) -> tuple[bool, _Capture | None, _InMotion | None]:
-        """Track one frame: whether the fiducial is in it, and the capture or the capture in
-        motion it gives, if any."""
-        if self.info_refusal is not None:
-            # Said once in the log when the CameraInfo came; in the status with every frame.
-            self._refuse(self.info_refusal)
-            return False, None, None
-        try:
-            pixels = image_array(msg, self.camera.plane.resolution_px)
-            result = self.tracker(pixels)
-        except CameraConfigError as error:
-            self._refuse(error)
-            return False, None, None
-        if result.pose is None:
-            self.stillness.reset()
-            self._last_seen = None
-            self._say(DiagnosticStatus.WARN, result.reason)
-            return False, None, None
-        x, y, phi = result.pose
-        last, self._last_seen = self._last_seen, (join_stamp(msg.header.stamp.sec,
-                                                            msg.header.stamp.nanosec), x, y)
-        if not self.stillness.still(x, y):
-            self._say(DiagnosticStatus.OK, 'moving')
-            moving = None
-            if self.in_motion_pub is not None and last is not None:
-                moving = self._in_motion(msg, (x, y, phi), last)
-            return True, None, moving
-        self._say(DiagnosticStatus.OK, 'still: capturing')
-        capture = capture_pose(msg.header.stamp.sec, msg.header.stamp.nanosec,
-                               self.node.frame_id, x, y, phi)
-        return True, (self, with_uncertainty(capture, self.camera.uncertainty(phi)), capture), None
-
-    def _in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
-                   last: tuple[float, float, float]) -> _InMotion | None:
-        """The frame of the moving robot as a capture at its exposure's middle, its spread grown
-        by the blur at the speed since the last frame; none past the speed the tracker follows
-        (motion_capture.trackable)."""
-        x, y, phi = pose
-        stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
-        elapsed = stamp_s - last[0]
-        if elapsed <= 0.0:
-            return None
-        vx, vy = (x - last[1]) / elapsed, (y - last[2]) / elapsed
-        model = self.camera.model
-        if not trackable(model, math.hypot(vx, vy), self.exposure_s):
-            return None
-        pose = capture_pose(*split_stamp(stamp_s + self.mid_exposure_after_stamp_s),
-                            self.node.frame_id, x, y, phi)
-        return self, with_uncertainty(pose, uncertainty_in_motion(
-            model, phi, vx, vy, self.exposure_s, still=self.camera.uncertainty(phi)))
-
-    def publish_in_motion(self, message: PoseWithCovarianceStamped) -> bool:
-        """Publish a capture in motion the arbiter let through; whether it was."""
-        if self.in_motion_pub is None:
-            return False
-        self.in_motion_pub.publish(message)
-        return True
-
-
-# A capture as the tracker holds it until the arbiter lets it go: its camera, then both messages.
-_Capture = tuple[_CameraReader, PoseWithCovarianceStamped, PoseStamped]
-# A capture in motion, held the same way: its camera and its message.
-_InMotion = tuple[_CameraReader, PoseWithCovarianceStamped]
 
 
 COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,))
