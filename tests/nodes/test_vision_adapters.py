@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from adapter_helpers import assert_reads_input_only_once_matched, overrides
+from adapter_helpers import assert_reads_input_only_once_matched, frame, overrides
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -140,15 +140,6 @@ def test_tracker_node_refuses_odd_frames_and_camera_infos_and_keeps_serving(cont
 def test_camera_node_refuses_a_frame_rate_of_zero(context):
     with pytest.raises(CameraConfigError, match='frame_rate_hz'):
         CameraNode(context=context, parameter_overrides=overrides(frame_rate_hz=0.0))
-
-
-def frame(pixels: np.ndarray, stamp_ns: int) -> tuple[Image, CameraInfo]:
-    image = Image(height=pixels.shape[0], width=pixels.shape[1], encoding='mono8',
-                  is_bigendian=0, step=pixels.shape[1], data=pixels.tobytes())
-    image.header.stamp.sec, image.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    info = CameraInfo(height=pixels.shape[0], width=pixels.shape[1])
-    info.header = image.header
-    return image, info
 
 
 def test_tracker_node_turns_frames_of_a_still_robot_into_captures_where_it_is(context, spy):

@@ -6,10 +6,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, Image
 
 
 def overrides(**values: object) -> list[Parameter]:
@@ -38,3 +40,14 @@ def assert_reads_input_only_once_matched(context, node: Node, reader_name: str,
         executor.shutdown()
         reader.destroy_node()
         node.destroy_node()
+
+
+def frame(pixels: np.ndarray, stamp_ns: int) -> tuple[Image, CameraInfo]:
+    """A mono8 frame of ``pixels`` stamped ``stamp_ns``, and its CameraInfo, as a driver sends
+    them."""
+    image = Image(height=pixels.shape[0], width=pixels.shape[1], encoding='mono8',
+                  is_bigendian=0, step=pixels.shape[1], data=pixels.tobytes())
+    image.header.stamp.sec, image.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    info = CameraInfo(height=pixels.shape[0], width=pixels.shape[1])
+    info.header = image.header
+    return image, info
