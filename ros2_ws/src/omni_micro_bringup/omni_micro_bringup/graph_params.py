@@ -31,7 +31,7 @@ LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
                    'dynamics_node': {'lockstep_nodes', 'awaited_readers', 'robots',
                                      'robot_poses', 'robot_wheel_offsets_rad'},
                    'vision_node': {'capture_readers', 'covariance_readers'},
-                   'tracker_node': {'capture_readers', 'covariance_readers'},
+                   'tracker_node': {'capture_readers', 'covariance_readers', 'robots'},
                    'camera_node': {'image_readers'}}
 LEFT_TO_ANOTHER_FILE = re.compile(r'^\w+\.calibration\.')
 RCLPY_OWN = {'use_sim_time', 'start_type_description_service'}

@@ -31,6 +31,13 @@ contradicts that geometry. The image processing is :mod:`omni_micro_vision.track
 It reads images only once its capture writers have matched the readers of the nodes named in
 ``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
 that none of them misses the first captures.
+
+Several robots under one camera pair (a micro-factory, ``robots``: their namespaces, robot_k
+carrying fiducial code k): each frame's robots are named by their codes
+(:mod:`omni_micro_vision.identification`) and each named robot's captures published under its
+namespace, ``/robot_k/camera/<name>/pose`` and ``pose_with_covariance``
+(:mod:`omni_micro_vision.fleet_tracking`); a robot a frame cannot name gives no capture and is
+said in ``tracker_status`` (why, and where) and, once per reason, in the log.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
@@ -49,13 +57,14 @@ from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import IMAGE_QOS
-from omni_micro_common.reader_matching import when_capture_readers_matched
-from omni_micro_common.topic_names import (
-    CAPTURE_TOPICS,
-)
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
+from omni_micro_common.reader_matching import node_list_parameter, when_capture_readers_matched
+from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
 from omni_micro_vision.camera import checked_cameras
+from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.fleet_tracking import FleetCaptures, RobotCapture, robot_codes
+from omni_micro_vision.identification import Sighting
 from omni_micro_vision.rendering import Sensor
 from omni_micro_vision.tracked_camera import tracked_camera
 from omni_micro_vision.tracker_reader import CameraReader, HeldCapture, HeldInMotion
@@ -90,6 +99,10 @@ class TrackerNode(Node):
                                     f'{self.still_frames} and {self.still_px}')
         checked_cameras(cameras)
         self.captures_in_motion = bool(self.declare_parameter('captures_in_motion', False).value)
+        self.robots = robot_codes(node_list_parameter(self, 'robots'))
+        if self.robots and self.captures_in_motion:
+            raise CameraConfigError('captures_in_motion: not with robots (a micro-factory\'s '
+                                    'captures are of still robots only)')
         # Best effort by default, which meets a reliable and a best-effort driver alike
         # (REP-2003); the lockstep graph asks reliable of its own camera_node.
         self.reliability = self.declare_parameter('image_reliability', 'best_effort').value
@@ -143,6 +156,19 @@ class TrackerNode(Node):
         # which have been handled (omni_micro_common.lockstep).
         self.motion_arbiter: CameraArbiter[HeldInMotion] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
+        self.fleet = FleetCaptures(
+            sorted(fields, key=fields.__getitem__), list(self.robots.values()),
+            self.still_frames, {r.name: r.stillness.tolerance_m for r in self.readers}) \
+            if self.robots else None
+        # Each robot's captures, per camera: (bare, with covariance) under its namespace.
+        self.robot_publishers = {
+            (code, reader.name): (
+                self.create_publisher(PoseStamped, f'/{robot}{CAPTURE_TOPICS[reader.name]}',
+                                      CAPTURE_QOS),
+                self.create_publisher(PoseWithCovarianceStamped,
+                                      f'/{robot}{CAPTURE_COVARIANCE_TOPICS[reader.name]}',
+                                      CAPTURE_QOS))
+            for robot, code in self.robots.items() for reader in self.readers}
 
         def read_images() -> None:
             for image_topic, info_topic, reader in inputs:
@@ -169,6 +195,30 @@ class TrackerNode(Node):
             return self.declare_parameter(
                 name, None, ParameterDescriptor(dynamic_typing=True)).value
         return self.declare_parameter(name, default).value
+
+    def on_fleet_frame(self, reader: CameraReader, stamp: int,
+                       sightings: list[Sighting]) -> None:
+        """A frame of several robots: each named robot's due captures published under its
+        namespace, the robots the frame could not name said, then the report."""
+        assert self.fleet is not None
+        reader.handled_ns = max(reader.handled_ns, stamp)
+        due, unnamed = self.fleet.on_frame(reader.name, stamp, sightings)
+        for capture in due:
+            self._publish_robot_capture(capture)
+        reader.say_sightings(sightings, unnamed)
+        self.lockstep.report(Ack(
+            self.get_name(), None,
+            captures_ns=(due[0].stamp_ns, due[-1].stamp_ns) if due else None,
+            frame_handled_ns=min(r.handled_ns for r in self.readers)))
+
+    def _publish_robot_capture(self, capture: RobotCapture) -> None:
+        reader = next(r for r in self.readers if r.name == capture.camera)
+        bare, with_covariance = self.robot_publishers[capture.robot, capture.camera]
+        x, y, phi = capture.pose
+        pose = capture_pose(*divmod(capture.stamp_ns, 1_000_000_000), self.frame_id, x, y, phi)
+        # The uncertainty first, as vision_node: a reader of the bare capture has it by then.
+        with_covariance.publish(with_uncertainty(pose, reader.camera.uncertainty(phi)))
+        bare.publish(pose)
 
     def on_frame(self, reader: CameraReader, stamp: int, found: bool,
                  capture: HeldCapture | None, in_motion: HeldInMotion | None = None) -> None:

@@ -24,8 +24,10 @@ from omni_micro_common.topic_names import (
     TRACKER_STATUS_TOPICS,
 )
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
+from omni_micro_vision.encodings import full_scale
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.frame_ages import FrameAges
+from omni_micro_vision.identification import Sighting, identify
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.tracked_camera import TrackedCamera
@@ -69,6 +71,9 @@ class CameraReader:
             CAPTURE_QOS) if node.captures_in_motion else None
         self._said: str | None = None
         self._said_level = DiagnosticStatus.OK
+        # Several robots: the sensor's full scale over the frames so far, the reasons logged.
+        self._full_scale = 0
+        self._unnamed_said: set[str] = set()
 
     def events(self, topic: str) -> SubscriptionEventCallbacks:
         """rclpy's incompatible-QoS event, said by this node in its status and log."""
@@ -104,9 +109,14 @@ class CameraReader:
         except CameraConfigError as error:
             self._refuse(error)   # no stamp to report it under: as a frame lost on the way
             return
-        found, capture, in_motion = self._see(msg)
         stamp = stamp_ns(msg.header.stamp)
-        self.node.on_frame(self, stamp, found, capture, in_motion)
+        if self.node.fleet is not None:
+            sightings = self._identify(msg)
+            if sightings is not None:
+                self.node.on_fleet_frame(self, stamp, sightings)
+        else:
+            found, capture, in_motion = self._see(msg)
+            self.node.on_frame(self, stamp, found, capture, in_motion)
         if self.ages.add(stamp, arrived_ns, time.time_ns()):
             self._state_ages()
 
@@ -131,6 +141,48 @@ class CameraReader:
         self.stillness.reset()
         self.tracker.reset()
         self._last_seen = None
+
+    def _identify(self, msg: ImageLike) -> list[Sighting] | None:
+        """The robots in one frame of several (None: the frame is refused, and said so)."""
+        if self.info_refusal is not None:
+            self._refuse(self.info_refusal)
+            return None
+        try:
+            pixels = image_array(msg, self.camera.plane.resolution_px)
+            self._full_scale = max(self._full_scale, full_scale(pixels, self.camera.bit_depth))
+            sightings, reason = identify(pixels, self.camera.plane, self._full_scale)
+        except CameraConfigError as error:
+            self._refuse(error)
+            return None
+        if not sightings:
+            self._say(DiagnosticStatus.WARN, reason)
+        return sightings
+
+    def say_sightings(self, sightings: list[Sighting], unnamed: list[Sighting]) -> None:
+        """Who a frame showed, in the status (on each change; where each unnamed robot is, in
+        its values), and each new reason a robot could not be named, in the log."""
+        if not sightings:
+            return
+        names = sorted(f'robot_{s.robot}' for s in sightings
+                       if s.robot in self.node.robots.values())
+        message = f'seen: {", ".join(names) or "nobody named"}'
+        if unnamed:
+            message += f'; {len(unnamed)} not named: ' + '; '.join(
+                sorted({s.reason for s in unnamed}))
+            for sighting in unnamed:
+                if sighting.reason not in self._unnamed_said:
+                    self._unnamed_said.add(sighting.reason)
+                    self.node.get_logger().warning(
+                        f'{self.name}: a robot at ({sighting.pose[0] * 1e3:.3f}, '
+                        f'{sighting.pose[1] * 1e3:.3f}) mm: {sighting.reason}')
+        if message != self._said:
+            where = [KeyValue(key='not_named_at_mm', value='; '.join(
+                f'{s.pose[0] * 1e3:.3f},{s.pose[1] * 1e3:.3f}' for s in unnamed))]
+            self._said = message
+            self._said_level = DiagnosticStatus.WARN if unnamed else DiagnosticStatus.OK
+            self.status_pub.publish(DiagnosticStatus(
+                level=self._said_level, name=f'tracker {self.name}', message=message,
+                values=self._age_values + (where if unnamed else [])))
 
     def _see(self, msg: ImageLike) -> tuple[bool, HeldCapture | None, HeldInMotion | None]:
         """Track one frame: whether the fiducial is in it, and the capture or the capture in
