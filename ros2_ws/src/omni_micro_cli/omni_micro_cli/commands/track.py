@@ -5,6 +5,10 @@ by a command), and run this with the params file you will give tracker_node. It 
 frame, whether the fiducial was found or why not, when the robot counts as still, and how much
 the pose scatters while it is: the spread to put in the params (``noise_px``) so that the
 covariance tracker_node publishes states what the camera really does.
+
+With ``--robots`` (several robots under the camera, each carrying its code): who the tracker
+names in each frame, how often each robot is still, and every frame's robot it could not name
+and why, before the bench run that needs them told apart.
 """
 
 from __future__ import annotations
@@ -49,10 +53,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'files win, as with --params-file')
     parser.add_argument('--max-frames', type=positive_int, metavar='N',
                         help='only the first N frames')
+    parser.add_argument('--robots', type=robot_names, metavar='R0,R1,...',
+                        help='several robots under the camera, by namespace (robot_k carries '
+                             "fiducial code k, as tracker_node's robots): report per robot")
     parser.add_argument('--csv', type=output_file, metavar='FILE',
                         help='write one row per frame: stamp, found, still, x, y, heading, '
-                             'reason')
+                             'reason (with --robots, one per robot seen in a frame, with its '
+                             'name)')
     parser.set_defaults(handler=run)
+
+
+def robot_names(text: str) -> list[str]:
+    """--robots: namespaces, comma-separated, each a robot the tracker can tell."""
+    from omni_micro_vision.errors import CameraConfigError
+    from omni_micro_vision.fleet_tracking import robot_codes
+
+    names = [name.strip() for name in text.split(',') if name.strip()]
+    try:
+        robot_codes(names)
+    except CameraConfigError as error:
+        raise argparse.ArgumentTypeError(str(error).removeprefix('robots: ')) from None
+    if not names:
+        raise argparse.ArgumentTypeError(f'{text!r}: expected robot namespaces, robot_0,...')
+    return names
 
 
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
@@ -96,6 +119,11 @@ def run(args: argparse.Namespace) -> int:
         stillness = StillnessRule(frames_needed,
                                   tolerance_px * min(camera.plane.pixel_size_m))
         tracker = FrameTracker(camera.plane, camera.bit_depth)
+        if args.robots:
+            from omni_micro_cli.commands.track_robots import track_robots
+
+            return track_robots(args, reader, connections[0], camera, frames_needed,
+                                tolerance_px)
         for _, _, raw in reader.messages(connections=connections):
             msg: Any = reader.deserialize(raw, connections[0].msgtype)
             stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
