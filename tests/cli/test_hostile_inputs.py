@@ -201,9 +201,15 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop, --vision: a single robot's run only; with --robots "
      'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, --composed, --no-markers, '
-     '--json, --quiet'),
+     '--view, --json, --quiet'),
     (['fleet', '--composed'], "omni-micro fleet: error: --composed is a node graph's: give it "
                               'with --graph'),
+    (['fleet', '--view'], "omni-micro fleet: error: --view is a node graph's: give it with "
+                          '--graph'),
+    (['view', '--robots', 'robot 1'], "omni-micro view: error: argument --robots: 'robot 1': "
+                                      'expected a number of robots or namespaces such as '
+                                      'robot_0,robot_1 (omni-micro view --help lists the '
+                                      'arguments)'),
     (['run', '--goal-mm', '1,0', '--tasks', 'tasks.yaml'],
      'omni-micro run: error: --tasks gives several robots their goals: with --robots'),
     (['fleet', '--rtf', '2'], 'omni-micro fleet: error: --rtf paces the node graph: give it with '

@@ -7,11 +7,16 @@ both cores kept busy and composed in one process, recorded into the same bag byt
 
 from __future__ import annotations
 
+import asyncio
 import json
 import math
+import socket
+import threading
+import time
 from pathlib import Path
 
 import pytest
+from foxglove_client import free_port, watch
 
 from omni_micro_vision.scene import FLEET_COLOURS
 
@@ -50,6 +55,8 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
         processes = ['bag_recorder.log', 'dynamics_node.log',
                      *(f'robot_{k}.{node}.log' for k in range(3)
                        for node in ('controller_node', 'markers_node', 'vision_node'))]
+    if '--view' in extra:   # the live view, a process of its own
+        processes = sorted([*processes, 'viewer.log'])
     assert sorted(path.name for path in logs.glob('*.log')) == processes
     assert '3 robots (robot_0, robot_1, robot_2)' in (logs / processes[1]).read_text()
     return summary
@@ -119,15 +126,40 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
         assert math.dist((row['final_x_mm'], row['final_y_mm']), robot['final_mm']) < 1e-3
 
 
-def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy(as_fast_as_it_goes,
-                                                                     omni_micro, tmp_path,
-                                                                     busy_machine):
+def test_the_same_fleet_run_at_twice_real_time_with_both_cores_busy_and_watched_live(
+        as_fast_as_it_goes, omni_micro, tmp_path, busy_machine):
     """Two robots' goals ended at the same stamp once, and the coordinator's word for one
     released the other's before its next goal was taken (robot 0 started 0.17 s later at full
-    speed): each robot has its own coordinator in the lockstep since."""
+    speed): each robot has its own coordinator in the lockstep since. A Foxglove client watches
+    every robot live (--view) and changes nothing."""
+    port = free_port()
+    received: dict[str, list] = {}
+
+    def watch_until_the_graph_stops() -> None:
+        # Connects once the view is up; reads until the graph stops it (or 5 minutes).
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            with socket.socket() as sock:
+                if sock.connect_ex(('127.0.0.1', port)) == 0:
+                    break
+            time.sleep(0.05)
+        received.update(asyncio.run(watch(f'ws://127.0.0.1:{port}', 300.0, lambda _: False,
+                                          then_slow_s=0.0)))
+    watcher = threading.Thread(target=watch_until_the_graph_stops, daemon=True)
+    watcher.start()
     with busy_machine():
-        paced = fleet_through_graph(omni_micro, tmp_path / 'rtf2', '--rtf', '2')
+        paced = fleet_through_graph(omni_micro, tmp_path / 'rtf2', '--rtf', '2', '--view',
+                                    '--view-port', str(port))
+    watcher.join(timeout=60)
     assert_the_same_run_and_bag(as_fast_as_it_goes, paced, tmp_path / 'rtf2')
+    for k in range(3):
+        # Each robot drawn in its colour and seen moving, under its namespace.
+        (chassis, *_) = [m for array in received[f'/robot_{k}/markers'] for m in array.markers
+                         if m.ns == 'robot/chassis']
+        assert (chassis.color.r, chassis.color.g, chassis.color.b) == pytest.approx(
+            FLEET_COLOURS[k][:3])
+        assert received[f'/robot_{k}/odom'][-1].header.frame_id == f'robot_{k}/odom'
+    assert received['/clock'] and '/odom' not in received
 
 
 def test_composed_in_one_process_the_same_run_and_the_same_bag(as_fast_as_it_goes, omni_micro,

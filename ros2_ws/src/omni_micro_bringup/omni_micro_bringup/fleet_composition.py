@@ -116,12 +116,14 @@ def hosting(specs: list[NodeSpec]) -> NodeSpec:
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
                 folder: Path, record: tuple[Path, str] | None = None,
-                composed: bool = False, markers: bool = False) -> list[NodeSpec]:
+                composed: bool = False, markers: bool = False,
+                view: tuple[str, int] | None = None) -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
-    ``markers`` its markers_node too, the robot in its colour and labelled), and with
-    ``record`` (the bag, its storage) the recorder of every robot's topics. ``composed``:
-    dynamics and every robot's nodes in one process (the container), each node with the same
-    arguments as on its own; the recorder stays a process of its own, as a single robot's."""
+    ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
+    (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
+    the live view of every robot's. ``composed``: dynamics and every robot's nodes in one
+    process (the container), each node with the same arguments as on its own; the recorder and
+    the view stay processes of their own, as a single robot's."""
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
     nodes = (*ROBOT_NODES, *((MARKERS_NODE,) if markers else ()))
@@ -173,4 +175,10 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
             'omni_micro_tools', RECORDER_NODE, shipped,
             {'bag': str(bag), 'storage': storage, 'topics': recorded_topics(count, markers)})))
+    if view is not None:
+        host, port = view
+        specs.append(NodeSpec('omni_micro_tools', 'viewer', command=_command(
+            'omni_micro_tools', 'viewer', shipped,
+            {'host': host, 'port': int(port), 'markers': bool(markers),
+             'robots': [robot_name(k) for k in range(count)]})))
     return specs

@@ -229,6 +229,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
                     timeout_s: float = 3600.0, record: Path | None = None,
                     composed: bool = False, markers: bool = False,
+                    view: tuple[str, int] | None = None,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
@@ -238,6 +239,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
     ``composed``: the dynamics and every robot's nodes in one process. ``markers``: each robot
     drawn on ``/robot_k/markers`` by a markers_node of its own, in its colour, labelled.
+    ``view`` (host, port): every robot's topics served live to Foxglove.
 
     Raises
     ------
@@ -255,7 +257,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
                             log_dir, record=None if record is None else (record, 'mcap'),
-                            composed=composed, markers=markers)
+                            composed=composed, markers=markers, view=view)
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)

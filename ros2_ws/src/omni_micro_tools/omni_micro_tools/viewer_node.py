@@ -7,7 +7,9 @@ The server advertises no capability: clients cannot publish, call services or se
 
 Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``host`` (default
 127.0.0.1: loopback only), ``port`` (default 8765; 0 for any free one), ``markers`` (serve
-/markers; false for a graph without markers_node). ``omni-micro view`` and ``run --view`` start it.
+/markers; false for a graph without markers_node), ``robots`` (a micro-factory's namespaces:
+each robot's topics under its own, ``/robot_k/markers``, ``/robot_k/odom``, ..., and the one
+/clock). ``omni-micro view`` and ``run --view`` start it.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from rclpy.parameter import Parameter
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
+from omni_micro_common.reader_matching import node_list_parameter
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
@@ -34,6 +37,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    is_plain_name,
 )
 from omni_micro_tools.bags import TYPESTORE
 from omni_micro_tools.topics import GRAPH_TOPICS, TopicSpec
@@ -63,7 +67,8 @@ class Viewer(Node):
         super().__init__('omni_micro_viewer', **node_options)
         host = str(self.declare_parameter('host', '127.0.0.1').value)
         port = self.declare_parameter('port', 8765).value
-        topics = view_topics(bool(self.declare_parameter('markers', True).value))
+        topics = view_topics(bool(self.declare_parameter('markers', True).value),
+                             node_list_parameter(self, 'robots'))
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ParameterError(f'port must be a whole number in 0-65535, got {port!r}')
         self.server = foxglove.start_server(name='omni-micro', host=host, port=port,
@@ -110,6 +115,20 @@ if __name__ == '__main__':
     main()
 
 
-def view_topics(markers: bool = True) -> dict[str, TopicSpec]:
-    return {topic: GRAPH_TOPICS[topic] for topic in VIEW_TOPICS
-            if markers or topic != MARKERS_TOPIC}
+def view_topics(markers: bool = True, robots: list[str] | None = None) -> dict[str, TopicSpec]:
+    """What the view serves: the graph's topics, or with ``robots`` each robot's under its
+    namespace, robot by robot, and the one /clock.
+
+    Raises
+    ------
+    ParameterError
+        A robot's namespace that is not one ROS name token.
+    """
+    own = [topic for topic in VIEW_TOPICS if markers or topic != MARKERS_TOPIC]
+    if not robots:
+        return {topic: GRAPH_TOPICS[topic] for topic in own}
+    strangers = [robot for robot in robots if not is_plain_name(robot)]
+    if strangers:
+        raise ParameterError(f'robots: {strangers} are not robot namespaces (robot_0, ...)')
+    return {**{f'/{robot}{topic}': GRAPH_TOPICS[topic] for robot in robots for topic in own
+               if topic != CLOCK_TOPIC}, CLOCK_TOPIC: GRAPH_TOPICS[CLOCK_TOPIC]}

@@ -11,9 +11,11 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_cli.arguments import (
+    add_view_arguments,
     positive_int,
     real_time_factor,
     seed_number,
+    view_from_args,
     whole_number_in,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
@@ -58,6 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--markers', action='store_true',
                         help='with --graph: a markers_node per robot draws it on '
                              '/robot_k/markers (RViz 2, Foxglove), in its colour, labelled')
+    add_view_arguments(parser, flag=True)
     parser.add_argument('--composed', action='store_true',
                         help='with --graph: dynamics_node and every robot\'s nodes in one '
                              'process (omni_micro_common\'s container); the run is the same')
@@ -84,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
-    for option in ('composed', 'markers'):
+    for option in ('composed', 'markers', 'view'):
         if not args.graph and getattr(args, option):
             raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
@@ -144,7 +147,7 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
                              record=args.record, composed=args.composed, markers=args.markers,
-                             on_progress=progress)
+                             view=view_from_args(args), on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
     runs = []

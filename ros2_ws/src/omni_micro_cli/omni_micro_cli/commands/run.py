@@ -197,7 +197,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'seed', 'rtf', 'timeout', 'log_dir', 'record', 'composed',
-                 'markers', 'json', 'quiet', 'help')
+                 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -209,12 +209,13 @@ def fleet_run(args: argparse.Namespace) -> int:
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, '
-                         '--composed, --no-markers, --json, --quiet')
+                         '--composed, --no-markers, --view, --json, --quiet')
     return fleet.run(argparse.Namespace(
         robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
         max_sim_time=1800, record=args.record, plot=None, json=args.json, graph=True, rtf=args.rtf,
         log_dir=args.log_dir, wall_timeout=args.timeout, composed=args.composed,
-        markers=args.markers))
+        markers=args.markers, view=args.view, view_port=args.view_port,
+        view_host=args.view_host))
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:

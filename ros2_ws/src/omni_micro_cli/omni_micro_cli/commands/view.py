@@ -19,7 +19,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='ROS domain of the graph (default: ROS_DOMAIN_ID)')
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not serve /markers (a graph without markers_node)')
+    parser.add_argument('--robots', type=robot_namespaces, metavar='N|R0,R1,...',
+                        help="a micro-factory's graph: serve each robot's topics under its "
+                             'namespace, robot_0 to robot_{N-1} or those named')
     parser.set_defaults(handler=run)
+
+
+def robot_namespaces(text: str) -> list[str]:
+    """--robots: a count of robots (robot_0, ...) or their namespaces, comma-separated."""
+    from omni_micro_common.topic_names import is_plain_name
+
+    if text.isdigit() and int(text) >= 1:
+        return [f'robot_{k}' for k in range(int(text))]
+    names = [name.strip() for name in text.split(',') if name.strip()]
+    strangers = [name for name in names if not is_plain_name(name)]
+    if not names or strangers:
+        raise argparse.ArgumentTypeError(
+            f'{text!r}: expected a number of robots or namespaces such as robot_0,robot_1')
+    return names
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
     if warning:
         print(warning, file=sys.stderr)
     overrides = [Parameter('host', value=args.view_host), Parameter('port', value=args.view_port),
-                 Parameter('markers', value=bool(args.markers))]
+                 Parameter('markers', value=bool(args.markers)),
+                 *([Parameter('robots', value=args.robots)] if args.robots else [])]
     run_node(lambda: Viewer(parameter_overrides=overrides), config_errors=(),
              on_shutdown=stop_and_report, domain_id=args.domain_id)
     return 0
