@@ -60,10 +60,12 @@ def fiducial_for(camera: CameraModel) -> Fiducial:
 
 
 # The code slots, in the robot frame, beside each pair: two rows across the robot's X axis,
-# clear of the pair's dots by a millimetre (nine macro pixels; 0.12 mm, 77 micro pixels).
-MACRO_CODE_SLOTS = (Dot(-1.6e-3, 2.2e-3, 0.3e-3), Dot(0.0, 2.2e-3, 0.3e-3),
-                    Dot(1.6e-3, 2.2e-3, 0.3e-3), Dot(-0.8e-3, -2.2e-3, 0.3e-3),
-                    Dot(0.8e-3, -2.2e-3, 0.3e-3))
+# clear of the window the tracker weighs a pair's dot in (the macro pair's: 2.7 mm from its
+# dots' centres at least; 0.8 mm inside the chassis's edge), so that a code never pulls a
+# dot's centroid (at 2.2 mm they did, by up to 13 um); the micro slots 0.19 mm from its dots.
+MACRO_CODE_SLOTS = (Dot(-1.6e-3, 3.0e-3, 0.3e-3), Dot(0.0, 3.0e-3, 0.3e-3),
+                    Dot(1.6e-3, 3.0e-3, 0.3e-3), Dot(-0.8e-3, -3.0e-3, 0.3e-3),
+                    Dot(0.8e-3, -3.0e-3, 0.3e-3))
 MICRO_CODE_SLOTS = (Dot(-0.2e-3, 0.25e-3, 0.02e-3), Dot(0.0, 0.25e-3, 0.02e-3),
                     Dot(0.2e-3, 0.25e-3, 0.02e-3), Dot(-0.1e-3, -0.25e-3, 0.02e-3),
                     Dot(0.1e-3, -0.25e-3, 0.02e-3))
