@@ -14,6 +14,7 @@ def a_suite(pytester, limit_s: float, long_tests: str = '{}', longest: str = '{}
     pytester.makeconftest(CONFTEST + f'\nTEST_LIMIT_S = {limit_s}\nLONG_TESTS = {long_tests}\n'
                                      f'LONGEST_FIRST = {longest}\n')
     pytester.makepyfile(test_timing='''
+import os
 import subprocess
 import sys
 import time
@@ -42,14 +43,22 @@ def test_slow_and_not_named():
                     '\\nwhile time.process_time() < end: pass'], check=True)
 
 
+def cpu_s(pid):
+    fields = open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def test_beside_busy_processes(request):
-    # The busy process burns some 0.6 s, over the limit: the load asked for, not this test's.
+    # The busy process burns 0.4 s or more, over the limit: the load asked for, not this
+    # test's. (Waited for by its own CPU: on a loaded machine it gets less than a core.)
     from omni_micro_bringup.machine_load import busy_cores
 
     def note(used_s):
         request.node.user_properties.append(('busy_cpu_s', used_s))
-    with busy_cores(1, on_done=note):
-        time.sleep(0.6)
+    with busy_cores(1, on_done=note) as (hog,):
+        deadline = time.monotonic() + 120
+        while cpu_s(hog.pid) < 0.4 and time.monotonic() < deadline:
+            time.sleep(0.05)
     assert request.node.user_properties[-1][1] > 0.3
 
 

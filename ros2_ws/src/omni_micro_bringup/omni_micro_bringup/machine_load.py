@@ -14,14 +14,15 @@ _HOG = 'import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n    pas
 
 
 @contextlib.contextmanager
-def busy_cores(count: int,
-               on_done: Callable[[float], None] | None = None) -> Iterator[None]:
-    """Run the block with ``count`` cores kept busy; ``on_done`` is told the CPU seconds the
-    busy processes used (what a measure of the block's own CPU leaves out)."""
+def busy_cores(count: int, on_done: Callable[[float], None] | None = None) -> Iterator[
+        list[subprocess.Popen[bytes]]]:
+    """Run the block with ``count`` cores kept busy (the block gets the busy processes);
+    ``on_done`` is told the CPU seconds they used (what a measure of the block's own CPU leaves
+    out)."""
     hogs = [subprocess.Popen([sys.executable, '-c', _HOG]) for _ in range(count)]
     used_s = 0.0
     try:
-        yield
+        yield hogs
     finally:
         for hog in hogs:
             hog.kill()
