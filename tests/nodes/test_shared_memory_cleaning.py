@@ -45,3 +45,10 @@ def test_an_orphaned_port_goes_whoever_made_it_and_a_port_in_use_stays(port_file
         assert mapped.exists()
     assert not orphan.exists()
     assert listened.exists() and lock.exists()
+
+
+def test_only_a_graph_with_a_death_in_it_cleans_what_others_may_be_opening():
+    assert not processes.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 1])
+    assert processes.left_shared_memory({'dynamics_node': 0, 'vision_node': -9}, [1, 1])
+    assert processes.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 2])
+    assert processes.left_shared_memory({'dynamics_node': None}, [1])

@@ -45,6 +45,7 @@ from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
     clean_shared_memory,
+    left_shared_memory,
     node_environment,
     stop_together,
 )
@@ -242,7 +243,12 @@ class Graph:
                               + (f' (the slowest, {slowest}, {took[slowest]:.2f} s after its '
                                  'signal)' if slowest else '') + '; exit codes: '
                               + ', '.join(f'{name} {code}' for name, code in codes.items()))
-        clean_shared_memory()
+        # Only after a death: a process that stopped on its signal removed its own files, and
+        # `fastdds shm clean` locks every port's lock file to test it, which a participant of
+        # another graph starting at that moment then fails to take (its port unopened: a node
+        # of the suite's other worker once went deaf to its parameter service so).
+        if left_shared_memory(codes, [p.starts for p in self.processes]):
+            clean_shared_memory()
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
             self._recover_bag(record)

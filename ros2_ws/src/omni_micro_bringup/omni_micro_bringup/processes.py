@@ -237,6 +237,12 @@ def shared_memory_files_in_use(pids: list[int] | None = None) -> set[str]:
     return in_use
 
 
+def left_shared_memory(codes: dict[str, int | None], starts: list[int]) -> bool:
+    """Whether a graph's processes may have left shared-memory files: one did not stop on its
+    signal with code 0 (killed, crashed, stuck), or one was started again after dying."""
+    return any(code != 0 for code in codes.values()) or any(count > 1 for count in starts)
+
+
 def clean_shared_memory() -> None:
     """Remove the Fast DDS shared-memory files a killed process left behind.
 
