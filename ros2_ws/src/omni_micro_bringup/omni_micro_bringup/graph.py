@@ -243,10 +243,8 @@ class Graph:
                               + (f' (the slowest, {slowest}, {took[slowest]:.2f} s after its '
                                  'signal)' if slowest else '') + '; exit codes: '
                               + ', '.join(f'{name} {code}' for name, code in codes.items()))
-        # Only after a death: a process that stopped on its signal removed its own files, and
-        # `fastdds shm clean` locks every port's lock file to test it, which a participant of
-        # another graph starting at that moment then fails to take (its port unopened: a node
-        # of the suite's other worker once went deaf to its parameter service so).
+        # Only after a death: cleaning locks every port's lock file to test it, which another
+        # graph's node starting then fails to take (docs/development.md, "The suite").
         if left_shared_memory(codes, [p.starts for p in self.processes]):
             clean_shared_memory()
         record = self.options.record
