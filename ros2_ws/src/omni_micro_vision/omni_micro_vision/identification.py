@@ -19,10 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from omni_micro_vision.encodings import full_scale as scale_of
-from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import code_slots_for, fiducial_for, robot_of_code
 from omni_micro_vision.geometry import PlaneMap
-from omni_micro_vision.tracking import bright_blobs, dot_centre, pair_pose
+from omni_micro_vision.tracking import bright_blobs, check_frame, dot_centre, pair_pose
 
 # A front and a back dot are one robot's when their distance is its baseline within this share
 # (another robot's dot is at least 25 % of a baseline further).
@@ -59,10 +58,7 @@ def identify(image: np.ndarray, plane: PlaneMap, full_scale: int | None = None) 
     """
     import cv2
 
-    columns, rows = plane.resolution_px
-    if image.ndim != 2 or image.shape != (rows, columns):
-        raise CameraConfigError(f'{plane.name}: expected a {columns} x {rows} mono image, got '
-                                f'shape {image.shape}')
+    columns, rows = check_frame(image, plane)
     scale = scale_of(image, 0) if full_scale is None else full_scale
     blobs = bright_blobs(image, scale)
     if blobs is None:

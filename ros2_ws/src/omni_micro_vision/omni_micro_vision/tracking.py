@@ -75,10 +75,7 @@ def track(image: np.ndarray, plane: PlaneMap, near: tuple[float, float] | None =
     CameraConfigError
         If ``image`` is not a 2-D array of the map's resolution (a corrupt frame).
     """
-    columns, rows = plane.resolution_px
-    if image.ndim != 2 or image.shape != (rows, columns):
-        raise CameraConfigError(f'{plane.name}: expected a {columns} x {rows} mono image, got '
-                                f'shape {image.shape}')
+    columns, rows = check_frame(image, plane)
     scale = int(np.iinfo(image.dtype).max) if full_scale is None else full_scale
     pixel_m = plane.pixel_size_m
     fiducial = fiducial_for(plane.field_camera)
@@ -95,6 +92,21 @@ def track(image: np.ndarray, plane: PlaneMap, near: tuple[float, float] | None =
                 if found.found:
                     return found
     return _locate(image, plane, pixel_m, fiducial, (0, rows, 0, columns), scale)
+
+
+def check_frame(image: np.ndarray, plane: PlaneMap) -> tuple[int, int]:
+    """The frame's columns and rows, once ``image`` is a 2-D array of the map's resolution.
+
+    Raises
+    ------
+    CameraConfigError
+        If it is not (a corrupt frame).
+    """
+    columns, rows = plane.resolution_px
+    if image.ndim != 2 or image.shape != (rows, columns):
+        raise CameraConfigError(f'{plane.name}: expected a {columns} x {rows} mono image, got '
+                                f'shape {image.shape}')
+    return columns, rows
 
 
 def _locate(image: np.ndarray, plane: PlaneMap, pixel_m: tuple[float, float],
