@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import csv
+import io
 import os
 import shutil
 import sys
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 
@@ -103,3 +105,12 @@ def atomic_bytes(target: Path, data: bytes) -> None:
 
 def echo_to_stderr(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
+
+
+def atomic_csv(target: Path, header: list[str], rows: Iterable[Sequence[object]]) -> None:
+    """A CSV table written whole or not at all (atomic_text)."""
+    table = io.StringIO()
+    writer = csv.writer(table)
+    writer.writerow(header)
+    writer.writerows(rows)
+    atomic_text(target, table.getvalue())

@@ -14,8 +14,6 @@ and why, before the bench run that needs them told apart.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import math
 import sys
 from pathlib import Path
@@ -25,7 +23,7 @@ import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import atomic_text, output_file
+from omni_micro_cli.outputs import atomic_csv, output_file
 
 if TYPE_CHECKING:
     from omni_micro_vision.tracked_camera import TrackedCamera
@@ -184,11 +182,8 @@ def _report(args: argparse.Namespace, rows: list, camera: TrackedCamera) -> int:
               f'{args.camera}.quantisation_px: {quantisation:g} (now {camera.noise_px:g} and '
               f'{camera.quantisation_px:g})')
     if args.csv is not None:
-        table = io.StringIO()
-        writer = csv.writer(table)
-        writer.writerow(['stamp_s', 'found', 'still', 'x_m', 'y_m', 'heading_rad', 'reason'])
-        writer.writerows(rows)
-        atomic_text(args.csv, table.getvalue())
+        atomic_csv(args.csv, ['stamp_s', 'found', 'still', 'x_m', 'y_m', 'heading_rad',
+                              'reason'], rows)
         print(f'per-frame rows in {args.csv}')
     if not found:
         print('the fiducial was in no frame: check the camera params (center_m, field_m) and '

@@ -5,13 +5,11 @@ fleet_tracking), and why any robot could not be named."""
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import sys
 from collections import Counter
 from typing import TYPE_CHECKING, Any
 
-from omni_micro_cli.outputs import atomic_text
+from omni_micro_cli.outputs import atomic_csv
 
 if TYPE_CHECKING:
     from omni_micro_vision.tracked_camera import TrackedCamera
@@ -81,11 +79,8 @@ def _report(args: argparse.Namespace, frames: int, rows: list[Row], refused: Cou
     for reason, count in refused.most_common():
         print(f'  {count:5d} x no robot: {reason}')
     if args.csv is not None:
-        table = io.StringIO()
-        writer = csv.writer(table)
-        writer.writerow(['stamp_s', 'robot', 'still', 'x_m', 'y_m', 'heading_rad', 'reason'])
-        writer.writerows(rows)
-        atomic_text(args.csv, table.getvalue())
+        atomic_csv(args.csv, ['stamp_s', 'robot', 'still', 'x_m', 'y_m', 'heading_rad',
+                              'reason'], rows)
         print(f'per-robot rows in {args.csv}')
     never = [robot for robot in robots if not any(row[1] == robot for row in rows)]
     if never:
