@@ -40,8 +40,6 @@ class Sighting:
 
 @dataclass(frozen=True)
 class _Dot:
-    column: float
-    row: float
     surround: float
     platform: tuple[float, float]
 
@@ -79,8 +77,8 @@ def identify(image: np.ndarray, plane: PlaneMap, full_scale: int | None = None) 
                 if centre is not None:
                     column, row, surround = centre
                     platform = plane.to_platform(np.array([[column, row]]))[0]
-                    dots[name].append(_Dot(column, row, surround,
-                                           (float(platform[0]), float(platform[1]))))
+                    dots[name].append(_Dot(surround, (float(platform[0]),
+                                                      float(platform[1]))))
     if not dots['front'] and not dots['back']:
         return [], 'fiducial not found: no dot of the expected sizes'
     baseline = fiducial.baseline_m
