@@ -2,7 +2,8 @@
 
 Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, the distance
 comparator, the outcome), :mod:`observations` (a capture as the controllers see it),
-:mod:`move_watcher` (a move's end, from the wheel states), :mod:`model_based` (plans through the
+:mod:`move_watcher` (a move's end, from the wheel states), :mod:`tuning` (which settings
+may change while a controller runs), :mod:`model_based` (plans through the
 slip model, learns the robot) and :mod:`identification` (the least-squares fit it and ``omni-micro
 identify`` use, over the :mod:`chains` of stops and moves that :mod:`recorded_runs` reads from a
 run's messages), :mod:`servo` (keeps the robot rolling, corrected from the captures in motion

@@ -19,6 +19,7 @@ from omni_micro_control.model_based import ModelConfig, planner_for
 from omni_micro_control.platform import checked_platform
 from omni_micro_control.servo_config import SERVO_MODE, FilterConfig, ServoConfig
 from omni_micro_control.servo_session import ServoSession
+from omni_micro_control.tuning import reconfigured
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 
@@ -89,22 +90,6 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
                                 goal if len(goal) == 2 else None,
                                 source, fixed, _declare_model_robot(node),
                                 _declare_model_config(node), servo, goal_time)
-
-
-def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> FeedbackConfig | str:
-    """``config`` with ``changes`` made while the node runs, or why they are refused: section
-    4.1's parameters may change, checked first; the mode chose the planner, and the planner holds
-    what it has learnt, so it is fixed, as is everything else."""
-    fields = FeedbackConfig.__dataclass_fields__
-    others = [name for name in changes
-              if (name not in fields or name == 'mode') and name != 'use_sim_time']
-    if others:
-        return f'{others} are fixed while the node runs'
-    try:
-        return FeedbackConfig(**{**config.__dict__,
-                                 **{k: v for k, v in changes.items() if k in fields}})
-    except ControllerConfigError as error:
-        return str(error)
 
 
 def reconfigure(controller: VisionFeedbackController | ServoSession,
