@@ -17,7 +17,12 @@ from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
 from omni_micro_control.model_based import ModelConfig, planner_for
 from omni_micro_control.platform import checked_platform
-from omni_micro_control.servo_config import SERVO_MODE, FilterConfig, ServoConfig
+from omni_micro_control.servo_config import (
+    SERVO_MODE,
+    SHARED_WITH_SERVO,
+    FilterConfig,
+    ServoConfig,
+)
 from omni_micro_control.servo_session import ServoSession
 from omni_micro_control.tuning import reconfigured
 from omni_micro_sim.errors import ParameterError
@@ -29,8 +34,6 @@ DERIVED_CONFIG = ('cruise_speed_rad_s',)
 # hands several robots their goals, each stamped with the end it follows; the lockstep holds
 # time until they are taken, so the same run follows whatever the load).
 GOAL_TIMES = ('arrival', 'stamp')
-# ServoConfig fields that are the controller's own parameters, shared with the other modes.
-SHARED_WITH_SERVO = ('tolerance_m', 'settle_wait_s', 'captures_per_stop')
 
 
 @dataclass(frozen=True)

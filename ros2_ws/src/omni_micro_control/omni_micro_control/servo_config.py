@@ -17,6 +17,8 @@ from omni_micro_sim.profile import WheelSpeedProfile
 
 # FeedbackConfig's mode of a controller that runs the servo.
 SERVO_MODE = 'servo'
+# ServoConfig fields that are the controller's own parameters, shared with the other modes.
+SHARED_WITH_SERVO = ('tolerance_m', 'settle_wait_s', 'captures_per_stop')
 
 
 @dataclass(frozen=True)
