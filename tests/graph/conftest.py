@@ -69,6 +69,23 @@ class Probe:
         rclpy.try_shutdown(context=self.context)
 
 
+def pause_the_robots_clock(domain_id: int) -> None:
+    """dynamics_node's clock held, as the orchestration holds it before time 0: the lockstep
+    then stops every message of the graph."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    probe = Probe(domain_id)
+    try:
+        client = probe.node.create_client(SetParameters, '/dynamics_node/set_parameters')
+        answer = probe.call(client, SetParameters.Request(parameters=[Parameter(
+            name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
+                                                bool_value=True))]))
+        assert answer.results[0].successful
+    finally:
+        probe.close()
+
+
 @pytest.fixture
 def domain_id() -> Iterator[int]:
     with DomainLease() as domain:

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, Probe
+from conftest import ROOT, pause_the_robots_clock
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
@@ -251,23 +251,6 @@ def test_a_domain_is_not_leased_while_a_process_of_its_run_lives():
         child.wait()
     with DomainLease(domain) as leased:
         assert leased == domain
-
-
-def pause_the_robots_clock(domain_id: int) -> None:
-    """dynamics_node's clock held, as the orchestration holds it before time 0: the lockstep
-    then stops every message of the graph."""
-    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-    from rcl_interfaces.srv import SetParameters
-
-    probe = Probe(domain_id)
-    try:
-        client = probe.node.create_client(SetParameters, '/dynamics_node/set_parameters')
-        answer = probe.call(client, SetParameters.Request(parameters=[Parameter(
-            name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
-                                                bool_value=True))]))
-        assert answer.results[0].successful
-    finally:
-        probe.close()
 
 
 @pytest.mark.parametrize('node', ['dynamics_node', 'vision_node', 'controller_node',
