@@ -109,6 +109,53 @@ def _tick(grid: GridSimulator, max_sim_time_s: float,
     return sample
 
 
+class StopAndGoLoop:
+    """One robot's stop-and-go loop (the paper's rule, or the model mode), a period at a time:
+    what the vision and controller nodes do with one of the dynamics' samples. The fleet twin
+    runs one per robot, goal after goal, as each robot's nodes run."""
+
+    def __init__(self, grid: GridSimulator, camera: StationaryCamera,
+                 controller: VisionFeedbackController, limits: MotorLimits) -> None:
+        self.grid = grid
+        self.camera = camera
+        self.controller = controller
+        self.limits = limits
+        self.watcher = MoveWatcher()
+        self.moves: list[Move] = []
+        self.used: list[Observation] = []   # the captures each decision was taken on
+
+    def step(self, sample: Sample) -> Finished | None:
+        """The sample seen by the camera and the wheel watcher, and the controller's answers
+        carried out; the goal's end, if this sample ended it."""
+        state = sample.state
+        stamp = through_stamp(sample.time_s)
+        decisions = []
+        if self.watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
+                                       tuple(sample.wheel_speeds_rad_s),
+                                       sample.steering_rate_rad_s):
+            decisions.append(self.controller.on_wheels_stopped(stamp))
+        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
+        for event in self.camera.on_odometry(stamp, state.x_m, state.y_m,
+                                             quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad)),
+                                             math.hypot(forward, lateral), state.omega_rad_s):
+            decisions.append(self.controller.on_capture(capture_observation(event))
+                             if isinstance(event, Capture)
+                             else self.controller.on_out_of_field(through_stamp(event.stamp_s)))
+        for decision in decisions:
+            if isinstance(decision, Move):
+                self.used.append(decision.observation)
+                self.moves.append(decision)
+                profile = move_profile(decision.duration_s, self.limits)
+                self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
+                schedule_move(self.grid, decision.steering_rad, profile, decision.start_s,
+                              stamp, self.limits)
+            elif isinstance(decision, Finished):
+                if decision.observation is not None:
+                    self.used.append(decision.observation)
+                return decision
+        return self.controller.on_time(stamp)[1]
+
+
 def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
                     limits: MotorLimits | None = None,
                     config: FeedbackConfig | None = None, rig: CameraRig = DEFAULT_RIG,
@@ -128,51 +175,18 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     """
     limits = limits or MotorLimits()
     grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
-    camera = StationaryCamera(rig, rule, seed)
     planner = planner_for(config or FeedbackConfig(), model_robot, limits, model)
-    controller = VisionFeedbackController(config, planner)
-    moves: list[Move] = []
-    watcher = MoveWatcher()
-    controller.set_goal(goal_m, 0.0)
-    used: list[Observation] = []
+    loop = StopAndGoLoop(grid, StationaryCamera(rig, rule, seed),
+                         VisionFeedbackController(config, planner), limits)
+    loop.controller.set_goal(goal_m, 0.0)
     route: list[tuple[float, float, float]] = []
     finished: Finished | None = None
     while finished is None:
-        sample = _tick(grid, max_sim_time_s, route)
-        state = sample.state
-        stamp = through_stamp(sample.time_s)
-        decisions = []
-        if watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
-                                  tuple(sample.wheel_speeds_rad_s), sample.steering_rate_rad_s):
-            decisions.append(controller.on_wheels_stopped(stamp))
-        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
-        events = camera.on_odometry(stamp, state.x_m, state.y_m,
-                                    quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad)),
-                                    math.hypot(forward, lateral), state.omega_rad_s)
-        for event in events:
-            if isinstance(event, Capture):
-                decisions.append(controller.on_capture(capture_observation(event)))
-            else:
-                decisions.append(controller.on_out_of_field(through_stamp(event.stamp_s)))
-        for decision in decisions:
-            if isinstance(decision, Move):
-                used.append(decision.observation)
-                moves.append(decision)
-                profile = move_profile(decision.duration_s, limits)
-                watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-                schedule_move(grid, decision.steering_rad, profile, decision.start_s, stamp,
-                              limits)
-            elif isinstance(decision, Finished):
-                finished = decision
-                if decision.observation is not None:
-                    used.append(decision.observation)
-                break
-        if finished is None:
-            finished = controller.on_time(stamp)[1]
+        finished = loop.step(_tick(grid, max_sim_time_s, route))
     return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
                             grid.simulator.state, grid.time_s,
-                            (float(goal_m[0]), float(goal_m[1])), used,
-                            np.array(route), moves, planner)
+                            (float(goal_m[0]), float(goal_m[1])), loop.used,
+                            np.array(route), loop.moves, planner)
 
 
 @dataclass
@@ -183,6 +197,64 @@ class ServoResult(ClosedLoopResult):
     offsets_rad: tuple[float, float] = (0.0, 0.0)
 
 
+
+
+class ServoLoop:
+    """One robot's servo loop, a period at a time: what the vision node (its captures still and
+    in motion) and the controller node in the servo mode do with one of the dynamics' samples.
+    The fleet twin runs one per robot, goal after goal."""
+
+    def __init__(self, grid: GridSimulator, still: StationaryCamera, moving: MovingCamera,
+                 session: ServoSession, limits: MotorLimits) -> None:
+        self.grid = grid
+        self.still = still
+        self.moving = moving
+        self.session = session
+        self.limits = limits
+        self.moves = 0    # commands from rest, over every goal
+
+    def step(self, sample: Sample) -> Finished | None:
+        """The sample seen by both cameras and the wheels, the commands carried out; the goal's
+        end, if this sample ended it."""
+        state = sample.state
+        stamp = through_stamp(sample.time_s)
+        phi = quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad))
+        self.session.on_wheel_state(stamp, tuple(sample.wheel_speeds_rad_s))
+        for capture in self.moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
+                                               state.vy_m_s):
+            replanned = self.session.on_capture_in_motion(capture_observation(capture))
+            if replanned is not None:
+                self._schedule(replanned, stamp)
+        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
+        for event in self.still.on_odometry(stamp, state.x_m, state.y_m, phi,
+                                            math.hypot(forward, lateral), state.omega_rad_s):
+            decision = (self.session.on_capture(capture_observation(event))
+                        if isinstance(event, Capture)
+                        else self.session.on_out_of_field(through_stamp(event.stamp_s)))
+            if isinstance(decision, ServoCommand):
+                self.moves += int(decision.from_rest)
+                self._schedule(decision, stamp)
+            elif isinstance(decision, Finished):
+                return decision
+        return None
+
+    def _schedule(self, command: ServoCommand, now_s: float) -> None:
+        schedule_move(self.grid, command.steering_rad, command.profile, command.start_s, now_s,
+                      self.limits)
+
+
+def nominal_timings() -> dict[str, CameraTiming]:
+    """Each camera's timing in motion as the shipped params have it."""
+    return {name: CameraTiming() for name in ('macro', 'micro')}
+
+
+def twin_servo_config(config: ServoConfig | None, timings: dict[str, CameraTiming],
+                      period_s: float) -> ServoConfig:
+    """The servo's settings as the graph's bringup completes them: it counts on captures in
+    motion as old as these cameras make them, and starts commands on the dynamics' grid."""
+    return replace(config or ServoConfig(),
+                   capture_age_s=capture_age_bound_s(timings.values(), period_s),
+                   command_period_s=period_s)
 
 
 def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
@@ -205,43 +277,16 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     """
     limits = limits or MotorLimits()
     grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
-    still = StationaryCamera(rig, rule, seed)
-    timings = timings or {name: CameraTiming() for name in ('macro', 'micro')}
-    moving = MovingCamera(rig, timings, seed)
-    config = replace(config or ServoConfig(),
-                     capture_age_s=capture_age_bound_s(timings.values(), period_s),
-                     command_period_s=period_s)
-    session = ServoSession(config, limits, model_robot or RobotParameters())
-
-    def schedule(command: ServoCommand, now_s: float) -> None:
-        schedule_move(grid, command.steering_rad, command.profile, command.start_s, now_s,
-                      limits)
-
+    timings = timings or nominal_timings()
+    session = ServoSession(twin_servo_config(config, timings, period_s), limits,
+                           model_robot or RobotParameters())
+    loop = ServoLoop(grid, StationaryCamera(rig, rule, seed), MovingCamera(rig, timings, seed),
+                     session, limits)
     session.set_goal(goal_m, 0.0)
     route: list[tuple[float, float, float]] = []
     finished: Finished | None = None
     while finished is None:
-        sample = _tick(grid, max_sim_time_s, route)
-        state = sample.state
-        stamp = through_stamp(sample.time_s)
-        phi = quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad))
-        session.on_wheel_state(stamp, tuple(sample.wheel_speeds_rad_s))
-        for capture in moving.on_odometry(stamp, state.x_m, state.y_m, phi, state.vx_m_s,
-                                          state.vy_m_s):
-            replanned = session.on_capture_in_motion(capture_observation(capture))
-            if replanned is not None:
-                schedule(replanned, stamp)
-        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
-        for event in still.on_odometry(stamp, state.x_m, state.y_m, phi,
-                                       math.hypot(forward, lateral), state.omega_rad_s):
-            decision = (session.on_capture(capture_observation(event))
-                        if isinstance(event, Capture)
-                        else session.on_out_of_field(through_stamp(event.stamp_s)))
-            if isinstance(decision, ServoCommand):
-                schedule(decision, stamp)
-            elif isinstance(decision, Finished):
-                finished = decision
-                break
+        finished = loop.step(_tick(grid, max_sim_time_s, route))
     servo = session.servo
     learnt = servo.filter.offsets_rad if servo.filter is not None else (0.0, 0.0)
     return ServoResult(finished.outcome, finished.reason, finished.periods,
