@@ -131,3 +131,27 @@ def test_a_trackers_measured_age_is_the_servos_bound_only_where_it_is_later(said
     session.take_capture_age('macro', '0.06')
     assert session.take_capture_age('micro', '0.055') is None
     assert session.config.capture_age_s == max(bound or 0.0, 0.06)
+
+
+def test_each_goal_counts_its_own_moves_and_the_filter_keeps_what_it_learnt():
+    """A robot given goal after goal (a fleet's legs): the tenth goal may take its moves as the
+    first did (max_moves is per goal), and the offsets learnt on one goal serve the next."""
+    session = ServoSession(ServoConfig(captures_per_stop=1, max_moves=2), MotorLimits(),
+                           RobotParameters())
+    now = 0.0
+    learnt = None
+    for goal in range(4):
+        session.set_goal((0.001 * (goal + 1), 0.0), now)
+        at = 0.001 * goal
+        command = session.on_capture(Observation(now + 0.2, at, 0.0, 0.0, 'micro', MICRO))
+        assert isinstance(command, ServoCommand) and session.servo.moves == 1
+        if learnt is not None:
+            assert session.servo.filter is learnt   # the same estimate, restarted from here
+        learnt = session.servo.filter
+        end = command.start_s + command.profile.end_time_s
+        session.on_wheel_state(end, (0.0, 0.0, 0.0))
+        now = end + session.config.settle_wait_s
+        finished = session.on_capture(Observation(now, 0.001 * (goal + 1), 0.0, 0.0, 'micro',
+                                                  MICRO))
+        assert isinstance(finished, Finished) and finished.outcome is Outcome.REACHED
+        assert finished.periods == 1 and session.servo.stops == 1

@@ -162,8 +162,10 @@ class ServoController:
     # -- inputs ------------------------------------------------------------------------------
     def set_goal(self, goal_m: tuple[float, float], now_s: float) -> None:
         """A goal for a robot at rest: its first stationary captures (from ``now_s``) start the
-        move."""
+        move. Its moves, stops and plans made again are counted afresh (``max_moves`` is per
+        goal); what the filter has learnt of the robot stays."""
         self.goal_m = (float(goal_m[0]), float(goal_m[1]))
+        self.moves = self.stops = self.replans = 0
         self.phase = ServoPhase.SETTLING
         self._settled_at = now_s
         self._stop_captures = []
