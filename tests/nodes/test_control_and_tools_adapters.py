@@ -248,8 +248,16 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
             with_uncertainty(capture_pose(0, 400_000_000, 'platform', math.nan, 0.0, 0.0),
                              uncertainty), camera='micro', in_motion=True)
         assert len(trajectories.messages) == 2 and acks[-1].motion_handled_ns == 400_000_000
-        refused = node.set_parameters([Parameter('tolerance_m', value=1e-6)])[0]
-        assert not refused.successful and 'servo' in refused.reason
+        # A goal's tolerance may change while it runs (a fleet's coordinator sets each goal's),
+        # checked; the servo's own settings may not.
+        assert node.set_parameters([Parameter('tolerance_m', value=1e-6)])[0].successful
+        assert node.controller.config.tolerance_m == 1e-6
+        refused = node.set_parameters([Parameter('tolerance_m', value=-1.0)])[0]
+        assert not refused.successful and 'tolerance_m must be a number > 0' in refused.reason
+        refused = node.set_parameters([Parameter('servo.crawl_m', value=1e-4)])[0]
+        assert not refused.successful
+        assert refused.reason.startswith("['servo.crawl_m'] are fixed while the servo runs")
+        assert node.controller.config.tolerance_m == 1e-6
         # A driver's captures in motion measured 90 ms old by the tracker: the servo takes that
         # as its bound, says so naming the driver's topic, and starts its corrections that late
         # after a capture's stamp; an age under its own bound, or no age, changes nothing.

@@ -3,8 +3,12 @@ parameter changes and the fleet twin's per-goal tolerances both go through here 
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
+
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.servo_config import SHARED_WITH_SERVO, ServoConfig
 
 
 def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> FeedbackConfig | str:
@@ -19,5 +23,22 @@ def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> Feedback
     try:
         return FeedbackConfig(**{**config.__dict__,
                                  **{k: v for k, v in changes.items() if k in fields}})
+    except ControllerConfigError as error:
+        return str(error)
+
+
+def servo_reconfigured(config: ServoConfig, changes: dict[str, object]) -> ServoConfig | str:
+    """The servo's ``config`` with ``changes`` made while it runs, or why they are refused: the
+    settings it shares with the other modes (``SHARED_WITH_SERVO``: a goal's tolerance among
+    them) may change, checked first; its own are fixed."""
+    fixed = [name for name in changes if name not in (*SHARED_WITH_SERVO, 'use_sim_time')]
+    if fixed:
+        return (f'{fixed} are fixed while the servo runs (it takes '
+                f'{", ".join(SHARED_WITH_SERVO)})')
+    # Checked by the config itself, as the node's parameters are at its start.
+    changed: dict[str, Any] = {name: value for name, value in changes.items()
+                               if name in SHARED_WITH_SERVO}
+    try:
+        return dataclasses.replace(config, **changed)
     except ControllerConfigError as error:
         return str(error)
