@@ -21,8 +21,14 @@ from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
     split_stamp,
 )
-from omni_micro_control.feedback import FeedbackConfig, Finished, Move, Outcome
-from omni_micro_control.model_based import ModelBasedPlanner
+from omni_micro_control.feedback import (
+    FeedbackConfig,
+    Finished,
+    Move,
+    Outcome,
+    VisionFeedbackController,
+)
+from omni_micro_control.model_based import ModelBasedPlanner, learnt_offsets
 from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.profile import WheelSpeedProfile
@@ -114,6 +120,16 @@ def servo_values(session: ServoSession) -> dict[str, str]:
     motion it took in."""
     return {'stops': str(session.servo.stops), 'replans': str(session.servo.replans),
             'captures_in_motion': str(session.captures_in_motion)}
+
+
+def end_values(controller: VisionFeedbackController | ServoSession) -> dict[str, str]:
+    """What a goal's end adds to its outcome (:func:`outcome_values`) in the controller's mode:
+    the servo's counts, and the offsets learnt (``estimate.xi2``, ``estimate.xi3``, rad)."""
+    values = servo_values(controller) if isinstance(controller, ServoSession) else {}
+    learnt = learnt_offsets(controller)
+    if learnt is not None:
+        values.update({'estimate.xi2': repr(learnt[0]), 'estimate.xi3': repr(learnt[1])})
+    return values
 
 
 def outcome_values(finished: Finished, robot_time_s: float,

@@ -66,13 +66,13 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.controller_messages import (
     STATUS_LEVELS,
     capture_age_line,
+    end_values,
     move_line,
     move_trajectory,
     move_values,
     outcome_values,
     ready_line,
     servo_move,
-    servo_values,
     status_message,
     stop_trajectory,
     waiting_line,
@@ -350,9 +350,8 @@ class ControllerNode(Node):
             return
         if self.controller.phase is Phase.DONE:
             self.watcher.forget()   # a replaced goal keeps watching the move still running
-        values = outcome_values(finished, self.robot_time_s, self.controller.goal_m)
-        if isinstance(self.controller, ServoSession):
-            values.update(servo_values(self.controller))
+        values = {**outcome_values(finished, self.robot_time_s, self.controller.goal_m),
+                  **end_values(self.controller)}
         # Lost: never move blind. A goal replaced mid-move lets the move finish (its end is
         # what starts timer2 for the new goal); a shutdown stops the robot in main().
         if finished.outcome is Outcome.LOST:

@@ -26,7 +26,13 @@ import numpy as np
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
-from omni_micro_control.feedback import FeedbackConfig, MovePlan, PaperRule, wrap_angle
+from omni_micro_control.feedback import (
+    FeedbackConfig,
+    MovePlan,
+    PaperRule,
+    VisionFeedbackController,
+    wrap_angle,
+)
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,
@@ -36,6 +42,7 @@ from omni_micro_control.identification import (
     fit_parameters,
 )
 from omni_micro_control.observations import Observation
+from omni_micro_control.servo_session import ServoSession
 from omni_micro_sim.errors import CommandError, SimulationError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
 from omni_micro_sim.profile import move_profile
@@ -297,3 +304,16 @@ def planner_for(config: FeedbackConfig, robot: RobotParameters | None = None,
         raise ControllerConfigError(f'the {config.mode} mode plans no stop-and-go moves: '
                                     f'omni_micro_control.servo_session drives it')
     return PaperRule()
+
+
+def learnt_offsets(controller: VisionFeedbackController | ServoSession
+                   ) -> tuple[float, float] | None:
+    """The wheel offsets xi2, xi3 (rad) as the model mode or the servo has learnt them so far;
+    None for the paper's rule, or before the servo's first move."""
+    if isinstance(controller, ServoSession):
+        estimate = controller.servo.filter
+        return estimate.offsets_rad if estimate is not None else None
+    if isinstance(controller.planner, ModelBasedPlanner):
+        robot = controller.planner.robot   # its offsets as fitted, or as given if not fitted
+        return robot.wheel_offsets_rad[1], robot.wheel_offsets_rad[2]
+    return None
