@@ -95,21 +95,24 @@ def servo_move(session: ServoSession, command: ServoCommand) -> tuple[str, dict[
     return line, {'periods': str(moves), 'remaining_m': repr(remaining), 'rule': 'servo'}
 
 
-def move_line(move: Move) -> str:
-    """The log line of a move: what the camera saw and what the wheels are told."""
+def move_line(move: Move, planner: object) -> str:
+    """The log line of a move: what the camera saw and what the wheels are told; the model
+    mode's planning time (wall clock: the log's, never a recorded status's, so that the same
+    seed records the same bag)."""
+    planned = (f'; planned in {planner.log.plan_wall_s[-1]:.4f} s'
+               if isinstance(planner, ModelBasedPlanner) else '')
     return (f'period {move.period} ({move.rule}): {move.observation.camera} sees '
             f'({move.observation.x_m * 1e3:.4f}, {move.observation.y_m * 1e3:.4f}) mm, '
             f'{move.remaining_m * 1e3:.4f} mm to go; theta1 '
             f'{math.degrees(move.steering_rad):.3f} deg for {move.duration_s:.4f} s'
-            + (f'; {move.note}' if move.note else ''))
+            + (f'; {move.note}' if move.note else '') + planned)
 
 
 def move_values(move: Move, planner: object) -> dict[str, str]:
-    """A ``moving`` status's values; the model mode adds its planning time and estimate."""
+    """A ``moving`` status's values; the model mode adds its estimate."""
     values = {'periods': str(move.period), 'remaining_m': repr(move.remaining_m),
               'rule': move.rule}
     if isinstance(planner, ModelBasedPlanner):
-        values['plan_wall_s'] = f'{planner.log.plan_wall_s[-1]:.4f}'
         values.update({f'estimate.{name}': repr(value)
                        for name, value in planner.estimate().items()})
     return values

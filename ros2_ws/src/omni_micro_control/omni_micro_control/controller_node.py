@@ -334,7 +334,7 @@ class ControllerNode(Node):
             return
         self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
         self._publish_trajectory(move_trajectory(move, profile))
-        line = move_line(move)
+        line = move_line(move, self.controller.planner)
         values = move_values(move, self.controller.planner)
         # A fall-back to the paper's rule in the model mode is worth a warning.
         if move.rule == 'paper' and self.controller.config.mode == 'model':
