@@ -72,6 +72,8 @@ def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
     ('ROBOTS', 'tasks: [1, 2\n', 'is not YAML'),
     ('robots:\n  - start_mm: [0, 0]\n  - start_mm: [5, 0]\n', None,
      'robots 0 and 1 start 5.00 mm apart'),
+    ('robots:\n  - start_mm: [0, 0]\n    controller: pid\n', None,
+     "robots[0].controller must be one of paper, model, servo, got 'pid'"),
     ('2 --goals-per-robot 3', 'tasks:\n  robot_0:\n    - goal_mm: [10, 0]\n',
      '--goals-per-robot is how many goals to draw: not with --tasks'),
 ])
@@ -112,15 +114,18 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     assert all(e['done'] == 1 for e in summary['per_robot_count'])
     assert summary['contacts'] == 0
     rows = (tmp_path / 'sweep' / 'runs.csv').read_text().splitlines()
-    assert rows[0].startswith('robots,seed,outcome,goals') and len(rows) == 3
+    assert rows[0].startswith('robots,controller,seed,outcome,goals') and len(rows) == 3
+    assert rows[1].startswith('1,paper,0,done,1,')
     assert (tmp_path / 'sweep' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
     assert '[2/2] 2 robots, seed 0: done' in sweep.stderr
     crossing = omni_micro('fleet-study', '--out', str(tmp_path / 'crossing'), '--crossing', '2',
-                          '--workers', '1', '--seed', '5')
+                          '--workers', '1', '--seed', '5', '--controller', 'servo')
     assert crossing.returncode == 0, crossing.stderr
-    assert crossing.stdout.startswith('2 crossing runs of 4 robots: 2 done, 0 contacts')
+    assert crossing.stdout.startswith(
+        '2 crossing runs of 4 robots (servo controllers): 2 done, 0 contacts')
     result = json.loads((tmp_path / 'crossing' / 'summary.json').read_text())
     assert result['closest_gap_mm'] > 9.0 and result['runs'] == 2
+    assert result['controller'] == 'servo'
     (tmp_path / 'a_file').write_text('')
     refused = omni_micro('fleet-study', '--out', str(tmp_path / 'a_file'), '--crossing', '2')
     assert refused.returncode == 2 and 'exists and is a file' in refused.stderr

@@ -200,8 +200,12 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
               'robots)'),
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop, --vision: a single robot's run only; with --robots "
-     'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, --composed, --no-markers, '
-     '--view, --json, --quiet'),
+     'give --tasks, --controller, --seed, --rtf, --timeout, --log-dir, --record, --composed, '
+     '--no-markers, --view, --json, --quiet'),
+    (['run', '--robots', '3', '--tolerance-um', '5'],
+     "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
+     '--tasks, --controller, --seed, --rtf, --timeout, --log-dir, --record, --composed, '
+     '--no-markers, --view, --json, --quiet'),
     (['fleet', '--composed'], "omni-micro fleet: error: --composed is a node graph's: give it "
                               'with --graph'),
     (['fleet', '--view'], "omni-micro fleet: error: --view is a node graph's: give it with "

@@ -1,9 +1,12 @@
-"""The dispatcher of a fleet's goals: each leg through points at most 24 mm apart, its end to the
-leg's tolerance, a leg handed out only once the legs it waits for have ended, every leg once."""
+"""The dispatcher of a fleet's goals: each leg through points at most its controller's spacing
+apart, its end to the leg's tolerance, a leg handed out only once the legs it waits for have
+ended, every leg once."""
 
 from __future__ import annotations
 
 import math
+
+import pytest
 
 from omni_micro_control.fleet_legs import SUB_GOAL_SPACING_M, LegDispatcher
 from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, Task, plan_fleet
@@ -14,9 +17,11 @@ CROSS_TASKS = [[Task((0.1, 0.0))], [Task((0.0, 0.0))], [Task((0.05, -0.05))],
                [Task((0.05, 0.05))]]
 
 
-def test_every_leg_is_handed_out_once_in_order_and_only_after_what_it_waits_for():
+@pytest.mark.parametrize('controllers', [None, ['model', 'servo', 'paper', 'model']])
+def test_every_leg_is_handed_out_once_in_order_and_only_after_what_it_waits_for(controllers):
     plan = plan_fleet(CROSS_STARTS, CROSS_TASKS)
-    dispatcher = LegDispatcher(plan)
+    dispatcher = LegDispatcher(plan, controllers)
+    spacings_m = [SUB_GOAL_SPACING_M[mode] for mode in controllers or ['paper'] * 4]
     given = dispatcher.startable()
     ended: set[tuple[int, int]] = set()
     legs_driven = [0] * len(CROSS_STARTS)
@@ -35,10 +40,13 @@ def test_every_leg_is_handed_out_once_in_order_and_only_after_what_it_waits_for(
         # Points on the way to 0.2 mm, the leg's end to the leg's own tolerance.
         assert [o.tolerance_m for o in orders] == [WAYPOINT_TOLERANCE_M] * (len(orders) - 1) \
             + [leg.tolerance_m]
-        # The points lie on the leg, at most 24 mm apart, the last its end.
+        # The points lie on the leg, at most the robot's controller's spacing apart (the paper's
+        # rule and the servo 24 mm, the model 10 mm), the last its end.
         points = [o.goal_m for o in orders]
         hops = [math.dist(a, b) for a, b in zip([leg.start_m, *points], points, strict=False)]
-        assert max(hops) <= SUB_GOAL_SPACING_M + 1e-12
+        assert max(hops) <= spacings_m[robot] + 1e-12
+        if math.dist(leg.start_m, leg.end_m) > 24e-3:
+            assert max(hops) > spacings_m[robot] / 2.0
         assert math.dist(points[-1], leg.end_m) < 1e-12
         ended.add((robot, legs_driven[robot]))
         legs_driven[robot] += 1

@@ -1,8 +1,9 @@
 """A micro-factory through the node graph (`fleet --graph`): three robots crossing each other's
-goals, one dynamics_node for all, each robot's vision_node and controller_node under /robot_k:
-every goal reached within its tolerance, no two discs ever touching, and the same run, goal for
-goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time with
-both cores kept busy and composed in one process, recorded into the same bag byte for byte
+goals, each its own controller (the model mode, the servo, the paper's rule), one dynamics_node
+for all, each robot's vision_node and controller_node under /robot_k: every goal reached within
+its tolerance, no two discs ever touching, the run the fleet twin runs, and the same run, goal
+for goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time
+with both cores kept busy and composed in one process, recorded into the same bag byte for byte
 (docs/fleet.md, "Through the node graph")."""
 
 from __future__ import annotations
@@ -23,10 +24,13 @@ from omni_micro_vision.scene import FLEET_COLOURS
 ROBOTS = """robots:
   - start_mm: [30, 0]
     wheel_offsets_deg: [0, 3, 2]
+    controller: model
   - start_mm: [70, 0]
     wheel_offsets_deg: [1, -2, 0]
+    controller: servo
   - start_mm: [50, 24]
 """
+CONTROLLERS = ['model', 'servo', 'paper']
 # Each to where another starts or passes: every path crosses another's.
 TASKS = """tasks:
   robot_0:
@@ -39,15 +43,19 @@ TASKS = """tasks:
 GOALS_MM = [(70.0, 0.0), (30.0, 0.0), (50.0, -24.0)]
 
 
-def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
+def fleet_run(omni_micro, folder: Path, *extra: str) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / 'robots.yaml').write_text(ROBOTS)
     (folder / 'tasks.yaml').write_text(TASKS)
-    done = omni_micro('fleet', '--graph', '--robots', str(folder / 'robots.yaml'), '--tasks',
-                      str(folder / 'tasks.yaml'), '--seed', '5', '--json', '--log-dir',
-                      str(folder / 'logs'), '--record', str(folder / 'bag'), '--markers', *extra)
+    done = omni_micro('fleet', '--robots', str(folder / 'robots.yaml'), '--tasks',
+                      str(folder / 'tasks.yaml'), '--seed', '5', '--json', *extra)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
+    summary = fleet_run(omni_micro, folder, '--graph', '--log-dir', str(folder / 'logs'),
+                        '--record', str(folder / 'bag'), '--markers', *extra)
     (logs,) = (folder / 'logs').iterdir()
     if '--composed' in extra:   # the dynamics and every robot's nodes in one process
         processes = ['bag_recorder.log', 'loop_container.log']
@@ -74,12 +82,32 @@ def test_three_robots_cross_through_the_graph_clear_of_each_other(as_fast_as_it_
     # Clear of each other all along (9 mm discs; the planner keeps centres 12 mm apart, each
     # robot within 1.5 mm of its legs).
     assert fastest['closest_gap_mm'] > 9.0
-    for robot, goal in zip(fastest['robots'], GOALS_MM, strict=True):
+    for robot, goal, controller in zip(fastest['robots'], GOALS_MM, CONTROLLERS, strict=True):
         assert robot['goals_reached'] == 1 and robot['outcome'] == 'done'
+        assert robot['controller'] == controller
         # Outside the micro field: reached to the macro camera's 50 um, true distance.
         assert robot['deviation_um'][0] < 50.0
         assert math.dist(robot['final_mm'], goal) < 0.05
         assert robot['farthest_off_leg_mm'] < 1.5
+
+
+def test_the_graph_runs_what_the_fleet_twin_runs(as_fast_as_it_goes, omni_micro, tmp_path):
+    """The fleet twin, in one process, is the graph's behaviour: every robot ends where the
+    graph ends it, its goal reached at the same time after as many moves, the model mode and
+    the servo having learnt the same offsets of their robot."""
+    graph = as_fast_as_it_goes
+    twin = fleet_run(omni_micro, tmp_path / 'twin')
+    assert twin['outcome'] == graph['outcome'] == 'done'
+    assert twin['sim_time_s'] == pytest.approx(graph['sim_time_s'], abs=1e-9)
+    for in_twin, in_graph in zip(twin['robots'], graph['robots'], strict=True):
+        assert in_twin['final_mm'] == pytest.approx(in_graph['final_mm'], abs=1e-6)
+        assert in_twin['reached_at_s'] == pytest.approx(in_graph['reached_at_s'], abs=1e-9)
+        assert in_twin['moves'] == in_graph['moves']
+        if in_twin['controller'] == 'paper':
+            assert in_twin['learnt_offsets_deg'] is in_graph['learnt_offsets_deg'] is None
+        else:
+            assert in_twin['learnt_offsets_deg'] == pytest.approx(
+                in_graph['learnt_offsets_deg'], abs=1e-9)
 
 
 def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_as_it_goes):
@@ -87,7 +115,8 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
     from omni_micro_tools.bag_reading import read_bag
 
     summary, bag = as_fast_as_it_goes, as_fast_as_it_goes['bag']
-    own = ('odom', 'goal_pose', 'camera/macro/pose', 'controller/status', 'markers')
+    own = ('odom', 'goal_pose', 'camera/macro/pose', 'camera/macro/pose_in_motion',
+           'controller/status', 'markers')
     data = read_bag(bag, topics=['/clock', *(f'/robot_{k}/{topic}' for k in range(3)
                                               for topic in own)])
     assert fleet_robots(list(data.timestamps)) == [0, 1, 2]
@@ -106,6 +135,9 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
         last_goal = data.messages[f'/robot_{k}/goal_pose'][-1].pose.position
         assert math.dist((last_goal.x * 1e3, last_goal.y * 1e3), GOALS_MM[k]) < 1e-9
         assert data.messages[f'/robot_{k}/camera/macro/pose']
+        # The servo's vision_node publishes the captures in motion it reads, recorded beside.
+        assert bool(data.messages.get(f'/robot_{k}/camera/macro/pose_in_motion')) == (
+            robot['controller'] == 'servo')
         outcomes = [m.message for m in data.messages[f'/robot_{k}/controller/status']]
         assert outcomes[-1] == 'reached'
         # Drawn by its own markers_node: its chassis in its colour (tab10, as fleet --plot

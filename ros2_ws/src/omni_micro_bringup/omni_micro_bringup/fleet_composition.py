@@ -18,10 +18,17 @@ from pathlib import Path
 
 import yaml
 
-from omni_micro_bringup.composition import ORCHESTRATOR_NODE, READS_FROM_ROBOT, NodeSpec
+from omni_micro_bringup.composition import (
+    ORCHESTRATOR_NODE,
+    READS_FROM_ROBOT,
+    GraphOptions,
+    NodeSpec,
+)
+from omni_micro_bringup.node_overrides import servo_timing
 from omni_micro_bringup.parameters import (
     format_parameter,
     graph_params_file,
+    node_parameters,
     resolve_executable,
 )
 from omni_micro_common.lockstep_groups import qualified_node_name
@@ -43,6 +50,7 @@ from omni_micro_common.topic_names import (
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
 )
+from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.simulated_robots import robot_topic as namespaced_topic
 from omni_micro_tools.topics import GRAPH_TOPICS, robot_and_topic
@@ -96,11 +104,29 @@ def _command(package: str, executable: str, params: list[Path],
     return tuple(argv)
 
 
-def recorded_topics(count: int, markers: bool) -> list[str]:
+def recorded_topics(count: int, markers: bool, in_motion: tuple[int, ...] = ()) -> list[str]:
     """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
-    its namespace (``/robot_k/markers`` with ``markers``)."""
+    its namespace (``/robot_k/markers`` with ``markers``; the captures in motion of the robots
+    ``in_motion``, whose servo reads them)."""
     return [CLOCK_TOPIC, *(robot_topic(k, topic) for k in range(count) for topic in GRAPH_TOPICS
-                           if topic != CLOCK_TOPIC and (markers or topic != MARKERS_TOPIC))]
+                           if topic != CLOCK_TOPIC and (markers or topic != MARKERS_TOPIC)),
+            *(robot_topic(k, topic) for k in in_motion
+              for topic in CAPTURE_IN_MOTION_TOPICS.values())]
+
+
+def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[str]:
+    """Each robot's controller mode as its node will have it: the one given, else (``paper``)
+    the params files' (a ``controller_node:`` section sets every robot's)."""
+    return [str(node_parameters('controller_node', params_files,
+                                {'mode': mode} if mode != 'paper' else {}).get('mode', 'paper'))
+            for mode in modes]
+
+
+def servo_overrides(params_files: tuple[Path, ...]) -> dict[str, object]:
+    """A servo robot's controller: how old its captures in motion come and the command grid,
+    as a single robot's bringup sets them from the same params."""
+    return servo_timing(GraphOptions(goal_m=(0.0, 0.0), params_files=params_files,
+                                     controller_overrides={'mode': SERVO_MODE}))
 
 
 def hosting(specs: list[NodeSpec]) -> NodeSpec:
@@ -117,15 +143,20 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                 real_time_factor: float, params_files: tuple[Path, ...],
                 folder: Path, record: tuple[Path, str] | None = None,
                 composed: bool = False, markers: bool = False,
-                view: tuple[str, int] | None = None) -> list[NodeSpec]:
+                view: tuple[str, int] | None = None,
+                controllers: list[str] | None = None) -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
     ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
     (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
-    the live view of every robot's. ``composed``: dynamics and every robot's nodes in one
-    process (the container), each node with the same arguments as on its own; the recorder and
-    the view stay processes of their own, as a single robot's."""
+    the live view of every robot's. ``controllers``: robot k's controller mode (``paper``, the
+    default, leaves it to the params files); a servo's vision_node publishes the captures in
+    motion it reads. ``composed``: dynamics and every robot's nodes in one process (the
+    container), each node with the same arguments as on its own; the recorder and the view stay
+    processes of their own, as a single robot's."""
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
+    modes = controller_modes(controllers or ['paper'] * count, params_files)
+    servos = tuple(k for k in range(count) if modes[k] == SERVO_MODE)
     nodes = (*ROBOT_NODES, *((MARKERS_NODE,) if markers else ()))
     # Each robot's nodes (markers_node a watcher), and the orchestration as each robot's
     # coordinator (fleet_graph).
@@ -139,7 +170,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
           for topic in (READS_FROM_ROBOT[MARKERS_NODE[1]] if markers else ())))]
     if record is not None:
         # The recorder keeps every tick from the first (composition.READS_FROM_ROBOT).
-        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count, markers)
+        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count, markers, servos)
                     if robot_and_topic(topic)[1] in READS_FROM_ROBOT[RECORDER_NODE]]
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
@@ -155,12 +186,15 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
                                        for topic in (*ROBOT_TOPICS, MARKERS_TOPIC)))
         params = namespaced_params(shipped, robot, folder)
+        servo = k in servos
         own: dict[str, dict[str, object]] = {'vision_node': {
                    # Each robot's captures their own noise, as the fleet twin draws it.
                    'seed': int(seed) * 1000 + k,
                    'covariance_readers': [f'{robot}/{name}' for _, name in nodes
-                                          if name != 'vision_node']},
-               'controller_node': {'goal_time': 'stamp'},
+                                          if name != 'vision_node'],
+                   **({'captures_in_motion': True} if servo else {})},
+               'controller_node': {'goal_time': 'stamp', 'mode': modes[k],
+                                   **(servo_overrides(params_files) if servo else {})},
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
@@ -174,7 +208,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         bag, storage = record
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
             'omni_micro_tools', RECORDER_NODE, shipped,
-            {'bag': str(bag), 'storage': storage, 'topics': recorded_topics(count, markers)})))
+            {'bag': str(bag), 'storage': storage,
+             'topics': recorded_topics(count, markers, servos)})))
     if view is not None:
         host, port = view
         specs.append(NodeSpec('omni_micro_tools', 'viewer', command=_command(

@@ -29,7 +29,12 @@ from rcl_interfaces.srv import SetParameters
 
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
-from omni_micro_bringup.fleet_composition import fleet_specs, robot_name, robot_topic
+from omni_micro_bringup.fleet_composition import (
+    controller_modes,
+    fleet_specs,
+    robot_name,
+    robot_topic,
+)
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
 from omni_micro_bringup.monitor import GraphMonitor
 from omni_micro_bringup.processes import DomainLease
@@ -76,6 +81,7 @@ class RobotLog:
     outcome: str = ''
     route: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, phi
     legs: list[tuple[float, float, Leg]] = field(default_factory=list)   # started, ended, leg
+    learnt_offsets_rad: tuple[float, float] | None = None   # its controller's last said
 
 
 @dataclass
@@ -230,6 +236,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     timeout_s: float = 3600.0, record: Path | None = None,
                     composed: bool = False, markers: bool = False,
                     view: tuple[str, int] | None = None,
+                    controllers: list[str] | None = None,
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
@@ -239,7 +246,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
     ``composed``: the dynamics and every robot's nodes in one process. ``markers``: each robot
     drawn on ``/robot_k/markers`` by a markers_node of its own, in its colour, labelled.
-    ``view`` (host, port): every robot's topics served live to Foxglove.
+    ``view`` (host, port): every robot's topics served live to Foxglove. ``controllers``: each
+    robot's controller mode (``paper``, the default, leaves it to the params files).
 
     Raises
     ------
@@ -252,12 +260,14 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     if record is not None:
         check_bag_output(record, force=False)   # refused before anything runs
     count = len(plan.starts_m)
+    modes = controller_modes(controllers or ['paper'] * count, params_files)
     lease = DomainLease(None)
     with lease as domain_id:
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
                             log_dir, record=None if record is None else (record, 'mcap'),
-                            composed=composed, markers=markers, view=view)
+                            composed=composed, markers=markers, view=view,
+                            controllers=modes)
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)
@@ -273,7 +283,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                                      recording=record is not None)
             for k in range(count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
-            dispatcher = LegDispatcher(plan)
+            dispatcher = LegDispatcher(plan, modes)
             ended_at: dict[tuple[int, int], float] = {}
             last_end = [0.0] * count
             started: dict[int, float] = {}
@@ -312,6 +322,9 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                 seen += 1
                 if status['message'] == 'moving':
                     logs[robot].moves += 1
+                if 'estimate.xi2' in status:
+                    logs[robot].learnt_offsets_rad = (float(status['estimate.xi2']),
+                                                      float(status['estimate.xi3']))
                 if status['message'] not in OUTCOME_NAMES:
                     continue
                 at_s = float(status[STATUS_TIME_KEY])

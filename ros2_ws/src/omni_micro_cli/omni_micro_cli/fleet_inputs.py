@@ -1,11 +1,13 @@
-"""What a micro-factory run is given: the robots (where they start, their wheels' offsets) and
-their tasks, from YAML files or drawn from a seed; every bad value named in one line.
+"""What a micro-factory run is given: the robots (where they start, their wheels' offsets, their
+controllers) and their tasks, from YAML files or drawn from a seed; every bad value named in one
+line.
 
 Robots file::
 
     robots:
       - start_mm: [0, 0]
         wheel_offsets_deg: [0, 3, 2]      # optional: drawn from the seed (within +-3 deg)
+        controller: servo                 # optional: paper, model or servo (default: --controller)
       - start_mm: [100, 0]
 
 Tasks file (robots by index; goals in order; ``after``: not before that robot's goal)::
@@ -32,6 +34,7 @@ import yaml
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import MICRO_FIELD_CENTER_M
+from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_plan import Task
 from omni_micro_sim.parameters import RobotParameters
 
@@ -52,6 +55,7 @@ class Fleet:
     robots: list[RobotParameters]
     offsets_deg: list[tuple[float, float, float]]
     tasks: list[list[Task]]
+    controllers: list[str]                  # each robot's controller mode (MODES)
 
 
 def _load(path: Path, key: str) -> Any:
@@ -93,33 +97,39 @@ def drawn_offsets(rng: random.Random) -> tuple[float, float, float]:
                  for _ in range(3))  # type: ignore[return-value]
 
 
-def robots_from(spec: str, seed: int) -> tuple[list[tuple[float, float]],
-                                               list[tuple[float, float, float]]]:
-    """Starts and wheel offsets of ``--robots``: a count (lattice places) or a YAML file."""
+def robots_from(spec: str, seed: int, controller: str = 'paper') -> tuple[
+        list[tuple[float, float]], list[tuple[float, float, float]], list[str]]:
+    """Starts, wheel offsets and controller modes of ``--robots``: a count (lattice places, each
+    robot's controller ``controller``) or a YAML file (a robot's own, else ``controller``)."""
     rng = random.Random(f'robots {seed}')
     if spec.isdigit():
         count = int(spec)
         if not 1 <= count <= MAX_ROBOTS:
             raise UsageError(f'--robots must be 1..{MAX_ROBOTS} or a YAML file, got {spec!r}')
         places = _spread_starts(count)
-        return places, [drawn_offsets(rng) for _ in places]
+        return places, [drawn_offsets(rng) for _ in places], [controller] * count
     path = Path(spec)
     entries = _load(path, 'robots')
     if not isinstance(entries, list) or not entries:
         raise UsageError(f'{spec!r}: robots must be a list of robots, got {entries!r}')
-    starts, offsets = [], []
+    starts, offsets, controllers = [], [], []
     for index, entry in enumerate(entries):
         where = f'{spec!r}: robots[{index}]'
         if not isinstance(entry, dict) or 'start_mm' not in entry:
             raise UsageError(f'{where} must be a mapping with start_mm, got {entry!r}')
-        unknown = set(entry) - {'start_mm', 'wheel_offsets_deg'}
+        unknown = set(entry) - {'start_mm', 'wheel_offsets_deg', 'controller'}
         if unknown:
             raise UsageError(f'{where} has unknown keys {sorted(unknown)} (start_mm, '
-                             'wheel_offsets_deg)')
+                             'wheel_offsets_deg, controller)')
         starts.append(_pair(f'{where}.start_mm', entry['start_mm'], 1e-3))
         offsets.append(_offsets(f'{where}.wheel_offsets_deg', entry['wheel_offsets_deg'])
                        if 'wheel_offsets_deg' in entry else drawn_offsets(rng))
-    return starts, offsets
+        own = entry.get('controller', controller)
+        if own not in MODES:
+            raise UsageError(f'{where}.controller must be one of {", ".join(MODES)}, got '
+                             f'{own!r}')
+        controllers.append(own)
+    return starts, offsets, controllers
 
 
 def _spread_starts(count: int) -> list[tuple[float, float]]:
@@ -192,8 +202,9 @@ def drawn_tasks(starts_m: list[tuple[float, float]], goals_per_robot: int,
     return tasks
 
 
-def fleet_from(robots: str, tasks: Path | None, goals_per_robot: int, seed: int) -> Fleet:
-    starts, offsets = robots_from(robots, seed)
+def fleet_from(robots: str, tasks: Path | None, goals_per_robot: int, seed: int,
+               controller: str = 'paper') -> Fleet:
+    starts, offsets, controllers = robots_from(robots, seed, controller)
     chosen = (tasks_from(tasks, len(starts)) if tasks is not None
               else drawn_tasks(starts, goals_per_robot, seed))
-    return Fleet(starts, [robot_parameters(o) for o in offsets], offsets, chosen)
+    return Fleet(starts, [robot_parameters(o) for o in offsets], offsets, chosen, controllers)

@@ -2,8 +2,9 @@
 
 Each robot is the twin's robot (:mod:`omni_micro_cli.twin`): its own slip dynamics and
 offsets, its own captures (the camera pair sees each robot; each capture is that robot's, as
-its fiducial would say), and the paper's controller driving it leg by leg through the fleet
-plan (:mod:`omni_micro_control.fleet_plan`). A leg starts once the legs it waits for have
+its fiducial would say), and its controller (the paper's rule, the model mode or the servo, one
+loop of the twin's for the whole run) driving it leg by leg through the fleet plan
+(:mod:`omni_micro_control.fleet_plan`). A leg starts once the legs it waits for have
 ended; every period the robots' chassis discs are checked against each other, and a contact
 ends the run as a fault naming both robots (contact itself is not simulated: the slip model
 has no force between robots).
@@ -13,35 +14,30 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_cli.twin import capture_observation, schedule_move
-from omni_micro_common.conventions import (
-    body_twist,
-    quaternion_to_yaw,
-    through_stamp,
-    yaw_to_quaternion,
+from omni_micro_cli.twin import (
+    ServoLoop,
+    StopAndGoLoop,
+    nominal_timings,
+    twin_servo_config,
 )
-from omni_micro_control.feedback import (
-    FeedbackConfig,
-    Finished,
-    Move,
-    Outcome,
-    VisionFeedbackController,
-)
+from omni_micro_control.feedback import FeedbackConfig, Finished, Outcome, VisionFeedbackController
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan
 from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M, point_segment_distance
-from omni_micro_control.model_based import planner_for
-from omni_micro_control.move_watcher import MoveWatcher
+from omni_micro_control.model_based import learnt_offsets, planner_for
+from omni_micro_control.servo_config import SERVO_MODE
+from omni_micro_control.servo_session import ServoSession
+from omni_micro_control.tuning import reconfigured, servo_reconfigured
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
-from omni_micro_sim.profile import move_profile
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator
-from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, Capture, CaptureRule, StationaryCamera
+from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, CaptureRule, StationaryCamera
+from omni_micro_vision.motion_capture import MovingCamera
 
 # What ended a fleet run.
 DONE, LOST, CONTACT, TIMEOUT = 'done', 'lost', 'contact', 'timeout'
@@ -60,6 +56,8 @@ class RobotRun:
     outcome: str = ''                        # the last leg's outcome when it was not reached
     final_state: RobotState | None = None
     route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))   # t, x, y, phi
+    # xi2, xi3 as its controller had learnt them at the end (the model mode, the servo).
+    learnt_offsets_rad: tuple[float, float] | None = None
 
 
 @dataclass
@@ -81,28 +79,56 @@ class FleetResult:
 
 
 class _Robot:
-    """One robot of the fleet: its dynamics, its camera's view of it, its controller."""
+    """One robot of the fleet: its dynamics, its camera's view of it, its controller in its mode,
+    goal after goal as the robot's nodes take them (one controller for the run: what the model
+    and the servo learn of the robot on one leg serves the next)."""
 
     def __init__(self, index: int, legs: LegDispatcher, robot: RobotParameters,
-                 start: RobotState, seed: int, config: FeedbackConfig, limits: MotorLimits,
+                 start: RobotState, seed: int, mode: str, limits: MotorLimits,
                  rig: CameraRig, rule: CaptureRule | None, period_s: float) -> None:
         self.index = index
         self.legs = legs
-        self.config = config
-        self.limits = limits
         self.grid = GridSimulator(robot, period_s=period_s, limits=limits, state=start)
-        self.camera = StationaryCamera(rig, rule, seed)
-        self.watcher = MoveWatcher()
-        self.controller: VisionFeedbackController | None = None
+        still = StationaryCamera(rig, rule, seed)
+        self.loop: StopAndGoLoop | ServoLoop
+        if mode == SERVO_MODE:
+            timings = nominal_timings()
+            session = ServoSession(twin_servo_config(None, timings, period_s), limits,
+                                   RobotParameters())
+            self.loop = ServoLoop(self.grid, still, MovingCamera(rig, timings, seed), session,
+                                  limits)
+        else:
+            config = FeedbackConfig(mode=mode)
+            self.loop = StopAndGoLoop(self.grid, still, VisionFeedbackController(
+                config, planner_for(config, None, limits, None)), limits)
+        self.driving = False
         self.run = RobotRun(index)
         self.route: list[tuple[float, float, float, float]] = []
+        # When each of its legs ended (by leg index), and its last: a leg that waits for others
+        # starts from the later of these, as the graph's coordinator stamps its first goal.
+        self.legs_ended_s: dict[int, float] = {}
+        self.last_end_s = 0.0
 
     def aim(self, order: GoalOrder, now_s: float) -> None:
-        """The controller, sent to the next point of its leg, as the dispatcher says."""
-        config = replace(self.config, tolerance_m=order.tolerance_m)
-        self.controller = VisionFeedbackController(config, planner_for(config, None,
-                                                                       self.limits, None))
-        self.controller.set_goal(order.goal_m, now_s)
+        """The controller, sent to the next point of its leg with the leg's tolerance, as the
+        coordinator sets it on the robot's controller node."""
+        changes: dict[str, object] = {'tolerance_m': order.tolerance_m}
+        if isinstance(self.loop, ServoLoop):
+            servo = servo_reconfigured(self.loop.session.config, changes)
+            assert not isinstance(servo, str), servo
+            self.loop.session.servo.config = servo
+            self.loop.session.set_goal(order.goal_m, now_s)
+        else:
+            config = reconfigured(self.loop.controller.config, changes)
+            assert not isinstance(config, str), config
+            self.loop.controller.config = config
+            self.loop.controller.set_goal(order.goal_m, now_s)
+        self.driving = True
+
+    @property
+    def moves(self) -> int:
+        return (self.loop.moves if isinstance(self.loop, ServoLoop)
+                else len(self.loop.moves))
 
     def step(self) -> Finished | None:
         """One period: the robot moves, the camera sees it, the controller decides."""
@@ -110,49 +136,29 @@ class _Robot:
         state = sample.state
         self.route.append((sample.time_s, state.x_m, state.y_m, state.phi_rad))
         leg = self.legs.leg(self.index)
-        if self.controller is not None and leg is not None:
+        if self.driving and leg is not None:
             self.run.off_leg_m = max(self.run.off_leg_m, float(point_segment_distance(
                 np.array((state.x_m, state.y_m)), np.array(leg.start_m), np.array(leg.end_m))))
-        stamp = through_stamp(sample.time_s)
-        forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
-        events = self.camera.on_odometry(stamp, state.x_m, state.y_m,
-                                         quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad)),
-                                         math.hypot(forward, lateral), state.omega_rad_s)
-        controller = self.controller
-        stopped = self.watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
-                                              tuple(sample.wheel_speeds_rad_s),
-                                              sample.steering_rate_rad_s)
-        if controller is None:
-            return None
-        decisions = [controller.on_wheels_stopped(stamp)] if stopped else []
-        for event in events:
-            decisions.append(controller.on_capture(capture_observation(event))
-                             if isinstance(event, Capture)
-                             else controller.on_out_of_field(through_stamp(event.stamp_s)))
-        for decision in decisions:
-            if isinstance(decision, Move):
-                self.run.moves += 1
-                profile = move_profile(decision.duration_s, self.limits)
-                self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-                schedule_move(self.grid, decision.steering_rad, profile, decision.start_s,
-                              stamp, self.limits)
-            elif isinstance(decision, Finished):
-                return self._finish_leg(decision, sample.time_s)
-        finished = controller.on_time(stamp)[1]
-        return self._finish_leg(finished, sample.time_s) if finished is not None else None
+        finished = self.loop.step(sample)
+        self.run.moves = self.moves
+        return self._finish_leg(finished) if finished is not None else None
 
-    def _finish_leg(self, finished: Finished, now_s: float) -> Finished | None:
-        self.controller = None
+    def _finish_leg(self, finished: Finished) -> Finished | None:
+        """The goal's end, at the stamp of what decided it (as its node reports it, and the
+        coordinator hands out the next goal stamped so)."""
+        self.driving = False
+        at_s = self.loop.ended_at_s
         if finished.outcome is Outcome.REACHED:
             following, leg = self.legs.reached(self.index)
             if following is not None:
-                self.aim(following, now_s)
+                self.aim(following, at_s)
                 return None
             assert leg is not None
             self.run.legs_done += 1
+            self.legs_ended_s[leg.index] = self.last_end_s = at_s
             state = self.grid.simulator.state
             for _ in leg.tasks:
-                self.run.tasks_done_s.append(now_s)
+                self.run.tasks_done_s.append(at_s)
                 self.run.deviations_m.append(math.hypot(state.x_m - leg.end_m[0],
                                                         state.y_m - leg.end_m[1]))
         else:
@@ -161,35 +167,46 @@ class _Robot:
 
 
 def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
-              config: FeedbackConfig | None = None, limits: MotorLimits | None = None,
+              controllers: Sequence[str] | None = None, limits: MotorLimits | None = None,
               rig: CameraRig = DEFAULT_RIG, rule: CaptureRule | None = None,
               period_s: float = DEFAULT_PERIOD_S, max_sim_time_s: float = 1800.0,
               on_progress: Callable[[int, int, float], None] | None = None) -> FleetResult:
-    """Drive every robot through its legs of ``plan``, the paper's controller on each.
+    """Drive every robot through its legs of ``plan``, robot k's controller in the mode
+    ``controllers[k]`` (``paper``, ``model`` or ``servo``; the paper's rule for every robot by
+    default), with the controller node's defaults.
 
     ``robots[k]`` is robot k's true robot (its offsets); the controllers know the nominal one.
     Robot k's captures draw their noise from ``seed`` and k. ``on_progress(done, total,
     sim_time_s)``, if given, is called each time a task is done.
     """
-    config = config or FeedbackConfig()
     limits = limits or MotorLimits()
-    dispatcher = LegDispatcher(plan)
+    count = len(plan.starts_m)
+    modes = list(controllers) if controllers is not None else ['paper'] * count
+    if len(modes) != count:
+        raise ValueError(f'{len(modes)} controller modes for {count} robots')
+    dispatcher = LegDispatcher(plan, modes)
     fleet = [_Robot(k, dispatcher, robots[k],
                     RobotState(x_m=plan.starts_m[k][0], y_m=plan.starts_m[k][1]),
-                    seed * 1000 + k, config, limits, rig, rule, period_s)
-             for k in range(len(plan.starts_m))]
+                    seed * 1000 + k, modes[k], limits, rig, rule, period_s)
+             for k in range(count)]
     for robot, tasks in zip(fleet, plan.done_at_start, strict=True):
         robot.run.tasks_done_s += [0.0] * len(tasks)
         robot.run.deviations_m += [0.0] * len(tasks)
     closest, pair = math.inf, None
     outcome, reason = DONE, ''
-    now_s = 0.0
+    now_s = 0.0       # the robots' time
+    ended_s = 0.0     # the latest goal's end: the run's time, as the graph's coordinator has it
     total = sum(len(tasks) for tasks in plan.tasks)
     done = 0
     while True:
         for order in dispatcher.startable():
-            fleet[order.robot].aim(order, now_s)
+            # From the later of the ends it follows, as the coordinator stamps it.
+            leg = dispatcher.leg(order.robot)
+            assert leg is not None
+            fleet[order.robot].aim(order, max([fleet[order.robot].last_end_s, *(
+                fleet[robot].legs_ended_s[index] for robot, index in leg.waits_for)]))
         if dispatcher.finished:
+            now_s = ended_s
             reason = f'every task done in {now_s:.2f} s'
             break
         if now_s > max_sim_time_s:
@@ -199,13 +216,15 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
         lost = [(robot, finished) for robot, finished in finishes
                 if finished is not None and finished.outcome is not Outcome.REACHED]
         now_s = fleet[0].grid.time_s
+        ended_s = max(robot.loop.ended_at_s for robot in fleet)
         if on_progress is not None and sum(len(r.run.tasks_done_s) for r in fleet) > done:
             done = sum(len(r.run.tasks_done_s) for r in fleet)
-            on_progress(done, total, now_s)
+            on_progress(done, total, ended_s)
         if lost:
             robot, finished = lost[0]
             outcome = LOST
             reason = f'robot {robot.index} {finished.outcome.value}: {finished.reason}'
+            now_s = ended_s
             break
         positions = [(robot.grid.simulator.state.x_m, robot.grid.simulator.state.y_m)
                      for robot in fleet]
@@ -220,5 +239,7 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
             break
     for robot in fleet:
         robot.run.final_state = robot.grid.simulator.state
+        robot.run.learnt_offsets_rad = learnt_offsets(
+            robot.loop.session if isinstance(robot.loop, ServoLoop) else robot.loop.controller)
         robot.run.route_m = np.array(robot.route)
     return FleetResult(outcome, reason, now_s, [robot.run for robot in fleet], closest, pair)

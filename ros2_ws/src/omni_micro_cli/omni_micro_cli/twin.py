@@ -123,25 +123,29 @@ class StopAndGoLoop:
         self.watcher = MoveWatcher()
         self.moves: list[Move] = []
         self.used: list[Observation] = []   # the captures each decision was taken on
+        # When the last goal ended, as the node says it: the stamp of what decided it (a
+        # capture's, the wheels' stop's, the camera's word), or the robot's time for a timeout.
+        self.ended_at_s = 0.0
 
     def step(self, sample: Sample) -> Finished | None:
         """The sample seen by the camera and the wheel watcher, and the controller's answers
         carried out; the goal's end, if this sample ended it."""
         state = sample.state
         stamp = through_stamp(sample.time_s)
-        decisions = []
+        decisions: list[tuple[Move | Finished | None, float]] = []
         if self.watcher.on_wheel_state(tuple(sample.wheel_rotations_rad),
                                        tuple(sample.wheel_speeds_rad_s),
                                        sample.steering_rate_rad_s):
-            decisions.append(self.controller.on_wheels_stopped(stamp))
+            decisions.append((self.controller.on_wheels_stopped(stamp), stamp))
         forward, lateral = body_twist(state.phi_rad, state.vx_m_s, state.vy_m_s)
         for event in self.camera.on_odometry(stamp, state.x_m, state.y_m,
                                              quaternion_to_yaw(*yaw_to_quaternion(state.phi_rad)),
                                              math.hypot(forward, lateral), state.omega_rad_s):
-            decisions.append(self.controller.on_capture(capture_observation(event))
-                             if isinstance(event, Capture)
-                             else self.controller.on_out_of_field(through_stamp(event.stamp_s)))
-        for decision in decisions:
+            at_s = through_stamp(event.stamp_s)
+            decisions.append((self.controller.on_capture(capture_observation(event))
+                              if isinstance(event, Capture)
+                              else self.controller.on_out_of_field(at_s), at_s))
+        for decision, at_s in decisions:
             if isinstance(decision, Move):
                 self.used.append(decision.observation)
                 self.moves.append(decision)
@@ -152,8 +156,12 @@ class StopAndGoLoop:
             elif isinstance(decision, Finished):
                 if decision.observation is not None:
                     self.used.append(decision.observation)
+                self.ended_at_s = at_s
                 return decision
-        return self.controller.on_time(stamp)[1]
+        finished = self.controller.on_time(stamp)[1]
+        if finished is not None:
+            self.ended_at_s = stamp
+        return finished
 
 
 def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
@@ -212,6 +220,7 @@ class ServoLoop:
         self.session = session
         self.limits = limits
         self.moves = 0    # commands from rest, over every goal
+        self.ended_at_s = 0.0   # when the last goal ended: the stamp of what decided it
 
     def step(self, sample: Sample) -> Finished | None:
         """The sample seen by both cameras and the wheels, the commands carried out; the goal's
@@ -235,6 +244,7 @@ class ServoLoop:
                 self.moves += int(decision.from_rest)
                 self._schedule(decision, stamp)
             elif isinstance(decision, Finished):
+                self.ended_at_s = through_stamp(event.stamp_s)
                 return decision
         return None
 

@@ -1,6 +1,7 @@
 """Which goal each robot of a fleet is given next, as goals are reached: the plan's legs in order,
-each driven through points at most ``SUB_GOAL_SPACING_M`` apart, a leg started only once the legs
-it waits for have ended (the action dependency graph of :mod:`omni_micro_control.fleet_plan`).
+each driven through points at most ``SUB_GOAL_SPACING_M`` apart (by the robot's controller), a
+leg started only once the legs it waits for have ended (the action dependency graph of
+:mod:`omni_micro_control.fleet_plan`).
 
 Plain Python, shared by the fleet twin (one process) and the fleet graph's coordinator (goals
 on each robot's ``/robot_k/goal_pose``), so that both hand out the same goals in the same order.
@@ -9,14 +10,19 @@ on each robot's ``/robot_k/goal_pose``), so that both hand out the same goals in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, FleetPlan, Leg
 
-# A long leg is driven through points this far apart: a wheel offset turns each move a little, so
-# a robot sent 140 mm at once strayed 1.61 mm from its leg (8 robots, offsets up to 3 deg), more
-# than the 1.5 mm per robot the planner's clearance leaves (omni_micro_control.fleet_roadmap).
-SUB_GOAL_SPACING_M = 24e-3
+# A long leg is driven through points at most this far apart, by the robot's controller: a wheel
+# offset turns each move a little, and the planner's clearance leaves each robot 1.5 mm off its
+# legs (omni_micro_control.fleet_roadmap). The paper's rule, sent 140 mm at once, strayed
+# 1.61 mm (8 robots, offsets up to 3 deg); 24 mm apart, 0.44 mm (20 crossing runs). The model
+# mode shoots one arc to each point, through offsets it has not learnt yet on the first legs:
+# 24 mm apart it strayed 2.02 mm, 12 mm 1.30 mm, 10 mm 0.43 mm. The servo corrects while it
+# rolls: 24 mm apart, 0.49 mm.
+SUB_GOAL_SPACING_M = {'paper': 24e-3, 'model': 10e-3, 'servo': 24e-3}
 
 
 @dataclass(frozen=True)
@@ -44,8 +50,12 @@ class LegDispatcher:
     """Hands out each robot's goals for ``plan``: :meth:`startable` at the start and after each
     leg's end, :meth:`reached` as a robot reaches the goal it was given."""
 
-    def __init__(self, plan: FleetPlan) -> None:
+    def __init__(self, plan: FleetPlan, controllers: Sequence[str] | None = None) -> None:
+        """``controllers``: each robot's controller mode (the paper's rule by default), which
+        sets how far apart the points of its legs are (``SUB_GOAL_SPACING_M``)."""
         self.robots = [_Progress(legs) for legs in plan.legs]
+        self.spacings_m = [SUB_GOAL_SPACING_M[mode] for mode in
+                           (controllers or ['paper'] * len(self.robots))]
 
     def legs_done(self, robot: int) -> int:
         return self.robots[robot].legs_done
@@ -70,7 +80,8 @@ class LegDispatcher:
                     self.robots[other].legs_done > other_leg
                     for other, other_leg in leg.waits_for):
                 continue
-            pieces = max(1, math.ceil(math.dist(leg.start_m, leg.end_m) / SUB_GOAL_SPACING_M))
+            pieces = max(1, math.ceil(math.dist(leg.start_m, leg.end_m)
+                                      / self.spacings_m[index]))
             progress.points = [
                 (leg.start_m[0] + (leg.end_m[0] - leg.start_m[0]) * k / pieces,
                  leg.start_m[1] + (leg.end_m[1] - leg.start_m[1]) * k / pieces)

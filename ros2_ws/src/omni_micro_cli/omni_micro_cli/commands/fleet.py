@@ -21,6 +21,7 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.fleet_inputs import MAX_ROBOTS, Fleet, fleet_from
 from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file, output_folder
+from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 
@@ -28,8 +29,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'fleet',
         description='Several robots on one platform, as in a micro-factory: each robot its '
-                    'own slip dynamics and wheel offsets, its own captures, the paper\'s '
-                    'controller on each; a planner reserves the platform (9 mm discs, centres '
+                    'own slip dynamics and wheel offsets, its own captures, its own '
+                    'controller (the paper\'s rule, the model or the servo mode); a planner '
+                    'reserves the platform (9 mm discs, centres '
                     f'kept {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
                     'time) and every robot '
                     'drives its legs once those it waits for have ended. Runs in one process '
@@ -47,6 +49,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'micro field then to a place of its own, --goals-per-robot in all')
     parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), metavar='K',
                         help='goals drawn per robot without --tasks (default 2)')
+    parser.add_argument('--controller', choices=MODES, default='paper',
+                        help="every robot's controller (a robots file may give a robot its "
+                             "own): paper, section 4.1's rule (default); model, plans through "
+                             'the slip model and learns the robot leg after leg; servo, rolls '
+                             'corrected from captures in motion (docs/control.md)')
     parser.add_argument('--seed', type=seed_number, default=0,
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
     parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
@@ -93,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
     if args.tasks is not None and args.goals_per_robot is not None:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
-    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed)
+    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed,
+                       args.controller)
     if args.record is not None:
         from omni_micro_tools.bags import check_bag_output
 
@@ -114,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         result = through_graph(plan, fleet, args, progress)
     else:
         result = run_fleet(plan, robots=fleet.robots, seed=args.seed,
+                           controllers=fleet.controllers,
                            max_sim_time_s=float(args.max_sim_time), on_progress=progress)
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
@@ -147,7 +156,8 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
                              record=args.record, composed=args.composed, markers=args.markers,
-                             view=view_from_args(args), on_progress=progress)
+                             view=view_from_args(args), controllers=fleet.controllers,
+                             on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
     runs = []
@@ -172,7 +182,8 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
         runs.append(RobotRun(k, len(log.legs), log.tasks_done_s, deviations, log.moves,
                              off_leg, log.outcome,
                              RobotState(x_m=float(final[1]), y_m=float(final[2]),
-                                        phi_rad=float(final[3])), route))
+                                        phi_rad=float(final[3])), route,
+                             log.learnt_offsets_rad))
     return FleetResult(result.outcome, result.reason, result.sim_time_s, runs,
                        result.closest_gap_m, result.closest_pair)
 
@@ -199,13 +210,15 @@ def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
         final = run.final_state
         robots.append({
             'robot': f'robot_{k}', 'start_mm': [v * 1e3 for v in fleet.starts_m[k]],
-            'wheel_offsets_deg': list(fleet.offsets_deg[k]),
+            'wheel_offsets_deg': list(fleet.offsets_deg[k]), 'controller': fleet.controllers[k],
             'goals': len(fleet.tasks[k]), 'goals_reached': len(run.tasks_done_s),
             'reached_at_s': run.tasks_done_s,
             'deviation_um': [d * 1e6 for d in run.deviations_m],
             'legs': len(plan.legs[k]), 'moves': run.moves,
             'farthest_off_leg_mm': run.off_leg_m * 1e3,
-            'final_mm': [final.x_m * 1e3, final.y_m * 1e3], 'outcome': run.outcome or 'done'})
+            'final_mm': [final.x_m * 1e3, final.y_m * 1e3], 'outcome': run.outcome or 'done',
+            'learnt_offsets_deg': ([math.degrees(v) for v in run.learnt_offsets_rad]
+                                   if run.learnt_offsets_rad is not None else None)})
     return {'outcome': result.outcome, 'reason': result.reason, 'robots': robots,
             'sim_time_s': result.sim_time_s, 'goals_reached': result.tasks_done,
             'goals_per_minute': result.goals_per_minute,
@@ -216,14 +229,17 @@ def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
 
 
 def print_table(summary: dict[str, Any]) -> None:
-    print(f'{"robot":<8} {"goals":>7} {"last at s":>9} {"worst um":>9} {"legs":>5} '
-          f'{"moves":>6} {"off leg mm":>10}  outcome')
+    print(f'{"robot":<8} {"control":<7} {"goals":>7} {"last at s":>9} {"worst um":>9} '
+          f'{"legs":>5} {"moves":>6} {"off leg mm":>10} {"learnt xi2,xi3 deg":>18}  outcome')
     for robot in summary['robots']:
         last = max(robot['reached_at_s'], default=float('nan'))
         worst = max(robot['deviation_um'], default=float('nan'))
-        print(f'{robot["robot"]:<8} {robot["goals_reached"]:>3}/{robot["goals"]:<3} '
+        learnt = robot['learnt_offsets_deg']
+        learnt_text = f'{learnt[0]:.3f}, {learnt[1]:.3f}' if learnt is not None else '-'
+        print(f'{robot["robot"]:<8} {robot["controller"]:<7} '
+              f'{robot["goals_reached"]:>3}/{robot["goals"]:<3} '
               f'{last:>9.2f} {worst:>9.2f} {robot["legs"]:>5} {robot["moves"]:>6} '
-              f'{robot["farthest_off_leg_mm"]:>10.3f}  {robot["outcome"]}')
+              f'{robot["farthest_off_leg_mm"]:>10.3f} {learnt_text:>18}  {robot["outcome"]}')
     gap = summary['closest_gap_mm']
     pair = summary['closest_pair']
     print(f'{summary["outcome"]}: {summary["reason"]}; {summary["goals_reached"]} goals, '

@@ -15,11 +15,12 @@ from typing import Any
 
 from omni_micro_cli.arguments import positive_int, seed_number, whole_number_in
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
+from omni_micro_control.feedback import MODES
 
 # Four robots on a cross, each sent to the opposite end: every path crosses every other's goal.
 CROSSING_STARTS_M = [(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)]
 CROSSING_GOALS_M = [(0.1, 0.0), (0.0, 0.0), (0.05, -0.05), (0.05, 0.05)]
-COLUMNS = ('robots', 'seed', 'outcome', 'goals', 'sim_time_s', 'goals_per_minute',
+COLUMNS = ('robots', 'controller', 'seed', 'outcome', 'goals', 'sim_time_s', 'goals_per_minute',
            'closest_gap_mm', 'farthest_off_leg_mm', 'wall_s')
 
 
@@ -45,13 +46,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         metavar='K', help='goals per robot (default 2)')
     parser.add_argument('--crossing', type=whole_number_in(1, 100000), metavar='RUNS',
                         help='instead of the sweep: RUNS crossing runs of 4 robots')
+    parser.add_argument('--controller', choices=MODES, default='paper',
+                        help="every robot's controller: paper (section 4.1's rule, the "
+                             'default), model or servo (docs/control.md)')
     parser.add_argument('--seed', type=seed_number, default=0, help='first seed (default 0)')
     parser.add_argument('--workers', type=positive_int, default=2,
                         help='processes running the runs side by side (default 2)')
     parser.set_defaults(handler=run)
 
 
-def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool) -> dict[str, Any]:
+def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
+            controller: str = 'paper') -> dict[str, Any]:
     """One fleet twin run: its row."""
     from omni_micro_cli.fleet_inputs import drawn_offsets, fleet_from, robot_parameters
     from omni_micro_cli.fleet_twin import run_fleet
@@ -67,8 +72,8 @@ def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool) -> dic
         fleet = fleet_from(str(robots), None, goals_per_robot, seed)
         starts, tasks, parameters = fleet.starts_m, fleet.tasks, fleet.robots
     plan = plan_fleet(starts, tasks, seed=seed)
-    result = run_fleet(plan, robots=parameters, seed=seed)
-    return {'robots': robots, 'seed': seed, 'outcome': result.outcome,
+    result = run_fleet(plan, robots=parameters, seed=seed, controllers=[controller] * len(starts))
+    return {'robots': robots, 'controller': controller, 'seed': seed, 'outcome': result.outcome,
             'goals': result.tasks_done, 'sim_time_s': round(result.sim_time_s, 3),
             'goals_per_minute': round(result.goals_per_minute, 4),
             'closest_gap_mm': round(result.closest_gap_m * 1e3, 4),
@@ -84,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     rows: list[dict[str, Any]] = []
     started = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(one_run, n, seed, args.goals_per_robot, crossing)
+        futures = [pool.submit(one_run, n, seed, args.goals_per_robot, crossing, args.controller)
                    for n, seed in jobs]
         try:
             for future in futures:
@@ -102,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     writer = csv.DictWriter(table, fieldnames=COLUMNS)
     writer.writeheader()
     writer.writerows(rows)
-    summary = crossing_summary(rows) if crossing else throughput_summary(rows)
+    summary = {'controller': args.controller,
+               **(crossing_summary(rows) if crossing else throughput_summary(rows))}
     with staged_directory(Path(args.out)) as out:
         (out / 'runs.csv').write_text(table.getvalue())
         (out / 'summary.json').write_text(json.dumps(summary, indent=1))
@@ -139,7 +145,8 @@ def throughput_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 def summary_lines(summary: dict[str, Any], crossing: bool) -> list[str]:
     if crossing:
-        return [f'{summary["runs"]} crossing runs of 4 robots: {summary["done"]} done, '
+        return [f'{summary["runs"]} crossing runs of 4 robots ({summary["controller"]} '
+                f'controllers): {summary["done"]} done, '
                 f'{summary["contacts"]} contacts; closest centres {summary["closest_gap_mm"]:.2f}'
                 f' mm (9 mm discs); farthest off a leg {summary["farthest_off_leg_mm"]:.3f} mm; '
                 f'{summary["sim_time_s_mean"]:.1f} s simulated on average']
@@ -150,8 +157,9 @@ def summary_lines(summary: dict[str, Any], crossing: bool) -> list[str]:
                      f'{entry["goals_per_minute_mean"]:>10.2f} '
                      f'{entry["goals_per_minute_min"]:>6.2f}..{entry["goals_per_minute_max"]:<6.2f}'
                      f' {entry["closest_gap_mm"]:>10.2f}')
-    lines.append(f'{summary["contacts"]} contacts in {summary["runs"]} runs; farthest off a '
-                 f'leg {summary["farthest_off_leg_mm"]:.3f} mm')
+    lines.append(f'{summary["contacts"]} contacts in {summary["runs"]} runs '
+                 f'({summary["controller"]} controllers); farthest off a leg '
+                 f'{summary["farthest_off_leg_mm"]:.3f} mm')
     return lines
 
 
@@ -172,7 +180,8 @@ def throughput_figure(summary: dict[str, Any]) -> bytes:
                   marker='o', capsize=3)
     axes.set_xlabel('robots on the platform')
     axes.set_ylabel('goals reached per simulated minute')
-    axes.set_title('Micro-factory throughput (min..max over task sets)')
+    axes.set_title(f'Micro-factory throughput, {summary["controller"]} controllers '
+                   '(min..max over task sets)')
     axes.set_ylim(bottom=0.0)
     axes.grid(alpha=0.3)
     buffer = io.BytesIO()

@@ -183,7 +183,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fleet.add_argument('--robots', metavar='N|FILE',
                        help='a micro-factory: N robots (or a YAML file of robots), each with '
                             'its vision_node and controller_node under /robot_k, one '
-                            'dynamics_node for all; with --tasks (or drawn goals), --seed, --rtf, '
+                            'dynamics_node for all; with --tasks (or drawn goals), --controller '
+                            '(every robot\'s; a robots file may give one its own), --seed, --rtf, '
                             '--timeout, '
                             '--log-dir, --json; what omni-micro fleet --graph runs')
     fleet.add_argument('--tasks', type=Path, metavar='FILE',
@@ -196,8 +197,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 # reads is refused, named.
 _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
-FLEET_OPTIONS = ('robots', 'tasks', 'seed', 'rtf', 'timeout', 'log_dir', 'record', 'composed',
-                 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help')
+FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
+                 'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -208,10 +209,12 @@ def fleet_run(args: argparse.Namespace) -> int:
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
-                         'give --tasks, --seed, --rtf, --timeout, --log-dir, --record, '
+                         'give --tasks, --controller, --seed, --rtf, --timeout, --log-dir, '
+                         '--record, '
                          '--composed, --no-markers, --view, --json, --quiet')
     return fleet.run(argparse.Namespace(
         robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
+        controller=args.controller,
         max_sim_time=1800, record=args.record, plot=None, json=args.json, graph=True, rtf=args.rtf,
         log_dir=args.log_dir, wall_timeout=args.timeout, composed=args.composed,
         markers=args.markers, view=args.view, view_port=args.view_port,
