@@ -42,7 +42,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--robots', default='4', metavar='N|FILE',
                         help=f'how many robots (1..{MAX_ROBOTS}, at lattice places from the '
                              'platform\'s left edge, wheel offsets drawn from the seed), or a '
-                             'YAML file of robots (start_mm, wheel_offsets_deg; docs/fleet.md)')
+                             'YAML file of robots (start_mm, wheel_offsets_deg, controller; '
+                             'docs/fleet.md)')
     parser.add_argument('--tasks', type=Path, metavar='FILE',
                         help='a YAML file of goals per robot, in order, with "after" waits '
                              '(docs/fleet.md); default: drawn from the seed, each robot to the '

@@ -20,6 +20,9 @@ from omni_micro_control.feedback import MODES
 # Four robots on a cross, each sent to the opposite end: every path crosses every other's goal.
 CROSSING_STARTS_M = [(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)]
 CROSSING_GOALS_M = [(0.1, 0.0), (0.0, 0.0), (0.05, -0.05), (0.05, 0.05)]
+# How the figure names each controller mode.
+CONTROLLER_NAMES = {'paper': "on the paper's rule", 'model': 'in the model mode',
+                    'servo': 'in the servo mode'}
 COLUMNS = ('robots', 'controller', 'seed', 'outcome', 'goals', 'sim_time_s', 'goals_per_minute',
            'closest_gap_mm', 'farthest_off_leg_mm', 'wall_s')
 
@@ -180,8 +183,8 @@ def throughput_figure(summary: dict[str, Any]) -> bytes:
                   marker='o', capsize=3)
     axes.set_xlabel('robots on the platform')
     axes.set_ylabel('goals reached per simulated minute')
-    axes.set_title(f'Micro-factory throughput, {summary["controller"]} controllers '
-                   '(min..max over task sets)')
+    mode = CONTROLLER_NAMES[summary['controller']]
+    axes.set_title(f'Micro-factory throughput, every robot {mode}\n(min..max over task sets)')
     axes.set_ylim(bottom=0.0)
     axes.grid(alpha=0.3)
     buffer = io.BytesIO()
