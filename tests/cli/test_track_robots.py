@@ -72,4 +72,4 @@ def test_a_robot_never_named_fails_saying_which(tmp_path):
                                    'stands whole in the field)')
     bad = omni_micro('track', str(bag), '--robots', 'robot_0,gripper')
     assert bad.returncode == 2
-    assert "'gripper' is not a robot the tracker can tell (robot_0 to robot_9" in bad.stderr
+    assert "'gripper' is not a robot with a code of its own (robot_0 to robot_9" in bad.stderr

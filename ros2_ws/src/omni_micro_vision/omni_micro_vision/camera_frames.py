@@ -8,7 +8,7 @@ bytes. A frame is a function of (seed, camera, frame number) and what the camera
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -17,7 +17,7 @@ from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, checked_yaw
 from omni_micro_vision.image_messages import ImageWriter
 from omni_micro_vision.optics import WORKING_DISTANCE_M, CameraOptics
-from omni_micro_vision.rendering import Sensor, expose, render, warm_up
+from omni_micro_vision.rendering import InView, Sensor, expose, render_robots, warm_up
 from omni_micro_vision.targets import DEFAULT_TARGET, TARGET_KINDS, Target, render_target
 
 # What the cameras show: the robot, or a calibration target lying on the platform.
@@ -44,20 +44,24 @@ class CameraFrames:
         assert self.target is not None
         return render_target(self.optics.camera, self.target, self.optics.yaw_rad)
 
-    def pixels(self, number: int, state: RobotState) -> np.ndarray:
-        """Frame ``number`` of a robot whose motion at the exposure's start is ``state``."""
+    def pixels(self, number: int, scene: RobotState | Sequence[InView]) -> np.ndarray:
+        """Frame ``number`` of a robot whose motion at the exposure's start is ``scene``, or of
+        a micro-factory's robots (each where it was then, with its code)."""
         rng = np.random.default_rng([self.seed, self.index, number])
         if self.target is None:
-            ideal = render(self.optics.camera, self.sensor, state, rng, self.optics.yaw_rad)
+            robots = [InView(scene)] if isinstance(scene, RobotState) else list(scene)
+            ideal = render_robots(self.optics.camera, self.sensor, robots, rng,
+                                  self.optics.yaw_rad)
         else:
             ideal = expose(self._target_reflectance, self.sensor, rng)
         return self.optics.view(ideal)
 
     def messages(self, number: int, sec: int, nanosec: int,
-                 state: RobotState) -> tuple[bytes, bytes]:
-        """The CameraInfo and the Image of frame ``number``, stamped (sec, nanosec)."""
+                 scene: RobotState | Sequence[InView]) -> tuple[bytes, bytes]:
+        """The CameraInfo and the Image of frame ``number`` (of ``scene``, as
+        :meth:`pixels`), stamped (sec, nanosec)."""
         return (self.writer.info(sec, nanosec),
-                self.writer.image(sec, nanosec, self.pixels(number, state)))
+                self.writer.image(sec, nanosec, self.pixels(number, scene)))
 
     def warm_up(self) -> None:
         """What the first frame would otherwise pay inside the loop's time: the scene kernel,

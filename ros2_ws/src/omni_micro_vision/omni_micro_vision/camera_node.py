@@ -6,8 +6,13 @@ whether or not the robot moves, each stamped with its exposure's start:
   /camera/<name>/image_raw, /camera/<name>/camera_info      (frame ``<name>_optical_frame``)
   /lockstep            its report after each odometry sample, naming the frames it published
 Frame k of camera c is rendered from the odometry sample that ends at or after its stamp, with
-noise seeded by (seed, c, k): the same run gives the same frames at any speed. What a frame
-shows is :func:`omni_micro_vision.rendering.render`'s; this node only moves numbers.
+noise seeded by (seed, c, k): the same run gives the same frames at any speed
+(:mod:`omni_micro_vision.exposure_schedule`). What a frame shows is
+:func:`omni_micro_vision.rendering.render_robots`'s; this node only moves numbers.
+
+With ``robots`` (a micro-factory's namespaces, ``robot_k`` carrying fiducial code k, as
+``tracker_node`` reads them) it subscribes each robot's ``/robot_k/odom`` and every frame shows
+every robot with its code, once every robot's odometry has reached the frame's time.
 
 Each camera is mounted as a real one is (:class:`omni_micro_vision.optics.CameraOptics`): where
 it looks (``center_m``), its pixels (``resolution_px`` over ``field_m``), any turn
@@ -23,6 +28,7 @@ their readers (docs/time.md).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -40,10 +46,14 @@ from omni_micro_common.qos import DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVE
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC
+from omni_micro_sim.simulated_robots import robot_topic
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import CaptureRule, checked_cameras
 from omni_micro_vision.camera_frames import SCENES, CameraFrames, camera_settings, target_settings
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.exposure_schedule import ExposureSchedule
+from omni_micro_vision.fleet_tracking import robot_codes
+from omni_micro_vision.rendering import InView
 
 
 @dataclass(frozen=True)
@@ -88,64 +98,60 @@ class CameraNode(Node):
         # never report it, so time would stand still. Until then there is no /odom reader, and
         # the robot's clock (which waits for that reader) does not start.
         self.image_readers = node_list_parameter(self, 'image_readers')
-        self._next_frame = 0
-        self._last_sample: tuple[float, RobotState] | None = None
+        codes = robot_codes(node_list_parameter(self, 'robots'))
+        if codes and scene != 'robot':
+            raise CameraConfigError(f'robots: only with scene robot (a calibration target is '
+                                    f'one), got scene {scene!r}')
+        # Each robot's odometry topic and code; one robot's /odom, uncoded, without robots.
+        self.sources: list[tuple[str, int | None]] = (
+            [(robot_topic(name, ODOM_TOPIC), code) for name, code in codes.items()]
+            or [(ODOM_TOPIC, None)])
+        self.schedule = ExposureSchedule(self.rate_hz, [code for _, code in self.sources])
+        self._latest_ns: list[int | None] = [None] * len(self.sources)   # each robot's sample
         self.lockstep = LockstepReporter(self)
         self.get_logger().info(f'streaming {", ".join(chosen)} at {self.rate_hz:g} Hz of '
-                               f'simulated time, seed {self.seed}')
+                               f'simulated time, seed {self.seed}'
+                               + (f', {len(codes)} robots ({", ".join(codes)})' if codes else ''))
         when_readers_matched(self, [(stream.image_pub, self.image_readers)
                                     for stream in self.streams], self._subscribe)
 
     def _subscribe(self) -> None:
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._odometry = odometry_template()
-        self.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS, raw=True,
-                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
+        for robot, (topic, _) in enumerate(self.sources):
+            self.create_subscription(Odometry, topic,
+                                     functools.partial(self._on_odometry, robot=robot),
+                                     DATA_QOS, raw=True,
+                                     event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
-    def _on_odometry(self, data: bytes) -> None:
+    def _on_odometry(self, data: bytes, robot: int = 0) -> None:
         sec, nanosec, x, y, qz, qw, forward, lateral, omega = self._odometry.decode(data)
         now_s = join_stamp(int(sec), int(nanosec))
         phi = quaternion_to_yaw(qz, qw)
         # The twist is in the robot's frame (REP-103); the renderer wants the platform's.
         state = RobotState(x, y, phi, forward * math.cos(phi) - lateral * math.sin(phi),
                            forward * math.sin(phi) + lateral * math.cos(phi), omega)
-        # Every frame whose exposure starts by this sample (at 30 Hz on a 50 Hz grid, at most
-        # one), showing the robot where it was when the exposure started: between the last
-        # sample and this one (linear: at most a * dt^2 / 8, 4 nm at the motors' acceleration
-        # over the 20 ms grid). Frames long past (a node started late) are not made up.
-        self._next_frame = max(self._next_frame, math.floor(now_s * self.rate_hz + 1e-9))
-        published = []
-        while self._next_frame / self.rate_hz <= now_s + 1e-9:
-            frame_s = self._next_frame / self.rate_hz
-            published.append(self._publish_frame(self._next_frame,
-                                                 self._state_at(frame_s, now_s, state)))
-            self._next_frame += 1
-        self._last_sample = (now_s, state)
-        # Last: the frames are out before the robot may move on.
-        self.lockstep.report(Ack(self.get_name(), int(sec) * 1_000_000_000 + int(nanosec),
+        # Every frame whose exposure starts by now (at 30 Hz on a 50 Hz grid, at most one a
+        # sample), once every robot's sample has reached it.
+        published = [self._publish_frame(number, robots)
+                     for number, robots in self.schedule.on_sample(robot, now_s, state)]
+        self._latest_ns[robot] = int(sec) * 1_000_000_000 + int(nanosec)
+        known = [stamp for stamp in self._latest_ns if stamp is not None]
+        if len(known) < len(self._latest_ns):
+            return   # no frame before every robot's first sample, and nothing processed
+        # Last: the frames are out before the robot may move on. Processed: as far as every
+        # robot's samples have come.
+        self.lockstep.report(Ack(self.get_name(), min(known),
                                  frames_ns=(published[0], published[-1]) if published else None))
-
-    def _state_at(self, time_s: float, now_s: float, state: RobotState) -> RobotState:
-        """The robot at ``time_s`` (at or before ``now_s``), between the last sample and
-        ``state``."""
-        if self._last_sample is None or time_s >= now_s or self._last_sample[0] >= now_s:
-            return state
-        before_s, before = self._last_sample
-        share = max(0.0, (time_s - before_s) / (now_s - before_s))
-        values = [a + share * (b - a) for a, b in zip(before.as_array(), state.as_array(),
-                                                      strict=True)]
-        values[2] = before.phi_rad + share * math.remainder(state.phi_rad - before.phi_rad,
-                                                            2 * math.pi)
-        return RobotState(*map(float, values))
 
     def _setting(self, name: str, default: object) -> Any:
         return self.declare_parameter(name, default).value
 
-    def _publish_frame(self, number: int, state: RobotState) -> int:
+    def _publish_frame(self, number: int, robots: list[InView]) -> int:
         """Publish frame ``number`` of every camera; returns its stamp in nanoseconds."""
         sec, nanosec = split_stamp(number / self.rate_hz)
         for stream in self.streams:
-            info, image = stream.frames.messages(number, sec, nanosec, state)
+            info, image = stream.frames.messages(number, sec, nanosec, robots)
             stream.info_pub.publish(info)
             stream.image_pub.publish(image)
         return sec * 1_000_000_000 + nanosec

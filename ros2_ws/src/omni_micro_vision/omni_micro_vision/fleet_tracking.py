@@ -37,7 +37,7 @@ def robot_codes(names: Sequence[str]) -> dict[str, int]:
         match = _ROBOT_NAME.fullmatch(name)
         if match is None or int(match[1]) >= len(ROBOT_CODES) or name in codes:
             raise CameraConfigError(
-                f'robots: {name!r} is not a robot the tracker can tell (robot_0 to '
+                f'robots: {name!r} is not a robot with a code of its own (robot_0 to '
                 f'robot_{len(ROBOT_CODES) - 1}, each once: the codes printed on them)')
         codes[name] = int(match[1])
     return codes
