@@ -150,6 +150,16 @@ def test_markers_read_the_captures_where_the_controller_reads_them():
         'capture_uncertainty'] == 'covariance'
 
 
+@pytest.mark.parametrize('tolerance, passed', [(5e-6, 5e-6), (5, 5.0), ('five', None),
+                                               ([1.0], None)])
+def test_markers_are_handed_the_controller_s_tolerance_only_of_the_type_they_declare(tolerance,
+                                                                                       passed):
+    """A wrong one is the controller's to refuse, named: handed on, whichever of the two
+    nodes refused it first was named ("five" once blamed on markers_node, in rclpy's words)."""
+    options = GraphOptions(goal_m=(0.1, 0.0), controller_overrides={'tolerance_m': tolerance})
+    assert node_overrides(MARKERS_NODE, options).get('tolerance_m') == passed
+
+
 def test_the_tracker_waits_for_the_readers_of_its_captures_as_vision_does():
     images = GraphOptions(goal_m=(0.1, 0.0), vision='images', record=Path('bag'))
     tracker = NodeSpec('omni_micro_vision', 'tracker_node')

@@ -18,7 +18,7 @@ from omni_micro_bringup.composition import (
     publishes_in_motion,
     servo_mode,
 )
-from omni_micro_bringup.parameters import node_parameters
+from omni_micro_bringup.parameters import node_parameters, params_from_files
 from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError
@@ -92,8 +92,10 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         sources = [*((name, vision) for name in MARKERS_FROM_VISION),
                    ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
                    ('capture_uncertainty', controller)]
+        # Each of the kind markers_node declares, as the graph's params file has it.
+        declared = params_from_files('markers_node')
         for name, source in sources:
-            value = passed_on(source.get(name))
+            value = passed_on(source.get(name), declared[name])
             if value is not None:
                 overrides[name] = value
     elif spec.executable == 'controller_node':
@@ -141,18 +143,22 @@ def _number(value: object) -> float:
     return float(value)
 
 
-def passed_on(value: object) -> object | None:
-    """A value of another node's params as markers_node declares it (numbers as floats, the
-    way ROS types them), or None when it is not of that kind: its own node then refuses it,
-    naming it (tolerance_m: 5 was blamed on markers_node, which refused the integer first)."""
-    if isinstance(value, str):
-        return value
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value)
-    if isinstance(value, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                       for v in value):
-        return [float(v) for v in value]
-    return None
+def passed_on(value: object, like: object) -> object | None:
+    """A value of another node's params of the kind markers_node declares (``like``: a string,
+    a number, or a list of numbers; numbers as floats, the way ROS types them), or None when it
+    is not: its own node then refuses it, naming it. Passed on, a wrong one was refused by
+    whichever of the two nodes came first (tolerance_m: 5 blamed on markers_node, which refused
+    the integer first; tolerance_m: "five" once, idle, in a clean-clone run of the suite)."""
+    def number(item: object) -> float | None:
+        return float(item) if isinstance(item, (int, float)) and not isinstance(item, bool) \
+            else None
+
+    if isinstance(like, str):
+        return value if isinstance(value, str) else None
+    if isinstance(like, list):
+        numbers = [number(v) for v in value] if isinstance(value, list) else [None]
+        return numbers if None not in numbers else None
+    return number(value)
 
 
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
