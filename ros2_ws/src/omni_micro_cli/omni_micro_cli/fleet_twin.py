@@ -32,7 +32,7 @@ from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M, point_segment_dis
 from omni_micro_control.model_based import learnt_offsets, planner_for
 from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_control.servo_session import ServoSession
-from omni_micro_control.tuning import reconfigured, servo_reconfigured
+from omni_micro_control.tuning import retune
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator
@@ -112,17 +112,9 @@ class _Robot:
     def aim(self, order: GoalOrder, now_s: float) -> None:
         """The controller, sent to the next point of its leg with the leg's tolerance, as the
         coordinator sets it on the robot's controller node."""
-        changes: dict[str, object] = {'tolerance_m': order.tolerance_m}
-        if isinstance(self.loop, ServoLoop):
-            servo = servo_reconfigured(self.loop.session.config, changes)
-            assert not isinstance(servo, str), servo
-            self.loop.session.servo.config = servo
-            self.loop.session.set_goal(order.goal_m, now_s)
-        else:
-            config = reconfigured(self.loop.controller.config, changes)
-            assert not isinstance(config, str), config
-            self.loop.controller.config = config
-            self.loop.controller.set_goal(order.goal_m, now_s)
+        refused = retune(self.loop.controller, {'tolerance_m': order.tolerance_m})
+        assert refused is None, refused   # the plan's tolerances are all valid
+        self.loop.controller.set_goal(order.goal_m, now_s)
         self.driving = True
 
     @property
@@ -239,7 +231,6 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
             break
     for robot in fleet:
         robot.run.final_state = robot.grid.simulator.state
-        robot.run.learnt_offsets_rad = learnt_offsets(
-            robot.loop.session if isinstance(robot.loop, ServoLoop) else robot.loop.controller)
+        robot.run.learnt_offsets_rad = learnt_offsets(robot.loop.controller)
         robot.run.route_m = np.array(robot.route)
     return FleetResult(outcome, reason, now_s, [robot.run for robot in fleet], closest, pair)

@@ -222,6 +222,11 @@ class ServoLoop:
         self.moves = 0    # commands from rest, over every goal
         self.ended_at_s = 0.0   # when the last goal ended: the stamp of what decided it
 
+    @property
+    def controller(self) -> ServoSession:
+        """What decides, as :class:`StopAndGoLoop` names its own."""
+        return self.session
+
     def step(self, sample: Sample) -> Finished | None:
         """The sample seen by both cameras and the wheels, the commands carried out; the goal's
         end, if this sample ended it."""

@@ -24,7 +24,7 @@ from omni_micro_control.servo_config import (
     ServoConfig,
 )
 from omni_micro_control.servo_session import ServoSession
-from omni_micro_control.tuning import reconfigured, servo_reconfigured
+from omni_micro_control.tuning import retune
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, robot_parameter_values
 
@@ -98,20 +98,11 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
 def reconfigure(controller: VisionFeedbackController | ServoSession,
                 changes: dict[str, object]) -> SetParametersResult:
     """The answer to a parameter change while the node runs, made on ``controller`` if it is
-    accepted (:func:`omni_micro_control.tuning.reconfigured`; the servo takes those it shares
-    with the other modes, as a fleet's coordinator sets each goal's tolerance, and fixes all of
-    its own: :func:`omni_micro_control.tuning.servo_reconfigured`)."""
-    if isinstance(controller, ServoSession):
-        servo = servo_reconfigured(controller.config, changes)
-        if isinstance(servo, str):
-            return SetParametersResult(successful=False, reason=servo)
-        controller.servo.config = servo
-        return SetParametersResult(successful=True)
-    config = reconfigured(controller.config, changes)
-    if isinstance(config, str):
-        return SetParametersResult(successful=False, reason=config)
-    controller.config = config
-    return SetParametersResult(successful=True)
+    accepted (:func:`omni_micro_control.tuning.retune`: section 4.1's parameters, checked; the
+    servo takes those it shares with the other modes, as a fleet's coordinator sets each goal's
+    tolerance, and fixes all of its own)."""
+    refused = retune(controller, changes)
+    return SetParametersResult(successful=refused is None, reason=refused or '')
 
 
 def _declare_servo_config(node: Node, shared: FeedbackConfig) -> ServoConfig | None:

@@ -7,8 +7,9 @@ import dataclasses
 from typing import Any
 
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
 from omni_micro_control.servo_config import SHARED_WITH_SERVO, ServoConfig
+from omni_micro_control.servo_session import ServoSession
 
 
 def reconfigured(config: FeedbackConfig, changes: dict[str, object]) -> FeedbackConfig | str:
@@ -42,3 +43,20 @@ def servo_reconfigured(config: ServoConfig, changes: dict[str, object]) -> Servo
         return dataclasses.replace(config, **changed)
     except ControllerConfigError as error:
         return str(error)
+
+
+def retune(controller: VisionFeedbackController | ServoSession,
+           changes: dict[str, object]) -> str | None:
+    """Make ``changes`` on ``controller`` while it runs (:func:`reconfigured`, or for the servo
+    :func:`servo_reconfigured`); returns why not when they are refused, and nothing changes."""
+    if isinstance(controller, ServoSession):
+        servo = servo_reconfigured(controller.config, changes)
+        if isinstance(servo, str):
+            return servo
+        controller.servo.config = servo
+        return None
+    config = reconfigured(controller.config, changes)
+    if isinstance(config, str):
+        return config
+    controller.config = config
+    return None
