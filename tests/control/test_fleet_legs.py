@@ -63,3 +63,31 @@ def test_a_robot_already_driving_is_not_handed_another_leg():
     first = dispatcher.startable()
     assert first and all(dispatcher.driving(order.robot) for order in first)
     assert dispatcher.startable() == []
+
+
+def test_each_goal_counts_from_the_end_it_follows():
+    """The twin and the graph's coordinator both stamp a goal so: the point before it, or the
+    later of its own last leg's end and the ends its leg waits for."""
+    plan = plan_fleet(CROSS_STARTS, CROSS_TASKS)
+    dispatcher = LegDispatcher(plan)
+    given = dispatcher.startable()
+    assert {order.stamp_s for order in given} == {0.0}
+    clock, ended_at, last_end, waited = 0.0, {}, [0.0] * len(CROSS_STARTS), 0
+    while given:
+        order = given.pop(0)
+        clock += 1.5
+        following, ended = dispatcher.reached(order.robot, clock)
+        if following is not None:
+            assert following.stamp_s == clock   # from the point before it
+            given.append(following)
+            continue
+        assert ended is not None
+        ended_at[(order.robot, ended.index)] = last_end[order.robot] = clock
+        for newly in dispatcher.startable():
+            leg = dispatcher.leg(newly.robot)
+            assert leg is not None
+            waited += bool(leg.waits_for)
+            assert newly.stamp_s == max([last_end[newly.robot],
+                                         *(ended_at[need] for need in leg.waits_for)])
+            given.append(newly)
+    assert dispatcher.finished and waited > 0

@@ -157,10 +157,9 @@ class FleetMonitor(GraphMonitor):
         for robot, handled in enumerate(self._handled):
             self.report_handled(robot, handled)
 
-    def give(self, graph: Supervisor, order: GoalOrder, stamp_s: float,
-             timeout_s: float = 30.0) -> None:
+    def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
         """Set the robot's controller to the order's tolerance, then hand it the goal stamped
-        ``stamp_s``, and wait until it has taken it."""
+        with the end it follows (``order.stamp_s``), and wait until it has taken it."""
         deadline = time.monotonic() + timeout_s
         client = self.tolerance_clients[order.robot]
         request = SetParameters.Request(parameters=[Parameter(
@@ -187,7 +186,7 @@ class FleetMonitor(GraphMonitor):
                 raise RunFailed(f'nobody reads {publisher.topic_name} within {timeout_s:g} s')
             self.spin_for(0.05)
         goal = PoseStamped()
-        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
+        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(order.stamp_s)
         goal.header.frame_id = 'platform'
         goal.pose.position.x, goal.pose.position.y = map(float, order.goal_m)
         goal.pose.orientation.w = 1.0
@@ -284,16 +283,14 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
             for k in range(count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
             dispatcher = LegDispatcher(plan, modes)
-            ended_at: dict[tuple[int, int], float] = {}
-            last_end = [0.0] * count
             started: dict[int, float] = {}
 
-            def give(order: GoalOrder, stamp_s: float) -> None:
-                started.setdefault(order.robot, stamp_s)
-                monitor.give(graph, order, stamp_s)
+            def give(order: GoalOrder) -> None:
+                started.setdefault(order.robot, order.stamp_s)
+                monitor.give(graph, order)
 
             for order in dispatcher.startable():
-                give(order, 0.0)
+                give(order)
             monitor.set_paused(graph, False)
             wall_start = time.monotonic()
             seen = 0
@@ -338,23 +335,17 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
                     reason = f'robot {robot} {logs[robot].outcome}'
                     break
-                following, ended = dispatcher.reached(robot)
+                following, ended = dispatcher.reached(robot, at_s)
                 if following is not None:
-                    give(following, at_s)
+                    give(following)
                 else:
                     assert ended is not None
-                    ended_at[(robot, ended.index)] = at_s
-                    last_end[robot] = at_s
                     logs[robot].legs.append((started.pop(robot), at_s, ended))
                     logs[robot].tasks_done_s += [at_s] * len(ended.tasks)
                     if on_progress is not None and ended.tasks:
                         on_progress(sum(len(log.tasks_done_s) for log in logs), total, at_s)
                     for order in dispatcher.startable():
-                        leg = dispatcher.leg(order.robot)
-                        assert leg is not None
-                        # From the later of the ends it follows: whichever came in first.
-                        give(order, max([last_end[order.robot],
-                                         *(ended_at[need] for need in leg.waits_for)]))
+                        give(order)   # from the later of the ends it follows
                 monitor.report_handled(robot, round(at_s * 1e9))
             wall_time = time.monotonic() - wall_start
             if outcome == 'done':

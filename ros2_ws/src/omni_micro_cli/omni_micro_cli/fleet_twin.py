@@ -104,17 +104,13 @@ class _Robot:
         self.driving = False
         self.run = RobotRun(index)
         self.route: list[tuple[float, float, float, float]] = []
-        # When each of its legs ended (by leg index), and its last: a leg that waits for others
-        # starts from the later of these, as the graph's coordinator stamps its first goal.
-        self.legs_ended_s: dict[int, float] = {}
-        self.last_end_s = 0.0
 
-    def aim(self, order: GoalOrder, now_s: float) -> None:
+    def aim(self, order: GoalOrder) -> None:
         """The controller, sent to the next point of its leg with the leg's tolerance, as the
         coordinator sets it on the robot's controller node."""
         refused = retune(self.loop.controller, {'tolerance_m': order.tolerance_m})
         assert refused is None, refused   # the plan's tolerances are all valid
-        self.loop.controller.set_goal(order.goal_m, now_s)
+        self.loop.controller.set_goal(order.goal_m, order.stamp_s)
         self.driving = True
 
     @property
@@ -141,13 +137,12 @@ class _Robot:
         self.driving = False
         at_s = self.loop.ended_at_s
         if finished.outcome is Outcome.REACHED:
-            following, leg = self.legs.reached(self.index)
+            following, leg = self.legs.reached(self.index, at_s)
             if following is not None:
-                self.aim(following, at_s)
+                self.aim(following)
                 return None
             assert leg is not None
             self.run.legs_done += 1
-            self.legs_ended_s[leg.index] = self.last_end_s = at_s
             state = self.grid.simulator.state
             for _ in leg.tasks:
                 self.run.tasks_done_s.append(at_s)
@@ -192,11 +187,7 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
     done = 0
     while True:
         for order in dispatcher.startable():
-            # From the later of the ends it follows, as the coordinator stamps it.
-            leg = dispatcher.leg(order.robot)
-            assert leg is not None
-            fleet[order.robot].aim(order, max([fleet[order.robot].last_end_s, *(
-                fleet[robot].legs_ended_s[index] for robot, index in leg.waits_for)]))
+            fleet[order.robot].aim(order)
         if dispatcher.finished:
             now_s = ended_s
             reason = f'every task done in {now_s:.2f} s'

@@ -27,11 +27,15 @@ SUB_GOAL_SPACING_M = {'paper': 24e-3, 'model': 10e-3, 'servo': 24e-3}
 
 @dataclass(frozen=True)
 class GoalOrder:
-    """Robot ``robot`` is to go to ``goal_m``, reached within ``tolerance_m``."""
+    """Robot ``robot`` is to go to ``goal_m``, reached within ``tolerance_m``, counting from
+    ``stamp_s``: the end it follows (the point before it, or the later of the legs' ends its leg
+    waits for), so that the goal starts from the same simulated time however late it is handed
+    out."""
 
     robot: int
     goal_m: tuple[float, float]
     tolerance_m: float
+    stamp_s: float = 0.0
 
 
 @dataclass
@@ -40,6 +44,7 @@ class _Progress:
     legs_done: int = 0
     points: list[tuple[float, float]] = field(default_factory=list)   # of the leg under way
     driving: bool = False
+    ended_s: list[float] = field(default_factory=list)   # when each leg driven ended
 
     @property
     def leg(self) -> Leg | None:
@@ -80,6 +85,10 @@ class LegDispatcher:
                     self.robots[other].legs_done > other_leg
                     for other, other_leg in leg.waits_for):
                 continue
+            # From the later of the ends it follows: its own last leg's and those it waits for.
+            stamp_s = max([*progress.ended_s[-1:], 0.0,
+                           *(self.robots[other].ended_s[other_leg]
+                             for other, other_leg in leg.waits_for)])
             pieces = max(1, math.ceil(math.dist(leg.start_m, leg.end_m)
                                       / self.spacings_m[index]))
             progress.points = [
@@ -87,24 +96,26 @@ class LegDispatcher:
                  leg.start_m[1] + (leg.end_m[1] - leg.start_m[1]) * k / pieces)
                 for k in range(1, pieces + 1)]
             progress.driving = True
-            orders.append(self._next_point(index))
+            orders.append(self._next_point(index, stamp_s))
         return orders
 
-    def _next_point(self, robot: int) -> GoalOrder:
+    def _next_point(self, robot: int, stamp_s: float) -> GoalOrder:
         progress = self.robots[robot]
         assert progress.leg is not None
         goal = progress.points.pop(0)
         # The leg's end to the leg's tolerance (its task's camera), the points on the way looser.
         tolerance = progress.leg.tolerance_m if not progress.points else WAYPOINT_TOLERANCE_M
-        return GoalOrder(robot, goal, tolerance)
+        return GoalOrder(robot, goal, tolerance, stamp_s)
 
-    def reached(self, robot: int) -> tuple[GoalOrder | None, Leg | None]:
-        """Robot ``robot`` reached its goal: its next point (None when that ended its leg), and
-        the leg it ended (whose tasks are then done; then call :meth:`startable`)."""
+    def reached(self, robot: int, at_s: float = 0.0) -> tuple[GoalOrder | None, Leg | None]:
+        """Robot ``robot`` reached its goal at ``at_s`` (simulated time): its next point (None
+        when that ended its leg), and the leg it ended (whose tasks are then done; then call
+        :meth:`startable`)."""
         progress = self.robots[robot]
         if progress.points:
-            return self._next_point(robot), None
+            return self._next_point(robot, at_s), None
         ended = progress.leg
+        progress.ended_s.append(at_s)
         progress.legs_done += 1
         progress.driving = False
         return None, ended
