@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
-from omni_micro_bringup.processes import shared_memory_files_in_use
+from omni_micro_bringup.shared_memory import shared_memory_files_in_use
 from omni_micro_cli.errors import RunFailed
 from omni_micro_tools.bag_reading import read_bag
 

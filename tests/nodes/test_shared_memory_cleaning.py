@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_bringup import processes
+from omni_micro_bringup import shared_memory
 
 SHM = Path('/dev/shm')
 
@@ -33,22 +33,22 @@ def port_file():
 @pytest.mark.skipif(not SHM.is_dir(), reason='no /dev/shm on this system')
 def test_an_orphaned_port_goes_whoever_made_it_and_a_port_in_use_stays(port_file, monkeypatch):
     # Only this function's own rule, not the fastdds tool's cleaning of dead owners' segments.
-    monkeypatch.setattr(processes.shutil, 'which', lambda *args, **kwargs: None)
+    monkeypatch.setattr(shared_memory.shutil, 'which', lambda *args, **kwargs: None)
     first = 900_000_000 + uuid.uuid4().int % 10**8 * 3
     orphan = port_file(f'fastrtps_port{first}')          # there before the run or not: alike
     listened = port_file(f'fastrtps_port{first + 1}')
     lock = port_file(f'fastrtps_port{first + 1}_el')
     mapped = port_file(f'fastrtps_port{first + 2}')      # a writer opened it before any reader
     with open(mapped, 'r+b') as handle, mmap.mmap(handle.fileno(), 4096):
-        assert mapped.name in processes.shared_memory_files_in_use()
-        processes.clean_shared_memory()
+        assert mapped.name in shared_memory.shared_memory_files_in_use()
+        shared_memory.clean_shared_memory()
         assert mapped.exists()
     assert not orphan.exists()
     assert listened.exists() and lock.exists()
 
 
 def test_only_a_graph_with_a_death_in_it_cleans_what_others_may_be_opening():
-    assert not processes.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 1])
-    assert processes.left_shared_memory({'dynamics_node': 0, 'vision_node': -9}, [1, 1])
-    assert processes.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 2])
-    assert processes.left_shared_memory({'dynamics_node': None}, [1])
+    assert not shared_memory.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 1])
+    assert shared_memory.left_shared_memory({'dynamics_node': 0, 'vision_node': -9}, [1, 1])
+    assert shared_memory.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 2])
+    assert shared_memory.left_shared_memory({'dynamics_node': None}, [1])

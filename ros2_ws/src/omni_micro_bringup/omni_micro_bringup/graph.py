@@ -44,8 +44,6 @@ from omni_micro_bringup.parameters import (
 from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
-    clean_shared_memory,
-    left_shared_memory,
     node_environment,
     stop_together,
 )
@@ -54,6 +52,7 @@ from omni_micro_bringup.readiness import (
     ready_subscriptions,
     simulates_robot,
 )
+from omni_micro_bringup.shared_memory import clean_shared_memory, left_shared_memory
 from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER, STATUS_TIME_KEY
 from omni_micro_common.errors import OmniMicroError
 from omni_micro_common.topic_names import GOAL_TOPIC
