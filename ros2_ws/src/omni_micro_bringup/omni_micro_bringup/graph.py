@@ -45,6 +45,7 @@ from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
     node_environment,
+    resident_memory_kb,
     stop_together,
 )
 from omni_micro_bringup.readiness import (
@@ -198,21 +199,6 @@ class Graph:
                             f'its log ({process.log_path}) ends:\n  {tail}')
         return restarted
 
-    def memory_kb(self) -> dict[str, int]:
-        """Resident memory of each live node process (VmRSS, kB)."""
-        sizes = {}
-        for process in self.processes:
-            if process.process is None or process.exit_code() is not None:
-                continue
-            try:
-                status = Path(f'/proc/{process.process.pid}/status').read_text()
-            except OSError:
-                continue
-            for line in status.splitlines():
-                if line.startswith('VmRSS:'):
-                    sizes[process.name] = int(line.split()[1])
-        return sizes
-
     def _cut_lifeline(self) -> None:
         for fd in (self._lifeline_read, self._lifeline_write):
             if fd >= 0:
@@ -357,7 +343,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
                 status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)
                 statuses.append(status)
                 goal_stamp_s = float(status.get(STATUS_TIME_KEY, goal_stamp_s))
-                for name, size in graph.memory_kb().items():
+                for name, size in resident_memory_kb(graph.processes).items():
                     memory.setdefault(name, []).append(size)
                 if status['outcome'] not in ('reached', 'completed'):
                     break

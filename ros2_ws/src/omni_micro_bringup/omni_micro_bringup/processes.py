@@ -208,6 +208,22 @@ def stop_together(processes: list[NodeProcess], grace_s: float = 5.0,
     return {process.name: process.exit_code() for process in processes}
 
 
+def resident_memory_kb(processes: list[NodeProcess]) -> dict[str, int]:
+    """Resident memory of each live node process (VmRSS, kB)."""
+    sizes = {}
+    for process in processes:
+        if process.process is None or process.exit_code() is not None:
+            continue
+        try:
+            status = Path(f'/proc/{process.process.pid}/status').read_text()
+        except OSError:
+            continue
+        for line in status.splitlines():
+            if line.startswith('VmRSS:'):
+                sizes[process.name] = int(line.split()[1])
+    return sizes
+
+
 def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
     """The environment of a graph's processes, with the project's Fast DDS profile unless the
     user set one (config/fastdds.xml says why)."""
