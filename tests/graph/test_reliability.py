@@ -18,7 +18,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
-from omni_micro_bringup.shared_memory import shared_memory_files_in_use
+from omni_micro_bringup.shared_memory import shared_memory_files_in_use, shared_memory_identities
 from omni_micro_cli.errors import RunFailed
 from omni_micro_tools.bag_reading import read_bag
 
@@ -31,29 +31,16 @@ def shm_files() -> set[str]:
     return {name for name in os.listdir('/dev/shm') if name.startswith('fastrtps')}
 
 
-def identities(names: set[str]) -> set[tuple[str, int]]:
-    """Each file's name and inode: a file of the same name made again later is another file."""
-    found = set()
-    for name in names:
-        try:
-            found.add((name, os.stat(f'/dev/shm/{name}').st_ino))
-        except FileNotFoundError:
-            continue
-    return found
-
-
-def leftovers_of(ours: set[tuple[str, int]], before: set[str]) -> set[str]:
+def leftovers_of(ours: set[tuple[str, int]], before: set[str], taken: set[str]) -> set[str]:
     """The shared-memory files this test's run left: ``ours`` (what its processes used, by name
-    and inode) still there, not there ``before`` it, used by no living process. Another ROS graph
+    and inode) still there, not there ``before`` it, used by no living process and not ``taken``
+    by another graph's process while the run stopped (the graph says which). Another ROS graph
     on the machine (other domains, another test beside this one) makes and removes its own files
     meanwhile, and leaves its own when one of its processes is killed: they are not this run's.
     Nor is a file of one of ours' names made again: besides its domain's port, each participant
-    takes the first free of fastrtps_port7000, 7001, ..., whatever its domain (measured: two
-    processes in domains 17 and 201 took 7000 and 7001), so a participant of another graph
-    takes the port a killed node held once it is cleaned, under the same name (a suite run once
-    found the killed controller's port7000_el left, though this run cleaned it)."""
-    left = {name for name, _ in identities(shm_files()) & ours}
-    return left - before - shared_memory_files_in_use()
+    takes the first free of fastrtps_port7000, 7001, ..., whatever its domain."""
+    left = {name for name, _ in shared_memory_identities(shm_files()) & ours}
+    return left - before - shared_memory_files_in_use() - taken
 
 
 def run(tmp_path: Path, **options: Any) -> GraphResult:
@@ -115,7 +102,8 @@ def kill_after(node: str, wall_s: float, record: dict, hold_clock: bool = False)
                 pause_the_robots_clock(graph.domain_id)
                 time.sleep(0.3)   # what was under way arrives
             pids = [os.getpid(), *(p.process.pid for p in graph.processes if p.process)]
-            record['shm'] = identities(shared_memory_files_in_use(pids))
+            record['shm'] = shared_memory_identities(shared_memory_files_in_use(pids))
+            record['graph'] = graph
             record['killed_at'] = time.monotonic()
             os.kill(graph.process(node).process.pid, signal.SIGKILL)
         threading.Thread(target=kill, daemon=True).start()
@@ -144,7 +132,8 @@ def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_pat
     assert noticed and noticed[0] - events['killed_at'] < 1.0
     bag = read_bag(tmp_path / 'bag', topics=['/odom'])
     assert len(bag.messages['/odom']) > 10
-    assert events['shm'] and leftovers_of(events['shm'], before) == set()   # none of this run's
+    taken = set(events['graph'].shared_memory_taken)
+    assert events['shm'] and leftovers_of(events['shm'], before, taken) == set()   # none of ours
 
 
 @pytest.mark.parametrize('node', ['vision_node', 'controller_node'])

@@ -4,6 +4,8 @@ whichever run, and nothing a living process maps or listens on."""
 from __future__ import annotations
 
 import mmap
+import subprocess
+import sys
 import uuid
 from pathlib import Path
 
@@ -52,3 +54,31 @@ def test_only_a_graph_with_a_death_in_it_cleans_what_others_may_be_opening():
     assert shared_memory.left_shared_memory({'dynamics_node': 0, 'vision_node': -9}, [1, 1])
     assert shared_memory.left_shared_memory({'dynamics_node': 0, 'vision_node': 0}, [1, 2])
     assert shared_memory.left_shared_memory({'dynamics_node': None}, [1])
+
+
+@pytest.mark.skipif(not SHM.is_dir(), reason='no /dev/shm on this system')
+def test_a_port_another_process_took_stays_and_is_named_with_who_holds_it(port_file, monkeypatch):
+    """Fast DDS leaves a port a killed writer had opened when its reader closes, and the next
+    participant of any domain takes that same file: the cleaning leaves it to that process and
+    says so (tests/graph/test_shared_memory_reuse.py shows Fast DDS doing it)."""
+    monkeypatch.setattr(shared_memory.shutil, 'which', lambda *args, **kwargs: None)
+    first = 900_000_000 + uuid.uuid4().int % 10**8 * 3
+    taken = port_file(f'fastrtps_port{first}')
+    orphan = port_file(f'fastrtps_port{first + 1}')
+    used = shared_memory.shared_memory_identities({taken.name, orphan.name})
+    holder = subprocess.Popen(
+        [sys.executable, '-c', 'import mmap, sys; f = open(sys.argv[1], "r+b"); '
+         'm = mmap.mmap(f.fileno(), 4096); print("mapped", flush=True); sys.stdin.read()',
+         str(taken)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == 'mapped'
+        assert shared_memory.clean_shared_memory(used, graph_pids=[]) == {
+            taken.name: {holder.pid}}
+        assert taken.exists() and not orphan.exists()
+        # Held by one of the graph's own processes, it is not another graph's.
+        assert shared_memory.clean_shared_memory(used, graph_pids=[holder.pid]) == {}
+    finally:
+        holder.communicate('')
+    # Let go, it is an orphan like any other.
+    assert shared_memory.clean_shared_memory(used, graph_pids=[]) == {}
+    assert not taken.exists()

@@ -53,7 +53,12 @@ from omni_micro_bringup.readiness import (
     ready_subscriptions,
     simulates_robot,
 )
-from omni_micro_bringup.shared_memory import clean_shared_memory, left_shared_memory
+from omni_micro_bringup.shared_memory import (
+    clean_shared_memory,
+    left_shared_memory,
+    shared_memory_files_in_use,
+    shared_memory_identities,
+)
 from omni_micro_common.conventions import LIFELINE_ENV, PUBLISHED_MARKER, STATUS_TIME_KEY
 from omni_micro_common.errors import OmniMicroError
 from omni_micro_common.topic_names import GOAL_TOPIC
@@ -155,6 +160,8 @@ class Graph:
         self.processes = [NodeProcess(spec, _argv(spec, options), env,
                                       log_dir / f'{spec.name}.log', options.echo, inherited)
                           for spec in specs]
+        # This graph's shared-memory files another graph's process took while it stopped.
+        self.shared_memory_taken: dict[str, set[int]] = {}
 
     def process(self, name: str) -> NodeProcess:
         return next(p for p in self.processes if p.name == name)
@@ -208,6 +215,8 @@ class Graph:
     def stop(self) -> dict[str, int | None]:
         """Stop every node, phase by phase; returns their exit codes (-9: it needed SIGKILL)."""
         started = time.monotonic()
+        pids = [p.process.pid for p in self.processes if p.process]
+        used = shared_memory_identities(shared_memory_files_in_use(pids))
         named = {name for phase in SHUTDOWN_PHASES if phase for name in phase}
         codes: dict[str, int | None] = {}
         took: dict[str, float] = {}
@@ -231,7 +240,10 @@ class Graph:
         # Only after a death: cleaning locks every port's lock file to test it, which another
         # graph's node starting then fails to take (docs/development.md, "The suite").
         if left_shared_memory(codes, [p.starts for p in self.processes]):
-            clean_shared_memory()
+            self.shared_memory_taken = clean_shared_memory(used, pids)
+            if self.shared_memory_taken and self.options.echo:
+                self.options.echo('[orchestration] left in /dev/shm, taken by processes of '
+                                  'another graph: ' + ', '.join(sorted(self.shared_memory_taken)))
         record = self.options.record
         if record is not None and record.is_dir() and not (record / 'metadata.yaml').exists():
             self._recover_bag(record)

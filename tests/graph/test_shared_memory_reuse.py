@@ -1,0 +1,70 @@
+"""What Fast DDS leaves in /dev/shm when a writer is killed, and what the graph's cleaning does
+with it (omni_micro_bringup.shared_memory; docs/development.md, "The suite")."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from conftest import Probe
+from std_msgs.msg import String
+
+from omni_micro_bringup.processes import node_environment
+from omni_micro_bringup.shared_memory import (
+    SHM,
+    clean_shared_memory,
+    shared_memory_files_in_use,
+    shared_memory_holders,
+    shared_memory_identities,
+)
+
+WRITER = textwrap.dedent('''
+    import time, rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from std_msgs.msg import String
+    context = Context()
+    rclpy.init(context=context)
+    node = Node('killed_writer', context=context)
+    publisher = node.create_publisher(String, 'chatter', 10)
+    while True:
+        publisher.publish(String(data='still here'))
+        time.sleep(0.01)
+''')
+
+
+def test_a_readers_port_outlives_it_when_its_writer_was_killed_and_is_cleaned(domain_id,
+                                                                              tmp_path: Path):
+    """A port counts the processes that opened it and the last to close it removes it: the
+    killed writer never closes the reader's port, so the reader's normal exit leaves it, with no
+    lock file and mapped by nobody. The next participant of any domain would take it as it is
+    (measured by hand) and leave it in turn; the graph's cleaning removes it."""
+    reader = Probe(domain_id)
+    received: list[str] = []
+    reader.node.create_subscription(String, 'chatter', lambda message: received.append(
+        message.data), 10)
+    writer = subprocess.Popen([sys.executable, '-c', WRITER],
+                              env=node_environment(domain_id, tmp_path))
+    try:
+        reader.spin_until(lambda: len(received) >= 5, 20.0, "the writer's messages")
+        # The reader's own ports: those whose lock file it holds.
+        listened = {name.removesuffix('_el') for name in shared_memory_files_in_use([os.getpid()])
+                    if name.startswith('fastrtps_port') and name.endswith('_el')}
+        opened_by_both = shared_memory_identities(
+            listened & set(shared_memory_holders([writer.pid])))
+        assert opened_by_both, 'the writer opened none of the reader\'s ports'
+    finally:
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+    reader.close()
+    left = shared_memory_identities({name for name, _ in opened_by_both}) & opened_by_both
+    assert left == opened_by_both
+    for name, _ in left:
+        assert not (SHM / f'{name}_el').exists()
+    assert not {name for name, _ in left} & shared_memory_files_in_use()
+    assert clean_shared_memory(left, graph_pids=[]) == {}
+    assert not shared_memory_identities({name for name, _ in left}) & left
