@@ -44,9 +44,8 @@ def test_a_readers_port_outlives_it_when_its_writer_was_killed_and_is_cleaned(do
     lock file and mapped by nobody. The next participant of any domain would take it as it is
     (measured by hand) and leave it in turn; the graph's cleaning removes it."""
     reader = Probe(domain_id)
-    received: list[str] = []
-    reader.node.create_subscription(String, 'chatter', lambda message: received.append(
-        message.data), 10)
+    received: list[String] = []
+    reader.node.create_subscription(String, 'chatter', received.append, 10)
     writer = subprocess.Popen([sys.executable, '-c', WRITER],
                               env=node_environment(domain_id, tmp_path))
     try:
