@@ -7,6 +7,8 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Collection
+from collections.abc import Set as AbstractSet
 from pathlib import Path
 
 SHM = Path('/dev/shm')
@@ -61,8 +63,8 @@ def left_shared_memory(codes: dict[str, int | None], starts: list[int]) -> bool:
     return any(code != 0 for code in codes.values()) or any(count > 1 for count in starts)
 
 
-def clean_shared_memory(used: set[tuple[str, int]] = frozenset(),
-                        graph_pids: list[int] = ()) -> dict[str, set[int]]:
+def clean_shared_memory(used: AbstractSet[tuple[str, int]] = frozenset(),
+                        graph_pids: Collection[int] = ()) -> dict[str, set[int]]:
     """Remove the Fast DDS shared-memory files a killed process left behind; returns those of
     the files a graph's processes used (``used``, by name and inode) that are still there because
     processes outside the graph (``graph_pids``) hold them, and who.
