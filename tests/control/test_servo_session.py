@@ -8,7 +8,7 @@ import pytest
 from omni_micro_cli.twin import run_servo
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import REPLACED_REASON, Finished, Outcome, Phase
-from omni_micro_control.observations import Observation
+from omni_micro_control.observations import CapturesBeforeTheGoal, Observation
 from omni_micro_control.servo import ServoController
 from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import OUT_OF_FIELD_REASON, ServoSession
@@ -155,3 +155,11 @@ def test_each_goal_counts_its_own_moves_and_the_filter_keeps_what_it_learnt():
                                                   MICRO))
         assert isinstance(finished, Finished) and finished.outcome is Outcome.REACHED
         assert finished.periods == 1 and session.servo.stops == 1
+
+
+def test_captures_kept_before_a_goal_are_those_of_its_stamp_on_and_are_taken_once():
+    held = CapturesBeforeTheGoal(kept=3)
+    for stamp_s in (4.9, 5.0, 5.02, 5.04):   # the first falls out: three kept
+        held.keep(Observation(stamp_s, 0.0, 0.0, 0.0))
+    assert [seen.stamp_s for seen in held.since(5.01)] == [5.02, 5.04]
+    assert held.since(0.0) == []

@@ -16,7 +16,12 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from omni_micro_common.conventions import JOINT_NAMES, CaptureUncertainty, stamp_ns
+from omni_micro_common.conventions import (
+    JOINT_NAMES,
+    STATUS_TIME_KEY,
+    CaptureUncertainty,
+    stamp_ns,
+)
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS
@@ -324,3 +329,44 @@ def test_controller_node_counts_a_goal_from_its_arrival_or_its_stamp(context, sp
 def test_controller_node_refuses_an_unknown_goal_time(context):
     with pytest.raises(ParameterError, match=r"goal_time must be one of \['arrival', 'stamp'\]"):
         ControllerNode(context=context, parameter_overrides=overrides(goal_time='soon'))
+
+
+@pytest.mark.parametrize('mode', ['servo', 'paper'])
+def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context, spy, mode):
+    """A fleet's coordinator hands a robot its goal stamped with another robot's end, and time
+    runs on up to the lockstep's lead meanwhile: a capture stamped after that end can reach the
+    controller before the goal. It counts as the twin counts it, after the goal; one stamped
+    before the goal is the robot idle, as before. (The servo counts from the goal's stamp, the
+    paper's rule from timer2 past it.)"""
+    node = ControllerNode(context=context, parameter_overrides=[
+        *overrides(goal_time='stamp'), Parameter('mode', value=mode),
+        Parameter('captures_per_stop', value=2)])
+    try:
+        trajectories = spy(node.trajectory_pub)
+        statuses = spy(node.status_pub)
+        still = JointState(name=list(JOINT_NAMES), position=[0.0] * len(JOINT_NAMES),
+                           velocity=[0.0] * len(JOINT_NAMES))
+        still.header.stamp.sec = 5
+        node._on_joint_state(serialize_message(still))
+        uncertainty = CaptureUncertainty(0.1e-6, 0.1e-6, 1e-4)
+        for sec, nanosec in ((4, 980_000_000), (5, 0), (5, 20_000_000)):
+            node._on_capture_with_covariance(with_uncertainty(
+                capture_pose(sec, nanosec, 'platform', 0.0, 0.0, 0.0), uncertainty),
+                camera='micro')
+        assert trajectories.messages == []
+        goal = PoseStamped()
+        goal.header.frame_id = 'platform'
+        goal.header.stamp.sec = 5
+        goal.pose.position.x = 0.001
+        node._on_goal(goal)
+        messages = [status.message for status in statuses.messages]
+        if mode == 'servo':
+            # The two captures at 5.00 s and 5.02 s: a move from rest, after the goal's word.
+            assert messages[-2:] == ['settling', 'moving']
+            assert len(trajectories.messages) == 1
+            moving = {v.key: v.value for v in statuses.messages[-1].values}
+            assert float(moving[STATUS_TIME_KEY]) == pytest.approx(5.02)
+        else:
+            assert messages[-1] == 'settling' and trajectories.messages == []
+    finally:
+        node.destroy_node()

@@ -13,13 +13,13 @@ Publishes:
   /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_common.lockstep)
-Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken
-on capture stamps, see :mod:`omni_micro_control.feedback`; a goal counts from its arrival, or
-from its stamp (``goal_time: stamp``, as a fleet's coordinator hands them out).
-``mode: model`` plans the moves through the slip core and identifies the robot as it goes
-(:mod:`omni_micro_control.model_based`); ``mode: servo`` keeps it rolling and corrects it from
-the captures in motion (:mod:`omni_micro_control.servo_session`). On shutdown the robot is told
-to stop.
+Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken on
+capture stamps, see :mod:`omni_micro_control.feedback`; a goal counts from its arrival, or from its
+stamp (``goal_time: stamp``, as a fleet's coordinator hands them out). ``mode: model`` plans the
+moves through the slip core and identifies the robot as it goes
+(:mod:`omni_micro_control.model_based`); ``mode: servo`` keeps it rolling and corrects it from the
+captures in motion (:mod:`omni_micro_control.servo_session`). On shutdown the robot is told to
+stop.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ from omni_micro_control.controller_parameters import declare_controller_paramete
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import Finished, Move, Outcome, Phase, VisionFeedbackController
 from omni_micro_control.move_watcher import MoveWatcher
-from omni_micro_control.observations import Observation, read_capture
+from omni_micro_control.observations import CapturesBeforeTheGoal, Observation, read_capture
 from omni_micro_control.platform import goal_error
 from omni_micro_control.servo_config import ServoCommand
 from omni_micro_control.servo_session import ServoSession
@@ -94,11 +94,9 @@ TIMEOUT_CHECK_S = 0.05
 
 class ControllerNode(Node):
     def __init__(self, **node_options: Any) -> None:
-        # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
-        # build the node in-process with them.
+        # node_options as rclpy's Node takes them: tests build the node in-process with them.
         super().__init__('controller_node', **node_options)
         settings = declare_controller_parameters(self)
-        config = settings.config
         self.limits = settings.limits
         self.frame_id = settings.frame_id
         self.platform_center, self.platform_size = settings.platform_center, settings.platform_size
@@ -115,6 +113,7 @@ class ControllerNode(Node):
         self._command_ns: int | None = None
         self._outcome_ns: int | None = None   # the last goal's end, for a coordinator
         self.goals_at_stamp = settings.goal_time == 'stamp'
+        self.before_the_goal = CapturesBeforeTheGoal()
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
         self.trajectory_pub = count(self.create_publisher(JointTrajectory, WHEEL_TRAJECTORY_TOPIC,
@@ -125,8 +124,7 @@ class ControllerNode(Node):
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._joint_state = joint_state_template()
         self.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, DATA_QOS,
-                                 raw=True,
-                                 event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
+                                 raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         for name in CAPTURE_TOPICS:
             if self.uncertainty_source == 'covariance':
                 self.create_subscription(
@@ -151,7 +149,8 @@ class ControllerNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0
         self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
-        self.get_logger().info(ready_line(settings.servo or config, self.uncertainty_source))
+        self.get_logger().info(ready_line(settings.servo or settings.config,
+                                          self.uncertainty_source))
         if settings.goal is not None:
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
@@ -176,11 +175,12 @@ class ControllerNode(Node):
                                  reason=problem)
             return
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
-        if replaced is not None:
-            self.report(replaced, at_s=stopped_at_s)
+        self.report(replaced, at_s=stopped_at_s)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm, still since '
                                f'{stopped_at_s:.3f} s')
         self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
+        for seen in self.before_the_goal.since(stopped_at_s):
+            self._act(self.controller.on_capture(seen), at_s=seen.stamp_s)
 
     # -- events ------------------------------------------------------------------------------
     def _on_joint_state(self, data: bytes) -> None:
@@ -225,11 +225,13 @@ class ControllerNode(Node):
         """A capture (``in_motion``: of the rolling robot) handled, said so on /lockstep."""
         seen = None if uncertainty is None else self._observation(header, pose, uncertainty,
                                                                   camera)
-        if seen is not None:
-            controller = self.controller
-            self._act(controller.on_capture_in_motion(seen)
-                      if in_motion and isinstance(controller, ServoSession)
-                      else controller.on_capture(seen), at_s=seen.stamp_s)
+        controller = self.controller
+        if seen is not None and in_motion and isinstance(controller, ServoSession):
+            self._act(controller.on_capture_in_motion(seen), at_s=seen.stamp_s)
+        elif seen is not None and controller.phase in (Phase.IDLE, Phase.DONE):
+            self.before_the_goal.keep(seen)
+        elif seen is not None:
+            self._act(controller.on_capture(seen), at_s=seen.stamp_s)
         if in_motion and self._motion_handled_ns is not None:
             self._motion_handled_ns = max(self._motion_handled_ns, stamp_ns(header.stamp))
         else:
@@ -286,11 +288,10 @@ class ControllerNode(Node):
             self.report(decision, at_s)
 
     def _on_camera_status(self, msg: DiagnosticStatus) -> None:
-        # A camera that says it cannot see the robot ends the wait at once; one that says
-        # nothing is caught by the capture timeout.
+        """A camera that says it cannot see the robot ends the wait at once (one that says
+        nothing is caught by the capture timeout), at the camera's time: the robot's, as far as
+        this node has it, depends on which message came first."""
         if msg.level != DiagnosticStatus.OK and 'outside' in msg.message:
-            # Decided at the camera's time: the robot's, as far as this node has it, depends on
-            # which message came first.
             said = {item.key: item.value for item in msg.values}.get(STATUS_TIME_KEY)
             at_s = float(said) if said is not None else self.robot_time_s
             self._act(self.controller.on_out_of_field(self.robot_time_s), at_s=at_s)
@@ -301,9 +302,9 @@ class ControllerNode(Node):
         assert isinstance(self.controller, ServoSession)
         values = {item.key: item.value for item in msg.values}
         own = self.controller.config.capture_age_s
-        if self.controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY)) is not None:
-            self.get_logger().warning(capture_age_line(camera, values, own,
-                                                       self.controller.config.capture_age_s))
+        bound = self.controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
+        if bound is not None:
+            self.get_logger().warning(capture_age_line(camera, values, own, bound))
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Section 4.1's parameters may be tuned while the node runs, checked first."""

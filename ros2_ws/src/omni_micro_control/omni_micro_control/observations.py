@@ -1,8 +1,10 @@
-"""A capture as the controllers see it, and several captures of a still robot made one."""
+"""A capture as the controllers see it, several captures of a still robot made one, and the
+captures that came before the goal they belong to."""
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 from omni_micro_common.conventions import CaptureUncertainty
@@ -51,3 +53,23 @@ def mean_observation(observations: list[Observation]) -> Observation:
                        math.fsum(o.y_m for o in observations) / count, heading, last.camera,
                        None if last.uncertainty is None else last.uncertainty.averaged(count),
                        count)
+
+
+class CapturesBeforeTheGoal:
+    """Stationary captures that came while no goal ran, for the goal stamped at or before them
+    that arrives after them: a fleet's coordinator hands a goal out stamped with the end it
+    follows, and time runs up to ``lockstep_max_lead_s`` past that end before the goal is taken.
+    A controller takes them as if they had come after the goal, as the twin feeds them.
+    ``kept``: the most a lead of 40 ms holds at 120 Hz from two cameras, twice over."""
+
+    def __init__(self, kept: int = 20) -> None:
+        self._held: deque[Observation] = deque(maxlen=kept)
+
+    def keep(self, seen: Observation) -> None:
+        self._held.append(seen)
+
+    def since(self, stamp_s: float) -> list[Observation]:
+        """Those stamped at or after ``stamp_s``, in the order they came; the rest forgotten."""
+        held = [seen for seen in self._held if seen.stamp_s >= stamp_s]
+        self._held.clear()
+        return held
