@@ -13,7 +13,9 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image
 
+from omni_micro_common.cdr import read_diagnostic_status
 from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
+from omni_micro_common.lockstep_reporting import decode_ack_bytes
 from omni_micro_vision.camera_node import CameraNode
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.tracker_node import TrackerNode
@@ -52,6 +54,9 @@ def test_each_robot_drawn_with_its_code_is_named_by_the_tracker_under_its_namesp
         reader = tracker.readers[0]
         published = {code: spy(publishers[0])
                      for (code, _), publishers in tracker.robot_publishers.items()}
+        # Each robot's lockstep gate hears of its own captures only.
+        reports = {code: spy(lockstep._publisher)
+                   for code, lockstep in tracker.robot_lockstep.items()}
         for info, image in zip(infos.messages, images.messages, strict=True):
             reader.on_info(deserialize_message(info, CameraInfo))
             reader.on_image(image)
@@ -65,6 +70,12 @@ def test_each_robot_drawn_with_its_code_is_named_by_the_tracker_under_its_namesp
                 assert math.hypot(position.x - x, position.y - y) < 30e-6
                 assert abs(quaternion_to_yaw(capture.pose.orientation.z,
                                              capture.pose.orientation.w) - phi) < 0.02
+            acks = [decode_ack_bytes(data) for data in reports[code].messages]
+            assert {read_diagnostic_status(data)[1] for data in reports[code].messages} == {
+                f'{name}/tracker_node'}
+            assert [ack.captures_ns for ack in acks if ack and ack.captures_ns] == [
+                (66_666_667, 66_666_667), (100_000_000, 100_000_000)]
+            assert acks[-1] is not None and acks[-1].frame_handled_ns == 100_000_000
     finally:
         tracker.destroy_node()
         camera.destroy_node()

@@ -24,14 +24,14 @@ class LockstepReporter:
     """
 
     def __init__(self, node: Node, name: str | None = None) -> None:
-        self._name = name or qualified_node_name(node.get_namespace(), node.get_name())
+        self.name = name or qualified_node_name(node.get_namespace(), node.get_name())
         self._publisher = node.create_publisher(DiagnosticStatus, ACK_TOPIC, LOCKSTEP_QOS,
                                                event_callbacks=PER_TICK_PUBLISHER_EVENTS)
 
     def report(self, ack: Ack) -> None:
         # Serialized by hand (omni_micro_common.cdr): one report per tick per node.
         self._publisher.publish(diagnostic_status_bytes(
-            0, self._name, ACK_MESSAGE, '', ack.to_values()))
+            0, self.name, ACK_MESSAGE, '', ack.to_values()))
 
 
 def decode_ack_bytes(data: bytes) -> Ack | None:

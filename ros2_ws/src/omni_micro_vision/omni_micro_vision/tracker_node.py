@@ -55,10 +55,15 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.lockstep import Ack
+from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
-from omni_micro_common.reader_matching import node_list_parameter, when_capture_readers_matched
+from omni_micro_common.reader_matching import (
+    node_list_parameter,
+    when_capture_readers_matched,
+    when_readers_matched,
+)
 from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
@@ -178,12 +183,28 @@ class TrackerNode(Node):
                 self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos,
                                          event_callbacks=reader.events(info_topic))
 
+        # Each robot's lockstep gate hears of its own captures (robot 1's controller never
+        # handles robot 0's), as ``robot_k/tracker_node``.
+        self.robot_lockstep = {code: LockstepReporter(self, qualified_node_name(robot,
+                                                                               self.get_name()))
+                               for robot, code in self.robots.items()}
         # The nodes that must not miss a capture, by the topics they read (empty when started
         # alone): the images are read, and the camera (whose frames wait for these readers),
-        # then the robot's clock, start only once the capture writers have matched them.
-        when_capture_readers_matched(self, [reader.capture_pub for reader in self.readers],
-                                     [reader.covariance_pub for reader in self.readers],
-                                     read_images)
+        # then the robot's clock, start only once the capture writers have matched them. A
+        # robot's publishers wait for the readers in its namespace.
+        if self.robots:
+            pose_readers = node_list_parameter(self, 'capture_readers')
+            covariance_readers = node_list_parameter(self, 'covariance_readers')
+            when_readers_matched(self, [
+                (publisher, [name for name in names if name.startswith(f'{robot}/')])
+                for robot, code in self.robots.items() for reader in self.readers
+                for publisher, names in zip(self.robot_publishers[code, reader.name],
+                                            (pose_readers, covariance_readers), strict=True)],
+                read_images)
+        else:
+            when_capture_readers_matched(self, [reader.capture_pub for reader in self.readers],
+                                         [reader.covariance_pub for reader in self.readers],
+                                         read_images)
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
 
@@ -206,10 +227,12 @@ class TrackerNode(Node):
         for capture in due:
             self._publish_robot_capture(capture)
         reader.say_sightings(sightings, unnamed)
-        self.lockstep.report(Ack(
-            self.get_name(), None,
-            captures_ns=(due[0].stamp_ns, due[-1].stamp_ns) if due else None,
-            frame_handled_ns=min(r.handled_ns for r in self.readers)))
+        handled_ns = min(r.handled_ns for r in self.readers)
+        for code, lockstep in self.robot_lockstep.items():
+            own = [capture.stamp_ns for capture in due if capture.robot == code]
+            lockstep.report(Ack(lockstep.name, None,
+                                captures_ns=(own[0], own[-1]) if own else None,
+                                frame_handled_ns=handled_ns))
 
     def _publish_robot_capture(self, capture: RobotCapture) -> None:
         reader = next(r for r in self.readers if r.name == capture.camera)
