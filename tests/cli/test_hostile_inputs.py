@@ -199,13 +199,19 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
     (['run'], 'omni-micro run: error: --goal-mm X,Y is needed (or --robots N|FILE for several '
               'robots)'),
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
-     "omni-micro run: error: --open-loop, --vision: a single robot's run only; with --robots "
-     'give --tasks, --controller, --seed, --rtf, --timeout, --log-dir, --record, --composed, '
-     '--no-markers, --view, --json, --quiet'),
+     "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
+     '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
+     '--composed, --no-markers, --view, --json, --quiet'),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
-     '--tasks, --controller, --seed, --rtf, --timeout, --log-dir, --record, --composed, '
-     '--no-markers, --view, --json, --quiet'),
+     '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
+     '--composed, --no-markers, --view, --json, --quiet'),
+    (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
+     'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
+     'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '
+     'or model'),
+    (['fleet', '--vision', 'images'], "omni-micro fleet: error: --vision images is a node "
+                                      "graph's: give it with --graph"),
     (['fleet', '--composed'], "omni-micro fleet: error: --composed is a node graph's: give it "
                               'with --graph'),
     (['fleet', '--view'], "omni-micro fleet: error: --view is a node graph's: give it with "

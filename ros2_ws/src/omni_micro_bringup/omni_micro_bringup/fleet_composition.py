@@ -1,7 +1,9 @@
 """What a micro-factory's graph starts: one dynamics_node simulating every robot on one clock,
 per robot ``robot_k`` its vision_node and controller_node (and, drawing it, its markers_node) in
 the namespace ``/robot_k``, and the recorder of every robot's topics; all but the recorder in
-one process when composed.
+one process when composed. On rendered images, one camera_node and one tracker_node for all in
+place of the vision_nodes: the robots share the cameras, as in a micro-factory, and the tracker
+tells them apart by the codes the camera draws.
 
 One dynamics process for all (not one per robot): the robots share one ``/clock`` and one
 lockstep, which one process owning time gives by construction; N processes would each need a
@@ -24,6 +26,7 @@ from omni_micro_bringup.composition import (
     GraphOptions,
     NodeSpec,
 )
+from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import servo_timing
 from omni_micro_bringup.parameters import (
     format_parameter,
@@ -66,6 +69,9 @@ RECORDER_NODE = 'bag_recorder'
 # A robot's nodes, each with its package; and, drawing it on /robot_k/markers, its markers_node.
 ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
 MARKERS_NODE = ('omni_micro_vision', 'markers_node')
+# With rendered images: the cameras and the tracker every robot shares.
+CAMERA_NODE, TRACKER_NODE = ('omni_micro_vision', 'camera_node'), ('omni_micro_vision',
+                                                                    'tracker_node')
 
 
 def robot_name(index: int) -> str:
@@ -104,12 +110,16 @@ def _command(package: str, executable: str, params: list[Path],
     return tuple(argv)
 
 
-def recorded_topics(count: int, markers: bool, in_motion: tuple[int, ...] = ()) -> list[str]:
+def recorded_topics(count: int, markers: bool, in_motion: tuple[int, ...] = (),
+                    images: bool = False) -> list[str]:
     """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
     its namespace (``/robot_k/markers`` with ``markers``; the captures in motion of the robots
-    ``in_motion``, whose servo reads them)."""
+    ``in_motion``, whose servo reads them). On rendered ``images`` no robot has a vision_node
+    to say ``camera/status`` (the shared tracker says why per camera, as a single robot's)."""
+    left_out = {CLOCK_TOPIC, *(() if markers else (MARKERS_TOPIC,)),
+                *((CAMERA_STATUS_TOPIC,) if images else ())}
     return [CLOCK_TOPIC, *(robot_topic(k, topic) for k in range(count) for topic in GRAPH_TOPICS
-                           if topic != CLOCK_TOPIC and (markers or topic != MARKERS_TOPIC)),
+                           if topic not in left_out),
             *(robot_topic(k, topic) for k in in_motion
               for topic in CAPTURE_IN_MOTION_TOPICS.values())]
 
@@ -139,38 +149,80 @@ def hosting(specs: list[NodeSpec]) -> NodeSpec:
     return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs), command=tuple(argv))
 
 
+def check_vision(modes: list[str], vision: str) -> None:
+    """Raises UsageError if ``vision`` cannot serve the robots' controller ``modes``: the
+    shared tracker gives no captures in motion (a servo's), nor does a vision not known."""
+    if vision not in ('model', 'images'):
+        raise UsageError(f"vision must be 'model' or 'images', got {vision!r}")
+    servos = [k for k, mode in enumerate(modes) if mode == SERVO_MODE]
+    if vision == 'images' and servos:
+        raise UsageError(f'--vision images: the tracker every robot shares gives no captures in '
+                         f'motion, which the servo needs (robots {servos}); give those robots '
+                         f'--controller paper or model')
+
+
+def shared_cameras(count: int, seed: int, params: list[Path],
+                   capture_readers: list[str]) -> list[NodeSpec]:
+    """The camera pair a micro-factory shares: camera_node rendering every robot with its
+    code, its frames read reliably by tracker_node, which names each robot and publishes its
+    captures under its namespace to the robot's ``capture_readers`` (node names)."""
+    robots = [robot_name(k) for k in range(count)]
+    camera: dict[str, object] = {'seed': int(seed), 'robots': robots,
+                                 'image_readers': [TRACKER_NODE[1]]}
+    tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
+                                  'covariance_readers': [f'{robot}/{name}' for robot in robots
+                                                         for name in capture_readers]}
+    return [NodeSpec(package, node, command=_command(package, node, params, values))
+            for (package, node), values in ((CAMERA_NODE, camera), (TRACKER_NODE, tracker))]
+
+
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
                 folder: Path, record: tuple[Path, str] | None = None,
                 composed: bool = False, markers: bool = False,
                 view: tuple[str, int] | None = None,
-                controllers: list[str] | None = None) -> list[NodeSpec]:
+                controllers: list[str] | None = None, vision: str = 'model') -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
     ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
     (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
     the live view of every robot's. ``controllers``: robot k's controller mode (``paper``, the
     default, leaves it to the params files); a servo's vision_node publishes the captures in
-    motion it reads. ``composed``: dynamics and every robot's nodes in one process (the
-    container), each node with the same arguments as on its own; the recorder and the view stay
-    processes of their own, as a single robot's."""
+    motion it reads. ``vision``: ``model``, each robot its vision_node; ``images``, one
+    camera_node rendering every robot with its code and one tracker_node naming them, in place
+    of the vision_nodes (the cameras a micro-factory shares). ``composed``: dynamics and every
+    robot's nodes in one process (the container), each node with the same arguments as on its
+    own; the recorder and the view stay processes of their own, as a single robot's.
+
+    Raises
+    ------
+    UsageError
+        A servo robot with ``vision`` images: the tracker gives captures in motion of one
+        robot only.
+    """
     shipped = [graph_params_file(), *params_files]
     count = len(starts_m)
     modes = controller_modes(controllers or ['paper'] * count, params_files)
     servos = tuple(k for k in range(count) if modes[k] == SERVO_MODE)
-    nodes = (*ROBOT_NODES, *((MARKERS_NODE,) if markers else ()))
+    images = vision == 'images'
+    check_vision(modes, vision)
+    nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     # Each robot's nodes (markers_node a watcher), and the orchestration as each robot's
-    # coordinator (fleet_graph).
+    # coordinator (fleet_graph); the shared camera for all, the tracker for each robot's gate.
     taking_part = [qualified_node_name(robot_name(k), node) for k in range(count)
-                   for node in (*(name for _, name in nodes), ORCHESTRATOR_NODE)]
+                   for node in (*(name for _, name in nodes), ORCHESTRATOR_NODE,
+                                *((TRACKER_NODE[1],) if images else ()))]
+    taking_part += [CAMERA_NODE[1]] if images else []
     awaited = [entry for k in range(count) for entry in (
-        f'{robot_name(k)}/vision_node:{robot_topic(k, ODOM_TOPIC)}',
+        f'{CAMERA_NODE[1] if images else robot_name(k) + "/vision_node"}:'
+        f'{robot_topic(k, ODOM_TOPIC)}',
         f'{robot_name(k)}/controller_node:{robot_topic(k, JOINT_STATES_TOPIC)}',
         f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}',
         *(f'{robot_name(k)}/{MARKERS_NODE[1]}:{robot_topic(k, topic)}'
           for topic in (READS_FROM_ROBOT[MARKERS_NODE[1]] if markers else ())))]
     if record is not None:
         # The recorder keeps every tick from the first (composition.READS_FROM_ROBOT).
-        awaited += [f'{RECORDER_NODE}:{topic}' for topic in recorded_topics(count, markers, servos)
+        awaited += [f'{RECORDER_NODE}:{topic}'
+                    for topic in recorded_topics(count, markers, servos, images)
                     if robot_and_topic(topic)[1] in READS_FROM_ROBOT[RECORDER_NODE]]
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
@@ -181,6 +233,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         'lockstep_nodes': taking_part, 'awaited_readers': awaited}
     specs = [NodeSpec('omni_micro_sim', 'dynamics_node', command=_command(
         'omni_micro_sim', 'dynamics_node', shipped, dynamics))]
+    if images:
+        specs += shared_cameras(count, seed, shipped, [name for _, name in nodes])
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
@@ -209,7 +263,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
             'omni_micro_tools', RECORDER_NODE, shipped,
             {'bag': str(bag), 'storage': storage,
-             'topics': recorded_topics(count, markers, servos)})))
+             'topics': recorded_topics(count, markers, servos, images)})))
     if view is not None:
         host, port = view
         specs.append(NodeSpec('omni_micro_tools', 'viewer', command=_command(

@@ -30,6 +30,7 @@ from rcl_interfaces.srv import SetParameters
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
+    check_vision,
     controller_modes,
     fleet_specs,
     robot_name,
@@ -235,7 +236,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
                     timeout_s: float = 3600.0, record: Path | None = None,
                     composed: bool = False, markers: bool = False,
                     view: tuple[str, int] | None = None,
-                    controllers: list[str] | None = None,
+                    controllers: list[str] | None = None, vision: str = 'model',
                     echo: Callable[[str], None] | None = None,
                     on_progress: Callable[[int, int, float], None] | None = None,
                     ) -> FleetGraphResult:
@@ -247,6 +248,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     drawn on ``/robot_k/markers`` by a markers_node of its own, in its colour, labelled.
     ``view`` (host, port): every robot's topics served live to Foxglove. ``controllers``: each
     robot's controller mode (``paper``, the default, leaves it to the params files).
+    ``vision``: ``model`` (each robot its vision_node) or ``images`` (one rendering camera and
+    one tracker for all, :func:`~omni_micro_bringup.fleet_composition.fleet_specs`).
 
     Raises
     ------
@@ -260,13 +263,14 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
         check_bag_output(record, force=False)   # refused before anything runs
     count = len(plan.starts_m)
     modes = controller_modes(controllers or ['paper'] * count, params_files)
+    check_vision(modes, vision)   # refused before anything runs
     lease = DomainLease(None)
     with lease as domain_id:
         log_dir = new_log_dir(log_root)
         specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
                             log_dir, record=None if record is None else (record, 'mcap'),
                             composed=composed, markers=markers, view=view,
-                            controllers=modes)
+                            controllers=modes, vision=vision)
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)

@@ -65,6 +65,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--rtf', type=real_time_factor, default=math.inf, metavar='R',
                         help='with --graph: simulated seconds per wall second, or max (the '
                              'default): as fast as the nodes allow; the run is the same')
+    parser.add_argument('--vision', choices=('model', 'images'), default='model',
+                        help='with --graph: model, each robot its vision_node (default); '
+                             'images, one camera_node renders every robot with its code and '
+                             'one tracker_node names each (the micro-factory\'s shared cameras; '
+                             'paper and model controllers)')
     parser.add_argument('--markers', action='store_true',
                         help='with --graph: a markers_node per robot draws it on '
                              '/robot_k/markers (RViz 2, Foxglove), in its colour, labelled')
@@ -98,11 +103,17 @@ def run(args: argparse.Namespace) -> int:
     for option in ('composed', 'markers', 'view'):
         if not args.graph and getattr(args, option):
             raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
+    if not args.graph and args.vision != 'model':
+        raise UsageError(f'--vision {args.vision} is a node graph\'s: give it with --graph')
     if args.tasks is not None and args.goals_per_robot is not None:
         raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
                          'goals are given')
     fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed,
                        args.controller)
+    if args.graph:
+        from omni_micro_bringup.fleet_composition import check_vision
+
+        check_vision(fleet.controllers, args.vision)   # refused before the planning
     if args.record is not None:
         from omni_micro_tools.bags import check_bag_output
 
@@ -158,7 +169,7 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
                              timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
                              record=args.record, composed=args.composed, markers=args.markers,
                              view=view_from_args(args), controllers=fleet.controllers,
-                             on_progress=progress)
+                             vision=args.vision, on_progress=progress)
     echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
                    f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
     runs = []

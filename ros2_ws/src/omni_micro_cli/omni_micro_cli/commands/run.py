@@ -198,7 +198,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
-                 'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help')
+                 'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
+                 'vision')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -209,16 +210,15 @@ def fleet_run(args: argparse.Namespace) -> int:
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
-                         'give --tasks, --controller, --seed, --rtf, --timeout, --log-dir, '
-                         '--record, '
-                         '--composed, --no-markers, --view, --json, --quiet')
+                         'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
+                         '--log-dir, --record, --composed, --no-markers, --view, --json, --quiet')
     return fleet.run(argparse.Namespace(
         robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
         controller=args.controller,
         max_sim_time=1800, record=args.record, plot=None, json=args.json, graph=True, rtf=args.rtf,
         log_dir=args.log_dir, wall_timeout=args.timeout, composed=args.composed,
         markers=args.markers, view=args.view, view_port=args.view_port,
-        view_host=args.view_host))
+        view_host=args.view_host, vision=args.vision))
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:

@@ -1,0 +1,109 @@
+"""A micro-factory on rendered images (`fleet --graph --vision images`): one camera_node renders
+every robot with its code, one tracker_node names each in the frames and publishes its captures
+under its namespace, each robot's lockstep gate hearing of its own captures only. Two robots
+crossing each other's goals reach them clear of each other, every capture in the bag is of the
+robot it is published for, and the run is the same at another speed, composed (docs/fleet.md,
+"Who is who")."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from omni_micro_tools.bag_reading import read_bag
+
+ROBOTS = """robots:
+  - start_mm: [30, 0]
+    wheel_offsets_deg: [0, 3, 2]
+    controller: model
+  - start_mm: [70, 0]
+    wheel_offsets_deg: [1, -2, 0]
+"""
+TASKS = """tasks:
+  robot_0:
+    - goal_mm: [70, 0]
+  robot_1:
+    - goal_mm: [30, 0]
+"""
+GOALS_MM = [(70.0, 0.0), (30.0, 0.0)]
+CAMERAS = ('macro', 'micro')
+
+
+def fleet_on_images(omni_micro, folder: Path, *extra: str) -> dict:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / 'robots.yaml').write_text(ROBOTS)
+    (folder / 'tasks.yaml').write_text(TASKS)
+    done = omni_micro('run', '--robots', str(folder / 'robots.yaml'), '--tasks',
+                      str(folder / 'tasks.yaml'), '--vision', 'images', '--seed', '3',
+                      '--log-dir', str(folder / 'logs'), '--record', str(folder / 'bag'),
+                      '--json', *extra)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope='module')
+def on_images(omni_micro, tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp('fleet_images')
+    summary = fleet_on_images(omni_micro, folder)
+    (folder / 'summary.json').write_text(json.dumps(summary))
+    return folder
+
+
+def test_one_camera_and_one_tracker_tell_two_crossing_robots_apart(on_images):
+    summary = json.loads((on_images / 'summary.json').read_text())
+    assert summary['outcome'] == 'done', summary['reason']
+    assert summary['closest_gap_mm'] > 9.0
+    for robot, goal in zip(summary['robots'], GOALS_MM, strict=True):
+        assert robot['goals_reached'] == 1 and robot['outcome'] == 'done'
+        assert robot['deviation_um'][0] < 50.0   # the macro camera's, outside the micro field
+        assert math.dist(robot['final_mm'], goal) < 0.05
+    # The shared cameras in place of each robot's vision_node.
+    (logs,) = (on_images / 'logs').iterdir()
+    names = sorted(path.name for path in logs.glob('*.log'))
+    assert 'camera_node.log' in names and 'tracker_node.log' in names
+    assert not [name for name in names if 'vision_node' in name]
+    assert 'not named' not in (logs / 'tracker_node.log').read_text()
+
+
+def test_every_capture_is_of_the_robot_it_is_published_for(on_images):
+    """Each robot's captures lie where that robot's odometry has it at their stamp (the
+    tracker's pixel error), never where the other robot is: the robots stay 11 mm apart."""
+    topics = [f'/robot_{k}/{kind}' for k in range(2)
+              for kind in ('odom', *(f'camera/{name}/pose' for name in CAMERAS))]
+    bag = read_bag(on_images / 'bag', topics=topics)
+    poses = {}
+    for k in range(2):
+        odometry = bag.messages[f'/robot_{k}/odom']
+        poses[k] = (np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
+                              for m in odometry]),
+                    np.array([(m.pose.pose.position.x, m.pose.pose.position.y)
+                              for m in odometry]))
+    for k in range(2):
+        captures = [m for name in CAMERAS for m in bag.messages[f'/robot_{k}/camera/{name}/pose']]
+        assert len(captures) > 20
+        for capture in captures:
+            stamp = capture.header.stamp.sec + capture.header.stamp.nanosec * 1e-9
+            seen = (capture.pose.position.x, capture.pose.position.y)
+            distances = {}
+            for robot, (stamps, xy) in poses.items():
+                index = int(np.argmin(np.abs(stamps - stamp)))
+                # A still robot is captured: the odometry at its stamp is where it stands.
+                assert abs(stamps[index] - stamp) < 0.02
+                distances[robot] = math.dist(seen, xy[index])
+            assert distances[k] < 100e-6, (k, stamp, distances)
+            assert distances[1 - k] > 5e-3
+
+
+def test_the_same_run_and_bag_composed_at_twice_real_time(on_images, omni_micro, tmp_path):
+    """The same JSON but its wall times, and the same bag file, byte for byte."""
+    fastest = json.loads((on_images / 'summary.json').read_text())
+    paced = fleet_on_images(omni_micro, tmp_path, '--rtf', '2', '--composed')
+    for summary in (fastest, paced):
+        del summary['wall_s'], summary['planning_s']
+    assert paced == fastest
+    (recorded,) = (on_images / 'bag').glob('*.mcap')
+    assert (tmp_path / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()
