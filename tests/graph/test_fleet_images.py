@@ -1,9 +1,9 @@
 """A micro-factory on rendered images (`fleet --graph --vision images`): one camera_node renders
 every robot with its code, one tracker_node names each in the frames and publishes its captures
 under its namespace, each robot's lockstep gate hearing of its own captures only. Two robots
-crossing each other's goals reach them clear of each other, every capture in the bag is of the
-robot it is published for, and the run is the same at another speed, composed (docs/fleet.md,
-"Who is who")."""
+crossing each other's goals reach them clear of each other (in the model mode, the quickest to
+a goal on still captures), every capture in the bag is of the robot it is published for, and
+the run is the same at another speed, composed (docs/fleet.md, "Who is who")."""
 
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ ROBOTS = """robots:
     wheel_offsets_deg: [0, 3, 2]
     controller: model
   - start_mm: [70, 0]
-    wheel_offsets_deg: [1, -2, 0]
+    wheel_offsets_deg: [0, -2, 1]
+    controller: model
 """
 TASKS = """tasks:
   robot_0:
