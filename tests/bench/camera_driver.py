@@ -44,6 +44,8 @@ CAMERA = CameraModel('bench', (0.1, 0.0), (1280 * 1.72e-6, 1024 * 1.72e-6), (128
 OPTICS = CameraOptics(CAMERA, yaw_rad=0.5, mirrored=True, working_distance_m=0.006,
                       distortion=(-0.3, 0.1))
 FRAME_RATE_HZ = 15.0
+# The line it prints for each frame it publishes, with the frame's stamp in nanoseconds.
+SENT_FRAME = 'sent frame stamped'
 TARGET = Chessboard((9, 6), 0.12e-3, (0.1001, 0.0), math.radians(10.0))
 LIGHT = {'r': 1.0, 'g': 0.9, 'b': 0.7}
 
@@ -122,6 +124,8 @@ class StandInCamera(Node):
         info.header = image.header
         self.infos.publish(info)
         self.images.publish(image)
+        # What it sent, for the test beside it: its best-effort readers may each lose frames.
+        print(f'{SENT_FRAME} {taken_ns + self.clock_offset_ns}', flush=True)
 
 
 def main() -> None:
