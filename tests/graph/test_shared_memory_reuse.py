@@ -41,8 +41,9 @@ def test_a_readers_port_outlives_it_when_its_writer_was_killed_and_is_cleaned(do
                                                                               tmp_path: Path):
     """A port counts the processes that opened it and the last to close it removes it: the
     killed writer never closes the reader's port, so the reader's normal exit leaves it, with no
-    lock file and mapped by nobody. The next participant of any domain would take it as it is
-    (measured by hand) and leave it in turn; the graph's cleaning removes it."""
+    lock file and mapped by nobody. The next participant of any domain takes it as it is (the
+    same file; in one suite run the other worker's did, at once) and leaves it in turn; the
+    graph's cleaning removes it, or names the process that took it."""
     reader = Probe(domain_id)
     received: list[String] = []
     reader.node.create_subscription(String, 'chatter', received.append, 10)
@@ -62,8 +63,13 @@ def test_a_readers_port_outlives_it_when_its_writer_was_killed_and_is_cleaned(do
     reader.close()
     left = shared_memory_identities({name for name, _ in opened_by_both}) & opened_by_both
     assert left == opened_by_both
+    # Another participant (the suite's other worker starts them all the time) may take such a
+    # port at once, as it is: then it holds it, with a lock file of its own.
+    holders = shared_memory_holders()
     for name, _ in left:
-        assert not (SHM / f'{name}_el').exists()
-    assert not {name for name, _ in left} & shared_memory_files_in_use()
-    assert clean_shared_memory(left, graph_pids=[]) == {}
-    assert not shared_memory_identities({name for name, _ in left}) & left
+        assert name in holders or not (SHM / f'{name}_el').exists()
+    taken = clean_shared_memory(left, graph_pids=[])
+    assert all(pids and os.getpid() not in pids for pids in taken.values())
+    # Every one no other process took is gone.
+    still_there = shared_memory_identities({name for name, _ in left}) & left
+    assert {name for name, _ in still_there} <= set(taken)
