@@ -332,7 +332,8 @@ def test_controller_node_refuses_an_unknown_goal_time(context):
 
 
 @pytest.mark.parametrize('mode', ['servo', 'paper'])
-def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context, spy, mode):
+def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context, spy, mode,
+                                                                        monkeypatch):
     """A fleet's coordinator hands a robot its goal stamped with another robot's end, and time
     runs on up to the lockstep's lead meanwhile: a capture stamped after that end can reach the
     controller before the goal. It counts as the twin counts it, after the goal; one stamped
@@ -342,8 +343,11 @@ def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context,
         *overrides(goal_time='stamp'), Parameter('mode', value=mode),
         Parameter('captures_per_stop', value=2)])
     try:
+        statuses = spy(node.status_pub)   # from 'idle' on
+        node._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         trajectories = spy(node.trajectory_pub)
-        statuses = spy(node.status_pub)
+        acks: list[Ack] = []
+        monkeypatch.setattr(node.lockstep, 'report', acks.append)
         still = JointState(name=list(JOINT_NAMES), position=[0.0] * len(JOINT_NAMES),
                            velocity=[0.0] * len(JOINT_NAMES))
         still.header.stamp.sec = 5
@@ -361,12 +365,14 @@ def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context,
         node._on_goal(goal)
         messages = [status.message for status in statuses.messages]
         if mode == 'servo':
-            # The two captures at 5.00 s and 5.02 s: a move from rest, after the goal's word.
-            assert messages[-2:] == ['settling', 'moving']
-            assert len(trajectories.messages) == 1
+            # The two captures at 5.00 s and 5.02 s: a move from rest, which says the goal taken,
+            # its command already on /lockstep (a fleet's coordinator releases time on it).
+            assert messages == ['idle', 'moving']
+            (trajectory,) = trajectories.messages
             moving = {v.key: v.value for v in statuses.messages[-1].values}
             assert float(moving[STATUS_TIME_KEY]) == pytest.approx(5.02)
+            assert acks[-1].command_ns == stamp_ns(trajectory.header.stamp)
         else:
-            assert messages[-1] == 'settling' and trajectories.messages == []
+            assert messages == ['idle', 'settling'] and trajectories.messages == []
     finally:
         node.destroy_node()

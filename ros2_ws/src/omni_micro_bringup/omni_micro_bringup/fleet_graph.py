@@ -200,8 +200,8 @@ class FleetMonitor(GraphMonitor):
                 if status['message'] == 'goal rejected':
                     raise UsageError(f'robot_{robot}\'s controller_node rejected the goal '
                                      f'{order.goal_m}: {status.get("reason")}')
-                if status['message'] == 'settling':
-                    return
+                if status['message'] in ('settling', 'moving'):
+                    return   # 'moving': captures that came before the goal moved it at once
             graph.check_alive()
             if time.monotonic() > deadline:
                 raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its goal '

@@ -155,7 +155,6 @@ class ControllerNode(Node):
             # A scripted goal counts from time 0: the robot has been still since the start.
             self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
 
-    # -- goals -------------------------------------------------------------------------------
     def _on_goal(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in (self.frame_id, ''):
             problem = f'goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}'
@@ -178,11 +177,12 @@ class ControllerNode(Node):
         self.report(replaced, at_s=stopped_at_s)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm, still since '
                                f'{stopped_at_s:.3f} s')
-        self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
+        # Captures that came before it act first: their command on /lockstep before 'settling'.
         for seen in self.before_the_goal.since(stopped_at_s):
             self._act(self.controller.on_capture(seen), at_s=seen.stamp_s)
+        if self.controller.phase is Phase.SETTLING:   # else 'moving' said it
+            self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
 
-    # -- events ------------------------------------------------------------------------------
     def _on_joint_state(self, data: bytes) -> None:
         wheels = read_wheel_state(self._joint_state, data)
         if wheels is None:
@@ -324,7 +324,6 @@ class ControllerNode(Node):
             self.report(finished, at_s=self.robot_time_s)
             self._report_lockstep()
 
-    # -- outputs -----------------------------------------------------------------------------
     def _command(self, move: Move) -> None:
         assert isinstance(self.controller, VisionFeedbackController)   # it made the move
         try:
@@ -377,6 +376,7 @@ class ControllerNode(Node):
     def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
         self._command_ns = stamp_ns(msg.header.stamp)
+        self._report_lockstep()   # at once, before any status of it
 
 
 def _stop_on_shutdown(node: ControllerNode) -> None:
