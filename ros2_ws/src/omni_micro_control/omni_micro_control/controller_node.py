@@ -177,10 +177,10 @@ class ControllerNode(Node):
         self.report(replaced, at_s=stopped_at_s)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm, still since '
                                f'{stopped_at_s:.3f} s')
-        # Captures that came before it act first: their command on /lockstep before 'settling'.
-        for seen in self.before_the_goal.since(stopped_at_s):
+        held = self.before_the_goal.since(stopped_at_s)   # act first: on /lockstep by 'settling'
+        for seen in held:
             self._act(self.controller.on_capture(seen), at_s=seen.stamp_s)
-        if self.controller.phase is Phase.SETTLING:   # else 'moving' said it
+        if not held or self.controller.phase is not Phase.MOVING:   # else 'moving' said it
             self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
 
     def _on_joint_state(self, data: bytes) -> None:
