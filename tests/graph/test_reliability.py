@@ -69,8 +69,14 @@ def test_dropped_and_late_captures_still_reach_the_goal(tmp_path, fig11_recorded
 
 
 def test_a_frozen_camera_ends_lost_with_the_robot_stopped(tmp_path):
-    result = run(tmp_path, vision_overrides={'faults.frozen_after_s': 3.0}, record=tmp_path / 'b')
+    """And, every process stopping on its signal, the run leaves no shared-memory file (each
+    run left each node's segment and ports before node_runtime shut its executor down)."""
+    before = shm_files()
+    used: dict = {}
+    result = run(tmp_path, vision_overrides={'faults.frozen_after_s': 3.0}, record=tmp_path / 'b',
+                 on_running=lambda graph: note_shared_memory(graph, used))
     assert result.outcome == 'lost' and 'no capture' in result.reason
+    assert used['shm'] and leftovers_of(used['shm'], before, set()) == set()
     bag = read_bag(tmp_path / 'b', topics=['/odom', '/wheel_trajectory'])
     last_move = [m for m in bag.messages['/wheel_trajectory'] if m.points][-1]
     start = last_move.header.stamp.sec + last_move.header.stamp.nanosec * 1e-9
@@ -91,6 +97,13 @@ def test_leaving_the_macro_field_is_lost_at_once(tmp_path):
 
 
 # -- node deaths -------------------------------------------------------------------------------
+def note_shared_memory(graph, record: dict) -> None:
+    """The shared-memory files the run's processes (and this one) use now, by name and inode."""
+    pids = [os.getpid(), *(p.process.pid for p in graph.processes if p.process)]
+    record['shm'] = shared_memory_identities(shared_memory_files_in_use(pids))
+    record['graph'] = graph
+
+
 def kill_after(node: str, wall_s: float, record: dict, hold_clock: bool = False):
     """SIGKILL to ``node`` ``wall_s`` after the clock starts (with ``hold_clock``, the robot's
     clock held first, no message under way); ``record`` gets when, and the shared-memory files
@@ -101,9 +114,7 @@ def kill_after(node: str, wall_s: float, record: dict, hold_clock: bool = False)
             if hold_clock:
                 pause_the_robots_clock(graph.domain_id)
                 time.sleep(0.3)   # what was under way arrives
-            pids = [os.getpid(), *(p.process.pid for p in graph.processes if p.process)]
-            record['shm'] = shared_memory_identities(shared_memory_files_in_use(pids))
-            record['graph'] = graph
+            note_shared_memory(graph, record)
             record['killed_at'] = time.monotonic()
             os.kill(graph.process(node).process.pid, signal.SIGKILL)
         threading.Thread(target=kill, daemon=True).start()

@@ -1,5 +1,6 @@
-"""What Fast DDS leaves in /dev/shm when a writer is killed, and what the graph's cleaning does
-with it (omni_micro_bringup.shared_memory; docs/development.md, "The suite")."""
+"""What Fast DDS leaves in /dev/shm when a node stops on its signal (nothing) and when a writer
+is killed, and what the graph's cleaning does with that (omni_micro_bringup.shared_memory;
+docs/development.md, "The suite")."""
 
 from __future__ import annotations
 
@@ -11,12 +12,14 @@ import textwrap
 from pathlib import Path
 
 from conftest import Probe
+from rcl_interfaces.srv import GetParameters
 from std_msgs.msg import String
 
 from omni_micro_bringup.processes import node_environment
 from omni_micro_bringup.shared_memory import (
     SHM,
     clean_shared_memory,
+    shared_memory_files,
     shared_memory_files_in_use,
     shared_memory_holders,
     shared_memory_identities,
@@ -73,3 +76,28 @@ def test_a_readers_port_outlives_it_when_its_writer_was_killed_and_is_cleaned(do
     # Every one no other process took is gone.
     still_there = shared_memory_identities({name for name, _ in left}) & left
     assert {name for name, _ in still_there} <= set(taken)
+
+
+def test_a_node_stopped_by_its_signal_leaves_nothing_in_shared_memory(start_node, probe):
+    """Every node process ends with a fast exit (omni_micro_common.node_runtime): its DDS
+    participant must be gone by then, or each run of the graph leaves each node's segment and
+    ports in /dev/shm for good. They did, once the executor had spun: 0.5 MB a node, 4.4 MB
+    with the graph's profile, every run (a node stopped within its first second left none)."""
+    # A port a killed process left is taken as it is and left again (the test above): only
+    # the files this node made are its to remove.
+    there_before = shared_memory_identities(shared_memory_files())
+    node = start_node('omni_micro_vision', 'vision_node')
+    # It answers a service: its executor spins.
+    client = probe.node.create_client(GetParameters, '/vision_node/get_parameters')
+    assert probe.call(client, GetParameters.Request(names=['seed']), timeout_s=30.0).values
+    made = shared_memory_identities(set(shared_memory_holders([node.pid]))) - there_before
+    # Its own segment (fastrtps_<hex>), made with its participant.
+    assert any(not name.startswith('fastrtps_port') for name, _ in made)
+    node.send_signal(signal.SIGINT)
+    assert node.wait(20) == 0
+    # Left: the same files (by inode) that no living process holds; a port another
+    # participant opened too (this probe, the other worker's) is theirs to close.
+    holders = shared_memory_holders()
+    left = {name for name, _ in shared_memory_identities({name for name, _ in made}) & made
+            if name not in holders}
+    assert not left
