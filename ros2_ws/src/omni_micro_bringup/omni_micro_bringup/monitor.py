@@ -200,7 +200,8 @@ class GraphMonitor:
         self.respawns.remember_endpoints()
 
     def send_goal(self, graph: Supervisor, goal_m: tuple[float, float],
-                  recording: bool = False, timeout_s: float = 30.0, stamp_s: float = 0.0) -> None:
+                  recording: bool = False, timeout_s: float = 30.0, stamp_s: float = 0.0,
+                  acked_within_s: float = GOAL_READERS_MATCH_S) -> None:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
         goal is on /goal_pose for a recorder to keep. It is stamped ``stamp_s`` (the first goal
@@ -235,7 +236,7 @@ class GraphMonitor:
         goal.pose.orientation.w = 1.0
         seen = len(self.statuses)
         publisher.publish(goal)
-        publisher.wait_for_all_acked(Duration(seconds=GOAL_READERS_MATCH_S))
+        publisher.wait_for_all_acked(Duration(seconds=acked_within_s))
         self.goals_sent += 1
         self.goal_sent_at = seen
         resend_at = time.monotonic() + 2.0

@@ -24,6 +24,13 @@ if TYPE_CHECKING:
 # new process reports.
 RESUME_STALL_S = 3.0
 RESUMED_AFTER_S = 0.2
+# How long the goal given again waits for its readers' acknowledgments. A killed process's
+# reader of /goal_pose stays matched until its participant's lease runs out (Fast DDS: 20 s)
+# and never acknowledges: the goal's usual wait (GOAL_READERS_MATCH_S) then ran out every time,
+# 5 s of every controller respawn (measured: its first period 5.1 s after the goal). Living
+# readers acknowledge within milliseconds, and the goal is sent again until the controller
+# takes it.
+GOAL_ACKED_WITHIN_S = 0.5
 
 
 class Respawns:
@@ -79,7 +86,8 @@ class Respawns:
         graph.check_alive()
         # The goal again: a new controller knows nothing, and an old one may have counted its
         # capture timeout while the camera was gone. Either starts over from the next stop.
-        self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s)
+        self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s,
+                               acked_within_s=GOAL_ACKED_WITHIN_S)
         self.remember_endpoints()
         seen = len(self.monitor.camera_statuses)
         self.resume(graph, restarted)
@@ -97,7 +105,9 @@ class Respawns:
             # ... and the controller's reader of captures may match the new writer later
             # still: give the goal again until the controller acts on a capture.
             for _ in range(20):
-                self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s)
+                self.monitor.send_goal(graph, goal, recording,
+                                       stamp_s=self.monitor.goal_stamp_s,
+                                       acked_within_s=GOAL_ACKED_WITHIN_S)
                 acted_from = self.monitor.goal_sent_at
                 asked_at = time.monotonic()
                 while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
