@@ -164,27 +164,39 @@ def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
     env = {key: value for key, value in os.environ.items() if key != 'PYTHONPATH'}
     env['PATH'] = str(bin_dir)
     started: list[subprocess.Popen] = []
+    # Their logs go to files: a pipe read only up to the scheduler's address, as here before,
+    # stops the scheduler at the line that fills its 64 KB. In one suite run the study lost
+    # its scheduler after 200 s with no run done, and nothing was left to say why: a failure
+    # now quotes both logs.
+    log, workers_log = tmp_path / 'scheduler.log', tmp_path / 'workers.log'
+
+    def logs() -> str:
+        return '\n'.join(f'{path.name}:\n' + path.read_text()[-4000:]
+                         for path in (log, workers_log) if path.exists())
+
     try:
-        scheduler = subprocess.Popen(
-            [str(bin_dir / 'dask'), 'scheduler', '--host', '127.0.0.1', '--port', '0',
-             '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path, env=env,
-            stderr=subprocess.PIPE, text=True, start_new_session=True)
+        with open(log, 'w') as output:
+            scheduler = subprocess.Popen(
+                [str(bin_dir / 'dask'), 'scheduler', '--host', '127.0.0.1', '--port', '0',
+                 '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path, env=env,
+                stdout=output, stderr=output, start_new_session=True)
         started.append(scheduler)
-        assert scheduler.stderr is not None
         address = ''
-        for line in scheduler.stderr:
-            if 'Scheduler at:' in line:
-                address = line.split('Scheduler at:')[1].strip()
-                break
+        deadline = time.monotonic() + 60.0
+        while not address:
+            assert scheduler.poll() is None and time.monotonic() < deadline, logs()
+            said = [line for line in log.read_text().splitlines() if 'Scheduler at:' in line]
+            address = said[0].split('Scheduler at:')[1].strip() if said else ''
+            time.sleep(0.05)
         assert address.startswith('tcp://127.0.0.1:'), address
-        started.append(subprocess.Popen(
-            [str(bin_dir / 'dask'), 'worker', address, '--nworkers', '2', '--nthreads', '1',
-             '--host', '127.0.0.1', '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path,
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True))
+        with open(workers_log, 'w') as output:
+            started.append(subprocess.Popen(
+                [str(bin_dir / 'dask'), 'worker', address, '--nworkers', '2', '--nthreads', '1',
+                 '--host', '127.0.0.1', '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path,
+                env=env, stdout=output, stderr=output, start_new_session=True))
         out = tmp_path / 'remote'
         done = _cli('--scheduler', address, '--out', str(out), '-', input=SMALL_STUDY)
-        assert done.returncode == 0, done.stderr[-3000:]
+        assert done.returncode == 0, done.stderr[-3000:] + logs()
         rows = pq.read_table(out / 'runs.parquet').to_pylist()
         assert _without_wall_time(rows) == small_serial
         assert all(row['error'] is None for row in rows)
