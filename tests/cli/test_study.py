@@ -164,15 +164,12 @@ def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
     env = {key: value for key, value in os.environ.items() if key != 'PYTHONPATH'}
     env['PATH'] = str(bin_dir)
     started: list[subprocess.Popen] = []
-    # Their logs go to files: a pipe read only up to the scheduler's address, as here before,
-    # stops the scheduler at the line that fills its 64 KB. In one suite run the study lost
-    # its scheduler after 200 s with no run done, and nothing was left to say why: a failure
-    # now quotes both logs.
+    # Logs to files, quoted on a failure: a pipe read only up to the address fills and stops it.
     log, workers_log = tmp_path / 'scheduler.log', tmp_path / 'workers.log'
 
     def logs() -> str:
-        return '\n'.join(f'{path.name}:\n' + path.read_text()[-4000:]
-                         for path in (log, workers_log) if path.exists())
+        return ''.join(f'\n{p.name}:\n{p.read_text()[-4000:]}' for p in (log, workers_log)
+                       if p.exists())
 
     try:
         with open(log, 'w') as output:
@@ -181,8 +178,7 @@ def test_plain_dask_workers_of_the_venv_run_study_tasks(tmp_path, small_serial):
                  '--dashboard-address', '127.0.0.1:0'], cwd=tmp_path, env=env,
                 stdout=output, stderr=output, start_new_session=True)
         started.append(scheduler)
-        address = ''
-        deadline = time.monotonic() + 60.0
+        address, deadline = '', time.monotonic() + 60.0
         while not address:
             assert scheduler.poll() is None and time.monotonic() < deadline, logs()
             said = [line for line in log.read_text().splitlines() if 'Scheduler at:' in line]
