@@ -68,7 +68,8 @@ def test_frame_fields_round_trip_and_malformed_reports_are_named():
     ack = Ack('tracker_node', None, captures_ns=(1, 2), frames_ns=(3, 4), frame_handled_ns=5)
     assert Ack.from_values('tracker_node', ack.to_values()) == ack
     with pytest.raises(LockstepError, match='none of processed_ns, frame_handled_ns, '
-                                            'command_handled_ns and outcome_handled_ns'):
+                                            'command_handled_ns, outcome_handled_ns and '
+                                            'recorded_ns'):
         Ack.from_values('x', [('capture_first_ns', '1'), ('capture_last_ns', '2')])
     with pytest.raises(LockstepError, match='frame_first_ns and frame_last_ns come together'):
         Ack.from_values('x', [('processed_ns', '1'), ('frame_first_ns', '1')])

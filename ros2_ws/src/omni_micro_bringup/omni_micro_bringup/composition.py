@@ -138,8 +138,10 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
                   images: tuple[str, ...] = (), without: tuple[str, ...] = (),
                   whole: bool = False, in_motion: bool = False,
                   cameras: tuple[str, ...] = ('macro', 'micro')) -> NodeSpec:
-    """The recorder of a run; with ``images`` (cameras) their image streams too, and then it
-    takes part in the lockstep so that no frame is lost to a slow disk. ``without``: topics
+    """The recorder of a run, taking part in the lockstep: the robot never runs so far ahead
+    of it that a stream's writer drops a sample it has not recorded (``lockstep_ticks``), and
+    with ``images`` (cameras), whose streams it records too, no frame is lost to a slow disk
+    (``lockstep_frames``). ``without``: topics
     nobody in this graph publishes (it waits for a publisher of each before the clock starts).
     ``whole``: the bag keeps every message received, not only up to the outcome's tail."""
     from omni_micro_tools.topics import GRAPH_TOPICS
@@ -151,7 +153,8 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
     topics += [CAPTURE_IN_MOTION_TOPICS[camera] for camera in cameras] if in_motion else []
     return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
         'bag': str(bag), 'storage': storage, 'topics': topics,
-        'lockstep_frames': bool(images), 'end_at_outcome': not whole}, lockstep=bool(images))
+        'lockstep_frames': bool(images), 'lockstep_ticks': True, 'end_at_outcome': not whole},
+        lockstep=True)
 
 
 def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
@@ -349,6 +352,8 @@ def recorder_of_graph(options: GraphOptions, bag: Path) -> NodeSpec:
     overrides = dict(spec.overrides)
     if driver_images:
         overrides.update(driver_images=list(driver_images))
+    if options.external:
+        overrides.update(lockstep_ticks=False)   # with a device, nothing runs in lockstep
     if options.robot == 'external':
         overrides.update(log_clock='wall')   # a real robot has no /clock
     return replace(spec, overrides=overrides)

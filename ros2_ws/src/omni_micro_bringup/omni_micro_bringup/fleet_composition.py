@@ -212,6 +212,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                    for node in (*(name for _, name in nodes), ORCHESTRATOR_NODE,
                                 *((TRACKER_NODE[1],) if images else ()))]
     taking_part += [CAMERA_NODE[1]] if images else []
+    taking_part += [RECORDER_NODE] if record is not None else []   # its recorded_ns
     awaited = [entry for k in range(count) for entry in (
         f'{CAMERA_NODE[1] if images else robot_name(k) + "/vision_node"}:'
         f'{robot_topic(k, ODOM_TOPIC)}',
@@ -263,7 +264,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
             'omni_micro_tools', RECORDER_NODE, shipped,
             {'bag': str(bag), 'storage': storage,
-             'topics': recorded_topics(count, markers, servos, images)})))
+             'topics': recorded_topics(count, markers, servos, images),
+             'lockstep_ticks': True})))
     if view is not None:
         host, port = view
         specs.append(NodeSpec('omni_micro_tools', 'viewer', command=_command(

@@ -27,7 +27,11 @@ step; this does the same with a bounded lead. Every node that takes part reports
   ``outcome_handled_ns``: the end of a goal it has just handled, every goal that end gives
   already taken by its controller (a *coordinator*, who hands several robots their goals as
   others' end). Once a coordinator has reported, time stands still while an end it has not
-  handled is on its way, so that the next goals start from the same simulated time every run.
+  handled is on its way, so that the next goals start from the same simulated time every run;
+- ``recorded_ns``: every per-tick sample stamped up to here is in its bag (a recorder). The robot
+  runs at most ``RECORDER_LEAD_TICKS`` past it: a writer keeps the last few samples of a stream
+  (omni_micro_common.qos), and a recorder further behind than that lost the oldest for good (a
+  composed run at full speed beside busy processes recorded /odom with 320 ticks missing).
 
 A plain "processed up to" stamp is not enough: a capture, a command and a report travel on
 different topics, and DDS orders messages per writer only. So the robot also waits until the
@@ -56,11 +60,17 @@ DEFAULT_MAX_LEAD_S = 0.04
 # A replay that keeps pace with nodes (omni-micro replay --sync) sends no more than this many
 # stamped messages beyond what the slowest has reported handled.
 REPLAY_SYNC_WINDOW = 10
+# How far the robot may run ahead of a recorder's ``recorded_ns``. The shallowest history a
+# recorded stream keeps is a status's 10 (omni_micro_common.qos; captures keep 100, the per-tick
+# streams 1000), and a controller publishes a status per period, 0.15 s at the shortest: in 10
+# ticks (0.2 s at the default grid) no writer drops a sample the recorder has not had. (500
+# ticks lost 9 of a run's 39 statuses while the recorder was stopped.)
+RECORDER_LEAD_TICKS = 10
 
 _FIELDS = ('processed_ns', 'capture_first_ns', 'capture_last_ns', 'capture_handled_ns',
            'command_ns', 'command_lead_ns', 'frame_first_ns', 'frame_last_ns',
            'frame_handled_ns', 'command_handled_ns', 'motion_first_ns', 'motion_last_ns',
-           'motion_handled_ns', 'outcome_ns', 'outcome_handled_ns')
+           'motion_handled_ns', 'outcome_ns', 'outcome_handled_ns', 'recorded_ns')
 # What a watcher reports before it has handled any capture or command.
 NOTHING_HANDLED_NS = -1
 
@@ -82,6 +92,7 @@ class Ack:
     motion_handled_ns: int | None = None
     outcome_ns: int | None = None
     outcome_handled_ns: int | None = None
+    recorded_ns: int | None = None
 
     @property
     def watcher(self) -> bool:
@@ -95,7 +106,7 @@ class Ack:
                 values += [(f'{kind}_first_ns', str(span[0])), (f'{kind}_last_ns', str(span[1]))]
         for name in ('capture_handled_ns', 'command_ns', 'command_lead_ns', 'frame_handled_ns',
                      'command_handled_ns', 'motion_handled_ns', 'outcome_ns',
-                     'outcome_handled_ns'):
+                     'outcome_handled_ns', 'recorded_ns'):
             value = getattr(self, name)
             if value is not None:
                 values.append((name, str(value)))
@@ -114,9 +125,10 @@ class Ack:
                 raise LockstepError(f'lockstep report of {node!r}: {key} must be a whole '
                                     f'number of nanoseconds, got {text!r}') from None
         if not {'processed_ns', 'frame_handled_ns', 'command_handled_ns',
-                'outcome_handled_ns'} & set(fields):
+                'outcome_handled_ns', 'recorded_ns'} & set(fields):
             raise LockstepError(f'lockstep report of {node!r} has none of processed_ns, '
-                                f'frame_handled_ns, command_handled_ns and outcome_handled_ns')
+                                f'frame_handled_ns, command_handled_ns, outcome_handled_ns '
+                                f'and recorded_ns')
         if ('command_handled_ns' in fields) != ('capture_handled_ns' in fields) \
                 and 'processed_ns' not in fields:
             raise LockstepError(f'lockstep report of {node!r}: a watcher reports '
@@ -133,7 +145,7 @@ class Ack:
                    fields.get('command_lead_ns'), spans['frame'], fields.get('frame_handled_ns'),
                    fields.get('command_handled_ns'), spans['motion'],
                    fields.get('motion_handled_ns'), fields.get('outcome_ns'),
-                   fields.get('outcome_handled_ns'))
+                   fields.get('outcome_handled_ns'), fields.get('recorded_ns'))
 
 
 class LockstepGate:
@@ -185,6 +197,7 @@ class LockstepGate:
         self._awaited_outcomes: dict[str, int] = {}
         self._handled_outcomes: dict[str, set[int]] = {}   # all kept: one per goal
         self._coordinators: set[str] = set()
+        self._recorded: dict[str, int] = {}   # each recorder's recorded_ns
         self.reset(0)
 
     @property
@@ -212,6 +225,7 @@ class LockstepGate:
         self._unwatched_captures.clear()
         # A coordinator's handled ends are kept: a controller reports its last end again.
         self._awaited_outcomes.clear()
+        self._recorded = dict.fromkeys(self._recorded, now_ns)
 
     def on_ack(self, ack: Ack) -> None:
         if ack.node not in self.nodes:
@@ -238,6 +252,8 @@ class LockstepGate:
             self._motion_handled[ack.node] = ack.motion_handled_ns
         if ack.outcome_ns is not None:
             self._awaited_outcomes[ack.node] = ack.outcome_ns
+        if ack.recorded_ns is not None:
+            self._recorded[ack.node] = ack.recorded_ns
         if ack.outcome_handled_ns is not None:
             self._coordinators.add(ack.node)
             self._handled_outcomes.setdefault(ack.node, set()).add(ack.outcome_handled_ns)
@@ -323,6 +339,9 @@ class LockstepGate:
         reachable = min(self._processed.values(), default=math.inf)
         if not math.isinf(reachable):
             reachable += self.lead_ticks * self.period_ns
+        if self._recorded:
+            reachable = min(reachable, min(self._recorded.values())
+                            + RECORDER_LEAD_TICKS * self.period_ns)
         if self._frame_handled:
             handled = min(self._frame_handled.values())
             self._pending_frames = [f for f in self._pending_frames if f[1] > handled]
