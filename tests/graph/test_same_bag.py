@@ -115,16 +115,20 @@ def test_a_killed_recorder_leaves_a_prefix_of_the_finished_bag(reference, tmp_pa
     """SIGKILL to the recorder mid-run: the run stops (a run without its bag is not what was
     asked for) and its bag is recovered, in the finished bag's order, without its last second:
     every message it keeps is the finished bag's, in the same place."""
+    killers: list[threading.Thread] = []
+
     def kill_the_recorder_soon(graph: Graph) -> None:
         recorder = graph.process('bag_recorder').process
         assert recorder is not None
-        threading.Thread(target=at_simulated_time, args=(
-            graph.domain_id, 10.0, lambda: os.kill(recorder.pid, signal.SIGKILL))).start()
+        killers.append(threading.Thread(target=at_simulated_time, args=(
+            graph.domain_id, 10.0, lambda: os.kill(recorder.pid, signal.SIGKILL))))
+        killers[0].start()
 
     # 10 s of simulated time in when it is killed, however fast the machine runs the graph (a
     # kill 2.5 s of wall time in came after 3 s of simulated time beside a busy process).
     with pytest.raises(RunFailed, match='bag_recorder'):
         record(tmp_path, real_time_factor=4.0, on_running=kill_the_recorder_soon)
+    killers[0].join(timeout=60.0)   # its probe's context gone before the next test
     recovered = stored_messages(tmp_path / 'bag')
     finished = stored_messages(reference.bag)
     assert len(finished) / 4 < len(recovered) < len(finished)
