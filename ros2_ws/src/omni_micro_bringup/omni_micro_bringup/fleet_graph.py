@@ -26,6 +26,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.duration import Duration
 
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
@@ -37,7 +38,7 @@ from omni_micro_bringup.fleet_composition import (
     robot_topic,
 )
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
-from omni_micro_bringup.monitor import GraphMonitor
+from omni_micro_bringup.monitor import GOAL_READERS_MATCH_S, GraphMonitor
 from omni_micro_bringup.processes import DomainLease
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
@@ -66,8 +67,8 @@ from omni_micro_sim.parameters import RobotParameters
 
 # How long a request to a controller's parameter service waits before it goes again (a server
 # may answer before its response writer has matched this client: the answer is lost). A goal is
-# sent once, to a reader already matched (reliable): sent again, the controller takes the second
-# for a new goal and ends the first as replaced.
+# sent once, to readers already matched (reliable), each waited for by name: sent again, the
+# controller takes the second for a new goal and ends the first as replaced.
 SERVICE_RESEND_S = 2.0
 # How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
 REPORT_REPEAT_S = 0.1
@@ -103,10 +104,11 @@ class FleetMonitor(GraphMonitor):
     """The orchestration's node with every robot's goals, statuses and odometry, and its part
     in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
 
-    def __init__(self, domain_id: int, count: int,
-                 echo: Callable[[str], None] | None = None) -> None:
-        super().__init__(domain_id, echo=echo)
+    def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
+                 recording: bool = False, markers: bool = False) -> None:
+        super().__init__(domain_id, echo=echo, markers=markers)
         self.count = count
+        self.recording = recording   # the recorder must have every goal, as each controller
         self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
         self.robots = [RobotLog() for _ in range(count)]
         self.goal_publishers = [self.node.create_publisher(
@@ -181,11 +183,8 @@ class FleetMonitor(GraphMonitor):
             raise UsageError(f'robot_{order.robot}\'s controller_node refused tolerance_m '
                              f'{order.tolerance_m!r}: {result.results[0].reason}')
         publisher = self.goal_publishers[order.robot]
-        while publisher.get_subscription_count() < 1:
-            graph.check_alive()
-            if time.monotonic() > deadline:
-                raise RunFailed(f'nobody reads {publisher.topic_name} within {timeout_s:g} s')
-            self.spin_for(0.05)
+        self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
+                                   self.recording, deadline, timeout_s)
         goal = PoseStamped()
         goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(order.stamp_s)
         goal.header.frame_id = 'platform'
@@ -193,6 +192,7 @@ class FleetMonitor(GraphMonitor):
         goal.pose.orientation.w = 1.0
         seen = len(self.fleet_statuses)
         publisher.publish(goal)
+        publisher.wait_for_all_acked(Duration(seconds=GOAL_READERS_MATCH_S))
         while True:
             for robot, status in self.fleet_statuses[seen:]:
                 if robot != order.robot:
@@ -274,7 +274,8 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
         # The graph's options say the bag: one its recorder left unfinished is recovered.
         graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
                                    record=record), domain_id, log_dir, lease.fileno, specs=specs)
-        monitor = FleetMonitor(domain_id, count, echo)
+        monitor = FleetMonitor(domain_id, count, echo, recording=record is not None,
+                               markers=markers)
         logs = monitor.robots
         outcome, reason, now_s = 'done', '', 0.0
         total = sum(len(tasks) for tasks in plan.tasks)

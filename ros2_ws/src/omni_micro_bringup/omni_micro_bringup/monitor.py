@@ -29,6 +29,7 @@ from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odometry_topic
 from omni_micro_bringup.errors import RunFailed, UsageError
@@ -210,24 +211,8 @@ class GraphMonitor:
         Every reader of /goal_pose has it before this returns (DDS acknowledged it), so that
         markers_node draws it in the same array every run, whatever the machine's load."""
         publisher = self.goal_publisher
-        # Wait for these readers by name (a count would be reached by a viewer's before the
-        # controller listens): the controller, the recorder, and markers_node, which draws the
-        # goal (a goal sent before its reader was discovered never reached it).
-        needed = {'controller_node', *(('bag_recorder',) if recording else ()),
-                  *(('markers_node',) if self.markers else ())}
         deadline = time.monotonic() + timeout_s
-        while not needed <= {info.node_name for info in
-                             self.node.get_subscriptions_info_by_topic(GOAL_TOPIC)}:
-            graph.check_alive()
-            if time.monotonic() > deadline:
-                raise RunFailed(f'/goal_pose is not read by {" and ".join(sorted(needed))} '
-                                f'within {timeout_s:g} s')
-            self.spin_for(0.05)
-        readers_seen = time.monotonic() + GOAL_READERS_MATCH_S
-        while (publisher.get_subscription_count()
-               < len(self.node.get_subscriptions_info_by_topic(GOAL_TOPIC))
-               and time.monotonic() < readers_seen):
-            self.spin_for(0.05)   # a reader seen but not matched yet would not get it
+        self.wait_for_goal_readers(graph, publisher, '/', recording, deadline, timeout_s)
         self.goal_stamp_s = stamp_s
         goal = PoseStamped()
         goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
@@ -258,6 +243,29 @@ class GraphMonitor:
             if time.monotonic() > deadline:
                 raise RunFailed('controller_node did not acknowledge the goal')
             self.spin_for(0.05)
+
+    def wait_for_goal_readers(self, graph: Supervisor, publisher: Publisher, namespace: str,
+                              recording: bool, deadline: float, timeout_s: float) -> None:
+        """Until the goal's readers are all there and matched by ``publisher``: by name (a count
+        would be reached by the recorder's or a viewer's before the controller listens) the
+        controller in ``namespace``, the recorder, and the markers_node there, which draws the
+        goal. A volatile reader matched after a goal was sent never gets it."""
+        needed = {_full_name(namespace, 'controller_node'),
+                  *((_full_name('/', 'bag_recorder'),) if recording else ()),
+                  *((_full_name(namespace, 'markers_node'),) if self.markers else ())}
+        topic = publisher.topic_name
+        while not needed <= {_full_name(info.node_namespace, info.node_name) for info in
+                             self.node.get_subscriptions_info_by_topic(topic)}:
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'{topic} is not read by {" and ".join(sorted(needed))} '
+                                f'within {timeout_s:g} s')
+            self.spin_for(0.05)
+        readers_seen = time.monotonic() + GOAL_READERS_MATCH_S
+        while (publisher.get_subscription_count()
+               < len(self.node.get_subscriptions_info_by_topic(topic))
+               and time.monotonic() < readers_seen):
+            self.spin_for(0.05)   # a reader seen but not matched yet would not get it
 
     def set_paused(self, graph: Supervisor, paused: bool,
                    resend_s: float = SERVICE_RESEND_S) -> None:
@@ -355,3 +363,7 @@ def first_sample_at_or_after(samples: deque[tuple[float, float, float, float]],
     raise RunFailed(f'the odometry sample at t={stamp_s:.3f} s is no longer kept (the last '
                     f'{samples.maxlen} are, from t={samples[0][0]:.3f} s): the orchestration '
                     'fell that far behind the robot')
+
+
+def _full_name(namespace: str, name: str) -> str:
+    return f'{namespace.rstrip("/")}/{name}'
