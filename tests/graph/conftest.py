@@ -161,6 +161,24 @@ def busy_machine(request):
 SHARED_SEED = 3
 
 
+def workers_folder(tmp_path_factory, worker_id: str) -> Path:
+    """This run's temporary folder, above each xdist worker's own: what the workers share."""
+    folder = tmp_path_factory.getbasetemp()
+    return folder if worker_id == 'master' else folder.parent
+
+
+@pytest.fixture
+def shared_memory_audited_alone(tmp_path_factory, worker_id) -> Iterator[None]:
+    """For a test that kills a DDS participant and then says what it left in /dev/shm: no other
+    such test runs meanwhile on the other worker. A killed process's port outlives it, and the
+    next participant of any graph takes it as it is (test_shared_memory_reuse.py): in one run
+    the killed-node test's graph took the reuse test's killed writer's port and counted it as
+    its own leftover, while the reuse test found that port's lock taken."""
+    with open(workers_folder(tmp_path_factory, worker_id) / 'shared_memory.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
 @pytest.fixture(scope='session')
 def fig11_recorded(tmp_path_factory, worker_id) -> tuple[Path, dict]:
     """Fig. 11 through the graph as a user types it (``run --goal-mm 100,0 --rtf max --seed 3
@@ -168,9 +186,7 @@ def fig11_recorded(tmp_path_factory, worker_id) -> tuple[Path, dict]:
     that only reads a plain run: each used to make its own (a graph run costs 7-10 s of CPU,
     start-up included). The xdist workers share it, as pytest-xdist's documentation shows: the
     first to need it makes it under a lock in their common temporary folder, the other waits."""
-    shared = tmp_path_factory.getbasetemp()
-    if worker_id != 'master':
-        shared = shared.parent   # this run's, above each worker's own
+    shared = workers_folder(tmp_path_factory, worker_id)
     folder = shared / 'fig11'
     bag, summary = folder / 'bag', folder / 'summary.json'
     with open(shared / 'fig11.lock', 'w') as lock:

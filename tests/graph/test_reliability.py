@@ -123,7 +123,8 @@ def kill_after(node: str, wall_s: float, record: dict, hold_clock: bool = False)
 
 @pytest.mark.parametrize('node', ['dynamics_node', 'vision_node', 'controller_node',
                                   'bag_recorder'])
-def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(node, tmp_path):
+def test_a_killed_node_is_noticed_named_and_the_bag_stays_readable(
+        node, tmp_path, shared_memory_audited_alone):
     """The kill comes with the robot's clock held: killed mid-traffic while one of its threads
     held a Fast DDS shared-memory port's lock, a node leaves it held, and the orchestration's
     reads of that port then wait a second (docs/reliability.md; noticed 1.0004 s after the kill
