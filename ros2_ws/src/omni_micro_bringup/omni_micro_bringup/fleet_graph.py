@@ -190,7 +190,7 @@ class FleetMonitor(GraphMonitor):
         goal.pose.position.x, goal.pose.position.y = map(float, order.goal_m)
         goal.pose.orientation.w = 1.0
         seen = len(self.fleet_statuses)
-        # Its acknowledgments are not waited for, as a single robot's goal's are: they come with
+        # Unlike a single robot's goal, it does not wait for its acknowledgments: they come with
         # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
         # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
         publisher.publish(goal)
