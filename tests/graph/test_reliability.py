@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import SHARED_SEED, pause_the_robots_clock
+from conftest import SHARED_SEED, NoDeaths, pause_the_robots_clock
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -158,19 +158,6 @@ def test_respawn_brings_a_crashed_node_back_and_the_run_goes_on(node, tmp_path):
     assert result.outcome == 'reached' and result.deviation_m < 5e-6
 
 
-class _NoDeaths:
-    """The monitor's supervisor when no process of the test dies."""
-
-    def __init__(self, log_dir: Path) -> None:
-        self.log_dir = log_dir
-
-    def check_alive(self) -> list[str]:
-        return []
-
-    def wait_ready(self, name: str, timeout_s: float) -> bool:
-        return True
-
-
 def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe, tmp_path,
                                                                 domain_id):
     """A respawned node whose first samples were sent before its reader was matched never
@@ -211,7 +198,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     spinner = threading.Thread(target=spin_standin, daemon=True)
     spinner.start()
     try:
-        supervisor = _NoDeaths(tmp_path)
+        supervisor = NoDeaths(tmp_path)
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
         monitor.respawns.resume(supervisor, ['vision_node'], stall_s=1.0)
     finally:
@@ -245,7 +232,7 @@ def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_i
     try:
         assert monitor.parameters.wait_for_service(timeout_sec=30.0)
         # Returns once an answer says the clock runs: it raises if none ever came.
-        monitor.set_paused(_NoDeaths(tmp_path), False, resend_s=0.5)
+        monitor.set_paused(NoDeaths(tmp_path), False, resend_s=0.5)
     finally:
         monitor.close()
     # The lost one, then as many as it takes: on a busy machine an answer can take longer than
@@ -304,7 +291,7 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
     monitor = FleetMonitor(domain_id, 1, recording=True)
     spinner.start()
     try:
-        monitor.give(_NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),
+        monitor.give(NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),
                      timeout_s=10.0)
         recorder_waited = time.monotonic() + 5.0
         while not recorded and time.monotonic() < recorder_waited:
