@@ -17,7 +17,10 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import NoDeaths
+from diagnostic_msgs.msg import DiagnosticStatus
 from foxglove_client import free_port, watch
+from geometry_msgs.msg import PoseStamped
 
 from omni_micro_vision.scene import FLEET_COLOURS
 
@@ -206,3 +209,72 @@ def assert_the_same_run_and_bag(reference: dict, other: dict, folder: Path) -> N
     assert other == expected
     (recorded,) = bag.glob('*.mcap')
     assert (folder / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()
+
+
+def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listened_first(
+        probe, domain_id, tmp_path):
+    """The recorder's reader of /robot_0/goal_pose can match before the controller's: a goal
+    sent then is the recorder's alone, and the controller never takes it (a CI run: "robot_0's
+    controller_node did not take its goal within 30 s"). Stand-ins: the recorder, listening at
+    once; the controller, answering its tolerance and only a second later reading goals."""
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.node import Node
+    from rclpy.timer import Timer
+
+    from omni_micro_bringup.fleet_graph import FleetMonitor
+    from omni_micro_common.qos import STATUS_QOS as CONTROLLER_STATUS_QOS
+    from omni_micro_control.fleet_legs import GoalOrder
+
+    recorded: list[PoseStamped] = []
+    recorder = Node('bag_recorder', context=probe.context)
+    recorder.create_subscription(PoseStamped, '/robot_0/goal_pose', recorded.append, 10)
+    controller = Node('controller_node', namespace='robot_0', context=probe.context)
+    for standin in (recorder, controller):
+        probe.executor.add_node(standin)
+    controller.declare_parameter('tolerance_m', 0.001)
+    status = controller.create_publisher(DiagnosticStatus, '/robot_0/controller/status',
+                                         CONTROLLER_STATUS_QOS)
+    taken: list[PoseStamped] = []
+
+    def take(goal: PoseStamped) -> None:
+        taken.append(goal)
+        status.publish(DiagnosticStatus(message='settling'))
+
+    def listen_late() -> None:
+        late_listener.pop().cancel()
+        controller.create_subscription(PoseStamped, '/robot_0/goal_pose', take, 10)
+
+    late_listener: list[Timer] = []
+
+    def on_tolerance(_: object) -> SetParametersResult:
+        late_listener.append(controller.create_timer(1.0, listen_late))
+        return SetParametersResult(successful=True)
+
+    controller.add_on_set_parameters_callback(on_tolerance)
+    spinning = True
+
+    def spin_standins() -> None:
+        while spinning:
+            probe.executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin_standins, daemon=True)
+    monitor = FleetMonitor(domain_id, 1, recording=True)
+    spinner.start()
+    try:
+        monitor.give(NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),
+                     timeout_s=10.0)
+        recorder_waited = time.monotonic() + 5.0
+        while not recorded and time.monotonic() < recorder_waited:
+            time.sleep(0.05)
+        assert controller.get_parameter('tolerance_m').value == 0.0005
+    finally:
+        spinning = False
+        spinner.join(5.0)
+        monitor.close()
+        for standin in (recorder, controller):
+            standin.destroy_node()
+    # Once each, at the stamp it was given: sent again, the controller would end the first as
+    # replaced, and the bag would hold it twice.
+    assert [(goal.pose.position.x, goal.pose.position.y, goal.header.stamp.sec,
+             goal.header.stamp.nanosec) for goal in taken + recorded] == [
+        (0.01, 0.02, 1, 500_000_000)] * 2
