@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import functools
 import json
 import os
 import subprocess
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -62,6 +64,24 @@ class Probe:
             client.remove_pending_request(future)
             if time.monotonic() >= deadline:
                 raise AssertionError(f'no answer from {client.srv_name} in {timeout_s} s')
+
+    @contextlib.contextmanager
+    def spinning(self) -> Iterator[None]:
+        """This probe's executor, and the stand-in nodes added to it, spun on a thread of their
+        own meanwhile: while the test's own code waits in another executor (the monitor's)."""
+        stop = threading.Event()
+
+        def spin() -> None:
+            while not stop.is_set():
+                self.executor.spin_once(timeout_sec=0.05)
+
+        spinner = threading.Thread(target=spin, daemon=True)
+        spinner.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            spinner.join(5.0)
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -251,25 +251,16 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
         return SetParametersResult(successful=True)
 
     controller.add_on_set_parameters_callback(on_tolerance)
-    spinning = True
-
-    def spin_standins() -> None:
-        while spinning:
-            probe.executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin_standins, daemon=True)
     monitor = FleetMonitor(domain_id, 1, recording=True)
-    spinner.start()
     try:
-        monitor.give(NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),
-                     timeout_s=10.0)
-        recorder_waited = time.monotonic() + 5.0
-        while not recorded and time.monotonic() < recorder_waited:
-            time.sleep(0.05)
+        with probe.spinning():
+            monitor.give(NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),
+                         timeout_s=10.0)
+            recorder_waited = time.monotonic() + 5.0
+            while not recorded and time.monotonic() < recorder_waited:
+                time.sleep(0.05)
         assert controller.get_parameter('tolerance_m').value == 0.0005
     finally:
-        spinning = False
-        spinner.join(5.0)
         monitor.close()
         for standin in (recorder, controller):
             standin.destroy_node()

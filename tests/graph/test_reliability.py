@@ -189,21 +189,12 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
                'lockstep_nodes:=[vision_node]')
     lines: list[str] = []
     monitor = GraphMonitor(domain_id, echo=lines.append)
-    spinning = True
-
-    def spin_standin() -> None:
-        while spinning:
-            probe.executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin_standin, daemon=True)
-    spinner.start()
     try:
-        supervisor = NoDeaths(tmp_path)
-        assert monitor.parameters.wait_for_service(timeout_sec=30.0)
-        monitor.respawns.resume(supervisor, ['vision_node'], stall_s=1.0)
+        with probe.spinning():
+            supervisor = NoDeaths(tmp_path)
+            assert monitor.parameters.wait_for_service(timeout_sec=30.0)
+            monitor.respawns.resume(supervisor, ['vision_node'], stall_s=1.0)
     finally:
-        spinning = False
-        spinner.join(5.0)
         monitor.close()
     # (Where the monitor saw time stand depends on when its own /odom reader was matched.)
     assert any('stands still at' in line and 'respawning vision_node' in line
