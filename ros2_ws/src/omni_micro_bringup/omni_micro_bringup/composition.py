@@ -141,8 +141,8 @@ def recorder_spec(bag: Path, storage: str, markers: bool = True,
     """The recorder of a run, taking part in the lockstep: the robot never runs so far ahead
     of it that a stream's writer drops a sample it has not recorded (``lockstep_ticks``), and
     with ``images`` (cameras), whose streams it records too, no frame is lost to a slow disk
-    (``lockstep_frames``). ``without``: topics
-    nobody in this graph publishes (it waits for a publisher of each before the clock starts).
+    (``lockstep_frames``). ``without``: topics nobody in this graph publishes (it waits for a
+    publisher of each before the clock starts).
     ``whole``: the bag keeps every message received, not only up to the outcome's tail."""
     from omni_micro_tools.topics import GRAPH_TOPICS
 
