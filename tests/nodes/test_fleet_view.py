@@ -1,12 +1,16 @@
-"""The live view of a micro-factory: the viewer serves every robot's topics under its namespace
-and the one /clock, a Foxglove client is offered each with its schema, and the fleet's graph
-starts it with its robots."""
+"""The live view: a client that connects the moment the port opens is offered every channel at
+once; for a micro-factory the viewer serves every robot's topics under its namespace and the one
+/clock, a Foxglove client is offered each with its schema, and the fleet's graph starts it with
+its robots."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 import math
+import socket
+import threading
+import time
 
 import pytest
 import websockets
@@ -29,6 +33,33 @@ async def advertised(url: str) -> dict[str, str]:
             if message['op'] == 'advertise':
                 return {channel['topic']: channel['schemaName']
                         for channel in message['channels']}
+
+
+def test_a_client_connecting_as_the_port_opens_is_offered_every_channel_at_once(context):
+    """Once listening, the viewer has every channel: a client offered a channel while they were
+    still being made had its subscription to it refused (no /odom reached a test's client)."""
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        port = sock.getsockname()[1]
+    first_offer: list[dict[str, str]] = []
+
+    def connect_as_soon_as_it_listens() -> None:
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline:
+            try:
+                first_offer.append(asyncio.run(advertised(f'ws://127.0.0.1:{port}')))
+                return
+            except OSError:
+                time.sleep(0.001)
+    client = threading.Thread(target=connect_as_soon_as_it_listens)
+    client.start()
+    viewer = Viewer(context=context, parameter_overrides=overrides(port=port))
+    try:
+        client.join(timeout=30.0)
+        assert first_offer and set(first_offer[0]) == set(viewer.channels)
+    finally:
+        viewer.stop()
+        viewer.destroy_node()
 
 
 def test_each_robot_s_topics_are_served_under_its_namespace_with_one_clock(context):

@@ -71,9 +71,6 @@ class Viewer(Node):
                              node_list_parameter(self, 'robots'))
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise ParameterError(f'port must be a whole number in 0-65535, got {port!r}')
-        self.server = foxglove.start_server(name='omni-micro', host=host, port=port,
-                                            capabilities=[],
-                                            message_backlog_size=BACKLOG_MESSAGES)
         self.forwarded = dict.fromkeys(topics, 0)
         self.channels: dict[str, Any] = {}
         for topic, spec in topics.items():
@@ -84,6 +81,17 @@ class Viewer(Node):
             qos = spec.reader_profile(best_effort=True)
             self.create_subscription(message_class(spec.msgtype), topic,
                                      self._forwarder(topic), qos, raw=True)
+        # Listening only once every channel exists: a client that connects as soon as the port
+        # opens (a test's, a reconnecting Foxglove's) is offered them all at once; one offered
+        # a channel while the viewer was still making them had its subscription to it refused
+        # as "unknown channel" (seen on a busy machine: no /odom reached the client).
+        try:
+            self.server = foxglove.start_server(name='omni-micro', host=host, port=port,
+                                                capabilities=[],
+                                                message_backlog_size=BACKLOG_MESSAGES)
+        except Exception:
+            self._close_channels()
+            raise
         self.get_logger().info(f'live view on ws://{host}:{self.server.port}')
 
     def _forwarder(self, topic: str) -> Callable[[bytes], None]:
@@ -96,6 +104,13 @@ class Viewer(Node):
 
     def stop(self) -> None:
         self.server.stop()
+        self._close_channels()
+
+    def _close_channels(self) -> None:
+        # Channels outlive their server in the SDK's process-wide context: a viewer made later
+        # in the same process (a container, a test) would offer these too.
+        for channel in self.channels.values():
+            channel.close()
 
 
 def stop_and_report(viewer: Viewer) -> None:
