@@ -5,9 +5,8 @@ Tests that start whole commands or the node graph as processes are marked ``slow
 under tests/graph/, and modules or tests that say ``pytest.mark.slow``. ``./scripts/test --fast``
 (pytest -m 'not slow') runs the rest, the in-process tier a developer runs after every edit.
 
-``./scripts/test`` runs the suite with a worker more than the cores (pytest-xdist): the slow tier
-first, its longest modules first, so that the workers finish together; each worker leases a DDS
-domain of its own.
+``./scripts/test`` runs the suite on every core (pytest-xdist): the slow tier first, longest
+first, so that the two workers finish together; each worker leases a DDS domain of its own.
 A test that uses more than ``TEST_LIMIT_S`` of CPU fails, unless ``LONG_TESTS`` names it with
 the reason it needs more: the suite stays quick because nothing grows unseen.
 """
@@ -48,25 +47,24 @@ LONG_TESTS: dict[str, str] = {
         "the README's main command end to end, every row it prints checked: the paper's "
         'figures and six graph runs (32 s alone, 50-60 s beside the other worker)',
 }
-# Modules that take longest, started first (seconds each took in a run of the whole suite, three
-# workers busy; the others keep their order). Under --dist loadfile a module is one worker's
-# whole: the longest one started last (test_reliability, 144 s, once left one worker alone for
-# the last 70 s) keeps the others waiting at the end.
-LONGEST_MODULES: dict[str, float] = {
-    'graph/test_reliability.py': 144,
-    'graph/test_bench_loop.py': 95,
-    'graph/test_same_bag.py': 85,
-    'graph/test_lifecycle.py': 83,
-    'cli/test_simulate_cli.py': 80,
-    'graph/test_images_loop.py': 77,
-    'cli/test_study.py': 63,
-    'graph/test_servo_loop.py': 58,
-    'graph/test_bags.py': 56,
-    'graph/test_identify.py': 55,
-    'graph/test_fleet_graph.py': 53,
-    'graph/test_fleet_images.py': 52,
-    'graph/test_captures_in_motion.py': 48,
-    'graph/test_loop.py': 46,
+# Tests that take longest, run first so that no worker is left with one at the end (seconds
+# each took in a run of the whole suite, both workers busy; the others keep their order).
+LONGEST_FIRST: dict[str, float] = {
+    'cli/test_simulate_cli.py::test_demo_runs_fig11_through_the_graph': 60,
+    'cli/test_study.py::test_ctrl_c_keeps_finished_runs_and_resume_finishes_with_the_same_rows':
+        25,
+    'graph/test_servo_loop.py::test_on_the_rendered_images_the_servo_reaches_and_records_the_'
+    'same_bag_at_any_speed': 30,
+    'graph/test_images_loop.py::test_same_seed_same_file_with_images_idle_and_busy_and_no_'
+    'frame_lost': 31,
+    'graph/test_bench_loop.py::test_the_loop_closes_with_a_standin_camera_and_robot_on_the_'
+    'wall_clock_and_a_lab_keeps_its_log': 29,
+    'graph/test_servo_loop.py::test_same_seed_same_bag_at_another_speed_busy_and_in_one_'
+    'process': 29,
+    'graph/test_same_bag.py::test_same_seed_same_file_at_another_real_time_factor': 31,
+    'graph/test_captures_in_motion.py::test_same_seed_same_bag_with_late_captures_in_motion_at_'
+    'another_speed': 30,
+    'graph/test_same_bag.py::test_same_seed_same_file_with_both_cores_kept_busy': 27,
 }
 
 
@@ -92,11 +90,10 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if GRAPH_TESTS in Path(item.fspath).parents:
             item.add_marker(pytest.mark.slow)
-    # The slow tier first, its longest modules first; the quick in-process tests fill the end.
+    # The slow tier first, longest first; the quick in-process tests fill the end.
     order = {id(item): index for index, item in enumerate(items)}
     items.sort(key=lambda item: (item.get_closest_marker('slow') is None,
-                                 -LONGEST_MODULES.get(_short_id(item).split('::')[0], 0.0),
-                                 order[id(item)]))
+                                 -LONGEST_FIRST.get(_short_id(item), 0.0), order[id(item)]))
 
 
 def _short_id(item: pytest.Item) -> str:

@@ -1,7 +1,7 @@
 """The suite's own rules (tests/conftest.py), checked on a suite of a few tests: a test over the
 CPU limit fails unless named with its reason, a test that only waits does not, nor one whose
-busy processes (busy_machine) burn it; the slow tier runs first, its longest modules first;
-property tests draw the same examples every run."""
+busy processes (busy_machine) burn it; the slow tier runs first, longest first; property tests
+draw the same examples every run."""
 
 from pathlib import Path
 
@@ -12,7 +12,7 @@ def a_suite(pytester, limit_s: float, long_tests: str = '{}', longest: str = '{}
     """The suite's conftest with its limit and lists set for the few tests below (the hooks
     read them when they run)."""
     pytester.makeconftest(CONFTEST + f'\nTEST_LIMIT_S = {limit_s}\nLONG_TESTS = {long_tests}\n'
-                                     f'LONGEST_MODULES = {longest}\n')
+                                     f'LONGEST_FIRST = {longest}\n')
     pytester.makepyfile(test_timing='''
 import os
 import subprocess
@@ -65,17 +65,10 @@ def test_beside_busy_processes(request):
 @pytest.mark.slow
 def test_marked_slow():
     pass
-''')
-    pytester.makepyfile(test_whole_module='''
-import pytest
 
 
 @pytest.mark.slow
-def test_in_the_longest_module():
-    pass
-
-
-def test_quick_in_the_longest_module():
+def test_marked_slow_and_longest():
     pass
 ''')
 
@@ -83,19 +76,19 @@ def test_quick_in_the_longest_module():
 def test_a_test_over_the_limit_fails_unless_it_is_named_with_its_reason(pytester):
     a_suite(pytester, 0.3, long_tests="{'test_timing.py::test_slow_and_named': 'sleeps'}")
     result = pytester.runpytest('-p', 'no:cacheprovider')
-    result.assert_outcomes(passed=6, failed=1)
+    result.assert_outcomes(passed=5, failed=1)
     # Its own 0.2 s alone would pass: the process it waited for counts too.
     result.stdout.fnmatch_lines(['*test_timing.py::test_slow_and_not_named used * s of CPU '
                                  '(* s of wall time), over the 0.3 s a test may use*'])
 
 
-def test_the_slow_tier_runs_first_and_its_longest_modules_first(pytester):
-    a_suite(pytester, 60.0, longest="{'test_whole_module.py': 30.0}")
+def test_the_slow_tier_runs_first_and_the_longest_of_it_first(pytester):
+    a_suite(pytester, 60.0, longest="{'test_timing.py::test_marked_slow_and_longest': 30.0}")
     result = pytester.runpytest('-p', 'no:cacheprovider', '--collect-only', '-q')
     names = [line.split('::')[-1] for line in result.outlines if '::' in line]
-    assert names == ['test_in_the_longest_module', 'test_marked_slow',
-                     'test_quick_in_the_longest_module', 'test_quick', 'test_slow_and_named',
-                     'test_slow_and_not_named', 'test_beside_busy_processes']
+    assert names == ['test_marked_slow_and_longest', 'test_marked_slow', 'test_quick',
+                     'test_slow_and_named', 'test_slow_and_not_named',
+                     'test_beside_busy_processes']
 
 
 def test_property_tests_draw_the_same_examples_every_run():
