@@ -135,6 +135,41 @@ def test_demo_runs_fig11_through_the_graph(tmp_path):
     assert servo['periods'] == 1 and servo['sim_time_s'] <= 8.0
 
 
+def test_a_demo_run_that_fails_keeps_the_logs_it_names(tmp_path, monkeypatch, capsys):
+    """A graph run that fails mid-demo: the logs its message names are there afterwards (they
+    were in the staged folder the failure removes), and no figure or table is written. The graph
+    runs are stood in for: the third one fails as run_graph reports a failure."""
+    from omni_micro_bringup import graph
+    from omni_micro_bringup.errors import RunFailed
+    from omni_micro_bringup.graph import GraphResult
+    from omni_micro_cli.cli import main
+    from omni_micro_cli.commands import figures
+
+    runs: list[Path] = []
+
+    def run_graph(options):
+        run_logs = options.log_dir / f'run{len(runs)}'
+        run_logs.mkdir(parents=True)
+        (run_logs / 'dynamics_node.log').write_text('simulated time has stood at 0.000 s\n')
+        runs.append(run_logs)
+        if len(runs) == 3:
+            raise RunFailed(f'no outcome from controller_node; logs in {run_logs}')
+        return GraphResult('completed' if options.open_loop_s else 'reached', '', 3, 0.1, 0.0,
+                           0.0, options.goal_m, 8.0, 1.0, run_logs, 1, {},
+                           route=[(0.0, 0.0, 0.0), (1.0, 0.1, 0.0)],
+                           captures=[(1.0, 0.1, 0.0, 'micro')])
+
+    monkeypatch.setattr(graph, 'run_graph', run_graph)
+    monkeypatch.setattr(figures, 'write_figures', lambda folder, **_: (folder / 'comparison.md')
+                        .write_text('| result |\n'))
+    out = tmp_path / 'demo'
+    assert main(['demo', '--out', str(out)]) == 1
+    error = capsys.readouterr().err
+    named = Path(error.split('logs in ', 1)[1].split()[0].rstrip(';,'))
+    assert named == runs[-1] and (named / 'dynamics_node.log').is_file()
+    assert sorted(path.name for path in out.iterdir()) == ['logs']
+
+
 def test_demo_records_each_run_into_a_bag_of_its_own(tmp_path, monkeypatch, capsys):
     """demo --record: each of its six runs is recorded into DIR/fig11_<run> (the recorder and
     its bags are the graph's, tested in tests/graph); an existing bag is refused before anything

@@ -149,35 +149,38 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     started = time.perf_counter()
     bags = bag_paths(args)
+    # The graph runs log straight into --out: a run that fails names its logs, and they stay
+    # (the figures and tables appear only if every run succeeds).
+    logs = args.out / 'logs'
     with staged_directory(args.out) as scratch:
         _progress('open-loop figures from the slip core (Figs. 6, 7, 8, 11)')
         figures.write_figures(scratch, angle_step_deg=2.0, offset_step_deg=0.25)
         _progress(f'Fig. 11 open loop through the node graph ({OPEN_LOOP_S:g} s move, '
                   f'rtf {args.rtf:g})')
-        open_loop = graph_run(args, OPEN_LOOP_S, scratch / 'logs', bags['open_loop'])
+        open_loop = graph_run(args, OPEN_LOOP_S, logs, bags['open_loop'])
         _progress(f'  deviation {open_loop.deviation_m * 1e3:.3f} mm')
         _progress('Fig. 11 with vision feedback through the node graph')
-        closed_loop = graph_run(args, None, scratch / 'logs', bags['closed_loop'])
+        closed_loop = graph_run(args, None, logs, bags['closed_loop'])
         _progress(f'  {closed_loop.outcome}: deviation {closed_loop.deviation_m * 1e6:.2f} um '
                   f'after {closed_loop.periods} periods')
         _progress('Fig. 11 with the model-based controller through the node graph')
-        model = graph_run(args, None, scratch / 'logs', bags['model'], mode='model',
+        model = graph_run(args, None, logs, bags['model'], mode='model',
                           steering=args.steering)
         _progress(f'  {model.outcome}: deviation {model.deviation_m * 1e6:.2f} um '
                   f'after {model.periods} periods')
         _progress('Fig. 11 with vision feedback on rendered images (camera_node + '
                   'tracker_node)')
-        images = graph_run(args, None, scratch / 'logs', bags['images'], vision='images',
+        images = graph_run(args, None, logs, bags['images'], vision='images',
                            steering=args.steering)
         _progress(f'  {images.outcome}: deviation {images.deviation_m * 1e6:.2f} um '
                   f'after {images.periods} periods')
         _progress('Fig. 11 with vision feedback on a robot with realistic steering')
-        realistic = graph_run(args, None, scratch / 'logs', bags['realistic_steering'],
+        realistic = graph_run(args, None, logs, bags['realistic_steering'],
                               steering='realistic')
         _progress(f'  {realistic.outcome}: deviation {realistic.deviation_m * 1e6:.2f} um '
                   f'after {realistic.periods} periods')
         _progress('Fig. 11 by the servo mode through the node graph')
-        servo = graph_run(args, None, scratch / 'logs', bags['servo'], mode='servo',
+        servo = graph_run(args, None, logs, bags['servo'], mode='servo',
                           tolerance_m=SERVO_TOLERANCE_M)
         _progress(f'  {servo.outcome}: deviation {servo.deviation_m * 1e6:.2f} um in '
                   f'{servo.sim_time_s:.2f} s, {servo.periods} move(s)')
@@ -201,9 +204,6 @@ def run(args: argparse.Namespace) -> int:
         summaries = {'open_loop': open_loop.as_json(), 'closed_loop': closed_loop.as_json(),
                      'model': model.as_json(), 'images': images.as_json(),
                      'realistic_steering': realistic.as_json(), 'servo': servo.as_json()}
-        for summary in summaries.values():
-            # The logs move with the rest from the scratch folder into --out.
-            summary['log_dir'] = str(args.out / Path(str(summary['log_dir'])).relative_to(scratch))
         (scratch / 'fig11_graph.json').write_text(json.dumps(summaries, indent=2))
         core_table = (scratch / 'comparison.md').read_text()
     print(core_table)
