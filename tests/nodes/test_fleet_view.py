@@ -8,13 +8,13 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import socket
 import threading
 import time
 
 import pytest
 import websockets
 from adapter_helpers import overrides
+from foxglove_client import free_port
 from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from websockets.typing import Subprotocol
@@ -38,9 +38,7 @@ async def advertised(url: str) -> dict[str, str]:
 def test_a_client_connecting_as_the_port_opens_is_offered_every_channel_at_once(context):
     """Once listening, the viewer has every channel: a client offered a channel while they were
     still being made had its subscription to it refused (no /odom reached a test's client)."""
-    with socket.socket() as sock:
-        sock.bind(('127.0.0.1', 0))
-        port = sock.getsockname()[1]
+    port = free_port()
     first_offer: list[dict[str, str]] = []
 
     def connect_as_soon_as_it_listens() -> None:

@@ -1,5 +1,5 @@
-"""A Foxglove WebSocket client as a user's Foxglove is one, for the graph tests of the live view:
-it decodes what it gets with the schemas the server advertised, not with any of ours."""
+"""A Foxglove WebSocket client as a user's Foxglove is one, for the tests of the live view: it
+decodes what it gets with the schemas the server advertised, not with any of ours."""
 
 import asyncio
 import json
