@@ -49,7 +49,7 @@ def test_a_client_connecting_as_the_port_opens_is_offered_every_channel_at_once(
                 return
             except OSError:
                 time.sleep(0.001)
-    client = threading.Thread(target=connect_as_soon_as_it_listens)
+    client = threading.Thread(target=connect_as_soon_as_it_listens, daemon=True)
     client.start()
     viewer = Viewer(context=context, parameter_overrides=overrides(port=port))
     try:
