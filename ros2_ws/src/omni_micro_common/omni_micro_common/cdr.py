@@ -10,7 +10,9 @@ so every subscriber, the recorder and ``ros2 topic echo`` see ordinary messages.
 
 The template's bytes come from rosbags' serializer, not from rclpy's ``serialize_message``:
 that one leaves whatever was in memory in the alignment padding (and pads the end), so the same
-message would not give the same bytes in two runs, and a bag would not be the same bag.
+message would not give the same bytes in two runs, and a bag would not be the same bag. What a
+template finds is kept on disk (:mod:`omni_micro_common.template_layouts`): the next process
+that builds the same one reads it back instead of loading rosbags.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from rclpy.serialization import deserialize_message
+
+from omni_micro_common.template_layouts import layout_key, load_layout, store_layout
 
 # rclpy's type names of the numbers a message may hold in an array, as numpy dtypes (numpy and
 # rosbags load with the first template: node_runtime imports this module, and the shared
@@ -108,6 +112,30 @@ def _path(name: str) -> tuple[str | int, ...]:
     return tuple(steps)
 
 
+def _find_layout(message: Any, fields: dict[str, str]) -> tuple[bytes, tuple[int, ...]]:
+    """``message``'s canonical bytes and where each of ``fields`` lies in them, found by writing
+    a value no other field holds into each in turn (see :class:`MessageTemplate`)."""
+    message_type = type(message).__name__
+    store = typestore()
+    base = canonical_bytes(message, store)
+    if base[:2] not in LITTLE_ENDIAN_CDR:
+        raise ValueError(f'{message_type}: not little-endian CDR')
+    offsets = []
+    for index, (name, kind) in enumerate(fields.items()):
+        path = _path(name)
+        original = _get(message, path)
+        probe: float | int = 1.0e300 / (index + 3) if kind == 'float64' else 0x5A5A0000 + index
+        _set(message, path, probe)
+        probed = canonical_bytes(message, store)
+        _set(message, path, original)
+        pattern = struct.pack('<' + KINDS[kind], probe)
+        where = probed.find(pattern)
+        if where < 0 or probed.find(pattern, where + 1) >= 0 or len(probed) != len(base):
+            raise ValueError(f'{message_type}.{name}: not found alone in the serialized message')
+        offsets.append(where)
+    return base, tuple(offsets)
+
+
 class MessageTemplate:
     """``message`` serialized once, with the offsets of ``fields`` (name -> kind of number).
 
@@ -123,31 +151,16 @@ class MessageTemplate:
     def __init__(self, message: Any, fields: dict[str, str]) -> None:
         self.message_type = type(message)
         self.names = tuple(fields)
-        store = typestore()
-        base = canonical_bytes(message, store)
-        if base[:2] not in LITTLE_ENDIAN_CDR:
-            raise ValueError(f'{self.message_type.__name__}: not little-endian CDR')
+        self._packers = [struct.Struct('<' + KINDS[kind]) for kind in fields.values()]
+        # Finding the layout costs a node a quarter of a second; one found before is read back.
+        key = layout_key(_type_name(message), fields, message)
+        layout = load_layout(key)
+        if layout is None or not self._fits(*layout):
+            layout = _find_layout(message, fields)
+            store_layout(key, *layout)
+        base, offsets = layout
         self._base = base
-        offsets = []
-        formats = []
-        for index, (name, kind) in enumerate(fields.items()):
-            fmt = '<' + KINDS[kind]
-            path = _path(name)
-            original = _get(message, path)
-            # A value no other field of the template holds, to find this one's bytes.
-            probe: float | int = 1.0e300 / (index + 3) if kind == 'float64' else 0x5A5A0000 + index
-            _set(message, path, probe)
-            probed = canonical_bytes(message, store)
-            _set(message, path, original)
-            pattern = struct.pack(fmt, probe)
-            where = probed.find(pattern)
-            if where < 0 or probed.find(pattern, where + 1) >= 0 or len(probed) != len(base):
-                raise ValueError(f'{self.message_type.__name__}.{name}: not found alone in '
-                                 'the serialized message')
-            offsets.append(where)
-            formats.append(fmt)
-        self._offsets = tuple(offsets)
-        self._packers = [struct.Struct(fmt) for fmt in formats]
+        self._offsets = offsets
         # The bytes between the patched numbers: a message whose bytes there are the
         # template's has its numbers where the template has them.
         spans = sorted((offset, offset + packer.size)
@@ -155,6 +168,12 @@ class MessageTemplate:
         edges = [0, *(edge for span in spans for edge in span), len(base)]
         self._static = [(start, end) for start, end in zip(edges[::2], edges[1::2], strict=True)
                         if end > start]
+
+    def _fits(self, base: bytes, offsets: tuple[int, ...]) -> bool:
+        """Whether a layout read back holds this template's fields, each within the bytes."""
+        return (base[:2] in LITTLE_ENDIAN_CDR and len(offsets) == len(self._packers)
+                and all(offset > 0 and offset + packer.size <= len(base)
+                        for offset, packer in zip(offsets, self._packers, strict=True)))
 
     def encode(self, values: Sequence[float | int]) -> bytes:
         """The message with ``values`` (in the order of ``fields``) written in."""
