@@ -75,6 +75,9 @@ omni_micro_export_env() {
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     export AMENT_PREFIX_PATH="$OMNI_MICRO_VENV"
     export MPLBACKEND=Agg
+    # numpy's OpenBLAS on one thread, as omni-micro gives its nodes (omni_micro_bringup.processes,
+    # SINGLE_THREADED_BLAS, says why), for every process of the scripts and the tests.
+    export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
     export PATH="$OMNI_MICRO_VENV/bin:$PATH"
     export OMNI_MICRO_ROOT OMNI_MICRO_VENV
 }

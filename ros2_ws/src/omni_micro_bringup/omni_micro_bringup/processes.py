@@ -24,6 +24,12 @@ from omni_micro_bringup.parameters import dds_profile
 if TYPE_CHECKING:
     from omni_micro_bringup.composition import NodeSpec
 
+# numpy's OpenBLAS starts a thread per core when numpy is imported, whose start-up cost a node
+# process 0.1 s of CPU (scipy's, loaded by numba in dynamics_node, as much again); the nodes'
+# matrices are 3 x 3, and a graph's processes already share the cores. A graph run that barely
+# moves went from 4.4 s to 3.8 s of CPU. Given to the graph's processes and set by `omni-micro`
+# for itself, unless the user set it.
+SINGLE_THREADED_BLAS = {'OPENBLAS_NUM_THREADS': '1'}
 # Fast DDS: domain ids above 232 do not fit its port scheme.
 DOMAIN_RANGE = range(1, 232)
 # The RTPS port scheme (the DDSI-RTPS specification, 9.6.1.1; Fast DDS's defaults): every port a
@@ -226,8 +232,9 @@ def resident_memory_kb(processes: list[NodeProcess]) -> dict[str, int]:
 
 def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:
     """The environment of a graph's processes, with the project's Fast DDS profile unless the
-    user set one (config/fastdds.xml says why)."""
-    env = dict(os.environ)
+    user set one (config/fastdds.xml says why), and numpy's OpenBLAS on one thread unless the
+    user said otherwise (:data:`SINGLE_THREADED_BLAS`)."""
+    env = {**SINGLE_THREADED_BLAS, **os.environ}
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_LOG_DIR=str(log_dir / 'ros'), PYTHONUNBUFFERED='1',
                RCUTILS_COLORIZED_OUTPUT='0')

@@ -186,6 +186,10 @@ def main(argv: list[str] | None = None) -> int:
     # wrapper): the orchestrator's own node must discover as its children do.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    # Before any command imports numpy (omni_micro_bringup.processes says why).
+    from omni_micro_bringup.processes import SINGLE_THREADED_BLAS
+    for name, value in SINGLE_THREADED_BLAS.items():
+        os.environ.setdefault(name, value)
     arguments = sys.argv[1:] if argv is None else argv
     # No command named (--help, or a typo): list the commands, import none of them.
     try:
