@@ -82,3 +82,27 @@ def test_a_port_another_process_took_stays_and_is_named_with_who_holds_it(port_f
     # Let go, it is an orphan like any other.
     assert shared_memory.clean_shared_memory(used, graph_pids=[]) == {}
     assert not taken.exists()
+
+
+@pytest.mark.skipif(not SHM.is_dir(), reason='no /dev/shm on this system')
+def test_a_port_whose_lock_file_another_process_holds_is_taken_before_it_maps_the_port(
+        port_file, monkeypatch):
+    """A participant takes a port's lock file, then maps the port (and unmaps it, then lets the
+    lock go, as it closes): in between, the port is that process's all the same. Counted as an
+    orphan, it was left as the graph's own leftover once that process let it go (a killed
+    writer's count keeps it in /dev/shm)."""
+    monkeypatch.setattr(shared_memory.shutil, 'which', lambda *args, **kwargs: None)
+    first = 900_000_000 + uuid.uuid4().int % 10**8 * 3
+    port = port_file(f'fastrtps_port{first}')
+    lock = port_file(f'fastrtps_port{first}_el')
+    used = shared_memory.shared_memory_identities({port.name})
+    holder = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; f = open(sys.argv[1], "r+b"); '
+         'print("locked", flush=True); sys.stdin.read()', str(lock)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == 'locked'
+        assert shared_memory.clean_shared_memory(used, graph_pids=[]) == {port.name: {holder.pid}}
+        assert port.exists() and lock.exists()
+    finally:
+        holder.communicate('')

@@ -82,6 +82,7 @@ def clean_shared_memory(used: AbstractSet[tuple[str, int]] = frozenset(),
     the port outlives its reader's normal exit. Every new participant of any domain takes the
     first free of those ports as it is (the same file, measured) and leaves it in turn when it
     closes: taken while the graph stopped, it is that process's to use, not this one's to remove.
+    A port counts as taken by whoever maps it or holds its lock file.
     """
     tool = shutil.which('fastdds', path=str(Path(sys.prefix) / 'bin'))
     if tool:
@@ -97,5 +98,8 @@ def clean_shared_memory(used: AbstractSet[tuple[str, int]] = frozenset(),
             leftover.unlink(missing_ok=True)
     still_there = shared_memory_identities({name for name, _ in used}) & set(used)
     holders = shared_memory_holders() if still_there else {}
-    taken = {name: holders.get(name, set()) - set(graph_pids) for name, _ in still_there}
+    # A process that holds a port's lock file is its owner, listening, even in the moments
+    # after taking the lock and before mapping the port, or after unmapping it as it closes.
+    taken = {name: (holders.get(name, set()) | holders.get(f'{name}_el', set()))
+             - set(graph_pids) for name, _ in still_there}
     return {name: pids for name, pids in taken.items() if pids}
