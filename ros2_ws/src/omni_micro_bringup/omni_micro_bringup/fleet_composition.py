@@ -253,7 +253,9 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
-                   'robot.label': robot}}
+                   'robot.label': robot,
+                   # Its first array waits for the recorder's reader, which must not miss it.
+                   'markers_readers': ['bag_recorder'] if record is not None else []}}
         for package, node in nodes:
             specs.append(NodeSpec(package, node, namespace=robot, command=_command(
                 package, node, params, own[node], remaps)))

@@ -32,7 +32,8 @@ LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
                                      'robot_poses', 'robot_wheel_offsets_rad'},
                    'vision_node': {'capture_readers', 'covariance_readers'},
                    'tracker_node': {'capture_readers', 'covariance_readers', 'robots'},
-                   'camera_node': {'image_readers', 'robots'}, 'omni_micro_viewer': {'robots'}}
+                   'camera_node': {'image_readers', 'robots'}, 'markers_node': {'markers_readers'},
+                   'omni_micro_viewer': {'robots'}}
 LEFT_TO_ANOTHER_FILE = re.compile(r'^\w+\.calibration\.')
 RCLPY_OWN = {'use_sim_time', 'start_type_description_service'}
 # What a node needs to be built at all (the recorder a bag folder, the viewer a free port);

@@ -47,7 +47,6 @@ from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
-    MARKERS_TOPIC,
     RECORDER_STATUS_TOPIC,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
@@ -178,9 +177,10 @@ class GraphMonitor:
                        if not any(self.node.count_subscribers(topic) for topic in topics)]
             silent = [f'{topic} ({whose})' for topic, whose in (publications or {}).items()
                       if not self.node.count_publishers(topic)]
-            # markers_node makes its publisher after its subscriptions: seen, it is listening.
-            if markers and not self.node.count_publishers(MARKERS_TOPIC):
-                missing.append('(markers_node: no /markers publisher yet)')
+            # markers_node reads /goal_pose last of all: seen, it is listening.
+            if markers and not any(info.node_name == 'markers_node' for info in
+                                   self.node.get_subscriptions_info_by_topic(GOAL_TOPIC)):
+                missing.append('(markers_node: not reading /goal_pose yet)')
             if recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher, or no driver '
                                'frame written, yet)')

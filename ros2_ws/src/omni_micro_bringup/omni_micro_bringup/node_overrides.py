@@ -82,6 +82,9 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                 overrides.update({f'{camera}.image_topic': topic,
                                   f'{camera}.info_topic': camera_info_beside(topic)})
     elif spec.executable == 'markers_node':
+        # Its first array waits for the reader that must not miss it.
+        present = {other.executable for other in [*graph_nodes(options), *all_specs(options)]}
+        overrides.update(markers_readers=['bag_recorder'] if 'bag_recorder' in present else [])
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters(camera_node_of(options), options.params_files,
                                  options.vision_overrides)

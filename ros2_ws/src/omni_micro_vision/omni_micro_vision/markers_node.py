@@ -54,6 +54,7 @@ from omni_micro_common.lockstep import NOTHING_HANDLED_NS, Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS
+from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import odometry_template
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -166,8 +167,25 @@ class MarkersNode(Node):
         # one it holds time at the lead, where no throttled sample comes to make another.
         self.create_timer(WATCHER_REPORT_PERIOD_S, self._report,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
-        quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self._odometry = odometry_template()
+        self._capture_source = self.declare_parameter('capture_uncertainty', 'covariance').value
+        if self._capture_source not in CAPTURE_UNCERTAINTY_SOURCES:
+            raise CameraConfigError(f'capture_uncertainty must be one of '
+                                    f'{list(CAPTURE_UNCERTAINTY_SOURCES)}, got '
+                                    f'{self._capture_source!r}')
+        self.publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, DATA_QOS)
+        # It listens once its writer has matched the readers that must have every array (the
+        # recorder's, named by the orchestration in ``markers_readers``): the robot's clock,
+        # which waits for this node's readers, then starts no sooner. The recorder matching
+        # this writer is not enough: discovery runs each way at its own pace (a bag recorded
+        # beside two busy processes lacked the first 3.4 s of arrays).
+        readers = node_list_parameter(self, 'markers_readers')
+        when_readers_matched(self, [(self.publisher, readers)], self._listen)
+
+    def _listen(self) -> None:
+        """Every subscription, /goal_pose last: once the orchestration sees that reader, every
+        other one exists."""
+        quiet = PER_TICK_SUBSCRIPTION_EVENTS
         self.create_subscription(Odometry, ODOM_THROTTLE_TOPIC, self._on_odometry, DATA_QOS,
                                  raw=True, event_callbacks=quiet)
         # The streams are kept as bytes and decoded once per publication. The wheels are
@@ -179,16 +197,11 @@ class MarkersNode(Node):
                                  DATA_QOS, raw=True, event_callbacks=quiet)
         self.create_subscription(JointTrajectory, WHEEL_TRAJECTORY_TOPIC, self._on_trajectory,
                                  DATA_QOS)
-        self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         # Each capture from one topic, as the controller reads it (the same parameter): the
         # covariance topic has the pose too, and a second subscription would double the
         # deliveries of every capture to a process that only watches.
-        source = self.declare_parameter('capture_uncertainty', 'covariance').value
-        if source not in CAPTURE_UNCERTAINTY_SOURCES:
-            raise CameraConfigError(f'capture_uncertainty must be one of '
-                                    f'{list(CAPTURE_UNCERTAINTY_SOURCES)}, got {source!r}')
         for name in CAPTURE_TOPICS:
-            if source == 'covariance':
+            if self._capture_source == 'covariance':
                 self.create_subscription(PoseWithCovarianceStamped,
                                          CAPTURE_COVARIANCE_TOPICS[name],
                                          self._capture_with_uncertainty_reader(name),
@@ -196,8 +209,7 @@ class MarkersNode(Node):
             else:
                 self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
                                          self._capture_reader(name), CAPTURE_QOS)
-        # Made last: once the orchestration sees it, every subscription above exists.
-        self.publisher = self.create_publisher(MarkerArray, MARKERS_TOPIC, DATA_QOS)
+        self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
 
     # -- inputs ------------------------------------------------------------------------------
     def _at(self, stamp: Time, kind: str, apply: Callable[[], None]) -> None:
