@@ -24,7 +24,7 @@ from omni_micro_bringup.parameters import dds_profile
 if TYPE_CHECKING:
     from omni_micro_bringup.composition import NodeSpec
 
-# numpy's OpenBLAS starts a thread per core when numpy is imported, whose start-up cost a node
+# numpy's OpenBLAS starts a thread per core when numpy is imported, whose start-up costs a node
 # process 0.1 s of CPU (scipy's, loaded by numba in dynamics_node, as much again); the nodes'
 # matrices are 3 x 3, and a graph's processes already share the cores. A graph run that barely
 # moves went from 4.4 s to 3.8 s of CPU. Given to the graph's processes and set by `omni-micro`
