@@ -83,8 +83,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                                   f'{camera}.info_topic': camera_info_beside(topic)})
     elif spec.executable == 'markers_node':
         # Its first array waits for the reader that must not miss it.
-        present = {other.executable for other in [*graph_nodes(options), *all_specs(options)]}
-        overrides.update(markers_readers=['bag_recorder'] if 'bag_recorder' in present else [])
+        recorded = 'bag_recorder' in nodes_present(options)
+        overrides.update(markers_readers=['bag_recorder'] if recorded else [])
         # The fields as the camera in use has them (camera_node has vision_node's names).
         vision = node_parameters(camera_node_of(options), options.params_files,
                                  options.vision_overrides)
@@ -164,12 +164,17 @@ def passed_on(value: object, like: object) -> object | None:
     return number(value)
 
 
+def nodes_present(options: GraphOptions) -> set[str]:
+    """The executables of every node ``options`` starts."""
+    return {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
+
+
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
     """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers``: the
     nodes of this graph that read its captures from the bare and from the covariance topics
     (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
     recorder both)."""
-    present = {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
+    present = nodes_present(options)
     source = node_parameters('controller_node', options.params_files,
                              options.controller_overrides).get('capture_uncertainty',
                                                                'covariance')
