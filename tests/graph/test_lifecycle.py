@@ -4,6 +4,7 @@ stopping the whole graph at once is tests/graph/test_reliability.py's, with its 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -131,20 +132,54 @@ def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain
     assert (bag / 'metadata.yaml').exists()
 
 
-def processes_of_run(log_dir: Path) -> dict[int, str]:
-    """PID -> command of every live process started for the run whose logs go to log_dir."""
-    found = {}
+# The processes of a recorded run, by the names `top` and `pgrep` know them by.
+NODES = ('dynamics_node', 'vision_node', 'controller_node', 'markers_node', 'bag_recorder')
+
+
+def descendants(ancestor: int) -> dict[int, str]:
+    """PID -> kernel name of every live process started, at any depth, by ``ancestor``."""
+    parents: dict[int, int] = {}
+    names: dict[int, str] = {}
     for entry in Path('/proc').iterdir():
         if not entry.name.isdigit():
             continue
         try:
-            environ = (entry / 'environ').read_bytes().split(b'\0')
-            command = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            stat = (entry / 'stat').read_text()
         except OSError:
             continue
-        if any(item.startswith(b'ROS_LOG_DIR=' + str(log_dir).encode()) for item in environ):
-            found[int(entry.name)] = command
+        name, fields = stat.split(' (', 1)[1].rsplit(') ', 1)
+        if fields.split()[0] != 'Z':
+            parents[int(entry.name)], names[int(entry.name)] = int(fields.split()[1]), name
+    found, frontier = {}, [ancestor]
+    while frontier:
+        parent = frontier.pop()
+        for pid in [p for p, pp in parents.items() if pp == parent]:
+            found[pid] = names[pid]
+            frontier.append(pid)
     return found
+
+
+def alive(pids: dict[int, str]) -> dict[int, str]:
+    """Those of ``pids`` still running (not gone, not a zombie)."""
+    running = {}
+    for pid, name in pids.items():
+        try:
+            state = Path(f'/proc/{pid}/stat').read_text().rsplit(') ', 1)[1].split()[0]
+        except OSError:
+            continue
+        if state != 'Z':
+            running[pid] = name
+    return running
+
+
+def leased_domain(pid: int) -> int:
+    """The DDS domain whose lease (omni_micro_bringup.processes.DomainLease) a process holds."""
+    for fd in Path(f'/proc/{pid}/fd').iterdir():
+        with contextlib.suppress(OSError):
+            target = os.readlink(fd)
+            if '/omni-micro-domains-' in target:
+                return int(Path(target).stem)
+    raise AssertionError(f'process {pid} holds no domain lease')
 
 
 def test_no_process_outlives_a_killed_orchestrator(tmp_path):
@@ -159,6 +194,7 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
     ports' stall). So the test asks that they all leave within the stall's bound."""
     log_root = tmp_path / 'logs'
     bag = tmp_path / 'bag'
+    children: dict[int, str] = {}
     run = subprocess.Popen(
         [str(ROOT / 'scripts' / 'omni-micro'), 'run', '--goal-mm', '100,0', '--rtf', '1',
          '--record', str(bag), '--log-dir', str(log_root)],
@@ -170,28 +206,26 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
                 break
         else:
             raise AssertionError(f'the run ended before it moved: {run.wait()}')
-        children = processes_of_run(log_root)
-        assert len(children) == 5, children   # dynamics, vision, controller, markers, recorder
-        domain = next(int(item.split(b'=')[1]) for item in
-                      Path(f'/proc/{next(iter(children))}/environ').read_bytes().split(b'\0')
-                      if item.startswith(b'ROS_DOMAIN_ID='))
+        # The nodes, and whatever started them (the zygote of omni_micro_bringup.warm_start).
+        children = descendants(run.pid)
+        assert set(NODES) <= set(children.values()), children
+        domain = leased_domain(next(pid for pid, name in children.items() if name in NODES))
         pause_the_robots_clock(domain)
         time.sleep(0.3)   # what was under way arrives
         run.kill()
         killed_at = time.monotonic()
         run.wait(5.0)
         left: dict[str, float] = {}
-        while (alive := processes_of_run(log_root)) and time.monotonic() - killed_at < 10.0:
-            for pid, command in children.items():
-                if pid not in alive:
-                    left.setdefault(command.split()[1].rsplit('/', 1)[-1],
-                                    time.monotonic() - killed_at)
+        while (running := alive(children)) and time.monotonic() - killed_at < 10.0:
+            for pid, name in children.items():
+                if pid not in running:
+                    left.setdefault(name, time.monotonic() - killed_at)
             time.sleep(0.05)
         gone_after = time.monotonic() - killed_at
     finally:
         if run.poll() is None:
             run.kill()
-        for pid in processes_of_run(log_root):
+        for pid in alive(children):
             os.kill(pid, signal.SIGKILL)
     # 0.3-0.7 s alone and beside two to five busy processes (the recorder last, the controller
     # 0.3 s), 1.04 s once beside the suite's other worker; a shared-memory stall adds a second

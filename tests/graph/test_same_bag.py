@@ -19,6 +19,7 @@ from conftest import SHARED_SEED, Probe
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import Graph, GraphResult, run_graph
+from omni_micro_bringup.warm_start import COLD_START_ENV
 from omni_micro_cli.errors import RunFailed
 from omni_micro_common.qos import DATA_QOS
 
@@ -57,6 +58,7 @@ def record(folder: Path, real_time_factor: float = math.inf, seed: int = SHARED_
 class Reference(NamedTuple):
     bag: Path
     sim_time_s: float
+    log_dir: Path
 
 
 @pytest.fixture
@@ -65,7 +67,7 @@ def reference(fig11_recorded) -> Reference:
     started as a user types it (`omni-micro run`), where the runs here go through
     :func:`run_graph`: the two ways in are one graph too."""
     bag, summary = fig11_recorded
-    return Reference(bag, summary['sim_time_s'])
+    return Reference(bag, summary['sim_time_s'], Path(summary['log_dir']))
 
 
 def test_same_seed_same_file_at_another_real_time_factor(reference, tmp_path):
@@ -74,10 +76,19 @@ def test_same_seed_same_file_at_another_real_time_factor(reference, tmp_path):
     assert bag_digest(bag) == bag_digest(reference.bag)
 
 
-def test_same_seed_same_file_with_both_cores_kept_busy(reference, tmp_path, busy_machine):
+def test_same_seed_same_file_with_both_cores_kept_busy_and_the_nodes_started_cold(
+        reference, tmp_path, busy_machine, monkeypatch):
+    """The reference's nodes were forked warm (omni_micro_bringup.warm_start); these start as
+    `ros2 run` starts them."""
+    monkeypatch.setenv(COLD_START_ENV, '1')
     with busy_machine():
-        bag, _ = record(tmp_path)
+        bag, result = record(tmp_path)
     assert bag_digest(bag) == bag_digest(reference.bag)
+    for folder, how in ((result.log_dir, 'cold'), (reference.log_dir, 'warm')):
+        logs = sorted(folder.glob('*_node.log'))
+        assert len(logs) == 4, logs   # dynamics, vision, controller, markers
+        for log in logs:
+            assert log.read_text().startswith(f'--- start 1 ({how}, pid '), log
 
 
 def test_same_seed_same_file_with_the_loop_in_one_process(reference, tmp_path):

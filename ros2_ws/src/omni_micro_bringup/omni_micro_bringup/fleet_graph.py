@@ -38,7 +38,7 @@ from omni_micro_bringup.fleet_composition import (
 )
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
 from omni_micro_bringup.monitor import GraphMonitor
-from omni_micro_bringup.processes import DomainLease
+from omni_micro_bringup.processes import DomainLease, prepare_node_starts
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
@@ -265,6 +265,7 @@ def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int
     count = len(plan.starts_m)
     modes = controller_modes(controllers or ['paper'] * count, params_files)
     check_vision(modes, vision)   # refused before anything runs
+    prepare_node_starts(log_root)
     lease = DomainLease(None)
     with lease as domain_id:
         log_dir = new_log_dir(log_root)

@@ -45,6 +45,7 @@ from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
     node_environment,
+    prepare_node_starts,
     resident_memory_kb,
     stop_together,
 )
@@ -306,10 +307,6 @@ def run_graph(options: GraphOptions) -> GraphResult:
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_bringup.bench_start import wait_for_bench  # rclpy only where a graph runs
-    from omni_micro_bringup.monitor import GraphMonitor
-    from omni_micro_tools.topics import BAG_TAIL_S
-
     for path in options.params_files:
         check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
     if options.record is not None:
@@ -317,6 +314,11 @@ def run_graph(options: GraphOptions) -> GraphResult:
 
         check_bag_output(options.record, options.force)
     all_specs(options)   # a graph that cannot be is refused before anything is written
+    prepare_node_starts(options.log_dir)
+    from omni_micro_bringup.bench_start import wait_for_bench  # rclpy only where a graph runs
+    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_tools.topics import BAG_TAIL_S
+
     log_dir = new_log_dir(options.log_dir)
     goals = [(float(x), float(y)) for x, y in [options.goal_m, *options.more_goals_m]]
     # With external parts the domain is the drivers': joined, not leased.

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, TextIO
 
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.warm_start import WarmProcess, start_warm, warm_up
 
 if TYPE_CHECKING:
     from omni_micro_bringup.composition import NodeSpec
@@ -116,7 +117,7 @@ class NodeProcess:
         self.env = env
         self.log_path = log_path
         self.echo = echo
-        self.process: subprocess.Popen[str] | None = None
+        self.process: subprocess.Popen[str] | WarmProcess | None = None
         self.tail: deque[str] = deque(maxlen=20)
         self.starts = 0
         self._pump: threading.Thread | None = None
@@ -134,13 +135,17 @@ class NodeProcess:
     def start(self) -> None:
         self.starts += 1
         self._ready.clear()
+        # Warm: forked from a process that has imported the nodes (warm_start says why).
+        warm = start_warm(self.argv, self.env, self.inherited_fds)
+        self.process = warm or subprocess.Popen(
+            self.argv, env=self.env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True,
+            pass_fds=self.inherited_fds)
         # Handed to the thread that copies the process's output; it closes it at the end.
         log = open(self.log_path, 'a')  # noqa: SIM115
-        log.write(f'--- start {self.starts}: {" ".join(self.argv)}\n')
+        log.write(f'--- start {self.starts} ({"warm" if warm else "cold"}, pid '
+                  f'{self.process.pid}): {" ".join(self.argv)}\n')
         log.flush()
-        self.process = subprocess.Popen(self.argv, env=self.env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, text=True, bufsize=1,
-                                        start_new_session=True, pass_fds=self.inherited_fds)
         self._pump = threading.Thread(target=self._copy_output, args=(self.process, log),
                                       daemon=True)
         self._pump.start()
@@ -228,6 +233,12 @@ def resident_memory_kb(processes: list[NodeProcess]) -> dict[str, int]:
             if line.startswith('VmRSS:'):
                 sizes[process.name] = int(line.split()[1])
     return sizes
+
+
+def prepare_node_starts(log_dir: Path) -> None:
+    """Have the nodes' imports done (:mod:`omni_micro_bringup.warm_start`) while the
+    orchestrator prepares the run."""
+    warm_up(node_environment(0, log_dir))
 
 
 def node_environment(domain_id: int, log_dir: Path) -> dict[str, str]:

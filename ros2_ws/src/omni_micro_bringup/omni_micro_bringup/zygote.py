@@ -1,0 +1,172 @@
+"""The zygote of :mod:`omni_micro_bringup.warm_start`: ``python -P -m omni_micro_bringup.zygote
+<socket fd>`` imports every node module of ours, then forks a child per request and reports each
+child's exit; the child returns from :func:`serve` and becomes the node.
+
+Single-threaded, because fork is only safe so; it ignores SIGINT (a terminal's Ctrl-C is for the
+orchestrator, which stops the nodes in order) and ends when the orchestrator's socket closes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import fcntl
+import importlib
+import json
+import os
+import select
+import signal
+import socket
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+# The packages whose console scripts the zygote imports and forks.
+PACKAGE_PREFIX = 'omni_micro_'
+MESSAGE_BYTES = 1 << 20
+_PR_SET_NAME = 15   # linux/prctl.h
+
+
+@dataclass(frozen=True)
+class Launch:
+    """What a forked child becomes (sent as JSON; its descriptors ride beside it)."""
+
+    entry_point: str          # module:function
+    argv: list[str]
+    env: dict[str, str]
+    cwd: str
+    fd_numbers: list[int]     # where each descriptor after stdout goes in the child
+
+
+_scripts: dict[str, str] | None = None
+
+
+def console_scripts() -> dict[str, str]:
+    global _scripts
+    if _scripts is None:
+        from importlib.metadata import entry_points
+        _scripts = {ep.name: ep.value for ep in entry_points(group='console_scripts')
+                    if ep.value.startswith(PACKAGE_PREFIX)}
+    return _scripts
+
+
+def _preload() -> None:
+    """Import every node module of ours, and run its ``warm_up()`` if it has one (the dynamics
+    loads its compiled kernels), so that each child starts with that done."""
+    for value in console_scripts().values():
+        module_name = value.split(':')[0]
+        if module_name == 'omni_micro_cli.cli':
+            continue
+        with contextlib.suppress(Exception):   # the child meets it again, and reports it
+            module = importlib.import_module(module_name)
+            getattr(module, 'warm_up', lambda: None)()
+
+
+def serve(sock: socket.socket) -> tuple[Launch, list[int]] | None:
+    """Fork a child per request and report exits; returns only in a child, with what it is."""
+    wake_read, wake_write = os.pipe()
+    for fd in (wake_read, wake_write):
+        os.set_blocking(fd, False)
+    signal.signal(signal.SIGCHLD, lambda *_: None)
+    signal.set_wakeup_fd(wake_write, warn_on_full_buffer=False)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    while True:
+        readable, _, _ = select.select([sock.fileno(), wake_read], [], [])
+        if wake_read in readable:
+            with contextlib.suppress(BlockingIOError):
+                os.read(wake_read, 4096)
+            _report_exits(sock)
+        if sock.fileno() not in readable:
+            continue
+        try:
+            payload, fds, _, _ = socket.recv_fds(sock, MESSAGE_BYTES, 64)
+        except OSError:
+            payload = b''
+        if not payload:
+            return None
+        launch = Launch(**json.loads(payload))
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            signal.set_wakeup_fd(-1)
+            signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            for fd in (wake_read, wake_write):
+                os.close(fd)
+            sock.close()
+            return launch, fds
+        for fd in fds:
+            os.close(fd)
+        with contextlib.suppress(OSError):
+            sock.send(json.dumps({'started': pid}).encode())
+
+
+def _report_exits(sock: socket.socket) -> None:
+    while True:
+        try:
+            pid, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+        with contextlib.suppress(OSError):
+            sock.send(json.dumps({'exited': pid,
+                                  'code': os.waitstatus_to_exitcode(status)}).encode())
+
+
+def become(launch: Launch, fds: list[int]) -> Callable[[], int | str | None]:
+    """Make this forked child the process ``ros2 run`` would have started; its entry point."""
+    os.setsid()
+    os.chdir(launch.cwd)
+    # Out of the way of the numbers they must end at, then there, then nothing else open.
+    high = [fcntl.fcntl(fd, fcntl.F_DUPFD, 1024) for fd in fds]
+    for fd in fds:
+        os.close(fd)
+    stdout, *inherited = high
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.close(devnull)
+    os.dup2(stdout, 1)
+    os.dup2(stdout, 2)
+    for fd, number in zip(inherited, launch.fd_numbers, strict=True):
+        os.dup2(fd, number)
+    keep = {0, 1, 2, *launch.fd_numbers}
+    for fd in _open_fds():
+        if fd not in keep:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+    sys.stdout = open(1, 'w', buffering=1, closefd=False)  # noqa: SIM115
+    sys.stderr = open(2, 'w', buffering=1, closefd=False)  # noqa: SIM115
+    os.environ.clear()
+    os.environ.update(launch.env)
+    sys.argv = list(launch.argv)
+    _name_process(Path(launch.argv[0]).name)
+    module, function = launch.entry_point.split(':')
+    return getattr(importlib.import_module(module), function)
+
+
+def _name_process(name: str) -> None:
+    """The kernel's name of the process (``top``, ``ps -e``, ``pgrep``): the executable's, as a
+    started script has it."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_NAME, name.encode()[:15], 0, 0, 0)
+
+
+def _open_fds() -> list[int]:
+    return [int(name) for name in os.listdir('/proc/self/fd')]
+
+
+def main() -> None:
+    sock = socket.socket(fileno=int(sys.argv[1]))
+    _preload()
+    child = serve(sock)
+    if child is None:
+        sys.exit(0)
+    entry = become(*child)
+    sys.exit(entry())
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,186 @@
+"""Nodes forked from the zygote (omni_micro_bringup.warm_start) get what a started process gets,
+and leave as it would: the same argv, environment, working directory, session, descriptors and
+process name, the same exit code for each way out, and nothing left when the orchestrator dies.
+Each case is run both ways, warm and cold (subprocess), on a probe entry point."""
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from omni_micro_bringup import warm_start
+from omni_micro_bringup.processes import node_environment
+from omni_micro_bringup.warm_start import COLD_START_ENV, WarmProcess, entry_point_of, start_warm
+
+pytestmark = pytest.mark.slow   # it starts processes
+PROBE = Path(__file__).parents[1] / 'support' / 'warm_probe.py'
+
+
+@pytest.fixture
+def probe_env(tmp_path):
+    lifeline_read, lifeline_write = os.pipe()
+    env = {**node_environment(7, tmp_path), 'PYTHONPATH': str(PROBE.parent),
+           'PROBE_LIFELINE_FD': str(lifeline_read)}
+    yield env, lifeline_read
+    os.close(lifeline_read)
+    os.close(lifeline_write)
+
+
+def start(how: str, word: str, env: dict[str, str],
+          lifeline: int) -> tuple[WarmProcess | subprocess.Popen[str], dict]:
+    """The probe started warm or cold; its process and its first line (what it was given)."""
+    process: WarmProcess | subprocess.Popen[str] | None
+    if how == 'warm':
+        process = start_warm([str(PROBE.with_suffix('')), word], env, (lifeline,),
+                             entry_point='warm_probe:main')
+        assert process is not None
+    else:
+        process = subprocess.Popen([sys.executable, str(PROBE), word], env=env, text=True,
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, start_new_session=True,
+                                   pass_fds=(lifeline,))
+    assert process.stdout is not None
+    return process, json.loads(process.stdout.readline())
+
+
+def finish(process: WarmProcess | subprocess.Popen[str]) -> tuple[int, str]:
+    code = process.wait(30.0)
+    assert process.stdout is not None
+    rest = process.stdout.read()
+    process.stdout.close()
+    return code, rest
+
+
+def test_a_warm_node_is_given_what_a_started_one_is(probe_env, tmp_path, monkeypatch):
+    env, lifeline = probe_env
+    monkeypatch.chdir(tmp_path)
+    given = {}
+    for how in ('warm', 'cold'):
+        process, given[how] = start(how, '0', env, lifeline)
+        assert finish(process) == (0, '')
+    warm, cold = given['warm'], given['cold']
+    assert warm['argv'] == [str(PROBE.with_suffix('')), '0']
+    assert warm['cwd'] == cold['cwd'] == str(tmp_path)
+    assert warm['domain'] == cold['domain'] == '7'
+    assert warm['own_session'] and cold['own_session']
+    assert warm['stdin_is_null'] and cold['stdin_is_null']
+    # Only stdio and the descriptor handed over, at its number (and the probe's own listing).
+    assert warm['open_fds'] == cold['open_fds'] and warm['lifeline_open']
+    assert warm['name'] == 'warm_probe'   # what `top` and `pgrep` show
+    assert warm['pid'] != os.getpid() and warm['pid'] > 0
+
+
+@pytest.mark.parametrize('ending', ['3', 'raise', 'SIGINT', 'SIGTERM', 'SIGKILL'])
+def test_each_way_out_gives_the_exit_code_a_started_process_gives(probe_env, ending):
+    env, lifeline = probe_env
+    codes, outputs = {}, {}
+    for how in ('warm', 'cold'):
+        process, _ = start(how, ending if ending in ('3', 'raise') else 'sleep', env, lifeline)
+        if ending.startswith('SIG'):
+            assert process.stdout is not None
+            assert process.stdout.readline().strip() == 'waiting'
+            assert process.poll() is None
+            process.send_signal(getattr(signal, ending))
+        codes[how], outputs[how] = finish(process)
+        assert process.poll() == codes[how]
+    assert codes['warm'] == codes['cold'] == {
+        '3': 3, 'raise': 1, 'SIGINT': -signal.SIGINT, 'SIGTERM': -signal.SIGTERM,
+        'SIGKILL': -signal.SIGKILL}[ending]
+    if ending == 'raise':
+        assert 'RuntimeError: the probe fails as asked' in outputs['warm']
+
+
+def test_a_wait_that_times_out_says_so_and_the_node_goes_on(probe_env):
+    env, lifeline = probe_env
+    process, _ = start('warm', 'sleep', env, lifeline)
+    with pytest.raises(subprocess.TimeoutExpired):
+        process.wait(0.2)
+    assert process.poll() is None
+    process.send_signal(signal.SIGKILL)
+    assert finish(process)[0] == -signal.SIGKILL
+
+
+ORCHESTRATOR = f'''
+import os, sys, time
+sys.path.insert(0, {str(PROBE.parent)!r})
+from omni_micro_bringup.warm_start import start_warm
+env = dict(os.environ, PYTHONPATH={str(PROBE.parent)!r})
+read_end, write_end = os.pipe()
+env['PROBE_LIFELINE_FD'] = str(read_end)
+process = start_warm(['probe', 'wait'], env, (read_end,), entry_point='warm_probe:main')
+print(process.stdout.readline(), end='', flush=True)
+time.sleep(60)
+'''
+
+
+def test_the_zygote_and_its_nodes_leave_with_a_killed_orchestrator(tmp_path):
+    """SIGKILL of the orchestrator: the zygote reads its socket's end, the node its lifeline's."""
+    orchestrator = subprocess.Popen([sys.executable, '-c', ORCHESTRATOR], text=True,
+                                    stdout=subprocess.PIPE, env=node_environment(7, tmp_path))
+    assert orchestrator.stdout is not None
+    try:
+        given = json.loads(orchestrator.stdout.readline())
+        zygote = int(Path(f'/proc/{given["pid"]}/stat').read_text().rsplit(')', 1)[1].split()[1])
+        assert zygote not in (orchestrator.pid, 1)
+    finally:
+        orchestrator.kill()
+        orchestrator.wait()
+    orchestrator.stdout.close()
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and any(Path(f'/proc/{pid}').exists()
+                                              for pid in (zygote, given['pid'])):
+        time.sleep(0.05)
+    for pid in (zygote, given['pid']):
+        assert not Path(f'/proc/{pid}').exists() or \
+            Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z', pid
+
+
+def test_nodes_start_cold_when_asked_or_when_not_ours(probe_env, monkeypatch, tmp_path):
+    env, lifeline = probe_env
+    assert start_warm([str(PROBE), '0'], {**env, COLD_START_ENV: '1'}, (lifeline,),
+                      entry_point='warm_probe:main') is None
+    monkeypatch.setenv(COLD_START_ENV, '1')
+    assert start_warm([str(PROBE), '0'], env, (lifeline,), entry_point='warm_probe:main') is None
+    # An installed node of ours, run by this interpreter: warm. Another interpreter's: cold.
+    ours = Path(sys.executable).parent / 'dynamics_node'
+    assert entry_point_of(ours) == 'omni_micro_sim.dynamics_node:main'
+    theirs = tmp_path / 'dynamics_node'
+    theirs.write_text('#!/usr/bin/python3\n' + ours.read_text().split('\n', 1)[1])
+    assert entry_point_of(theirs) is None
+    assert entry_point_of(tmp_path / 'missing') is None
+
+
+def test_one_zygote_per_environment_its_imports_see(probe_env):
+    env, _ = probe_env
+    first = warm_start._zygote_for(env)
+    assert warm_start._zygote_for({**env, 'ROS_DOMAIN_ID': '8', 'ROS_LOG_DIR': '/x',
+                                   'PYTEST_CURRENT_TEST': 'another'}) is first
+    other = warm_start._zygote_for({**env, 'OPENBLAS_NUM_THREADS': '2'})
+    assert other is not first
+    assert first.process.poll() is not None or first.process.wait(5.0) == 0   # it had no child
+
+
+def test_the_zygote_forks_with_no_thread_but_lttngs_and_the_kernels_loaded(probe_env):
+    """fork copies only the calling thread: a pool an import had started (OpenBLAS's, numba's)
+    would leave the child its locks held. The only threads are the two that the constructor of
+    LTTng-UST (linked by rclpy's tracing) starts in any process importing rclpy: they wait for
+    a session daemon, and a forked child is simply not traced (lttng-ust(3)). And the
+    dynamics' kernels come loaded."""
+    env, lifeline = probe_env
+    process, given = start('warm', '0', env, lifeline)
+    assert finish(process) == (0, '')
+    assert given['compiled_kernels'] > 0
+    rclpy_alone = subprocess.run(
+        [sys.executable, '-c', 'import os, rclpy; print(len(os.listdir("/proc/self/task")))'],
+        env=env, capture_output=True, text=True, check=True, timeout=60)
+    zygote = warm_start._zygote_for(env).process.pid
+    status = Path(f'/proc/{zygote}/status').read_text()
+    threads = re.search(r'^Threads:\s+(\d+)$', status, re.MULTILINE)
+    assert threads, status
+    assert int(threads.group(1)) == int(rclpy_alone.stdout) == 3

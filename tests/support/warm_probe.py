@@ -1,0 +1,41 @@
+"""An entry point for warm_start's tests: prints what the process it runs in was given, then
+does what its first argument says (exit with a code, raise, or wait for its lifeline's end)."""
+
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+
+
+def main() -> int:
+    fds = {int(name) for name in os.listdir('/proc/self/fd')}
+    lifeline = int(os.environ.get('PROBE_LIFELINE_FD', '-1'))
+    # Imported and compiled before the probe ran: what the process it runs in had done.
+    integrator = sys.modules.get('omni_micro_sim.integrator')
+    compiled = sum(len(kernel.signatures) for kernel in vars(integrator).values()
+                   if hasattr(kernel, 'signatures')) if integrator else 0
+    print(json.dumps({
+        'argv': sys.argv, 'cwd': os.getcwd(), 'domain': os.environ.get('ROS_DOMAIN_ID'),
+        'own_session': os.getsid(0) == os.getpid(), 'pid': os.getpid(),
+        'name': Path('/proc/self/comm').read_text().strip(),
+        'open_fds': sorted(fds), 'lifeline_open': lifeline in fds,
+        'stdin_is_null': os.path.samefile('/proc/self/fd/0', os.devnull),
+        'compiled_kernels': compiled,
+    }), flush=True)
+    what = sys.argv[1]
+    if what == 'raise':
+        raise RuntimeError('the probe fails as asked')
+    if what == 'wait':
+        print('waiting', flush=True)
+        os.read(lifeline, 1)   # returns at end-of-file: the orchestrator has gone
+        return 0
+    if what == 'sleep':
+        print('waiting', flush=True)
+        while True:
+            signal.pause()
+    return int(what)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
