@@ -137,3 +137,9 @@ class GridSimulator:
         self.simulator.step(self.period_s)
         self._tick += 1
         return self.sample()
+
+
+def load_default_kernels() -> None:
+    """Load, once in this process, the kernels a robot of the paper's parameters runs on (see
+    :meth:`GridSimulator.load_kernels`): a process that forks nodes does it for all of them."""
+    GridSimulator(RobotParameters()).load_kernels()
