@@ -184,3 +184,27 @@ def test_the_zygote_forks_with_no_thread_but_lttngs_and_the_kernels_loaded(probe
     threads = re.search(r'^Threads:\s+(\d+)$', status, re.MULTILINE)
     assert threads, status
     assert int(threads.group(1)) == int(rclpy_alone.stdout) == 3
+
+
+def test_a_forked_copy_of_the_orchestrator_starts_its_own_zygote_and_leaves_ours_alone(
+        probe_env):
+    """A process forked from the orchestrator (multiprocessing's default on Linux) inherits the
+    socket to the zygote: speaking or closing on it would break the orchestrator's nodes."""
+    env, lifeline = probe_env
+    ours = warm_start._zygote_for(env)
+    child = os.fork()
+    if child == 0:
+        code = 1
+        try:
+            theirs = warm_start._zygote_for(env)
+            forked = start_warm([str(PROBE.with_suffix('')), '5'], env, (lifeline,),
+                                entry_point='warm_probe:main')
+            if theirs is not ours and forked is not None and forked.wait(30.0) == 5:
+                code = 0
+            warm_start._close_zygotes()   # what its exit would do
+        finally:
+            os._exit(code)
+    assert os.waitstatus_to_exitcode(os.waitpid(child, 0)[1]) == 0
+    process, _ = start('warm', '0', env, lifeline)
+    assert finish(process) == (0, '')
+    assert warm_start._zygote_for(env) is ours and ours.usable

@@ -74,6 +74,8 @@ class Zygote:
     def __init__(self, env: dict[str, str]) -> None:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self._socket = ours
+        # A process forked from this one shares the socket: only the owner speaks on it.
+        self.owner = os.getpid()
         self.process = subprocess.Popen(
             [sys.executable, '-P', '-m', 'omni_micro_bringup.zygote', str(theirs.fileno())],
             env=env, pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
@@ -150,6 +152,8 @@ class Zygote:
         return not self._closed and self.process.poll() is None
 
     def close(self) -> None:
+        if os.getpid() != self.owner:
+            return
         with contextlib.suppress(OSError):
             self._socket.shutdown(socket.SHUT_RDWR)
         self._socket.close()
@@ -182,6 +186,8 @@ _zygote_lock = threading.Lock()
 def _zygote_for(env: dict[str, str]) -> Zygote:
     key = _import_time_env(env)
     with _zygote_lock:
+        for other_key in [k for k, z in _zygotes.items() if z.owner != os.getpid()]:
+            del _zygotes[other_key]   # a forked copy of this process starts its own
         zygote = _zygotes.get(key)
         if zygote is not None and not zygote.usable:
             zygote.close()
