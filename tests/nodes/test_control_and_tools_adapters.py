@@ -7,7 +7,7 @@ import math
 import time
 
 import pytest
-from adapter_helpers import overrides
+from adapter_helpers import assert_reads_input_only_once_matched, overrides
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
@@ -15,6 +15,7 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.conventions import (
     JOINT_NAMES,
@@ -24,6 +25,7 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
+from omni_micro_common.qos import DATA_QOS
 from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
@@ -33,6 +35,19 @@ from omni_micro_tools.bag_reading import read_bag
 from omni_micro_tools.recorder_node import BagRecorder
 from omni_micro_tools.viewer_node import Viewer
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
+
+
+def test_controller_node_reads_wheels_and_goals_only_once_its_moves_reach_their_readers(
+        context):
+    """A first move sent before a reader was matched is lost to it (reliable, volatile): in a
+    suite run markers_node never got one, and the lockstep waited for it for good. The robot's
+    clock waits for the controller's /joint_states reader, the goal for its /goal_pose one."""
+    assert_reads_input_only_once_matched(
+        context, ControllerNode(context=context, parameter_overrides=overrides(
+            trajectory_readers=['markers_node'])), 'markers_node',
+        lambda markers: markers.create_subscription(JointTrajectory, '/wheel_trajectory',
+                                                    lambda msg: None, DATA_QOS),
+        input_topic='/joint_states')
 
 
 def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):

@@ -249,6 +249,11 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                           if name != 'vision_node'],
                    **({'captures_in_motion': True} if servo else {})},
                'controller_node': {'goal_time': 'stamp', 'mode': modes[k],
+                                   # Its first move waits for the readers that must have it.
+                                   'trajectory_readers': [
+                                       'dynamics_node',
+                                       *((f'{robot}/markers_node',) if markers else ()),
+                                       *((RECORDER_NODE,) if record is not None else ())],
                                    **(servo_overrides(params_files) if servo else {})},
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],

@@ -24,6 +24,9 @@ from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.motion_capture import CameraTiming, capture_age_bound_s
 
+# The graph's nodes that must have every move: the robot and the two in the lockstep with it.
+TRAJECTORY_READERS = ('dynamics_node', 'markers_node', 'bag_recorder')
+
 
 def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     overrides: dict[str, object] = {}
@@ -102,6 +105,10 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
             if value is not None:
                 overrides[name] = value
     elif spec.executable == 'controller_node':
+        # Its first move waits for the readers that must not miss it.
+        present = nodes_present(options)
+        overrides.update(trajectory_readers=[name for name in TRAJECTORY_READERS
+                                             if name in present])
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)

@@ -8,6 +8,7 @@ beside the decision that made it.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -174,6 +175,16 @@ def capture_age_line(camera: str, values: dict[str, str], own_s: float, bound_s:
             f"(tracker_status), later than the servo's bound of {own_s * 1e3:.1f} ms "
             f'(servo.capture_age_s): it starts its corrections {bound_s * 1e3:.1f} ms after a '
             "capture's stamp")
+
+
+def take_tracker_status(servo: ServoSession, camera: str,
+                        status: Iterable[KeyValue]) -> str | None:
+    """A tracker's status (``camera``'s) taken by the servo: the line to log if the age it
+    states for its captures in motion grew the servo's bound (:func:`capture_age_line`)."""
+    values = {item.key: item.value for item in status}
+    own = servo.config.capture_age_s
+    bound = servo.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
+    return None if bound is None else capture_age_line(camera, values, own, bound)
 
 
 def waiting_line(tries: int, config: FeedbackConfig) -> str:

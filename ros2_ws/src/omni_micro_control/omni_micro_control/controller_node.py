@@ -39,7 +39,6 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import (
-    CAPTURE_AGE_KEY,
     STATUS_TIME_KEY,
     CaptureUncertainty,
     join_stamp,
@@ -51,6 +50,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, STATUS_QOS
+from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import joint_state_template, read_wheel_state
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -65,7 +65,6 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.controller_messages import (
     STATUS_LEVELS,
-    capture_age_line,
     end_values,
     move_line,
     move_trajectory,
@@ -75,6 +74,7 @@ from omni_micro_control.controller_messages import (
     servo_move,
     status_message,
     stop_trajectory,
+    take_tracker_status,
     waiting_line,
 )
 from omni_micro_control.controller_parameters import declare_controller_parameters, reconfigure
@@ -123,18 +123,28 @@ class ControllerNode(Node):
         self.lockstep = LockstepReporter(self)
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._joint_state = joint_state_template()
+        readers = node_list_parameter(self, 'trajectory_readers')
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._timeout_checks = 0
+        self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
+        # Listens once every trajectory_readers' reader is matched: a move sent before is lost.
+        when_readers_matched(self, [(self.trajectory_pub, readers)], self._listen)
+        self.get_logger().info(ready_line(settings.servo or settings.config,
+                                          self.uncertainty_source))
+        if settings.goal is not None:
+            # A scripted goal counts from time 0: the robot has been still since the start.
+            self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
+
+    def _listen(self) -> None:
         self.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, DATA_QOS,
                                  raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
+        covariance = self.uncertainty_source == 'covariance'
         for name in CAPTURE_TOPICS:
-            if self.uncertainty_source == 'covariance':
-                self.create_subscription(
-                    PoseWithCovarianceStamped, CAPTURE_COVARIANCE_TOPICS[name],
-                    functools.partial(self._on_capture_with_covariance, camera=name),
-                    CAPTURE_QOS)
-            else:
-                self.create_subscription(PoseStamped, CAPTURE_TOPICS[name],
-                                         functools.partial(self._on_capture, camera=name),
-                                         CAPTURE_QOS)
+            self.create_subscription(
+                PoseWithCovarianceStamped if covariance else PoseStamped,
+                (CAPTURE_COVARIANCE_TOPICS if covariance else CAPTURE_TOPICS)[name],
+                functools.partial(self._on_capture_with_covariance if covariance
+                                  else self._on_capture, camera=name), CAPTURE_QOS)
             if self._motion_handled_ns is not None:
                 self.create_subscription(
                     PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[name],
@@ -146,14 +156,6 @@ class ControllerNode(Node):
         self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._timeout_checks = 0
-        self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
-        self.get_logger().info(ready_line(settings.servo or settings.config,
-                                          self.uncertainty_source))
-        if settings.goal is not None:
-            # A scripted goal counts from time 0: the robot has been still since the start.
-            self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
 
     def _on_goal(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in (self.frame_id, ''):
@@ -300,11 +302,9 @@ class ControllerNode(Node):
     def _on_tracker_status(self, msg: DiagnosticStatus, camera: str) -> None:
         """How old a driver's captures in motion come: the servo's bound grows to it."""
         assert isinstance(self.controller, ServoSession)
-        values = {item.key: item.value for item in msg.values}
-        own = self.controller.config.capture_age_s
-        bound = self.controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
-        if bound is not None:
-            self.get_logger().warning(capture_age_line(camera, values, own, bound))
+        line = take_tracker_status(self.controller, camera, msg.values)
+        if line is not None:
+            self.get_logger().warning(line)
 
     def _on_set_parameters(self, params: list) -> SetParametersResult:
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
