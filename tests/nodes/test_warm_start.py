@@ -208,3 +208,13 @@ def test_a_forked_copy_of_the_orchestrator_starts_its_own_zygote_and_leaves_ours
     process, _ = start('warm', '0', env, lifeline)
     assert finish(process) == (0, '')
     assert warm_start._zygote_for(env) is ours and ours.usable
+
+
+def test_a_warm_nodes_cpu_counts_for_the_process_that_started_it(probe_env):
+    """os.times() counts only a process's own children; the zygote reports each node's CPU at
+    its exit, which is what the suite's per-test CPU (tests/conftest.py) adds."""
+    env, lifeline = probe_env
+    before = warm_start.finished_children_cpu_s()
+    process, _ = start('warm', 'spin', env, lifeline)
+    assert finish(process) == (0, '')
+    assert warm_start.finished_children_cpu_s() - before >= 0.3   # the probe spins 0.3 s

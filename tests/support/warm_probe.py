@@ -1,10 +1,12 @@
 """An entry point for warm_start's tests: prints what the process it runs in was given, then
-does what its first argument says (exit with a code, raise, or wait for its lifeline's end)."""
+does what its first argument says (exit with a code, raise, use 0.3 s of CPU, wait for a
+signal or for its lifeline's end)."""
 
 import json
 import os
 import signal
 import sys
+import time
 from pathlib import Path
 
 
@@ -29,6 +31,11 @@ def main() -> int:
     if what == 'wait':
         print('waiting', flush=True)
         os.read(lifeline, 1)   # returns at end-of-file: the orchestrator has gone
+        return 0
+    if what == 'spin':
+        until = time.process_time() + 0.3
+        while time.process_time() < until:
+            pass
         return 0
     if what == 'sleep':
         print('waiting', flush=True)

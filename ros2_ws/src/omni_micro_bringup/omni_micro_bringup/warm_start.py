@@ -104,6 +104,7 @@ class Zygote:
                 reply = json.loads(data)
                 if 'exited' in reply:
                     self._exits[reply['exited']] = reply['code']
+                    _count_cpu(reply['cpu_s'])
                 else:
                     self._replies.append(reply)
                 self._changed.notify_all()
@@ -162,6 +163,24 @@ class Zygote:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
+
+
+_finished_cpu_s = 0.0
+_finished_cpu_lock = threading.Lock()
+
+
+def _count_cpu(seconds: float) -> None:
+    global _finished_cpu_s
+    with _finished_cpu_lock:
+        _finished_cpu_s += seconds
+
+
+def finished_children_cpu_s() -> float:
+    """CPU used so far by the nodes this process started warm that have exited: what
+    ``os.times()`` counts of the children it starts cold (the zygote, not this process, waits for
+    the warm ones)."""
+    with _finished_cpu_lock:
+        return _finished_cpu_s
 
 
 def _alive(pid: int) -> bool:

@@ -104,16 +104,18 @@ def serve(sock: socket.socket) -> tuple[Launch, list[int]] | None:
 
 
 def _report_exits(sock: socket.socket) -> None:
+    """Each child that has exited: its exit code, and the CPU it and its own waited-for
+    children used (the orchestrator's os.times() does not count another process's children)."""
     while True:
         try:
-            pid, status = os.waitpid(-1, os.WNOHANG)
+            pid, status, usage = os.wait4(-1, os.WNOHANG)
         except ChildProcessError:
             return
         if pid == 0:
             return
         with contextlib.suppress(OSError):
-            sock.send(json.dumps({'exited': pid,
-                                  'code': os.waitstatus_to_exitcode(status)}).encode())
+            sock.send(json.dumps({'exited': pid, 'code': os.waitstatus_to_exitcode(status),
+                                  'cpu_s': usage.ru_utime + usage.ru_stime}).encode())
 
 
 def become(launch: Launch, fds: list[int]) -> Callable[[], int | str | None]:
