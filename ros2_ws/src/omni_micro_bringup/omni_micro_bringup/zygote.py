@@ -1,6 +1,7 @@
 """The zygote of :mod:`omni_micro_bringup.warm_start`: ``python -P -m omni_micro_bringup.zygote
-<socket fd>`` imports every node module of ours, then forks a child per request and reports each
-child's exit; the child returns from :func:`serve` and becomes the node.
+<socket fd>`` imports what the nodes need that is slow and not ROS, then forks a child per
+request and reports each child's exit; the child returns from :func:`serve` and becomes the
+node.
 
 Single-threaded, because fork is only safe so; it ignores SIGINT (a terminal's Ctrl-C is for the
 orchestrator, which stops the nodes in order) and ends when the orchestrator's socket closes.
@@ -51,16 +52,24 @@ def console_scripts() -> dict[str, str]:
     return _scripts
 
 
+# What the nodes import that is slow and loads nothing of ROS: numpy, numba and the dynamics'
+# compiled kernels, OpenCV, the camera, scene and controller models. rclpy and the messages
+# (Fast DDS with them) are each child's own: forked after they were loaded, a composed run's
+# recorder stopped for 6 s lost every /wheel_trajectory in 3 of 10 runs beside two busy
+# processes; loaded in each child, in none of 10 (the Fast DDS state at fault is not found).
+PRELOADED = ('numpy', 'cv2', 'omni_micro_sim.stepper', 'omni_micro_control.model_based',
+             'omni_micro_control.servo_session', 'omni_micro_vision.rendering',
+             'omni_micro_vision.tracking', 'omni_micro_vision.motion_capture')
+
+
 def _preload() -> None:
-    """Import every node module of ours, and run its ``warm_up()`` if it has one (the dynamics
-    loads its compiled kernels), so that each child starts with that done."""
-    for value in console_scripts().values():
-        module_name = value.split(':')[0]
-        if module_name == 'omni_micro_cli.cli':
-            continue
-        with contextlib.suppress(Exception):   # the child meets it again, and reports it
-            module = importlib.import_module(module_name)
-            getattr(module, 'warm_up', lambda: None)()
+    """Import :data:`PRELOADED` and load the kernels, so that each child starts with that done
+    (what fails here the child meets again, and reports)."""
+    for name in PRELOADED:
+        with contextlib.suppress(Exception):
+            importlib.import_module(name)
+    with contextlib.suppress(Exception):
+        importlib.import_module('omni_micro_sim.stepper').load_default_kernels()
 
 
 def serve(sock: socket.socket) -> tuple[Launch, list[int]] | None:

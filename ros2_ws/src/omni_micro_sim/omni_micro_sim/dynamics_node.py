@@ -83,7 +83,6 @@ from omni_micro_sim.errors import CommandError, ParameterError, SimulationError
 from omni_micro_sim.simulated_robots import SimulatedRobot, touching
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator, Sample
-from omni_micro_sim.stepper import load_default_kernels as warm_up  # noqa: F401 (the zygote's)
 from omni_micro_sim.wheel_trajectory import (
     TrajectoryPoint,
     command_from_points,
