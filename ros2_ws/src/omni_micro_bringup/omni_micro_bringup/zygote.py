@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-# The packages whose console scripts the zygote imports and forks.
+# The packages whose console scripts the zygote forks.
 PACKAGE_PREFIX = 'omni_micro_'
 MESSAGE_BYTES = 1 << 20
 _PR_SET_NAME = 15   # linux/prctl.h
@@ -53,10 +53,10 @@ def console_scripts() -> dict[str, str]:
 
 
 # What the nodes import that is slow and loads nothing of ROS: numpy, numba and the dynamics'
-# compiled kernels, OpenCV, the camera, scene and controller models. rclpy and the messages
-# (Fast DDS with them) are each child's own: forked after they were loaded, a composed run's
-# recorder stopped for 6 s lost every /wheel_trajectory in 3 of 10 runs beside two busy
-# processes; loaded in each child, in none of 10 (the Fast DDS state at fault is not found).
+# compiled kernels, OpenCV, the camera, scene and controller models. rclpy and the messages are
+# each child's own: loading them starts LTTng-UST's two listener threads, and Fast DDS keeps
+# process-wide state, neither of which a fork should copy (the stopped recorder's lost messages,
+# warm_start's docstring, came with and without them here).
 PRELOADED = ('numpy', 'cv2', 'omni_micro_sim.stepper', 'omni_micro_control.model_based',
              'omni_micro_control.servo_session', 'omni_micro_vision.rendering',
              'omni_micro_vision.tracking', 'omni_micro_vision.motion_capture')
