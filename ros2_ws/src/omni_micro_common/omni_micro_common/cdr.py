@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Literal
 
 from rclpy.serialization import deserialize_message
 
@@ -277,3 +277,11 @@ def read_diagnostic_status(data: bytes) -> tuple[int, str, str, str, list[tuple[
         value, offset = read_string(data, offset)
         values.append((key, value))
     return level, texts[0], texts[1], texts[2], values
+
+
+def header_stamp_ns(data: bytes) -> int:
+    """The header stamp of a serialized message that starts with a std_msgs/Header, without
+    decoding the rest: CDR puts a 4-byte encapsulation, then stamp.sec and stamp.nanosec."""
+    order: Literal['little', 'big'] = 'little' if data[1] & 1 else 'big'
+    return (int.from_bytes(data[4:8], order, signed=True) * 1_000_000_000
+            + int.from_bytes(data[8:12], order))

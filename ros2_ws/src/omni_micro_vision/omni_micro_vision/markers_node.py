@@ -31,7 +31,7 @@ import heapq
 import math
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
@@ -43,6 +43,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
+from omni_micro_common.cdr import header_stamp_ns
 from omni_micro_common.conventions import (
     GOAL_TOLERANCE_M,
     STEERING_JOINT,
@@ -71,15 +72,6 @@ from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, checke
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.marker_messages import MarkerArrayEncoder
 from omni_micro_vision.scene import ROBOT, RobotGeometry, Scene, Shape, move_of, slip_of
-
-
-def header_stamp_ns(data: bytes) -> int:
-    """The header stamp of a serialized message that starts with a std_msgs/Header, without
-    decoding the rest: CDR puts a 4-byte encapsulation, then stamp.sec and stamp.nanosec."""
-    order: Literal['little', 'big'] = 'little' if data[1] & 1 else 'big'
-    return (int.from_bytes(data[4:8], order, signed=True) * 1_000_000_000
-            + int.from_bytes(data[8:12], order))
-
 
 # An array is drawn once the odometry has gone this many arrays further: in the lockstep every
 # event stamped up to it (a capture, a move) has then been handled (the gate holds time a period
