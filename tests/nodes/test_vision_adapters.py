@@ -15,13 +15,14 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from visualization_msgs.msg import MarkerArray
 
 from omni_micro_common.conventions import quaternion_to_yaw, stamp_ns, yaw_to_quaternion
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, IMAGE_QOS
-from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.tick_messages import odometry_template, tick_templates
 from omni_micro_sim.state import RobotState
+from omni_micro_vision import markers_node
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.camera_node import CameraNode
 from omni_micro_vision.errors import CameraConfigError
@@ -259,6 +260,71 @@ def test_markers_node_draws_by_simulated_time_whatever_the_rate_of_its_odometry(
     assert throttled == [(k * 100_000_000, k == 1 or k % 10 == 0) for k in range(1, 31)]
     assert every_tick == [(20_000_000, True)] + [(k * 100_000_000, k % 10 == 0)
                                                  for k in range(1, 31)]
+
+
+def _arrays_with_wheels(context, spy, wheels_late_by_ticks: int,
+                        wheels_stop_at_tick: int = 151) -> tuple[int, list[bytes]]:
+    """How many arrays markers_node publishes before it is stopped, and all it publishes, from
+    3 s of odometry, joint states and slip at every tick of a 20 ms grid: the wheel streams
+    (which have a publisher) delivered ``wheels_late_by_ticks`` after the odometry of their
+    tick, as a sample resent by the reliable protocol is, and none from the tick
+    ``wheels_stop_at_tick`` on; each steering and slip its tick's own."""
+    node = MarkersNode(context=context, parameter_overrides=overrides(
+        publish_period_s=0.1, refresh_period_s=1.0))
+    robot = Node('wheel_writer', context=context)
+    try:
+        for topic in ('/wheel_slip', '/joint_states_throttle'):
+            robot.create_publisher(JointState, topic, DATA_QOS)
+        deadline = time.monotonic() + 10.0
+        while not all(reader.get_publisher_count() for reader in node.subscriptions
+                      if reader.topic_name in ('/wheel_slip', '/joint_states_throttle')):
+            assert time.monotonic() < deadline, 'the wheel readers never saw their writers'
+            time.sleep(0.01)
+        sent = spy(node.publisher)
+        templates = tick_templates('odom', 'base_link')
+        deliveries = []
+        for tick in range(151):
+            sec, nanosec = divmod(tick * 20_000_000, 10**9)
+            deliveries.append((tick, node._on_odometry, templates.odometry.encode(
+                (sec, nanosec, tick * 1e-5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0))))
+            if tick >= wheels_stop_at_tick:
+                continue
+            late = tick + wheels_late_by_ticks
+            deliveries.append((late, node._on_joint_state, templates.joint_state.encode(
+                (sec, nanosec, 0.01 * tick, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))))
+            deliveries.append((late, node._on_slip, templates.slip.encode(
+                (sec, nanosec, *[1e-4 * tick] * 6))))
+        for _, deliver, data in sorted(deliveries, key=lambda delivery: delivery[0]):
+            deliver(data)
+        drawn_live = len(sent.messages)
+        node.finish()
+        return drawn_live, list(sent.messages)
+    finally:
+        robot.destroy_node()
+        node.destroy_node()
+
+
+def test_markers_node_draws_each_arrays_wheels_and_slip_whatever_the_order_they_arrive_in(
+        context, spy, monkeypatch):
+    """A composed images run once gave other /markers than the same seed in separate
+    processes: from 0.6 s the wheels and slip arrows of arrays were of earlier samples, which
+    reached the node after the odometry two arrays later."""
+    _, in_order = _arrays_with_wheels(context, spy, 0)
+    assert len(in_order) == 31 and len(set(in_order)) == 31
+    # 0.3 s late, more than the two arrays the drawing lags the odometry by.
+    assert _arrays_with_wheels(context, spy, 15)[1] == in_order
+    # What waiting for the streams changes: drawn without, those arrays have other wheels.
+    monkeypatch.setattr(markers_node, 'MAX_HELD_ARRAYS', 0)
+    assert _arrays_with_wheels(context, spy, 15)[1] != in_order
+
+
+def test_markers_node_draws_on_when_a_wheel_stream_falls_far_behind(context, spy, monkeypatch):
+    """A publisher that went quiet holds the drawing MAX_HELD_ARRAYS arrays, not for good."""
+    monkeypatch.setattr(markers_node, 'MAX_HELD_ARRAYS', 3)
+    # The wheel streams stop at 0.5 s: waiting for them would have drawn 6 arrays (0 to 0.5 s)
+    # of the 31 due; it draws all but the two the drawing lags by and the three it holds.
+    drawn_live, drawn = _arrays_with_wheels(context, spy, 0, wheels_stop_at_tick=26)
+    assert (drawn_live, len(drawn)) == (31 - 2 - 3, 31)
 
 
 def _capture_with_covariance(x_m: float, at_s: float,

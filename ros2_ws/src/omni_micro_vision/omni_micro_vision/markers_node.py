@@ -7,7 +7,8 @@ simulated time of the odometry it draws. What is drawn is
 
 What an array holds depends on the stamps of what it draws, never on which message arrived
 first: every input is applied in stamp order (ties: goal, move, macro capture, micro capture),
-and an array is drawn only once the odometry has gone two arrays past it. In a lockstep graph
+and an array is drawn only once the odometry has gone two arrays past it and each wheel stream
+with a publisher (/wheel_slip, /joint_states_throttle) has reached its time. In a lockstep graph
 the node is a *watcher* (:mod:`omni_micro_common.lockstep`): it reports each capture and command
 it has handled on /lockstep, and time does not go more than a period past a capture, nor on at
 all past a command, that it has not handled; so every event of an array is in before the
@@ -77,6 +78,11 @@ from omni_micro_vision.scene import ROBOT, RobotGeometry, Scene, Shape, move_of,
 # event stamped up to it (a capture, a move) has then been handled (the gate holds time a period
 # past an unhandled capture, and still while a command is unhandled).
 DRAW_LAG_ARRAYS = 2
+# The wheel streams (/wheel_slip, /joint_states_throttle) come from writers of their own, and a
+# sample the reliable protocol resends arrives after later odometry: an array waits until each
+# stream that has a publisher has passed its time, but no more than this many arrays more (a
+# publisher that went quiet must not stop the drawing for good).
+MAX_HELD_ARRAYS = 50
 # How often (wall time) the node repeats its lockstep report without a new event.
 WATCHER_REPORT_PERIOD_S = 0.1
 # Ties between events of one stamp, applied in this order whatever order they arrived in.
@@ -146,6 +152,10 @@ class MarkersNode(Node):
         self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
         self._slips: dict[int, bytes] = {}
         self._joint_states: dict[int, bytes] = {}
+        # The newest stamp each wheel stream has delivered, by topic.
+        self._wheel_streams: dict[str, Any] = {}
+        self._newest_wheel_ns: dict[str, int] = {}
+        self._held_too_long = False
         # The arrays due, oldest first: the stamp each draws, and whether it draws everything.
         self._due: deque[tuple[int, bool]] = deque()
         self._last_periods: tuple[int, int] | None = None   # (publish, refresh) of the last due
@@ -183,10 +193,10 @@ class MarkersNode(Node):
         # The streams are kept as bytes and decoded once per publication. The wheels are
         # drawn at their actual steering angle (/joint_states): with a steering motion it
         # lags the commanded one.
-        self.create_subscription(JointState, WHEEL_SLIP_TOPIC, self._on_slip, DATA_QOS, raw=True,
-                                 event_callbacks=quiet)
-        self.create_subscription(JointState, JOINT_STATES_THROTTLE_TOPIC, self._on_joint_state,
-                                 DATA_QOS, raw=True, event_callbacks=quiet)
+        for topic, on_sample in ((WHEEL_SLIP_TOPIC, self._on_slip),
+                                 (JOINT_STATES_THROTTLE_TOPIC, self._on_joint_state)):
+            self._wheel_streams[topic] = self.create_subscription(
+                JointState, topic, on_sample, DATA_QOS, raw=True, event_callbacks=quiet)
         self.create_subscription(JointTrajectory, WHEEL_TRAJECTORY_TOPIC, self._on_trajectory,
                                  DATA_QOS)
         # Each capture from one topic, as the controller reads it (the same parameter): the
@@ -234,8 +244,28 @@ class MarkersNode(Node):
         everything = self._last_periods is None or periods[1] > self._last_periods[1]
         self._last_periods = periods
         self._due.append((at, everything))
-        if len(self._due) > DRAW_LAG_ARRAYS:
+        self._draw_ready()
+
+    def _draw_ready(self) -> None:
+        while len(self._due) > DRAW_LAG_ARRAYS:
+            due = self._due[0][0]
+            if len(self._due) > DRAW_LAG_ARRAYS + MAX_HELD_ARRAYS:
+                if not self._held_too_long:
+                    self._held_too_long = True
+                    self.get_logger().warning(
+                        f'drawing at {due * 1e-9:.3f} s without waiting further for '
+                        f'{self._wheel_streams_behind(due)}: they are '
+                        f'{MAX_HELD_ARRAYS} arrays behind the odometry')
+            elif self._wheel_streams_behind(due):
+                return
             self._draw_until(*self._due.popleft())
+
+    def _wheel_streams_behind(self, due: int) -> list[str]:
+        """The wheel streams that have a publisher and have not yet delivered a sample stamped
+        at ``due`` or later (a writer delivers in order: then every earlier one is in)."""
+        return [topic for topic, reader in self._wheel_streams.items()
+                if self._newest_wheel_ns.get(topic, -1) < due
+                and reader.get_publisher_count() > 0]
 
     def finish(self) -> None:
         """At shutdown: publish the arrays already due, as the next odometry would have (so a
@@ -272,12 +302,17 @@ class MarkersNode(Node):
             self._publish(shapes)
 
     def _on_slip(self, data: bytes) -> None:
-        self.handled += 1
-        self._slips[header_stamp_ns(data)] = data     # decoded only if drawn
+        self._take_wheel_sample(WHEEL_SLIP_TOPIC, self._slips, data)
 
     def _on_joint_state(self, data: bytes) -> None:
+        self._take_wheel_sample(JOINT_STATES_THROTTLE_TOPIC, self._joint_states, data)
+
+    def _take_wheel_sample(self, topic: str, samples: dict[int, bytes], data: bytes) -> None:
         self.handled += 1
-        self._joint_states[header_stamp_ns(data)] = data
+        at = header_stamp_ns(data)
+        samples[at] = data     # decoded only if drawn
+        self._newest_wheel_ns[topic] = max(at, self._newest_wheel_ns.get(topic, at))
+        self._draw_ready()
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         self._command_handled_ns = stamp_ns(msg.header.stamp)
