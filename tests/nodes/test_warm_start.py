@@ -1,8 +1,7 @@
-"""Nodes forked from the zygote (omni_micro_bringup.warm_start, with OMNI_MICRO_WARM_START=1) get
-what a started process gets, and leave as it would: the same argv, environment, working
-directory, session, descriptors and process name, the same exit code for each way out, and
-nothing left when the orchestrator dies. Each case is run both ways, warm and cold
-(subprocess), on a probe entry point."""
+"""Nodes forked from the zygote (omni_micro_bringup.warm_start) get what a started process gets,
+and leave as it would: the same argv, environment, working directory, session, descriptors and
+process name, the same exit code for each way out, and nothing left when the orchestrator dies.
+Each case is run both ways, warm and cold (subprocess), on a probe entry point."""
 
 import json
 import os
@@ -142,13 +141,19 @@ def test_the_zygote_and_its_nodes_leave_with_a_killed_orchestrator(tmp_path):
             Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z', pid
 
 
-def test_nodes_start_cold_unless_asked_and_when_not_ours(probe_env, monkeypatch, tmp_path):
+def test_nodes_start_warm_unless_told_not_to_and_cold_when_not_ours(probe_env, monkeypatch,
+                                                                     tmp_path):
     env, lifeline = probe_env
     monkeypatch.delenv(WARM_START_ENV, raising=False)
-    unasked = {k: v for k, v in env.items() if k != WARM_START_ENV}
-    assert start_warm([str(PROBE), '0'], unasked, (lifeline,),
-                      entry_point='warm_probe:main') is None
+    unset = {k: v for k, v in env.items() if k != WARM_START_ENV}
+    warm = start_warm([str(PROBE), '0'], unset, (lifeline,), entry_point='warm_probe:main')
+    assert isinstance(warm, WarmProcess)
+    assert finish(warm)[0] == 0
+    # Told so by the run's environment or by the orchestrator's own.
     assert start_warm([str(PROBE), '0'], {**env, WARM_START_ENV: '0'}, (lifeline,),
+                      entry_point='warm_probe:main') is None
+    monkeypatch.setenv(WARM_START_ENV, '0')
+    assert start_warm([str(PROBE), '0'], unset, (lifeline,),
                       entry_point='warm_probe:main') is None
     # An installed node of ours, run by this interpreter: warm. Another interpreter's: cold.
     ours = Path(sys.executable).parent / 'dynamics_node'

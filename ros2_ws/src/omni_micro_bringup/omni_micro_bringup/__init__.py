@@ -8,7 +8,7 @@ against the nodes' declared defaults), :mod:`readiness` (what the clock waits fo
 :mod:`bench_start` (what a bench run's goal waits for: the real robot's state, the cameras'
 frames), :mod:`processes` (each node a child process on loopback, its log, the domain's lease),
 :mod:`warm_start` and :mod:`zygote` (nodes forked from a process that has imported what is
-slow, when asked),
+slow),
 :mod:`shared_memory` (Fast DDS's files in /dev/shm: who holds them, what a killed node left),
 :mod:`graph` (start, supervise, stop in phases; run_graph), :mod:`graph_description` (who publishes
 and subscribes what, as rqt_graph shows it), :mod:`monitor` (the orchestrator's own node: the goal,

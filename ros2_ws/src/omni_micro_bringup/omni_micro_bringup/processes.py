@@ -135,7 +135,7 @@ class NodeProcess:
     def start(self) -> None:
         self.starts += 1
         self._ready.clear()
-        # Warm (forked from a zygote) only with OMNI_MICRO_WARM_START=1: warm_start says why.
+        # Warm: forked from a zygote that has imported what is slow (warm_start).
         warm = start_warm(self.argv, self.env, self.inherited_fds)
         self.process = warm or subprocess.Popen(
             self.argv, env=self.env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
@@ -236,8 +236,8 @@ def resident_memory_kb(processes: list[NodeProcess]) -> dict[str, int]:
 
 
 def prepare_node_starts(log_dir: Path) -> None:
-    """With warm starts asked for, have the zygote's imports done
-    (:mod:`omni_micro_bringup.warm_start`) while the orchestrator prepares the run."""
+    """Have the zygote's imports done (:mod:`omni_micro_bringup.warm_start`) while the
+    orchestrator prepares the run."""
     warm_up(node_environment(0, log_dir))
 
 

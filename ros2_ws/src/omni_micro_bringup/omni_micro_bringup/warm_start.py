@@ -11,12 +11,9 @@ to the orchestrator's pipe, the inherited descriptors at their numbers, and the 
 a signal) is the interpreter's own.
 
 The zygote reports each child's exit status to the orchestrator, which signals the child by its
-pid directly. Only with ``OMNI_MICRO_WARM_START=1``: by default every node starts cold
-(``subprocess``), as does, always, an executable that is not a console script of ours for this
-interpreter. Not the default because a composed run whose recorder is stopped for 6 s right as
-the clock starts (tests/graph/test_same_bag.py) lost messages to the recorder in 3 of 10 runs
-beside two busy processes with its nodes warm, in none of 12 cold; the cause is not found
-(docs/graph.md, "Nodes can start warm").
+pid directly. ``OMNI_MICRO_WARM_START=0`` starts every node cold (``subprocess``), as an
+executable that is not a console script of ours for this interpreter always starts
+(docs/graph.md, "Nodes start warm").
 """
 
 from __future__ import annotations
@@ -247,13 +244,15 @@ def entry_point_of(executable: Path) -> str | None:
     return console_scripts().get(executable.name)
 
 
-def warm_start_asked(env: dict[str, str]) -> bool:
-    return env.get(WARM_START_ENV) == '1' or os.environ.get(WARM_START_ENV) == '1'
+def warm_starts(env: dict[str, str]) -> bool:
+    """Whether nodes start warm: unless the run's environment, or the orchestrator's, says
+    ``OMNI_MICRO_WARM_START=0``."""
+    return '0' not in (env.get(WARM_START_ENV), os.environ.get(WARM_START_ENV))
 
 
 def warm_up(env: dict[str, str]) -> None:
     """Start the zygote's imports now, beside the orchestrator's own preparations."""
-    if warm_start_asked(env):
+    if warm_starts(env):
         _zygote_for(env)
 
 
@@ -261,7 +260,7 @@ def start_warm(argv: list[str], env: dict[str, str], pass_fds: tuple[int, ...],
                entry_point: str | None = None) -> WarmProcess | None:
     """Fork ``argv`` from the zygote (running ``entry_point``, by default the console script's);
     None when it must start cold."""
-    if not warm_start_asked(env):
+    if not warm_starts(env):
         return None
     entry_point = entry_point or entry_point_of(Path(argv[0]))
     if entry_point is None:

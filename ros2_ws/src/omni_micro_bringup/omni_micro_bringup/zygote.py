@@ -55,8 +55,7 @@ def console_scripts() -> dict[str, str]:
 # What the nodes import that is slow and loads nothing of ROS: numpy, numba and the dynamics'
 # compiled kernels, OpenCV, the camera, scene and controller models. rclpy and the messages are
 # each child's own: loading them starts LTTng-UST's two listener threads, and Fast DDS keeps
-# process-wide state, neither of which a fork should copy (the stopped recorder's lost messages,
-# warm_start's docstring, came with and without them here).
+# process-wide state, neither of which a fork should copy.
 PRELOADED = ('numpy', 'cv2', 'omni_micro_sim.stepper', 'omni_micro_control.model_based',
              'omni_micro_control.servo_session', 'omni_micro_vision.rendering',
              'omni_micro_vision.tracking', 'omni_micro_vision.motion_capture')
