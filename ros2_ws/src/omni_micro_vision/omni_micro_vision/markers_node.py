@@ -40,6 +40,7 @@ from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
@@ -152,8 +153,8 @@ class MarkersNode(Node):
         self._events: list[tuple[int, int, int, Callable[[], None]]] = []   # a heap
         self._slips: dict[int, bytes] = {}
         self._joint_states: dict[int, bytes] = {}
-        # The newest stamp each wheel stream has delivered, by topic.
-        self._wheel_streams: dict[str, Any] = {}
+        # The wheel streams' readers, and the newest stamp each has delivered, by topic.
+        self._wheel_streams: dict[str, Subscription] = {}
         self._newest_wheel_ns: dict[str, int] = {}
         self._held_too_long = False
         # The arrays due, oldest first: the stamp each draws, and whether it draws everything.
