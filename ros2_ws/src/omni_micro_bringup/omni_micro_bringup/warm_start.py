@@ -88,6 +88,9 @@ class Zygote:
         self._changed = threading.Condition()
         self._request_lock = threading.Lock()
         self._closed = False
+        # The CPU its children's exit reports counted, until the zygote itself is reaped.
+        self._children_cpu_s = 0.0
+        self._reaped = False
         self._reader = threading.Thread(target=self._read_replies, daemon=True)
         self._reader.start()
 
@@ -105,7 +108,9 @@ class Zygote:
                 reply = json.loads(data)
                 if 'exited' in reply:
                     self._exits[reply['exited']] = reply['code']
-                    _count_cpu(reply['cpu_s'])
+                    if not self._reaped:
+                        self._children_cpu_s += reply['cpu_s']
+                        _count_cpu(reply['cpu_s'])
                 else:
                     self._replies.append(reply)
                 self._changed.notify_all()
@@ -151,7 +156,22 @@ class Zygote:
 
     @property
     def usable(self) -> bool:
-        return not self._closed and self.process.poll() is None
+        alive = self.process.poll() is None
+        if not alive:
+            self._take_back_childrens_cpu()
+        return not self._closed and alive
+
+    def _take_back_childrens_cpu(self) -> None:
+        """Once the zygote is reaped, this process's os.times() counts the CPU of every child
+        it waited for (a waited-for child's rusage holds its own children's): what their
+        reports counted is taken back, and later reports are not counted (a test that closed a
+        zygote was charged 60.8 s of CPU in 5.8 s of wall time)."""
+        with self._changed:
+            if self._reaped:
+                return
+            self._reaped = True
+            counted = self._children_cpu_s
+        _count_cpu(-counted)
 
     def close(self) -> None:
         if os.getpid() != self.owner:
@@ -164,6 +184,7 @@ class Zygote:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
+        self._take_back_childrens_cpu()
 
 
 _finished_cpu_s = 0.0
