@@ -18,9 +18,10 @@ from rclpy.serialization import serialize_message
 
 from omni_micro_cli.cli import main
 from omni_micro_tools.bag_reading import read_bag
-from omni_micro_tools.bag_salvage import Recovery, reader_of
+from omni_micro_tools.bag_salvage import reader_of
 from omni_micro_tools.bags import flush, open_writer, recover
 from omni_micro_tools.errors import BagDamagedError
+from omni_micro_tools.salvage_report import Recovery
 from omni_micro_tools.topics import GRAPH_TOPICS
 
 CHUNKS, PER_CHUNK = 4, 50

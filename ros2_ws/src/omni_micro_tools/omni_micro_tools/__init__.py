@@ -4,7 +4,7 @@
 record`` would do), :mod:`viewer_node` (``viewer``: the topics over the Foxglove WebSocket
 protocol), :mod:`bags` (writing and recovering bags through the rosbags library),
 :mod:`bag_salvage` and :mod:`mcap_salvage` (what a damaged or cut bag still holds, chunk by
-chunk),
+chunk), :mod:`salvage_report` (what a salvage kept and lost),
 :mod:`bag_reading` (reading them back), :mod:`bag_player` (publishing a bag again, as ``ros2 bag
 play``), :mod:`bag_order` (the order a finished bag holds its messages in: simulated time, so that
 the same run gives the same file), :mod:`topics` (what is recorded: each topic's type and offered

@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_common.errors import OmniMicroError
-from omni_micro_tools.bag_salvage import MCAP_DAMAGE
 from omni_micro_tools.bags import TYPESTORE
 from omni_micro_tools.errors import BagDamagedError, BagPathError
+from omni_micro_tools.mcap_salvage import MCAP_DAMAGE
 
 
 @dataclass

@@ -1,66 +1,21 @@
 """Reading what a damaged bag still holds: every message of its intact chunks, footer or not, and
 a count of what could not be read (:func:`omni_micro_tools.bags.recover` writes it into a new
-bag). The mcap file's walk is :mod:`omni_micro_tools.mcap_salvage`'s."""
+bag). The mcap file's walk is :mod:`omni_micro_tools.mcap_salvage`'s, the report
+:mod:`omni_micro_tools.salvage_report`'s."""
 
 from __future__ import annotations
 
 import os
 import sqlite3
-import struct
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 
 from omni_micro_tools.bag_order import Stored
 from omni_micro_tools.errors import BagPathError
-
-# The mcap specification's magic, with which a file starts and ends, and its footer record's
-# size (opcode, length, two offsets and a CRC).
-MAGIC = b'\x89MCAP0\r\n'
-FOOTER_SIZE = 1 + 8 + 8 + 8 + 4
-# A damaged file can announce records of any length; nothing the recorder writes is this big.
-RECORD_SIZE_LIMIT = 1 << 30
-# What reading a damaged mcap file raises: the library's own errors, and what its parsers hit
-# on bytes that are not what they should be.
-MCAP_DAMAGE = (McapError, struct.error, ValueError, EOFError, UnicodeDecodeError, KeyError)
-
-
-@dataclass(frozen=True)
-class DroppedStretch:
-    """Messages a damaged stretch of the file took with it: how many (None: the file no longer
-    says) and between which log times (ns; None: the bag's start, or its end)."""
-
-    count: int | None
-    from_ns: int | None
-    to_ns: int | None
-
-    def said(self) -> str:
-        """'12 between 4.200 and 5.380 s', as bag-recover prints it."""
-        def when(ns: int | None, otherwise: str) -> str:
-            return otherwise if ns is None else f'{ns * 1e-9:.3f} s'
-        count = 'an unknown number' if self.count is None else str(self.count)
-        return (f'{count} between {when(self.from_ns, "the start")} and '
-                f'{when(self.to_ns, "the end")}')
-
-
-@dataclass
-class Recovery:
-    """What ``recover`` kept and what it could not."""
-
-    counts: dict[str, int]          # messages kept, per topic
-    dropped: int = 0                # messages of damaged chunks, or that did not decode
-    undecodable: int = 0            # of those, read whole but not decodable as their type
-    damaged_chunks: int = 0         # damaged stretches of the file (a chunk, or more)
-    cut_short: bool = False         # the file ends inside a record (a kill, a copy cut short)
-    unsure_tail: int = 0            # whole messages of the last RECOVERY_WINDOW_S, left out
-    stretches: list[DroppedStretch] = field(default_factory=list)   # where the damage lies
-
-    @property
-    def kept(self) -> int:
-        return sum(self.counts.values())
+from omni_micro_tools.mcap_salvage import FOOTER_SIZE, MAGIC, mcap_messages
+from omni_micro_tools.salvage_report import Recovery
 
 
 def _sqlite_messages(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
@@ -106,8 +61,5 @@ def reader_of(file: Path, report: Recovery) -> Callable[[], Iterator[Stored]]:
         readings += 1
         if file.suffix == '.db3':
             return _sqlite_messages(file)
-        # Here: the walk reports in this module's terms.
-        from omni_micro_tools.mcap_salvage import mcap_messages
-
         return mcap_messages(file, report if readings == 1 else Recovery({}))
     return read

@@ -20,13 +20,9 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from omni_micro_tools.bag_order import RECOVERY_WINDOW_S, Ordered, in_bag_order
-from omni_micro_tools.bag_salvage import (
-    Recovery,
-    finished_by_its_recorder,
-    reader_of,
-    stored_file,
-)
+from omni_micro_tools.bag_salvage import finished_by_its_recorder, reader_of, stored_file
 from omni_micro_tools.errors import BagDamagedError, BagPathError
+from omni_micro_tools.salvage_report import Recovery
 from omni_micro_tools.topics import GRAPH_TOPICS, STORAGE_NAMES, TopicSpec
 
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)

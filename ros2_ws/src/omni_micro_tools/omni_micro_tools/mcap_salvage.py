@@ -1,6 +1,6 @@
 """An mcap file walked record by record, trusting nothing (:class:`_McapSalvage`): what
 ``omni-micro bag-recover`` keeps of a damaged or cut file, and what it says was lost
-(:mod:`omni_micro_tools.bag_salvage`'s report)."""
+(:mod:`omni_micro_tools.salvage_report`)."""
 
 from __future__ import annotations
 
@@ -9,22 +9,27 @@ import dataclasses
 import io
 import mmap
 import os
+import struct
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 
 from omni_micro_tools.bag_order import Stored
-from omni_micro_tools.bag_salvage import (
-    FOOTER_SIZE,
-    MAGIC,
-    MCAP_DAMAGE,
-    RECORD_SIZE_LIMIT,
-    DroppedStretch,
-    Recovery,
-)
+from omni_micro_tools.salvage_report import DroppedStretch, Recovery
+
+# The mcap specification's magic, with which a file starts and ends, and its footer record's
+# size (opcode, length, two offsets and a CRC).
+MAGIC = b'\x89MCAP0\r\n'
+FOOTER_SIZE = 1 + 8 + 8 + 8 + 4
+# A damaged file can announce records of any length; nothing the recorder writes is this big.
+RECORD_SIZE_LIMIT = 1 << 30
+# What reading a damaged mcap file raises: the library's own errors, and what its parsers hit
+# on bytes that are not what they should be.
+MCAP_DAMAGE = (McapError, struct.error, ValueError, EOFError, UnicodeDecodeError, KeyError)
 
 _LAST_OPCODE = max(Opcode)
 # The smallest message record: opcode, length, channel, sequence, log and publish time.
