@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
@@ -26,6 +26,7 @@ from omni_micro_common.topic_names import (
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.encodings import full_scale
 from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.fleet_tracking import FleetCaptures
 from omni_micro_vision.frame_ages import FrameAges
 from omni_micro_vision.identification import Sighting, identify
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
@@ -33,15 +34,35 @@ from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.tracked_camera import TrackedCamera
 from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
-if TYPE_CHECKING:
-    from omni_micro_vision.tracker_node import TrackerNode
+
+class TrackerHost(Protocol):
+    """What a camera's reader needs of the node holding it (tracker_node's ``TrackerNode``):
+    its settings, a publisher and a logger of its own, and where each frame goes once read."""
+
+    frame_id: str
+    still_frames: int
+    still_px: float
+    captures_in_motion: bool
+    reliability: str
+    robots: dict[str, int]
+    fleet: FleetCaptures | None
+
+    def create_publisher(self, msg_type: Any, topic: str, qos: Any) -> Any: ...
+
+    def get_logger(self) -> Any: ...
+
+    def on_frame(self, reader: CameraReader, stamp: int, found: bool,
+                 capture: HeldCapture | None, in_motion: HeldInMotion | None = None) -> None: ...
+
+    def on_fleet_frame(self, reader: CameraReader, stamp: int,
+                       sightings: list[Sighting]) -> None: ...
 
 
 class CameraReader:
     """One camera's frames: check them against the camera's geometry, track, decide stillness,
     publish."""
 
-    def __init__(self, node: TrackerNode, camera: TrackedCamera, exposure_s: float,
+    def __init__(self, node: TrackerHost, camera: TrackedCamera, exposure_s: float,
                  mid_exposure_after_stamp_s: float, image_topic: str) -> None:
         self.node = node
         self.image_topic = image_topic
