@@ -181,7 +181,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     from nav_msgs.msg import Odometry
     from rclpy.node import Node
 
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
     from omni_micro_common.lockstep import Ack
     from omni_micro_common.lockstep_reporting import LockstepReporter
     from omni_micro_common.qos import DATA_QOS
@@ -203,7 +203,7 @@ def test_time_standing_still_after_a_respawn_is_started_again(start_node, probe,
     start_node('omni_micro_sim', 'dynamics_node', 'paused:=true', 'real_time_factor:=5.0',
                'lockstep_nodes:=[vision_node]')
     lines: list[str] = []
-    monitor = GraphMonitor(domain_id, echo=lines.append)
+    monitor = Orchestrator(domain_id, echo=lines.append)
     try:
         with probe.spinning():
             supervisor = NoDeaths(tmp_path)
@@ -223,10 +223,10 @@ def test_a_lost_answer_to_starting_the_clock_is_asked_again(start_node, domain_i
     answer is lost. The request goes again, and the clock starts."""
     from rclpy.task import Future
 
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
 
     start_node('omni_micro_sim', 'dynamics_node', 'paused:=true')
-    monitor = GraphMonitor(domain_id)
+    monitor = Orchestrator(domain_id)
     calls = []
     call_async = monitor.parameters.call_async
 

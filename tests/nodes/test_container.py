@@ -131,7 +131,7 @@ def test_the_final_pose_is_the_sample_at_the_capture_or_a_clear_failure():
     from collections import deque
 
     from omni_micro_bringup.errors import RunFailed
-    from omni_micro_bringup.monitor import first_sample_at_or_after
+    from omni_micro_bringup.orchestrator import first_sample_at_or_after
 
     creeping = deque(((0.02 * tick, 0.1 + 1e-14 * tick, 0.0, 0.0) for tick in range(10)),
                      maxlen=20)

@@ -10,12 +10,12 @@ frames), :mod:`processes` (each node a child process on loopback, its log, the d
 :mod:`warm_start` and :mod:`zygote` (nodes forked from a process that has imported what is
 slow),
 :mod:`shared_memory` (Fast DDS's files in /dev/shm: who holds them, what a killed node left),
-:mod:`graph` (start, supervise, stop in phases; run_graph), :mod:`graph_description` (who publishes
-and subscribes what, as rqt_graph shows it), :mod:`monitor` (the orchestrator's own node: the goal,
-the clock, the outcome), :mod:`respawns` (a respawned node brought back mid-run), :mod:`supervisor`
-(what the monitor needs of whoever runs the processes), :mod:`platform_bounds` (goals checked
-against the cameras' platform), :mod:`machine_load` (other programs keeping the cores busy, for
-benchmarks and tests), :mod:`errors`; for several robots, :mod:`fleet_composition` (one dynamics
-for all, each robot's nodes in its namespace) and :mod:`fleet_graph` (the run, the orchestration as
-each robot's coordinator).
+:mod:`graph` (start, supervise, stop in phases; run_graph), :mod:`graph_description` (who
+publishes and subscribes what, as rqt_graph shows it), :mod:`orchestrator` (the orchestrator's
+own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node brought back
+mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
+:mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
+(other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
+robots, :mod:`fleet_composition` (one dynamics for all, each robot's nodes in its namespace) and
+:mod:`fleet_graph` (the run, the orchestration as each robot's coordinator).
 """

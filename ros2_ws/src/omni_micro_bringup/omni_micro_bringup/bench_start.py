@@ -25,7 +25,7 @@ from omni_micro_common.qos import LOCKSTEP_QOS, latched
 from omni_micro_common.topic_names import JOINT_STATES_TOPIC, TRACKER_STATUS_TOPICS
 
 if TYPE_CHECKING:
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
     from omni_micro_bringup.supervisor import Supervisor
 
 # What is still missing is named after this long (the drivers may take longer to start: the
@@ -35,7 +35,7 @@ BENCH_NOTICE_S = 5.0
 CONTROLLER = 'controller_node'
 
 
-def wait_for_bench(monitor: GraphMonitor, graph: Supervisor, robot: bool,
+def wait_for_bench(monitor: Orchestrator, graph: Supervisor, robot: bool,
                    cameras: dict[str, str], timeout_s: float,
                    ages: bool = False) -> dict[str, str]:
     """Until the controller has had a wheel state (``robot``: the real robot's driver) and the

@@ -49,8 +49,8 @@ READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
     'markers_node': (ODOM_THROTTLE_TOPIC, JOINT_STATES_THROTTLE_TOPIC, WHEEL_SLIP_TOPIC),
     'bag_recorder': (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)}
 # The orchestrator's own node: it publishes goals, reads statuses and, from the first sample,
-# the odometry it takes the run's final pose from (omni_micro_bringup.monitor); not part of the
-# graph.
+# the odometry it takes the run's final pose from (omni_micro_bringup.orchestrator); not part of
+# the graph.
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
 
 

@@ -37,7 +37,7 @@ from omni_micro_bringup.fleet_composition import (
     robot_topic,
 )
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
-from omni_micro_bringup.monitor import GraphMonitor
+from omni_micro_bringup.orchestrator import Orchestrator
 from omni_micro_bringup.processes import DomainLease, prepare_node_starts
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
@@ -99,7 +99,7 @@ class FleetGraphResult:
     domain_id: int
 
 
-class FleetMonitor(GraphMonitor):
+class FleetMonitor(Orchestrator):
     """The orchestration's node with every robot's goals, statuses and odometry, and its part
     in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
 

@@ -316,7 +316,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     all_specs(options)   # a graph that cannot be is refused before anything is written
     prepare_node_starts(options.log_dir)
     from omni_micro_bringup.bench_start import wait_for_bench  # rclpy only where a graph runs
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
     from omni_micro_tools.topics import BAG_TAIL_S
 
     log_dir = new_log_dir(options.log_dir)
@@ -325,7 +325,7 @@ def run_graph(options: GraphOptions) -> GraphResult:
     lease = DomainLease(options.domain_id, joined=options.external)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = GraphMonitor(domain_id, follow_route=options.follow_route, echo=options.echo,
+        monitor = Orchestrator(domain_id, follow_route=options.follow_route, echo=options.echo,
                                markers=options.markers)
         recording = options.record is not None
         statuses = []

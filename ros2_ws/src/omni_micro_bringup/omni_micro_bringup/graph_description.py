@@ -50,7 +50,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     """Bring the graph of ``options`` up (its clock paused, no goal), read from the ROS graph
     who publishes and who subscribes each topic with which type and QoS, as rqt_graph would,
     and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
 
     for path in options.params_files:
         check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
@@ -58,7 +58,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     lease = DomainLease(options.domain_id)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = GraphMonitor(domain_id, echo=options.echo)
+        monitor = Orchestrator(domain_id, echo=options.echo)
         try:
             graph.start()
             monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,

@@ -1,6 +1,6 @@
 """A node respawned in the middle of a run, brought back: the clock held while it comes up, its
 new readers told from the dead process's, the goal given again, and time started anew if it
-stands still (GraphMonitor's part in supervision; graph.Graph respawns the process)."""
+stands still (Orchestrator's part in supervision; graph.Graph respawns the process)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from omni_micro_common.topic_names import (
 )
 
 if TYPE_CHECKING:
-    from omni_micro_bringup.monitor import GraphMonitor
+    from omni_micro_bringup.orchestrator import Orchestrator
 
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
 # again, and how far simulated time must go (beyond the lockstep's lead) to show that the
@@ -34,9 +34,9 @@ GOAL_ACKED_WITHIN_S = 0.5
 
 
 class Respawns:
-    """What the monitor does when its supervisor says nodes were respawned."""
+    """What the orchestrator does when its supervisor says nodes were respawned."""
 
-    def __init__(self, monitor: GraphMonitor) -> None:
+    def __init__(self, monitor: Orchestrator) -> None:
         self.monitor = monitor
         self.known_endpoints: dict[str, set[bytes]] = {}
 
@@ -137,7 +137,7 @@ class Respawns:
         (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
         clock again levels every node at the time it stands at and looks at the readers anew.
         """
-        # Time is read from the monitor's own odometry reader (one tick in five at least).
+        # Time is read from the orchestrator's own odometry reader (one tick in five at least).
         self.monitor.set_paused(graph, False)
         self._wait_for_time_to_move(graph, restarted, stall_s)
 

@@ -1,5 +1,5 @@
-"""What the orchestration's node needs of whoever runs the processes (graph.Graph): the monitor
-watches the ROS side and leaves the processes to its supervisor, so the dependency runs one way."""
+"""What the orchestrator's node needs of whoever runs the processes (graph.Graph): it watches
+the ROS side and leaves the processes to its supervisor, so the dependency runs one way."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from typing import Protocol
 
 
 class Supervisor(Protocol):
-    """What the monitor needs of whoever runs the processes (graph.Graph): it watches the ROS
+    """What the orchestrator needs of whoever runs the processes (graph.Graph): it watches the ROS
     side and leaves the processes to its supervisor, so the dependency runs one way."""
 
     log_dir: Path

@@ -4,7 +4,7 @@ and reads the true final pose from /odom. It commands nothing that moves the rob
 
 The final pose is the first odometry sample at or after the outcome's capture, not the one this
 process happens to read first: a robot at rest still creeps (1e-14 m a tick), so which sample
-that was would show in the last digits and depend on the machine's load. The monitor's reader
+that was would show in the last digits and depend on the machine's load. The orchestrator's reader
 is one of dynamics_node's awaited readers (the composition says so): matched before time
 starts, it has every sample, and keeps the last ODOMETRY_KEPT. It reads /odom_throttle (one
 tick in five), or /odom when it follows the route: a reader at the full rate slows a graph at
@@ -52,7 +52,7 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
-# How many of the latest odometry samples the monitor keeps (80 s of simulated time at 50 Hz):
+# How many of the latest odometry samples the orchestrator keeps (80 s of simulated time at 50 Hz):
 # the status naming the outcome's capture reaches this process after its sample, by far less.
 ODOMETRY_KEPT = 4000
 
@@ -65,7 +65,7 @@ GOAL_READERS_MATCH_S = 5.0
 SERVICE_RESEND_S = 2.0
 
 
-class GraphMonitor:
+class Orchestrator:
     """With ``follow_route`` it keeps the whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
