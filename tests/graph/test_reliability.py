@@ -50,8 +50,9 @@ def run(tmp_path: Path, **options: Any) -> GraphResult:
     tests/graph/test_markers_view.py's; without it the run is the same)."""
     options.setdefault('real_time_factor', 5.0)
     options.setdefault('markers', False)
+    on_running = options.pop('on_running', None)
     return run_graph(GraphOptions(goal_m=options.pop('goal_m', GOAL), log_dir=tmp_path / 'logs',
-                                  **options))
+                                  **options), on_running)
 
 
 # -- vision faults ---------------------------------------------------------------------------

@@ -47,9 +47,10 @@ def record(folder: Path, real_time_factor: float = math.inf, seed: int = SHARED_
     (in a folder of its own): rosbag2 names the storage file after the bag's folder, and
     metadata.yaml says so."""
     bag = folder / 'bag'
+    on_running = options.pop('on_running', None)
     result = run_graph(GraphOptions(
         goal_m=(0.1, 0.0), seed=seed, real_time_factor=real_time_factor, record=bag,
-        log_dir=folder / 'logs', **options))  # type: ignore[arg-type]
+        log_dir=folder / 'logs', **options), on_running)  # type: ignore[arg-type]
     assert result.outcome == 'reached' and result.periods >= 2, result.reason
     # By construction no command arrives after its start stamp; the dynamics would say so.
     log = 'loop_container.log' if options.get('composed') else 'dynamics_node.log'

@@ -12,21 +12,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from omni_micro_bringup.errors import RunFailed
+from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import CAPTURE_AGE_KEY, FRAME_AGE_KEY, FRAME_RATE_KEY
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_TOPIC
 from omni_micro_common.lockstep_reporting import decode_ack_bytes
 from omni_micro_common.qos import LOCKSTEP_QOS, latched
 from omni_micro_common.topic_names import JOINT_STATES_TOPIC, TRACKER_STATUS_TOPICS
-
-if TYPE_CHECKING:
-    from omni_micro_bringup.orchestrator import Orchestrator
-    from omni_micro_bringup.supervisor import Supervisor
 
 # What is still missing is named after this long (the drivers may take longer to start: the
 # run waits on, up to its bound).
@@ -35,7 +32,18 @@ BENCH_NOTICE_S = 5.0
 CONTROLLER = 'controller_node'
 
 
-def wait_for_bench(monitor: Orchestrator, graph: Supervisor, robot: bool,
+class BenchWatcher(Protocol):
+    """What the bench's wait needs of the orchestrator's node
+    (:class:`omni_micro_bringup.orchestrator.Orchestrator`): its ROS node to listen with."""
+
+    node: Any
+    echo: Callable[[str], None] | None
+    domain_id: int
+
+    def spin_for(self, seconds: float) -> None: ...
+
+
+def wait_for_bench(monitor: BenchWatcher, graph: Supervisor, robot: bool,
                    cameras: dict[str, str], timeout_s: float,
                    ages: bool = False) -> dict[str, str]:
     """Until the controller has had a wheel state (``robot``: the real robot's driver) and the

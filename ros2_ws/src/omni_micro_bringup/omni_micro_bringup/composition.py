@@ -9,7 +9,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.parameters import node_parameters
@@ -27,9 +26,6 @@ from omni_micro_common.topic_names import (
     WHEEL_SLIP_TOPIC,
 )
 from omni_micro_control.servo_config import SERVO_MODE
-
-if TYPE_CHECKING:
-    from omni_micro_bringup.graph import Graph
 
 # The nodes of the graph, by name (a params file's sections name them): the loop, and those a
 # graph may have besides (the rendered cameras and their tracker, the markers, the recorder, the
@@ -195,8 +191,6 @@ class GraphOptions:
     vision_overrides: dict[str, object] = field(default_factory=dict)
     controller_overrides: dict[str, object] = field(default_factory=dict)
     dynamics_overrides: dict[str, object] = field(default_factory=dict)
-    # Called once the clock runs, with the Graph (tests use it to kill a node mid-run).
-    on_running: Callable[[Graph], None] | None = None
     markers: bool = True                  # markers_node draws the run on /markers
     view: tuple[str, int] | None = None   # serve the topics to Foxglove on (host, port)
     vision: str = 'model'                 # 'images': camera_node + tracker_node (VISION_MODES)

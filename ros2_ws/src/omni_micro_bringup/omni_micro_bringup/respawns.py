@@ -5,7 +5,8 @@ stands still (Orchestrator's part in supervision; graph.Graph respawns the proce
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, ClassVar
+from collections.abc import Callable
+from typing import Any, ClassVar, Protocol
 
 from omni_micro_bringup.composition import READS_FROM_ROBOT
 from omni_micro_bringup.errors import RunFailed
@@ -15,9 +16,6 @@ from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
     GOAL_TOPIC,
 )
-
-if TYPE_CHECKING:
-    from omni_micro_bringup.orchestrator import Orchestrator
 
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
 # again, and how far simulated time must go (beyond the lockstep's lead) to show that the
@@ -33,10 +31,34 @@ RESUMED_AFTER_S = 0.2
 GOAL_ACKED_WITHIN_S = 0.5
 
 
+class RespawnsHost(Protocol):
+    """What bringing a node back needs of the orchestrator's node
+    (:class:`omni_micro_bringup.orchestrator.Orchestrator`): its ROS node, the clock, the goal
+    and what it has read since."""
+
+    node: Any
+    echo: Callable[[str], None] | None
+    goal_stamp_s: float
+    goal_sent_at: int
+    statuses: list[dict[str, str]]
+    camera_statuses: list[str]
+    latest_odometry: tuple[float, float, float, float] | None
+
+    def set_paused(self, graph: Supervisor, paused: bool) -> None: ...
+
+    def spin_for(self, seconds: float) -> None: ...
+
+    def let_matching_settle(self) -> None: ...
+
+    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], recording: bool = False,
+                  timeout_s: float = 30.0, stamp_s: float = 0.0,
+                  acked_within_s: float = ...) -> None: ...
+
+
 class Respawns:
     """What the orchestrator does when its supervisor says nodes were respawned."""
 
-    def __init__(self, monitor: Orchestrator) -> None:
+    def __init__(self, monitor: RespawnsHost) -> None:
         self.monitor = monitor
         self.known_endpoints: dict[str, set[bytes]] = {}
 
