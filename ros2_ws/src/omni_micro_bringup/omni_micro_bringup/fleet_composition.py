@@ -38,33 +38,21 @@ from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.params import load_params_file
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
-    CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
-    CAPTURE_TOPICS,
     CLOCK_TOPIC,
-    CONTROLLER_STATUS_TOPIC,
-    GOAL_TOPIC,
-    JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
-    TRACKER_STATUS_TOPICS,
-    WHEEL_SLIP_TOPIC,
-    WHEEL_TRAJECTORY_TOPIC,
+    ROBOT_TOPICS,
+    robot_name,
+    robot_topic,
 )
 from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import RobotParameters
-from omni_micro_sim.simulated_robots import robot_topic as namespaced_topic
 from omni_micro_tools.topics import GRAPH_TOPICS, robot_and_topic
 from omni_micro_vision.scene import FLEET_COLOURS
 
-# Every topic that is a robot's own; /clock and /lockstep stay the graph's.
-ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
-                JOINT_STATES_THROTTLE_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
-                CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, *CAPTURE_TOPICS.values(),
-                *CAPTURE_COVARIANCE_TOPICS.values(), *CAPTURE_IN_MOTION_TOPICS.values(),
-                *TRACKER_STATUS_TOPICS.values())
 RECORDER_NODE = 'bag_recorder'
 # A robot's nodes, each with its package; and, drawing it on /robot_k/markers, its markers_node.
 ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
@@ -72,15 +60,6 @@ MARKERS_NODE = ('omni_micro_vision', 'markers_node')
 # With rendered images: the cameras and the tracker every robot shares.
 CAMERA_NODE, TRACKER_NODE = ('omni_micro_vision', 'camera_node'), ('omni_micro_vision',
                                                                     'tracker_node')
-
-
-def robot_name(index: int) -> str:
-    return f'robot_{index}'
-
-
-def robot_topic(index: int, topic: str) -> str:
-    """Robot ``index``'s ``topic``, named as dynamics_node names it."""
-    return namespaced_topic(robot_name(index), topic)
 
 
 def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Path]:
@@ -239,7 +218,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
-                                       for topic in (*ROBOT_TOPICS, MARKERS_TOPIC)))
+                                       for topic in ROBOT_TOPICS))
         params = namespaced_params(shipped, robot, folder)
         servo = k in servos
         own: dict[str, dict[str, object]] = {'vision_node': {

@@ -33,8 +33,6 @@ from omni_micro_bringup.fleet_composition import (
     check_vision,
     controller_modes,
     fleet_specs,
-    robot_name,
-    robot_topic,
 )
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
 from omni_micro_bringup.orchestrator import Orchestrator
@@ -58,6 +56,8 @@ from omni_micro_common.topic_names import (
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    robot_name,
+    robot_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
@@ -113,7 +113,8 @@ class FleetMonitor(Orchestrator):
         self.goal_publishers = [self.node.create_publisher(
             PoseStamped, robot_topic(k, GOAL_TOPIC), 10) for k in range(count)]
         self.tolerance_clients = [self.node.create_client(
-            SetParameters, f'/robot_{k}/controller_node/set_parameters') for k in range(count)]
+            SetParameters, f'/{robot_name(k)}/controller_node/set_parameters')
+            for k in range(count)]
         for k in range(count):
             self.node.create_subscription(
                 DiagnosticStatus, robot_topic(k, CONTROLLER_STATUS_TOPIC),
@@ -175,11 +176,11 @@ class FleetMonitor(Orchestrator):
                 break
             client.remove_pending_request(future)
             if time.monotonic() > deadline:
-                raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its '
+                raise RunFailed(f'{robot_name(order.robot)}\'s controller_node did not take its '
                                 f'tolerance within {timeout_s:g} s')
         result = future.result()
         if not result.results[0].successful:
-            raise UsageError(f'robot_{order.robot}\'s controller_node refused tolerance_m '
+            raise UsageError(f'{robot_name(order.robot)}\'s controller_node refused tolerance_m '
                              f'{order.tolerance_m!r}: {result.results[0].reason}')
         publisher = self.goal_publishers[order.robot]
         self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
@@ -199,14 +200,14 @@ class FleetMonitor(Orchestrator):
                 if robot != order.robot:
                     continue
                 if status['message'] == 'goal rejected':
-                    raise UsageError(f'robot_{robot}\'s controller_node rejected the goal '
+                    raise UsageError(f'{robot_name(robot)}\'s controller_node rejected the goal '
                                      f'{order.goal_m}: {status.get("reason")}')
                 if status['message'] in ('settling', 'moving'):
                     return   # 'moving': captures that came before the goal moved it at once
             graph.check_alive()
             if time.monotonic() > deadline:
-                raise RunFailed(f'robot_{order.robot}\'s controller_node did not take its goal '
-                                f'within {timeout_s:g} s')
+                raise RunFailed(f'{robot_name(order.robot)}\'s controller_node did not take its '
+                                f'goal within {timeout_s:g} s')
             self.spin_for(0.02)
 
     def wait_for_routes_past(self, graph: Supervisor, stamp_s: float, timeout_s: float) -> None:

@@ -29,6 +29,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    robot_name,
 )
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
@@ -148,7 +149,7 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
 
     if target.suffix == '.mp4' and shutil.which('ffmpeg') is None:
         raise UsageError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
-    names = [f'robot_{k}' for k in robots] if robots else ['']
+    names = [robot_name(k) for k in robots] if robots else ['']
     events = _events(bag, names)
     first, last = events[0][0], events[-1][0]
     starts = _first_positions(events)

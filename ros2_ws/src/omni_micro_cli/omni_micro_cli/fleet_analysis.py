@@ -3,46 +3,51 @@
 from __future__ import annotations
 
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from omni_micro_common.topic_names import GOAL_TOPIC, ODOM_TOPIC
-
-_ROBOT_ODOM = re.compile(r'^/robot_(\d+)' + re.escape(ODOM_TOPIC) + '$')
+from omni_micro_common.topic_names import (
+    GOAL_TOPIC,
+    ODOM_TOPIC,
+    robot_index,
+    robot_name,
+    robot_topic,
+)
 
 
 def fleet_robots(topics: list[str]) -> list[int]:
     """The robots a bag holds odometry of under /robot_k/ (none: not a fleet's bag)."""
-    return sorted(int(match.group(1)) for topic in topics if (match := _ROBOT_ODOM.match(topic)))
+    return sorted(index for topic in topics if topic.endswith(ODOM_TOPIC)
+                  and (index := robot_index(topic[1:-len(ODOM_TOPIC)])) is not None
+                  and topic == robot_topic(index, ODOM_TOPIC))
 
 
 def summarize_fleet(bag: Path, robots: list[int]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Per robot: its goals, where it ended, how far from its last goal, how far it drove."""
     from omni_micro_tools.bag_reading import read_bag
 
-    topics = [f'/robot_{k}{topic}' for k in robots for topic in (ODOM_TOPIC, GOAL_TOPIC)]
+    topics = [robot_topic(k, topic) for k in robots for topic in (ODOM_TOPIC, GOAL_TOPIC)]
     data = read_bag(bag, topics=topics)
     rows, routes = [], {}
     for k in robots:
-        odometry = data.messages.get(f'/robot_{k}{ODOM_TOPIC}', [])
+        odometry = data.messages.get(robot_topic(k, ODOM_TOPIC), [])
         route = np.array([(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9,
                            m.pose.pose.position.x, m.pose.pose.position.y)
                           for m in odometry]).reshape(-1, 3)
         goals = [(m.pose.position.x, m.pose.position.y)
-                 for m in data.messages.get(f'/robot_{k}{GOAL_TOPIC}', [])]
+                 for m in data.messages.get(robot_topic(k, GOAL_TOPIC), [])]
         final = route[-1] if len(route) else np.full(3, math.nan)
         rows.append({
-            'robot': f'robot_{k}', 'goals': len(goals),
+            'robot': robot_name(k), 'goals': len(goals),
             'final_x_mm': float(final[1]) * 1e3, 'final_y_mm': float(final[2]) * 1e3,
             'last_goal_deviation_um': (math.hypot(final[1] - goals[-1][0],
                                                   final[2] - goals[-1][1]) * 1e6
                                        if goals and len(route) else None),
             'driven_mm': float(np.sum(np.hypot(*np.diff(route[:, 1:], axis=0).T))) * 1e3,
             'duration_s': float(route[-1, 0] - route[0, 0]) if len(route) else 0.0})
-        routes[f'robot_{k}'] = route[:, 1:]
+        routes[robot_name(k)] = route[:, 1:]
     return {'bag': str(bag), 'robots': rows}, routes
 
 

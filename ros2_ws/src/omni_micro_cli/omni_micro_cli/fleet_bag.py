@@ -14,17 +14,18 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_common.conventions import yaw_to_quaternion
-from omni_micro_common.topic_names import CLOCK_TOPIC, GOAL_TOPIC, ODOM_TOPIC
+from omni_micro_common.topic_names import (
+    CLOCK_TOPIC,
+    GOAL_TOPIC,
+    ODOM_TOPIC,
+    namespaced_frame,
+    robot_name,
+    robot_topic,
+)
 
 # One odometry sample in this many simulated seconds (the viewer's and analyze's rate, not the
 # dynamics' 50 Hz: a fleet run of 8 robots lasts minutes).
 ODOM_RATE_HZ = 10.0
-ROBOT_PREFIX = '/robot_{}'
-
-
-def robot_topic(robot: int, topic: str) -> str:
-    """``/odom`` of robot k: ``/robot_k/odom``."""
-    return ROBOT_PREFIX.format(robot) + topic
 
 
 def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
@@ -68,8 +69,8 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
             omega = (phi - float(before[3])) / dt if dt > 0 else 0.0
             message = Odometry()
             message.header.stamp = stamp(time_s)
-            message.header.frame_id = f'robot_{robot}/odom'
-            message.child_frame_id = f'robot_{robot}/base_link'
+            message.header.frame_id = namespaced_frame(robot_name(robot), 'odom')
+            message.child_frame_id = namespaced_frame(robot_name(robot), 'base_link')
             message.pose.pose.position.x, message.pose.pose.position.y = x, y
             orientation = message.pose.pose.orientation
             orientation.z, orientation.w = yaw_to_quaternion(phi)
@@ -82,7 +83,7 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
         for task, goal in enumerate(plan.tasks[robot][:len(run.tasks_done_s) + 1]):
             message = PoseStamped()
             message.header.stamp = stamp(set_out[task])
-            message.header.frame_id = f'robot_{robot}/odom'
+            message.header.frame_id = namespaced_frame(robot_name(robot), 'odom')
             message.pose.position.x, message.pose.position.y = goal.goal_m
             message.pose.orientation.w = 1.0
             events.append((round(set_out[task] * 1e9), robot_topic(robot, GOAL_TOPIC),

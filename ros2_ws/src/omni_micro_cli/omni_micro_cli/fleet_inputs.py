@@ -34,6 +34,7 @@ import yaml
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import MICRO_FIELD_CENTER_M
+from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_plan import Task
 from omni_micro_sim.parameters import RobotParameters
@@ -142,7 +143,7 @@ def tasks_from(path: Path, robots: int) -> list[list[Task]]:
     where = f'{str(path)!r}: tasks'
     if not isinstance(entries, dict):
         raise UsageError(f'{where} must map robot_0, robot_1, ... to goals, got {entries!r}')
-    names = {f'robot_{k}': k for k in range(robots)}
+    names = {robot_name(k): k for k in range(robots)}
     unknown = sorted(set(map(str, entries)) - set(names))
     if unknown:
         raise UsageError(f'{where} names {unknown}: the robots are robot_0..robot_{robots - 1}')

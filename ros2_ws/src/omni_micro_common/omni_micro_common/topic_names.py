@@ -42,12 +42,54 @@ CAMERA_STATUS_TOPIC = '/camera/status'
 RECORDER_STATUS_TOPIC = '/bag_recorder/status'
 # What markers_node draws.
 MARKERS_TOPIC = '/markers'
+# Every topic that is a robot's own, remapped into its namespace in a micro-factory; /clock,
+# /lockstep and /robot_contacts stay the graph's.
+ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
+                JOINT_STATES_THROTTLE_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
+                CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, *CAPTURE_TOPICS.values(),
+                *CAPTURE_COVARIANCE_TOPICS.values(), *CAPTURE_IN_MOTION_TOPICS.values(),
+                *TRACKER_STATUS_TOPICS.values(), MARKERS_TOPIC)
 
 
 def camera_info_beside(image_topic: str) -> str:
     """Where a camera driver publishes the CameraInfo of ``image_topic``: ``camera_info`` beside
     it (image_transport's convention)."""
     return image_topic.rsplit('/', 1)[0] + '/camera_info'
+
+
+# A micro-factory's robot k lives in the namespace robot_k (its fiducial carries code k); the
+# single robot is the fleet of one in the root namespace, its topics the bare names above.
+ROBOT_NAMESPACE_PREFIX = 'robot_'
+
+
+def robot_name(index: int) -> str:
+    """Robot ``index``'s namespace: ``robot_1``."""
+    return f'{ROBOT_NAMESPACE_PREFIX}{index}'
+
+
+def robot_index(name: str) -> int | None:
+    """The k of a namespace ``robot_k`` (None: not a robot's namespace)."""
+    number = name.removeprefix(ROBOT_NAMESPACE_PREFIX)
+    if number == name or not number.isdigit() or not number.isascii():
+        return None
+    return int(number)
+
+
+def namespaced_topic(namespace: str, topic: str) -> str:
+    """``/odom`` in namespace ``robot_1``: ``/robot_1/odom`` (the topic itself in the root
+    namespace, the single robot's)."""
+    return f'/{namespace}{topic}' if namespace else topic
+
+
+def namespaced_frame(namespace: str, frame: str) -> str:
+    """A frame of the robot in ``namespace``: ``robot_1/odom`` (REP-105 per robot; the frame
+    itself in the root namespace)."""
+    return f'{namespace}/{frame}' if namespace else frame
+
+
+def robot_topic(index: int, topic: str) -> str:
+    """Robot ``index``'s ``topic``: ``/robot_1/odom``."""
+    return namespaced_topic(robot_name(index), topic)
 
 
 def is_plain_name(name: str) -> bool:

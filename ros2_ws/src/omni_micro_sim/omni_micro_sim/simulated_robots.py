@@ -29,18 +29,11 @@ from omni_micro_common.topic_names import (
     WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
     is_plain_name,
+    namespaced_frame,
+    namespaced_topic,
 )
 from omni_micro_sim.errors import ParameterError
 from omni_micro_sim.stepper import GridSimulator, Sample
-
-
-def robot_topic(namespace: str, topic: str) -> str:
-    """``/odom`` of robot ``robot_1``: ``/robot_1/odom`` (the topic itself for one robot)."""
-    return f'/{namespace}{topic}' if namespace else topic
-
-
-def robot_frame(namespace: str, frame: str) -> str:
-    return f'{namespace}/{frame}' if namespace else frame
 
 
 def check_namespaces(robots: list[str]) -> None:
@@ -77,18 +70,19 @@ class SimulatedRobot:
                  on_trajectory: Callable[[SimulatedRobot, JointTrajectory], None]) -> None:
         self.namespace = namespace
         self.grid = grid
-        self.templates = tick_templates(robot_frame(namespace, odom_frame),
-                                        robot_frame(namespace, base_frame))
-        self.odom_pub = per_tick(Odometry, robot_topic(namespace, ODOM_TOPIC))
-        self.joint_pub = per_tick(JointState, robot_topic(namespace, JOINT_STATES_TOPIC))
-        self.slip_pub = per_tick(JointState, robot_topic(namespace, WHEEL_SLIP_TOPIC))
-        self.odom_throttle_pub = per_tick(Odometry, robot_topic(namespace, ODOM_THROTTLE_TOPIC))
-        self.joint_throttle_pub = per_tick(JointState,
-                                           robot_topic(namespace, JOINT_STATES_THROTTLE_TOPIC))
+        self.templates = tick_templates(namespaced_frame(namespace, odom_frame),
+                                        namespaced_frame(namespace, base_frame))
+        self.odom_pub = per_tick(Odometry, namespaced_topic(namespace, ODOM_TOPIC))
+        self.joint_pub = per_tick(JointState, namespaced_topic(namespace, JOINT_STATES_TOPIC))
+        self.slip_pub = per_tick(JointState, namespaced_topic(namespace, WHEEL_SLIP_TOPIC))
+        self.odom_throttle_pub = per_tick(Odometry,
+                                          namespaced_topic(namespace, ODOM_THROTTLE_TOPIC))
+        self.joint_throttle_pub = per_tick(
+            JointState, namespaced_topic(namespace, JOINT_STATES_THROTTLE_TOPIC))
         self.publishers = (self.odom_pub, self.joint_pub, self.slip_pub, self.odom_throttle_pub,
                            self.joint_throttle_pub)
         node.create_subscription(JointTrajectory,
-                                 robot_topic(namespace, WHEEL_TRAJECTORY_TOPIC),
+                                 namespaced_topic(namespace, WHEEL_TRAJECTORY_TOPIC),
                                  lambda msg: on_trajectory(self, msg), DATA_QOS)
 
     @property

@@ -26,27 +26,16 @@ from omni_micro_common.messages import message_class
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.reader_matching import node_list_parameter
 from omni_micro_common.topic_names import (
-    CAMERA_STATUS_TOPIC,
-    CAPTURE_COVARIANCE_TOPICS,
-    CAPTURE_TOPICS,
     CLOCK_TOPIC,
-    CONTROLLER_STATUS_TOPIC,
-    GOAL_TOPIC,
-    JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
-    ODOM_TOPIC,
-    WHEEL_SLIP_TOPIC,
-    WHEEL_TRAJECTORY_TOPIC,
     is_plain_name,
+    namespaced_topic,
 )
 from omni_micro_tools.bags import TYPESTORE
 from omni_micro_tools.topics import GRAPH_TOPICS, TopicSpec
 
-# Topics a viewer needs, in the order a layout reads them.
-VIEW_TOPICS = (MARKERS_TOPIC, ODOM_TOPIC, *CAPTURE_TOPICS.values(),
-               *CAPTURE_COVARIANCE_TOPICS.values(),
-               CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, WHEEL_SLIP_TOPIC, JOINT_STATES_TOPIC,
-               WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC, CLOCK_TOPIC)
+# The view serves every topic a bag of the graph holds.
+VIEW_TOPICS = tuple(GRAPH_TOPICS)
 # A client this many messages behind loses the oldest: the graph never waits for a viewer.
 BACKLOG_MESSAGES = 1024
 
@@ -145,5 +134,6 @@ def view_topics(markers: bool = True, robots: list[str] | None = None) -> dict[s
     strangers = [robot for robot in robots if not is_plain_name(robot)]
     if strangers:
         raise ParameterError(f'robots: {strangers} are not robot namespaces (robot_0, ...)')
-    return {**{f'/{robot}{topic}': GRAPH_TOPICS[topic] for robot in robots for topic in own
-               if topic != CLOCK_TOPIC}, CLOCK_TOPIC: GRAPH_TOPICS[CLOCK_TOPIC]}
+    return {**{namespaced_topic(robot, topic): GRAPH_TOPICS[topic]
+               for robot in robots for topic in own if topic != CLOCK_TOPIC},
+            CLOCK_TOPIC: GRAPH_TOPICS[CLOCK_TOPIC]}

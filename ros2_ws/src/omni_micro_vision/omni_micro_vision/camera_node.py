@@ -45,8 +45,7 @@ from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
 from omni_micro_common.tick_messages import odometry_template
-from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC
-from omni_micro_sim.simulated_robots import robot_topic
+from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC, namespaced_topic
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import CaptureRule, checked_cameras
 from omni_micro_vision.camera_frames import SCENES, CameraFrames, camera_settings, target_settings
@@ -104,7 +103,7 @@ class CameraNode(Node):
                                     f'one), got scene {scene!r}')
         # Each robot's odometry topic and code; one robot's /odom, uncoded, without robots.
         self.sources: list[tuple[str, int | None]] = (
-            [(robot_topic(name, ODOM_TOPIC), code) for name, code in codes.items()]
+            [(namespaced_topic(name, ODOM_TOPIC), code) for name, code in codes.items()]
             or [(ODOM_TOPIC, None)])
         self.schedule = ExposureSchedule(self.rate_hz, [code for _, code in self.sources])
         self._latest_ns: list[int | None] = [None] * len(self.sources)   # each robot's sample

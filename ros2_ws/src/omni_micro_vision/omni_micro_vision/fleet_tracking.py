@@ -12,16 +12,14 @@ not in the run, gives nobody a capture and is handed back to be reported.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from omni_micro_common.topic_names import robot_index, robot_name
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import ROBOT_CODES
 from omni_micro_vision.identification import Sighting
 from omni_micro_vision.tracking import CameraArbiter, StillnessRule
-
-_ROBOT_NAME = re.compile(r'robot_(\d+)')
 
 
 def robot_codes(names: Sequence[str]) -> dict[str, int]:
@@ -34,12 +32,12 @@ def robot_codes(names: Sequence[str]) -> dict[str, int]:
     """
     codes: dict[str, int] = {}
     for name in names:
-        match = _ROBOT_NAME.fullmatch(name)
-        if match is None or int(match[1]) >= len(ROBOT_CODES) or name in codes:
+        code = robot_index(name)
+        if code is None or code >= len(ROBOT_CODES) or name in codes:
             raise CameraConfigError(
-                f'robots: {name!r} is not a robot with a code of its own (robot_0 to '
-                f'robot_{len(ROBOT_CODES) - 1}, each once: the codes printed on them)')
-        codes[name] = int(match[1])
+                f'robots: {name!r} is not a robot with a code of its own ({robot_name(0)} to '
+                f'{robot_name(len(ROBOT_CODES) - 1)}, each once: the codes printed on them)')
+        codes[name] = code
     return codes
 
 
@@ -74,8 +72,8 @@ class FleetCaptures:
         """One frame of ``camera``: the captures now due (every robot's, in stamp order) and the
         sightings no capture came from because nobody of this run is named in them."""
         named = {s.robot: s for s in sightings if s.robot in self._arbiters}
-        unnamed = [s if s.robot is None else
-                   Sighting(s.pose, None, f'robot_{s.robot} is not one of this run\'s robots')
+        unnamed = [s if s.robot is None else Sighting(
+                       s.pose, None, f'{robot_name(s.robot)} is not one of this run\'s robots')
                    for s in sightings if s.robot not in self._arbiters]
         due: list[tuple[int, RobotCapture]] = []
         for robot in self.robots:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from omni_micro_common.topic_names import robot_name
 from omni_micro_vision.encodings import full_scale as scale_of
 from omni_micro_vision.fiducial import code_slots_for, fiducial_for, robot_of_code
 from omni_micro_vision.geometry import PlaneMap
@@ -139,5 +140,5 @@ def _read_code(image: np.ndarray, plane: PlaneMap, pose: tuple[float, float, flo
 def _unique(sightings: list[Sighting]) -> list[Sighting]:
     """Two robots read as one code: neither is named (one of them is not who it reads as)."""
     named = [sighting.robot for sighting in sightings if sighting.robot is not None]
-    return [Sighting(s.pose, None, f'cannot tell apart: two robots read as robot_{s.robot}')
+    return [Sighting(s.pose, None, f'cannot tell apart: two robots read as {robot_name(s.robot)}')
             if s.robot is not None and named.count(s.robot) > 1 else s for s in sightings]

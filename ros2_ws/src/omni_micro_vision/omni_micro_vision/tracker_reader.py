@@ -22,6 +22,7 @@ from omni_micro_common.topic_names import (
     CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     TRACKER_STATUS_TOPICS,
+    robot_name,
 )
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.encodings import full_scale
@@ -184,8 +185,8 @@ class CameraReader:
         its values), and each new reason a robot could not be named, in the log."""
         if not sightings:
             return
-        names = sorted(f'robot_{s.robot}' for s in sightings
-                       if s.robot in self.node.robots.values())
+        names = sorted(robot_name(s.robot) for s in sightings
+                       if s.robot is not None and s.robot in self.node.robots.values())
         message = f'seen: {", ".join(names) or "nobody named"}'
         if unnamed:
             message += f'; {len(unnamed)} not named: ' + '; '.join(

@@ -21,6 +21,7 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.fleet_inputs import MAX_ROBOTS, Fleet, fleet_from
 from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file, output_folder
+from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
@@ -221,7 +222,7 @@ def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
     for k, run in enumerate(result.robots):
         final = run.final_state
         robots.append({
-            'robot': f'robot_{k}', 'start_mm': [v * 1e3 for v in fleet.starts_m[k]],
+            'robot': robot_name(k), 'start_mm': [v * 1e3 for v in fleet.starts_m[k]],
             'wheel_offsets_deg': list(fleet.offsets_deg[k]), 'controller': fleet.controllers[k],
             'goals': len(fleet.tasks[k]), 'goals_reached': len(run.tasks_done_s),
             'reached_at_s': run.tasks_done_s,
@@ -283,7 +284,7 @@ def route_figure(plan: Any, result: Any) -> bytes:
         route = run.route_m
         if len(route):
             axes.plot(route[:, 1] * 1e3, route[:, 2] * 1e3, color=colour, lw=1.2,
-                      label=f'robot_{k}: {len(run.tasks_done_s)} goals')
+                      label=f'{robot_name(k)}: {len(run.tasks_done_s)} goals')
         start = plan.starts_m[k]
         axes.add_patch(Circle((start[0] * 1e3, start[1] * 1e3), radius_mm, fill=False,
                               color=colour, ls='--'))

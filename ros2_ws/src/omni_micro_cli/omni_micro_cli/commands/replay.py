@@ -57,13 +57,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_common.topic_names import robot_index, robot_name
     from omni_micro_tools.bag_reading import bag_topics, read_bag
 
     available = bag_topics(args.bag)
-    prefix = '' if args.robot is None else f'/robot_{args.robot}'
+    prefix = '' if args.robot is None else f'/{robot_name(args.robot)}'
     if prefix and not any(topic.startswith(prefix + '/') for topic in available):
         robots = sorted({topic.split('/')[1] for topic in available
-                         if topic.startswith('/robot_')})
+                         if robot_index(topic.split('/')[1]) is not None})
         raise UsageError(f'--robot {args.robot}: the bag has no {prefix}/ topics (its robots: '
                          f'{", ".join(robots) or "none, not a fleet bag"})')
     if prefix:

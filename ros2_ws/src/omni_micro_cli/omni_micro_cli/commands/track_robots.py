@@ -10,6 +10,7 @@ from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.outputs import atomic_csv
+from omni_micro_common.topic_names import robot_name
 
 if TYPE_CHECKING:
     from omni_micro_vision.tracked_camera import TrackedCamera
@@ -57,7 +58,8 @@ def track_robots(args: argparse.Namespace, reader: Any, connection: Any,
                 still = stillness[sighting.robot].still(x, y)
                 rows.append((stamp, names[sighting.robot], still, x, y, heading, ''))
             else:
-                why = sighting.reason or f'robot_{sighting.robot} is not one of --robots'
+                why = sighting.reason or (f'{robot_name(sighting.robot)} is not one of --robots'
+                                          if sighting.robot is not None else 'not named')
                 rows.append((stamp, '', False, x, y, heading, why))
         for code in set(names) - seen:
             stillness[code].reset()

@@ -27,10 +27,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def robot_namespaces(text: str) -> list[str]:
     """--robots: a count of robots (robot_0, ...) or their namespaces, comma-separated."""
-    from omni_micro_common.topic_names import is_plain_name
+    from omni_micro_common.topic_names import is_plain_name, robot_name
 
     if text.isdigit() and int(text) >= 1:
-        return [f'robot_{k}' for k in range(int(text))]
+        return [robot_name(k) for k in range(int(text))]
     names = [name.strip() for name in text.split(',') if name.strip()]
     strangers = [name for name in names if not is_plain_name(name)]
     if not names or strangers:
