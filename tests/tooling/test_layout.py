@@ -25,7 +25,7 @@ def topic_literals(source: str) -> list[str]:
 
     names = {value for key, value in vars(topic_names).items() if key.endswith('_TOPIC')}
     names |= {topic for key, value in vars(topic_names).items() if key.endswith('_TOPICS')
-              for topic in value.values()}
+              for topic in (value.values() if isinstance(value, dict) else value)}
     return [token.string for token in tokenize.generate_tokens(io.StringIO(source).readline)
             if token.type == tokenize.STRING and token.string[1:-1] in names
             and token.string[0] in '\'"']
