@@ -45,6 +45,7 @@ from omni_micro_bringup.parameters import (
 from omni_micro_bringup.processes import (
     DomainLease,
     NodeProcess,
+    new_log_dir,
     node_environment,
     prepare_node_starts,
     resident_memory_kb,
@@ -284,17 +285,6 @@ class Graph:
                     for topic, count in json.loads(line[len(PUBLISHED_MARKER):]).items():
                         totals[topic] = totals.get(topic, 0) + count
         return totals
-
-
-def new_log_dir(root: Path) -> Path:
-    stamp = time.strftime('%Y%m%d-%H%M%S')
-    folder = root / f'{stamp}-{os.getpid()}'
-    suffix = 0
-    while folder.exists():
-        suffix += 1
-        folder = root / f'{stamp}-{os.getpid()}-{suffix}'
-    folder.mkdir(parents=True)
-    return folder
 
 
 def run_graph(options: GraphOptions,

@@ -11,9 +11,9 @@ from omni_micro_bringup.composition import (
     GraphOptions,
     streaming_cameras,
 )
-from omni_micro_bringup.graph import Graph, new_log_dir
+from omni_micro_bringup.graph import Graph
 from omni_micro_bringup.parameters import check_params_file
-from omni_micro_bringup.processes import DomainLease
+from omni_micro_bringup.processes import DomainLease, new_log_dir
 from omni_micro_bringup.readiness import (
     external_publications,
     ready_subscriptions,

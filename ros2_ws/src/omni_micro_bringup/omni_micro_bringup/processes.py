@@ -235,6 +235,18 @@ def resident_memory_kb(processes: list[NodeProcess]) -> dict[str, int]:
     return sizes
 
 
+def new_log_dir(root: Path) -> Path:
+    """A new folder for a run's logs under ``root``, named for when and by whom it started."""
+    stamp = time.strftime('%Y%m%d-%H%M%S')
+    folder = root / f'{stamp}-{os.getpid()}'
+    suffix = 0
+    while folder.exists():
+        suffix += 1
+        folder = root / f'{stamp}-{os.getpid()}-{suffix}'
+    folder.mkdir(parents=True)
+    return folder
+
+
 def prepare_node_starts(log_dir: Path) -> None:
     """Have the zygote's imports done (:mod:`omni_micro_bringup.warm_start`) while the
     orchestrator prepares the run."""
