@@ -8,7 +8,7 @@ OMNI_MICRO_ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 OMNI_MICRO_VENV=${OMNI_MICRO_VENV:-$OMNI_MICRO_ROOT/.venv}
 # Every package of the workspace, installed into the venv as colcon would build them.
 OMNI_MICRO_PACKAGES=(omni_micro_common omni_micro_sim omni_micro_vision omni_micro_control
-                     omni_micro_tools omni_micro_bringup omni_micro_cli)
+                     omni_micro_tools omni_micro_studies omni_micro_bringup omni_micro_cli)
 
 _omni_micro_log() { printf 'omni-micro: %s\n' "$*" >&2; }
 

@@ -101,8 +101,8 @@ def test_params_and_study_files_that_are_not_utf8_are_named(tmp_path, capsys):
 
 
 def test_a_damaged_runs_file_is_named_under_resume_and_rerun(tmp_path, capsys):
-    from omni_micro_cli.commands.study.execute import RUNS_FILE, prepare_directory
-    from omni_micro_cli.commands.study.spec import parse_study
+    from omni_micro_studies.execute import RUNS_FILE, prepare_directory
+    from omni_micro_studies.spec import parse_study
 
     out = tmp_path / 'study'
     prepare_directory(parse_study('name: s\nscenario: open_loop\n', 's'), out)

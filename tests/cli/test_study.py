@@ -14,15 +14,15 @@ import pyarrow.parquet as pq
 import pytest
 
 from omni_micro_cli.cli import main
-from omni_micro_cli.commands.study.execute import (
+from omni_micro_cli.errors import StudyError
+from omni_micro_studies.execute import (
     collect,
     execute,
     finished_rows,
     prepare_directory,
 )
-from omni_micro_cli.commands.study.runs import run_row
-from omni_micro_cli.commands.study.spec import load_study, parse_study
-from omni_micro_cli.errors import StudyError
+from omni_micro_studies.runs import run_row
+from omni_micro_studies.spec import load_study, parse_study
 
 # Each test starts omni-micro as a process: the slow tier.
 pytestmark = pytest.mark.slow

@@ -3,10 +3,10 @@ and a run left at every default builds exactly the default robot, cameras and co
 
 from __future__ import annotations
 
-from omni_micro_cli.commands.study.inputs import PARAMETERS
-from omni_micro_cli.commands.study.runs import config_of, rig_of, robot_of
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim.parameters import RobotParameters
+from omni_micro_studies.inputs import PARAMETERS
+from omni_micro_studies.runs import config_of, rig_of, robot_of
 from omni_micro_vision.camera import DEFAULT_RIG
 
 DEFAULT_ROW = {name: parameter.default for name, parameter in PARAMETERS.items()}
@@ -35,8 +35,9 @@ def test_a_study_steering_is_a_preset_and_the_flag_may_not_contradict_the_file()
     import pytest
 
     from omni_micro_cli.commands.study.command import with_steering
-    from omni_micro_cli.commands.study.spec import parse_study
-    from omni_micro_cli.errors import StudyError, UsageError
+    from omni_micro_cli.errors import UsageError
+    from omni_micro_studies.errors import StudyError
+    from omni_micro_studies.spec import parse_study
 
     plain = 'scenario: closed_loop\ngrid: {backlash_deg: [0.5, 1.5]}\n'
     with pytest.raises(StudyError, match="expected one of ideal, realistic, got 'sloppy'"):

@@ -7,7 +7,6 @@ import re
 import numpy as np
 import pytest
 
-from omni_micro_cli.twin import run_closed_loop
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.chains import Chain, RecordedMove, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
@@ -19,6 +18,7 @@ from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.state import RobotState
+from omni_micro_studies.twin import run_closed_loop
 
 MICRO = CaptureUncertainty(0.115e-6, 0.144e-6, 6e-5)
 MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4.3e-3)

@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 
-from omni_micro_cli.twin import run_servo
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import Outcome
@@ -17,6 +16,7 @@ from omni_micro_control.slip_filter import SlipFilter
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, steering_preset
 from omni_micro_sim.profile import move_profile
 from omni_micro_sim.simulator import SlipSimulator
+from omni_micro_studies.twin import run_servo
 
 FIG11_ROBOT = RobotParameters(wheel_offsets_rad=(0.0, math.radians(3.0), math.radians(2.0)))
 MACRO = CaptureUncertainty(8.6e-6, 10.8e-6, 4.3e-3)

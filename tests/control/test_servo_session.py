@@ -5,7 +5,6 @@ import math
 
 import pytest
 
-from omni_micro_cli.twin import run_servo
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.feedback import REPLACED_REASON, Finished, Outcome, Phase
 from omni_micro_control.observations import CapturesBeforeTheGoal, Observation
@@ -13,6 +12,7 @@ from omni_micro_control.servo import ServoController
 from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import OUT_OF_FIELD_REASON, ServoSession
 from omni_micro_sim.parameters import MotorLimits, RobotParameters
+from omni_micro_studies.twin import run_servo
 
 MICRO = CaptureUncertainty(0.07e-6, 0.07e-6, 1e-4)
 

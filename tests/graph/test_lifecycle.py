@@ -17,8 +17,8 @@ from conftest import ROOT, pause_the_robots_clock
 from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
+from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.processes import DomainLease
-from omni_micro_cli.errors import RunFailed
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
 from omni_micro_tools.bag_reading import read_bag

@@ -11,10 +11,10 @@ from conftest import SHARED_SEED
 
 from omni_micro_bringup.composition import GraphOptions, NodeSpec, default_nodes
 from omni_micro_bringup.graph import run_graph
-from omni_micro_cli.twin import run_closed_loop
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import steering_preset
+from omni_micro_studies.twin import run_closed_loop
 
 GOAL_MM = (100.0, 0.0)
 SEED = SHARED_SEED

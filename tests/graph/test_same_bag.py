@@ -20,9 +20,9 @@ from conftest import SHARED_SEED, Probe
 from thread_stall import stall_main_thread
 
 from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import Graph, GraphResult, run_graph
 from omni_micro_bringup.warm_start import WARM_START_ENV
-from omni_micro_cli.errors import RunFailed
 from omni_micro_common.qos import DATA_QOS
 
 

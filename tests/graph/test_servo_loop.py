@@ -16,11 +16,11 @@ from conftest import ROOT
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
-from omni_micro_cli.twin import run_servo
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS, ODOM_TOPIC
 from omni_micro_control.servo_config import ServoConfig
 from omni_micro_sim import paper
+from omni_micro_studies.twin import run_servo
 from omni_micro_tools.bag_reading import read_bag
 
 SEED = 3

@@ -18,8 +18,8 @@ from omni_micro_bringup.composition import (
     NodeSpec,
     all_specs,
 )
+from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import capture_readers, node_overrides
-from omni_micro_cli.errors import UsageError
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
 from omni_micro_common.node_runtime import NodeComponent
 

@@ -34,9 +34,9 @@ from omni_micro_bringup.fleet_composition import (
     controller_modes,
     fleet_specs,
 )
-from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph, new_log_dir
+from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph
 from omni_micro_bringup.orchestrator import Orchestrator
-from omni_micro_bringup.processes import DomainLease, prepare_node_starts
+from omni_micro_bringup.processes import DomainLease, new_log_dir, prepare_node_starts
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,

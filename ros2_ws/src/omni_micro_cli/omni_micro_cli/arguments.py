@@ -12,6 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 from omni_micro_cli.errors import UsageError
+from omni_micro_common.conventions import MAX_SEED
 from omni_micro_tools.topics import STORAGE_NAMES
 
 
@@ -68,8 +69,6 @@ def whole_number_in(low: int, high: int, what: str = '') -> Callable[[str], int]
 
 # ROS 2 domain ids: Fast DDS's port scheme has room for 0-232 on one machine.
 domain_id = whole_number_in(0, 232, ' (a ROS domain id)')
-# A seed reaches the nodes as a ROS integer parameter (int64).
-MAX_SEED = 2**63 - 1
 seed_number = whole_number_in(0, MAX_SEED, ' (a seed: a ROS integer parameter)')
 # A TCP port (0: any free one).
 port_number = whole_number_in(0, 65535, ' (a TCP port; 0: any free one)')

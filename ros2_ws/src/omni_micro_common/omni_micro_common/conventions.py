@@ -145,3 +145,5 @@ PUBLISHED_MARKER = 'published message counts: '
 
 # The inherited fd of the orchestrator's lifeline pipe (node_runtime): end-of-file = it died.
 LIFELINE_ENV = 'OMNI_MICRO_LIFELINE_FD'
+# A seed reaches the nodes as a ROS integer parameter (int64): the largest one a run can take.
+MAX_SEED = 2**63 - 1

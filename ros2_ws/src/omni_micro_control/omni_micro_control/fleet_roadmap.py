@@ -27,7 +27,7 @@ ROBOT_DIAMETER_M = 2.0 * RobotParameters.chassis_radius_m
 # Centres are kept 12 mm apart: 3 mm more than touching, 1.5 mm per robot against the farthest
 # a robot driven by the paper's rule strayed from its straight leg: 0.50 mm in 100 crossing runs
 # of 4 robots with wheel offsets of up to 3 deg, long legs driven through points 24 mm apart
-# (omni_micro_cli.fleet_twin; measured by omni-micro fleet-study; 0.07 mm without offsets).
+# (omni_micro_studies.fleet_twin; measured by omni-micro fleet-study; 0.07 mm without offsets).
 CLEARANCE_M = 12.0e-3
 # Distances are compared to the clearance this much short of it: places one pitch apart may be
 # a rounding error closer than it in floating point, and are side by side all the same.

@@ -25,9 +25,9 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from omni_micro_cli.commands.study.runs import run_rows, warm_up
-from omni_micro_cli.commands.study.spec import Study, load_study
-from omni_micro_cli.errors import StudyError
+from omni_micro_studies.errors import StudyError
+from omni_micro_studies.runs import run_rows, warm_up
+from omni_micro_studies.spec import Study, load_study
 
 STUDY_FILE = 'study.yaml'
 RUNS_FILE = 'runs.parquet'

@@ -1,6 +1,6 @@
 """The micro-factory's twin: several robots on one platform, in one process.
 
-Each robot is the twin's robot (:mod:`omni_micro_cli.twin`): its own slip dynamics and
+Each robot is the twin's robot (:mod:`omni_micro_studies.twin`): its own slip dynamics and
 offsets, its own captures (the camera pair sees each robot; each capture is that robot's, as
 its fiducial would say), and its controller (the paper's rule, the model mode or the servo, one
 loop of the twin's for the whole run) driving it leg by leg through the fleet plan
@@ -19,12 +19,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_cli.twin import (
-    ServoLoop,
-    StopAndGoLoop,
-    nominal_timings,
-    twin_servo_config,
-)
 from omni_micro_control.feedback import FeedbackConfig, Finished, Outcome, VisionFeedbackController
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan
@@ -36,6 +30,12 @@ from omni_micro_control.tuning import retune
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S, MotorLimits, RobotParameters
 from omni_micro_sim.state import RobotState
 from omni_micro_sim.stepper import GridSimulator
+from omni_micro_studies.twin import (
+    ServoLoop,
+    StopAndGoLoop,
+    nominal_timings,
+    twin_servo_config,
+)
 from omni_micro_vision.camera import DEFAULT_RIG, CameraRig, CaptureRule, StationaryCamera
 from omni_micro_vision.motion_capture import MovingCamera
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from omni_micro_cli.commands.study.inputs import CLOSED_LOOP, PARAMETERS
-from omni_micro_cli.commands.study.spec import Study
+from omni_micro_studies.inputs import CLOSED_LOOP, PARAMETERS
+from omni_micro_studies.spec import Study
 
 MODE_LABELS = {'paper': "paper's rule", 'model': 'model-based', 'servo': 'servo',
                'open_loop': 'open loop'}

@@ -10,7 +10,6 @@ import math
 import time
 from typing import Any
 
-from omni_micro_cli.twin import ClosedLoopResult, ServoResult, run_closed_loop, run_servo
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_control.servo_config import ServoConfig
@@ -18,6 +17,7 @@ from omni_micro_sim import paper
 from omni_micro_sim.open_loop import simulate_open_loop
 from omni_micro_sim.parameters import RobotParameters, SteeringParameters, steering_preset
 from omni_micro_sim.state import RobotState
+from omni_micro_studies.twin import ClosedLoopResult, ServoResult, run_closed_loop, run_servo
 from omni_micro_vision.camera import DEFAULT_RIG, CameraModel, CameraRig, CaptureRule
 from omni_micro_vision.motion_capture import CameraTiming
 

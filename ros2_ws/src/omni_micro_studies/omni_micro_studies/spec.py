@@ -22,8 +22,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from omni_micro_cli.arguments import MAX_SEED
-from omni_micro_cli.commands.study.inputs import (
+from omni_micro_common.conventions import MAX_SEED
+from omni_micro_sim.parameters import STEERING_PRESETS
+from omni_micro_studies.errors import StudyError
+from omni_micro_studies.inputs import (
     CLOSED_LOOP,
     METRICS,
     MODES,
@@ -32,8 +34,6 @@ from omni_micro_cli.commands.study.inputs import (
     SCENARIOS,
     STEERING_MOTION_PARAMETERS,
 )
-from omni_micro_cli.errors import StudyError
-from omni_micro_sim.parameters import STEERING_PRESETS
 
 
 def _sampler(name: str, spec: Mapping[str, Any],

@@ -1,7 +1,7 @@
 """`omni-micro bench-study`: how fast studies run, against a plain loop measured in the same run.
 
 Three measurements of the example's closed-loop Monte Carlo (Fig. 11's goal, random xi2, xi3,
-the paper's rule), all through :func:`omni_micro_cli.commands.study.execute.execute`:
+the paper's rule), all through :func:`omni_micro_studies.execute.execute`:
 
 1. a plain loop in this process (no Dask) over ``--runs`` runs: the reference;
 2. the same runs on a LocalCluster of 1 worker, then of 2: throughput and its scaling, and the
@@ -24,8 +24,8 @@ from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import UsageError
 
 if TYPE_CHECKING:
-    from omni_micro_cli.commands.study.execute import Execution
-    from omni_micro_cli.commands.study.spec import Study
+    from omni_micro_studies.execute import Execution
+    from omni_micro_studies.spec import Study
 
 
 EXAMPLE = Path(__file__).with_name('study') / 'example.yaml'
@@ -46,7 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def monte_carlo(runs: int) -> Study:
-    from omni_micro_cli.commands.study.spec import parse_study
+    from omni_micro_studies.spec import parse_study
 
     text = EXAMPLE.read_text().replace('draws: 24', f'draws: {runs}').replace(
         'seeds_per_point: 2', 'seeds_per_point: 1')
@@ -56,7 +56,7 @@ def monte_carlo(runs: int) -> Study:
 
 
 def timed(study: Study, **how: object) -> Execution:
-    from omni_micro_cli.commands.study.execute import execute, prepare_directory
+    from omni_micro_studies.execute import execute, prepare_directory
 
     with tempfile.TemporaryDirectory(prefix='omni-micro-bench-study-') as scratch:
         out = Path(scratch) / 'study'

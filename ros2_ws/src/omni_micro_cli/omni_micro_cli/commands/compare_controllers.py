@@ -37,7 +37,7 @@ from omni_micro_sim.parameters import RobotParameters, steering_preset
 from omni_micro_sim.state import RobotState
 
 if TYPE_CHECKING:
-    from omni_micro_cli.twin import ClosedLoopResult
+    from omni_micro_studies.twin import ClosedLoopResult
 
 
 OFFSET_RANGE_DEG = 5.0
@@ -103,8 +103,8 @@ def make_cases(count: int, seed: int, steering: str = 'ideal') -> list[Case]:
 
 
 def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
-    from omni_micro_cli.twin import run_closed_loop, run_servo
     from omni_micro_control.servo_config import ServoConfig
+    from omni_micro_studies.twin import run_closed_loop, run_servo
 
     preset = steering_preset(case.steering)
     robot = RobotParameters(
@@ -123,8 +123,8 @@ def _run(case: Case, mode: str, tolerance_m: float) -> ClosedLoopResult:
 
 def run_case(case: Case, tolerance_m: float) -> dict[str, object]:
     """Every mode on one case; the row of the results (a servo's periods are its moves)."""
-    from omni_micro_cli.twin import ServoResult
     from omni_micro_control.model_based import ModelBasedPlanner
+    from omni_micro_studies.twin import ServoResult
 
     row: dict[str, object] = {**asdict(case)}
     for mode in MODES:

@@ -95,9 +95,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.fleet_twin import DONE, run_fleet
     from omni_micro_control.fleet_plan import PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
+    from omni_micro_studies.fleet_twin import DONE, run_fleet
 
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
@@ -161,9 +161,9 @@ def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: A
     import numpy as np
 
     from omni_micro_bringup.fleet_graph import run_fleet_graph
-    from omni_micro_cli.fleet_twin import FleetResult, RobotRun
     from omni_micro_control.fleet_roadmap import point_segment_distance
     from omni_micro_sim.state import RobotState
+    from omni_micro_studies.fleet_twin import FleetResult, RobotRun
 
     result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
                              log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),

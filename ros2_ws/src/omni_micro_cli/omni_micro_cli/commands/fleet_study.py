@@ -62,8 +62,8 @@ def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
             controller: str = 'paper') -> dict[str, Any]:
     """One fleet twin run: its row."""
     from omni_micro_cli.fleet_inputs import drawn_offsets, fleet_from, robot_parameters
-    from omni_micro_cli.fleet_twin import run_fleet
     from omni_micro_control.fleet_plan import Task, plan_fleet
+    from omni_micro_studies.fleet_twin import run_fleet
 
     started = time.perf_counter()
     if crossing:

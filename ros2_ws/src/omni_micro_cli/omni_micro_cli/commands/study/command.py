@@ -80,9 +80,9 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.commands.study import execute as execution
-    from omni_micro_cli.commands.study.report import write_figure, write_summary
-    from omni_micro_cli.commands.study.spec import (
+    from omni_micro_studies import execute as execution
+    from omni_micro_studies.report import write_figure, write_summary
+    from omni_micro_studies.spec import (
         check_steering_parameters,
         load_study,
         parse_study,
@@ -164,8 +164,8 @@ def _stdin_text() -> str:
 
 def rerun(out: Path, row_text: str) -> int:
     """Run row ``row_text`` of the study in ``out`` again and compare its metrics."""
-    from omni_micro_cli.commands.study import execute as execution
-    from omni_micro_cli.commands.study.runs import run_row
+    from omni_micro_studies import execute as execution
+    from omni_micro_studies.runs import run_row
 
     study = execution.load_directory(out)
     try:

@@ -1,0 +1,10 @@
+"""The node graph's loop in one process, and the studies run on it: plain modules, no rclpy.
+
+:mod:`twin` (one robot's closed loop, a period at a time, as the graph's nodes run it: the paper's
+rule, the model mode, the servo), :mod:`fleet_twin` (several robots on one platform, each such a
+loop, leg by leg through the planner's legs), :mod:`inputs` (what a study's run takes and
+reports), :mod:`spec` (a study file, checked and expanded), :mod:`runs` (one run), :mod:`execute`
+(the runs on Dask: a local cluster or an existing scheduler), :mod:`report` (a study's summary
+and figure), :mod:`errors`. The command line (``omni-micro study``, ``fleet``, ...) calls them;
+Dask workers import them.
+"""
