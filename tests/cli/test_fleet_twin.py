@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from omni_micro_cli.fleet_inputs import drawn_offsets, robot_parameters
+from omni_micro_control.fleet_files import drawn_offsets, robot_parameters
 from omni_micro_control.fleet_plan import Task, plan_fleet
 from omni_micro_control.fleet_roadmap import CLEARANCE_M, ROBOT_DIAMETER_M
 from omni_micro_studies.fleet_twin import CONTACT, DONE, run_fleet

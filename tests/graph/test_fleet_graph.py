@@ -114,8 +114,8 @@ def test_the_graph_runs_what_the_fleet_twin_runs(as_fast_as_it_goes, omni_micro,
 
 
 def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_as_it_goes):
-    from omni_micro_cli.fleet_analysis import fleet_robots, summarize_fleet
     from omni_micro_tools.bag_reading import read_bag
+    from omni_micro_tools.fleet_analysis import fleet_robots, summarize_fleet
 
     summary, bag = as_fast_as_it_goes, as_fast_as_it_goes['bag']
     own = ('odom', 'goal_pose', 'camera/macro/pose', 'camera/macro/pose_in_motion',

@@ -13,3 +13,8 @@ class IdentificationError(OmniMicroError, ValueError):
 
 class RecordingError(OmniMicroError, ValueError):
     """A recorded message cannot be read as what its topic promises; the message says which."""
+
+
+class FleetFileError(OmniMicroError, ValueError):
+    """A fleet's robots or tasks (a file, or a count) cannot be used; the message names the
+    value and where it is."""

@@ -148,8 +148,8 @@ def summary_markdown(summary: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from omni_micro_cli import plots
-    from omni_micro_cli.fleet_analysis import fleet_robots
     from omni_micro_tools.bag_reading import bag_topics, check_readable_bag
+    from omni_micro_tools.fleet_analysis import fleet_robots
 
     check_readable_bag(args.bag)
     robots = fleet_robots(bag_topics(args.bag))
@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
         if len(arrays['remaining']):
             plots.remaining_distance(scratch / 'periods.png', arrays['remaining'])
         if args.animate:
-            from omni_micro_cli.animate import animate
+            from omni_micro_vision.animation import animate
 
             animate(args.bag, scratch / f'run.{args.animate}', args.frames, args.fps,
                     scratch / 'run_last_frame.png')
@@ -187,14 +187,14 @@ def run(args: argparse.Namespace) -> int:
 def analyze_fleet(args: argparse.Namespace, robots: list[int]) -> int:
     """A fleet's bag: a table per robot and every robot's route in one figure."""
     from omni_micro_cli import plots
-    from omni_micro_cli.fleet_analysis import fleet_markdown, summarize_fleet
+    from omni_micro_tools.fleet_analysis import fleet_markdown, summarize_fleet
 
     summary, routes = summarize_fleet(args.bag, robots)
     with staged_directory(args.out) as scratch:
         plots.routes(scratch / 'route.png', routes, title=f'{len(robots)} robots (from the bag)',
                      equal_aspect=True)
         if args.animate:
-            from omni_micro_cli.animate import animate
+            from omni_micro_vision.animation import animate
 
             animate(args.bag, scratch / f'run.{args.animate}', args.frames, args.fps,
                     scratch / 'run_last_frame.png', robots=robots)

@@ -19,10 +19,10 @@ from omni_micro_cli.arguments import (
     whole_number_in,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.fleet_inputs import MAX_ROBOTS, Fleet, fleet_from
 from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file, output_folder
 from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
+from omni_micro_control.fleet_files import MAX_ROBOTS, Fleet, fleet_from
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 
@@ -205,8 +205,8 @@ def record(bag: Path, plan: Any, result: Any) -> None:
     """The bag whole, or none: a write that fails leaves nothing behind."""
     import shutil
 
-    from omni_micro_cli.fleet_bag import write_fleet_bag
     from omni_micro_sim.parameters import DEFAULT_PERIOD_S
+    from omni_micro_tools.fleet_bag import write_fleet_bag
 
     try:
         count = write_fleet_bag(bag, plan, result, DEFAULT_PERIOD_S)

@@ -61,7 +61,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
             controller: str = 'paper') -> dict[str, Any]:
     """One fleet twin run: its row."""
-    from omni_micro_cli.fleet_inputs import drawn_offsets, fleet_from, robot_parameters
+    from omni_micro_control.fleet_files import drawn_offsets, fleet_from, robot_parameters
     from omni_micro_control.fleet_plan import Task, plan_fleet
     from omni_micro_studies.fleet_twin import run_fleet
 

@@ -32,9 +32,9 @@ from typing import Any
 
 import yaml
 
-from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import MICRO_FIELD_CENTER_M
 from omni_micro_common.topic_names import robot_name
+from omni_micro_control.errors import FleetFileError
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_plan import Task
 from omni_micro_sim.parameters import RobotParameters
@@ -63,11 +63,11 @@ def _load(path: Path, key: str) -> Any:
     try:
         data = yaml.safe_load(path.read_text())
     except OSError as error:
-        raise UsageError(f'cannot read {str(path)!r}: {error.strerror or error}') from None
+        raise FleetFileError(f'cannot read {str(path)!r}: {error.strerror or error}') from None
     except yaml.YAMLError as error:
-        raise UsageError(f'{str(path)!r} is not YAML: {str(error).splitlines()[0]}') from None
+        raise FleetFileError(f'{str(path)!r} is not YAML: {str(error).splitlines()[0]}') from None
     if not isinstance(data, dict) or key not in data:
-        raise UsageError(f'{str(path)!r} must be a mapping with {key!r} at its top, got '
+        raise FleetFileError(f'{str(path)!r} must be a mapping with {key!r} at its top, got '
                          f'{type(data).__name__}')
     return data[key]
 
@@ -76,7 +76,7 @@ def _pair(where: str, value: object, scale: float) -> tuple[float, float]:
     if (not isinstance(value, list | tuple) or len(value) != 2
             or not all(isinstance(v, int | float) and not isinstance(v, bool)
                        and math.isfinite(v) for v in value)):
-        raise UsageError(f'{where} must be two finite numbers [x, y], got {value!r}')
+        raise FleetFileError(f'{where} must be two finite numbers [x, y], got {value!r}')
     return float(value[0]) * scale, float(value[1]) * scale
 
 
@@ -84,7 +84,8 @@ def _offsets(where: str, value: object) -> tuple[float, float, float]:
     if (not isinstance(value, list | tuple) or len(value) != 3
             or not all(isinstance(v, int | float) and not isinstance(v, bool)
                        and math.isfinite(v) and abs(v) <= 45.0 for v in value)):
-        raise UsageError(f'{where} must be three numbers of degrees within +-45, got {value!r}')
+        raise FleetFileError(f'{where} must be three numbers of degrees within +-45, got '
+                             f'{value!r}')
     return float(value[0]), float(value[1]), float(value[2])
 
 
@@ -106,28 +107,28 @@ def robots_from(spec: str, seed: int, controller: str = 'paper') -> tuple[
     if spec.isdigit():
         count = int(spec)
         if not 1 <= count <= MAX_ROBOTS:
-            raise UsageError(f'--robots must be 1..{MAX_ROBOTS} or a YAML file, got {spec!r}')
+            raise FleetFileError(f'--robots must be 1..{MAX_ROBOTS} or a YAML file, got {spec!r}')
         places = _spread_starts(count)
         return places, [drawn_offsets(rng) for _ in places], [controller] * count
     path = Path(spec)
     entries = _load(path, 'robots')
     if not isinstance(entries, list) or not entries:
-        raise UsageError(f'{spec!r}: robots must be a list of robots, got {entries!r}')
+        raise FleetFileError(f'{spec!r}: robots must be a list of robots, got {entries!r}')
     starts, offsets, controllers = [], [], []
     for index, entry in enumerate(entries):
         where = f'{spec!r}: robots[{index}]'
         if not isinstance(entry, dict) or 'start_mm' not in entry:
-            raise UsageError(f'{where} must be a mapping with start_mm, got {entry!r}')
+            raise FleetFileError(f'{where} must be a mapping with start_mm, got {entry!r}')
         unknown = set(entry) - {'start_mm', 'wheel_offsets_deg', 'controller'}
         if unknown:
-            raise UsageError(f'{where} has unknown keys {sorted(unknown)} (start_mm, '
+            raise FleetFileError(f'{where} has unknown keys {sorted(unknown)} (start_mm, '
                              'wheel_offsets_deg, controller)')
         starts.append(_pair(f'{where}.start_mm', entry['start_mm'], 1e-3))
         offsets.append(_offsets(f'{where}.wheel_offsets_deg', entry['wheel_offsets_deg'])
                        if 'wheel_offsets_deg' in entry else drawn_offsets(rng))
         own = entry.get('controller', controller)
         if own not in MODES:
-            raise UsageError(f'{where}.controller must be one of {", ".join(MODES)}, got '
+            raise FleetFileError(f'{where}.controller must be one of {", ".join(MODES)}, got '
                              f'{own!r}')
         controllers.append(own)
     return starts, offsets, controllers
@@ -142,15 +143,16 @@ def tasks_from(path: Path, robots: int) -> list[list[Task]]:
     entries = _load(path, 'tasks')
     where = f'{str(path)!r}: tasks'
     if not isinstance(entries, dict):
-        raise UsageError(f'{where} must map robot_0, robot_1, ... to goals, got {entries!r}')
+        raise FleetFileError(f'{where} must map robot_0, robot_1, ... to goals, got {entries!r}')
     names = {robot_name(k): k for k in range(robots)}
     unknown = sorted(set(map(str, entries)) - set(names))
     if unknown:
-        raise UsageError(f'{where} names {unknown}: the robots are robot_0..robot_{robots - 1}')
+        raise FleetFileError(f'{where} names {unknown}: the robots are '
+                             f'{robot_name(0)}..{robot_name(robots - 1)}')
     tasks: list[list[Task]] = [[] for _ in range(robots)]
     for name, goals in entries.items():
         if not isinstance(goals, list):
-            raise UsageError(f'{where}.{name} must be a list of goals, got {goals!r}')
+            raise FleetFileError(f'{where}.{name} must be a list of goals, got {goals!r}')
         for index, goal in enumerate(goals):
             tasks[names[str(name)]].append(_task(f'{where}.{name}[{index}]', goal))
     return tasks
@@ -158,20 +160,20 @@ def tasks_from(path: Path, robots: int) -> list[list[Task]]:
 
 def _task(where: str, goal: object) -> Task:
     if not isinstance(goal, dict) or 'goal_mm' not in goal:
-        raise UsageError(f'{where} must be a mapping with goal_mm, got {goal!r}')
+        raise FleetFileError(f'{where} must be a mapping with goal_mm, got {goal!r}')
     unknown = set(goal) - {'goal_mm', 'after', 'tolerance_um'}
     if unknown:
-        raise UsageError(f'{where} has unknown keys {sorted(unknown)} (goal_mm, after, '
+        raise FleetFileError(f'{where} has unknown keys {sorted(unknown)} (goal_mm, after, '
                          'tolerance_um)')
     after = goal.get('after')
     if after is not None and (not isinstance(after, list) or len(after) != 2 or not all(
             isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in after)):
-        raise UsageError(f'{where}.after must be [robot, goal index], got {after!r}')
+        raise FleetFileError(f'{where}.after must be [robot, goal index], got {after!r}')
     tolerance = goal.get('tolerance_um')
     if tolerance is not None and (isinstance(tolerance, bool)
                                   or not isinstance(tolerance, int | float)
                                   or not 0.0 < tolerance < 1e4):
-        raise UsageError(f'{where}.tolerance_um must be a number in (0, 10000), got '
+        raise FleetFileError(f'{where}.tolerance_um must be a number in (0, 10000), got '
                          f'{tolerance!r}')
     return Task(_pair(f'{where}.goal_mm', goal['goal_mm'], 1e-3),
                 (after[0], after[1]) if after is not None else None,

@@ -18,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from omni_micro_cli.errors import UsageError
 from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
 from omni_micro_common.topic_names import (
@@ -33,6 +32,7 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.errors import AnimationError
 from omni_micro_vision.scene import FLEET_COLOURS, Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
@@ -66,7 +66,7 @@ def _events(bag: Path, robots: list[str]) -> list[Event]:
             events += [(stamp, robot, SEEN, message) for topic in CAPTURE_TOPICS.values()
                        for stamp, message in of(topic)]
     if not any(topic in (ODOM_TOPIC, SEEN) for _, _, topic, _ in events):
-        raise UsageError(f'{str(bag)!r} has no /odom and no captures: nothing to animate')
+        raise AnimationError(f'{str(bag)!r} has no /odom and no captures: nothing to animate')
     # The recorder's stamps are simulated time; ties keep the topics' order above.
     events.sort(key=lambda event: event[0])
     return events
@@ -148,7 +148,7 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
     from tqdm import tqdm
 
     if target.suffix == '.mp4' and shutil.which('ffmpeg') is None:
-        raise UsageError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
+        raise AnimationError('an MP4 needs ffmpeg, which is not installed here; give a .gif')
     names = [robot_name(k) for k in robots] if robots else ['']
     events = _events(bag, names)
     first, last = events[0][0], events[-1][0]
