@@ -158,3 +158,10 @@ def context():
     rclpy.init(context=context)
     yield context
     context.try_shutdown()
+
+
+@pytest.fixture
+def no_blas_setting(monkeypatch):
+    """The user set nothing (and whatever the test sets is undone afterwards)."""
+    monkeypatch.setenv('OPENBLAS_NUM_THREADS', 'unset below')
+    monkeypatch.delenv('OPENBLAS_NUM_THREADS')

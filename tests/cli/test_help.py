@@ -6,8 +6,9 @@ import argparse
 import re
 
 import pytest
+from import_probe import HEAVY, loaded_after
 
-from omni_micro_cli.cli import build_parser
+from omni_micro_cli.cli import COMMANDS, build_parser
 
 
 def subcommands() -> dict[str, argparse.ArgumentParser]:
@@ -41,3 +42,13 @@ def test_help_gives_the_exit_codes(name, codes):
 def test_analyse_is_analyze():
     commands = subcommands()
     assert commands['analyse'] is commands['analyze']
+
+
+@pytest.mark.parametrize('argv', [['--help'], ['no-such-command'], ['analyse', '--help'],
+                                  *([name, '--help'] for name in COMMANDS)])
+def test_help_loads_no_heavy_library(argv):
+    code = ('import contextlib, io\nfrom omni_micro_cli.cli import main\n'
+            'with contextlib.redirect_stdout(io.StringIO()), '
+            'contextlib.redirect_stderr(io.StringIO()):\n'
+            f'    try:\n        main({argv!r})\n    except SystemExit:\n        pass')
+    assert loaded_after(code, HEAVY) == []

@@ -297,3 +297,13 @@ def test_a_second_sigterm_does_not_interrupt_the_first_ones_clean_up():
     with pytest.raises(KeyboardInterrupt):
         handler(15, None)
     handler(15, None)   # the second of the pair: no new interruption
+
+
+def test_a_view_address_beyond_loopback_says_who_can_connect():
+    from omni_micro_cli.arguments import check_view_host
+    from omni_micro_cli.errors import UsageError
+
+    assert check_view_host('127.0.0.1') is None
+    assert 'any machine that can reach this one' in str(check_view_host('0.0.0.0'))
+    with pytest.raises(UsageError, match=r"an IP address such as 127\.0\.0\.1, got 'lab'"):
+        check_view_host('lab')

@@ -1,6 +1,7 @@
-"""No two modules of the workspace import each other, however indirectly: every import counts,
-at the top, inside a function or under ``if TYPE_CHECKING:`` (a reader follows each of them).
-A lower module that needs something of an upper one says what in a ``typing.Protocol``."""
+"""The workspace's imports run one way. No two modules import each other, however indirectly:
+every import counts, at the top, inside a function or under ``if TYPE_CHECKING:`` (a reader
+follows each of them); a lower module that needs something of an upper one says what in a
+``typing.Protocol``. And nothing but the command line's own tests imports the command line."""
 
 from __future__ import annotations
 
@@ -98,3 +99,26 @@ def test_a_type_only_or_late_import_back_is_a_circle(tmp_path):
     (package / 'late.py').write_text('def g():\n    from .alone import f\n')
     assert circles(import_graph(tmp_path)) == [['pkg.alone', 'pkg.late'],
                                                ['pkg.lower', 'pkg.upper']]
+
+
+def test_nothing_below_the_command_line_imports_it():
+    """The command line is the top: its verbs call the packages, never the other way round,
+    and only its own tests (tests/cli) import it."""
+    sources = [*(ROOT / 'ros2_ws' / 'src').glob('*/*/**/*.py'), *(ROOT / 'tests').rglob('*.py')]
+    cli = ROOT / 'ros2_ws' / 'src' / 'omni_micro_cli'
+    importers = sorted(str(path.relative_to(ROOT)) for path in sources
+                       if cli not in path.parents and ROOT / 'tests' / 'cli' not in path.parents
+                       and any(name == 'omni_micro_cli' or name.startswith('omni_micro_cli.')
+                               for name in top_imports(path)))
+    assert importers == []
+
+
+def top_imports(path: Path) -> set[str]:
+    """Every module name ``path`` imports (absolute imports), wherever in the file."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module)
+    return names

@@ -1,44 +1,19 @@
-"""What each entry point loads: the help of the command line loads no heavy library, the nodes a
-real camera set-up runs load no physics, and the shared contracts load nothing but ROS and YAML.
+"""What each entry point loads: the nodes a real camera set-up runs load no physics, and the
+shared contracts load nothing but ROS and YAML (the command line's help: tests/cli/test_help.py).
 
 Checked in a fresh interpreter each (an import, unlike a time, does not flake)."""
 
 from __future__ import annotations
 
 import ast
-import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-from omni_micro_cli.cli import COMMANDS
+from import_probe import loaded_after
 
 ROOT = Path(__file__).resolve().parents[2]
 
-HEAVY = ('numba', 'llvmlite', 'scipy', 'matplotlib', 'pyarrow', 'dask', 'distributed', 'cv2',
-         'rosbags', 'rclpy')
 PHYSICS = ('numba', 'llvmlite', 'scipy')
-
-
-def loaded_after(code: str, watched: tuple[str, ...]) -> list[str]:
-    probe = (f'import sys, json\n{code}\n'
-             f'print(json.dumps(sorted(m for m in {watched!r} if m in sys.modules)))')
-    done = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True,
-                          timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
-    return list(json.loads(done.stdout.strip().splitlines()[-1]))
-
-
-@pytest.mark.parametrize('argv', [['--help'], ['no-such-command'], ['analyse', '--help'],
-                                  *([name, '--help'] for name in COMMANDS)])
-def test_help_loads_no_heavy_library(argv):
-    code = ('import contextlib, io\nfrom omni_micro_cli.cli import main\n'
-            'with contextlib.redirect_stdout(io.StringIO()), '
-            'contextlib.redirect_stderr(io.StringIO()):\n'
-            f'    try:\n        main({argv!r})\n    except SystemExit:\n        pass')
-    assert loaded_after(code, HEAVY) == []
 
 
 @pytest.mark.parametrize(('module', 'node', 'overrides'), [
