@@ -139,7 +139,7 @@ def start_node(domain_id: int, tmp_path: Path):
     logs: list[IO[str]] = []
 
     def start(package: str, executable: str, *params: str) -> subprocess.Popen:
-        from omni_micro_bringup.parameters import graph_params_file, resolve_executable
+        from omni_micro_bringup.params_files import graph_params_file, resolve_executable
 
         argv = [str(resolve_executable(package, executable)), '--ros-args', '--params-file',
                 str(graph_params_file())]

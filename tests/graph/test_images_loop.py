@@ -15,7 +15,7 @@ from geometry_msgs.msg import PoseStamped
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
-from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.params_files import dds_profile
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.qos import CAPTURE_QOS
 from omni_micro_tools.bag_reading import read_bag
@@ -30,7 +30,7 @@ FRAME_RATE_HZ = 30.0
 @pytest.fixture(autouse=True)
 def image_transport(monkeypatch):
     """Nodes and commands started here carry camera frames: the profile a graph with images
-    gets (omni_micro_bringup.parameters.dds_profile)."""
+    gets (omni_micro_bringup.params_files.dds_profile)."""
     monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
 def run_on_images(folder: Path, name: str, composed: bool = False,

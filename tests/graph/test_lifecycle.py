@@ -101,7 +101,7 @@ def test_an_orphaned_node_whose_output_pipes_are_gone_still_exits_cleanly(domain
     closed) used to abort its teardown, and the interpreter's slow exit kept it alive up to
     1.2 s after the orchestrator on an idle machine. Now it exits through the fast path: code 0
     (an exception on the way out ends with 1)."""
-    from omni_micro_bringup.parameters import graph_params_file, resolve_executable
+    from omni_micro_bringup.params_files import graph_params_file, resolve_executable
     from omni_micro_bringup.processes import node_environment
     from omni_micro_common.conventions import LIFELINE_ENV
 

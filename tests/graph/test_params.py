@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_bringup.parameters import graph_params_file, resolve_executable
+from omni_micro_bringup.params_files import graph_params_file, resolve_executable
 from omni_micro_bringup.processes import node_environment
 
 PACKAGES = {'dynamics_node': 'omni_micro_sim', 'vision_node': 'omni_micro_vision',

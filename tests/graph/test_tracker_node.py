@@ -11,7 +11,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.params_files import dds_profile
 from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, latched
 from omni_micro_sim.state import RobotState
@@ -25,7 +25,7 @@ CAMERA = DEFAULT_RIG.macro
 @pytest.fixture(autouse=True)
 def image_transport(monkeypatch):
     """Nodes and commands started here carry camera frames: the profile a graph with images
-    gets (omni_micro_bringup.parameters.dds_profile)."""
+    gets (omni_micro_bringup.params_files.dds_profile)."""
     monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
 
 def frame_messages(pixels: np.ndarray, stamp_s: float) -> tuple[Image, CameraInfo]:

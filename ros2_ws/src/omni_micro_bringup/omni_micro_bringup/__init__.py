@@ -2,7 +2,7 @@
 available here): the only package that knows which nodes make the graph.
 
 :mod:`composition` (which nodes, in which processes or one container; GraphOptions),
-:mod:`node_overrides` (what each node is told beyond the params file), :mod:`parameters` (the
+:mod:`node_overrides` (what each node is told beyond the params file), :mod:`params_files` (the
 graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file
 against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
 :mod:`bench_start` (what a bench run's goal waits for: the real robot's state, the cameras'

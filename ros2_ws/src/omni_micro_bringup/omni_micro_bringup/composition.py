@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.parameters import node_parameters
+from omni_micro_bringup.params_files import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,

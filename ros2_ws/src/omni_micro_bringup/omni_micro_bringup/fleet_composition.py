@@ -28,7 +28,7 @@ from omni_micro_bringup.composition import (
 )
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import servo_timing
-from omni_micro_bringup.parameters import (
+from omni_micro_bringup.params_files import (
     format_parameter,
     graph_params_file,
     node_parameters,

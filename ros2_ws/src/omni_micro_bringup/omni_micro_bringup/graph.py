@@ -36,7 +36,7 @@ from omni_micro_bringup.composition import (
 )
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.node_overrides import node_overrides
-from omni_micro_bringup.parameters import (
+from omni_micro_bringup.params_files import (
     check_params_file,
     format_parameter,
     graph_params_file,

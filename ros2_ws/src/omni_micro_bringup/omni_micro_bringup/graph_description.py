@@ -12,7 +12,7 @@ from omni_micro_bringup.composition import (
     streaming_cameras,
 )
 from omni_micro_bringup.graph import Graph
-from omni_micro_bringup.parameters import check_params_file
+from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.processes import DomainLease, new_log_dir
 from omni_micro_bringup.readiness import (
     external_publications,

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from omni_micro_bringup.parameters import format_parameter
+from omni_micro_bringup.params_files import format_parameter
 from omni_micro_common.params import flatten, load_params_file
 
 # Parameters a node declares that the file leaves to the command line, the bringup or another

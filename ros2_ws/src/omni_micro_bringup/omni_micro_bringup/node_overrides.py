@@ -18,7 +18,7 @@ from omni_micro_bringup.composition import (
     publishes_in_motion,
     servo_mode,
 )
-from omni_micro_bringup.parameters import node_parameters, params_from_files
+from omni_micro_bringup.params_files import node_parameters, params_from_files
 from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError

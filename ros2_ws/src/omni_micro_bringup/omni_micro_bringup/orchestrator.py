@@ -33,7 +33,7 @@ from rclpy.publisher import Publisher
 
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odometry_topic
 from omni_micro_bringup.errors import RunFailed, UsageError
-from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (

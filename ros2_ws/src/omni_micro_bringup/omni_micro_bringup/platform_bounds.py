@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.parameters import params_from_files
+from omni_micro_bringup.params_files import params_from_files
 
 
 def controller_parameter(name: str, params_files: tuple[Path, ...]) -> Any:

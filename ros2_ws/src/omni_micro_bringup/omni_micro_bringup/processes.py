@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from omni_micro_bringup.errors import RunFailed
-from omni_micro_bringup.parameters import dds_profile
+from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.warm_start import WarmProcess, start_warm, warm_up
 
 if TYPE_CHECKING:

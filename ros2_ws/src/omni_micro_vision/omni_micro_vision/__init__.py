@@ -4,7 +4,7 @@ Plain modules (no rclpy): :mod:`camera` (the camera model and capture rule), :mo
 printed pattern, and each robot's code on a shared platform), :mod:`rendering` (frames of the
 robot, or of several), :mod:`exposure_schedule` (when a simulated camera's frames are due, and
 where each robot stands in them), :mod:`tracking` (a pose per frame, stillness, which camera
-speaks), :mod:`identification` (who is who in a frame of several robots) and :mod:`fleet_tracking`
+speaks), :mod:`code_reading` (who is who in a frame of several robots) and :mod:`fleet_tracking`
 (their captures, robot by robot), :mod:`encodings` (drivers' encodings made grey), :mod:`geometry`
 (a camera's pixels on the platform: lens and homography), :mod:`tracked_camera` (a camera as the
 tracker reads its settings, and the CameraInfo it accepts), :mod:`optics` (a simulated camera's

@@ -1,5 +1,5 @@
 """Captures of several robots under one camera pair: each frame's sightings
-(:mod:`omni_micro_vision.identification`) turned into each named robot's captures as
+(:mod:`omni_micro_vision.code_reading`) turned into each named robot's captures as
 :mod:`omni_micro_vision.tracking` turns one robot's poses into its captures. No rclpy:
 ``tracker_node`` with ``robots`` is the adapter.
 
@@ -16,9 +16,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from omni_micro_common.topic_names import robot_index, robot_name
+from omni_micro_vision.code_reading import Sighting
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fiducial import ROBOT_CODES
-from omni_micro_vision.identification import Sighting
 from omni_micro_vision.tracking import CameraArbiter, StillnessRule
 
 

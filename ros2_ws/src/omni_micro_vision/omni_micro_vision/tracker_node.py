@@ -34,7 +34,7 @@ that none of them misses the first captures.
 
 Several robots under one camera pair (a micro-factory, ``robots``: their namespaces, robot_k
 carrying fiducial code k): each frame's robots are named by their codes
-(:mod:`omni_micro_vision.identification`) and each named robot's captures published under its
+(:mod:`omni_micro_vision.code_reading`) and each named robot's captures published under its
 namespace, ``/robot_k/camera/<name>/pose`` and ``pose_with_covariance``
 (:mod:`omni_micro_vision.fleet_tracking`); a robot a frame cannot name gives no capture and is
 said in ``tracker_status`` (why, and where) and, once per reason, in the log.
@@ -67,9 +67,9 @@ from omni_micro_common.reader_matching import (
 from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
+from omni_micro_vision.code_reading import Sighting
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fleet_tracking import FleetCaptures, RobotCapture, robot_codes
-from omni_micro_vision.identification import Sighting
 from omni_micro_vision.rendering import Sensor
 from omni_micro_vision.tracked_camera import tracked_camera
 from omni_micro_vision.tracker_reader import CameraReader, HeldCapture, HeldInMotion

@@ -25,11 +25,11 @@ from omni_micro_common.topic_names import (
     robot_name,
 )
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
+from omni_micro_vision.code_reading import Sighting, identify
 from omni_micro_vision.encodings import full_scale
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fleet_tracking import FleetCaptures
 from omni_micro_vision.frame_ages import FrameAges
-from omni_micro_vision.identification import Sighting, identify
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.tracked_camera import TrackedCamera

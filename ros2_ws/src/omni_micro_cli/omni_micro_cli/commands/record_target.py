@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_bringup.parameters import check_params_file, params_from_files
+    from omni_micro_bringup.params_files import check_params_file, params_from_files
     from omni_micro_common.conventions import split_stamp
     from omni_micro_sim.state import RobotState
     from omni_micro_tools.bags import check_bag_output, open_writer

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from omni_micro_bringup.composition import SOURCES, VISION_MODES, GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
-from omni_micro_bringup.parameters import check_params_file
+from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
     add_steering_argument,

@@ -77,7 +77,7 @@ def robot_names(text: str) -> list[str]:
 
 
 def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]:
-    from omni_micro_bringup.parameters import check_params_file, params_from_files
+    from omni_micro_bringup.params_files import check_params_file, params_from_files
 
     for path in args.params:
         check_params_file(path)

@@ -1,5 +1,5 @@
 """`omni-micro track BAG --robots ...`: who tracker_node would name in each recorded frame of
-several robots under one camera, as it names them (omni_micro_vision.identification and
+several robots under one camera, as it names them (omni_micro_vision.code_reading and
 fleet_tracking), and why any robot could not be named."""
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ def track_robots(args: argparse.Namespace, reader: Any, connection: Any,
                  camera: TrackedCamera, still_frames: int, tolerance_px: float) -> int:
     """Read the frames, print the report per robot, write the rows; exit 0 when every robot
     was named in some frame, 1 when one never was."""
+    from omni_micro_vision.code_reading import identify
     from omni_micro_vision.encodings import full_scale
     from omni_micro_vision.errors import CameraConfigError
     from omni_micro_vision.fleet_tracking import robot_codes
-    from omni_micro_vision.identification import identify
     from omni_micro_vision.image_messages import image_array
     from omni_micro_vision.tracking import StillnessRule
 

@@ -1,4 +1,4 @@
-"""Who is who in a rendered frame of several robots (omni_micro_vision.identification): each
+"""Who is who in a rendered frame of several robots (omni_micro_vision.code_reading): each
 robot named by the code printed on it, wherever it stands and as it moves, and a robot the
 frame cannot name reported, never taken for another."""
 
@@ -11,9 +11,9 @@ import pytest
 
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
+from omni_micro_vision.code_reading import identify
 from omni_micro_vision.fiducial import ROBOT_CODES, code_dots, robot_of_code
 from omni_micro_vision.geometry import PlaneMap
-from omni_micro_vision.identification import identify
 from omni_micro_vision.rendering import InView, Sensor, render, render_robots
 from omni_micro_vision.tracking import track
 
