@@ -35,7 +35,7 @@ from omni_micro_bringup.fleet_composition import (
     fleet_specs,
 )
 from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph
-from omni_micro_bringup.orchestrator import Orchestrator
+from omni_micro_bringup.orchestrator import SERVICE_RESEND_S, Orchestrator
 from omni_micro_bringup.processes import DomainLease, new_log_dir, prepare_node_starts
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
@@ -64,11 +64,6 @@ from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan, Leg
 from omni_micro_sim.parameters import RobotParameters
 
-# How long a request to a controller's parameter service waits before it goes again (a server
-# may answer before its response writer has matched this client: the answer is lost). A goal is
-# sent once, to readers already matched (reliable), each waited for by name: sent again, the
-# controller takes the second for a new goal and ends the first as replaced.
-SERVICE_RESEND_S = 2.0
 # How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
 REPORT_REPEAT_S = 0.1
 
@@ -170,6 +165,10 @@ class FleetMonitor(Orchestrator):
                                                      double_value=float(order.tolerance_m)))])
         while True:
             graph.check_alive()
+            # Asked again after SERVICE_RESEND_S, as dynamics_node's clock is. A goal, unlike
+            # this, is sent once, to readers already matched (reliable), each waited for by
+            # name: sent again, the controller takes the second for a new goal and ends the
+            # first as replaced.
             future = client.call_async(request)
             self.executor.spin_until_future_complete(future, timeout_sec=SERVICE_RESEND_S)
             if future.done() and future.result() is not None:

@@ -61,7 +61,9 @@ MATCH_GRACE_S = 0.5
 # How long a goal waits for its readers to match it and then to acknowledge it (a dead
 # process's reader, still in the ROS graph, never does: the goal goes on without it).
 GOAL_READERS_MATCH_S = 5.0
-# How long an unanswered request to dynamics_node's parameter service waits before it goes again.
+# How long an unanswered request to a node's parameter service (dynamics_node's clock, a fleet
+# robot's tolerance) waits before it goes again: a server may answer before its response writer
+# has matched this client, and the answer is lost.
 SERVICE_RESEND_S = 2.0
 
 
