@@ -5,6 +5,7 @@ rule, the model mode, the servo), :mod:`fleet_twin` (several robots on one platf
 loop, leg by leg through the planner's legs), :mod:`inputs` (what a study's run takes and
 reports), :mod:`spec` (a study file, checked and expanded), :mod:`runs` (one run), :mod:`execute`
 (the runs on Dask: a local cluster or an existing scheduler), :mod:`report` (a study's summary
-and figure), :mod:`errors`. The command line (``omni-micro study``, ``fleet``, ...) calls them;
+and figure); :mod:`controller_comparison` (the three controller modes on seeded cases) and
+:mod:`fleet_throughput` (a fleet's throughput against its size, and crossing runs), :mod:`errors`. The command line (``omni-micro study``, ``fleet``, ...) calls them;
 Dask workers import them.
 """
