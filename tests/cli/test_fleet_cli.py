@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -117,7 +118,8 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     assert rows[0].startswith('robots,controller,seed,outcome,goals') and len(rows) == 3
     assert rows[1].startswith('1,paper,0,done,1,')
     assert (tmp_path / 'sweep' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
-    assert '[2/2] 2 robots, seed 0: done' in sweep.stderr
+    # Said as each run ends, in whatever order the cluster's workers finish them.
+    assert re.search(r'\[[12]/2\] 2 robots, seed 0: done', sweep.stderr), sweep.stderr
     crossing = omni_micro('fleet-study', '--out', str(tmp_path / 'crossing'), '--crossing', '2',
                           '--workers', '1', '--seed', '5', '--controller', 'servo')
     assert crossing.returncode == 0, crossing.stderr
@@ -184,3 +186,26 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
         assert row['last_goal_deviation_um'] == pytest.approx(robot['deviation_um'][0], abs=0.5)
     assert (tmp_path / 'analysis' / 'route.png').exists()
     assert '| robot_1 | 1 |' in analyzed.stdout
+
+
+def test_the_study_runs_on_an_existing_dask_scheduler_as_on_its_own_cluster(tmp_path):
+    """--scheduler: the runs go to that scheduler's workers, with the rows a run in this
+    process gives (the fleet twin is deterministic); an unreachable one is one line, exit 2."""
+    from distributed import LocalCluster
+
+    from omni_micro_studies.fleet_throughput import one_run
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host='127.0.0.1',
+                      dashboard_address=None) as cluster:
+        done = omni_micro('fleet-study', '--out', str(tmp_path / 'crossing'), '--crossing', '2',
+                          '--seed', '3', '--scheduler', cluster.scheduler_address)
+    assert done.returncode == 0, done.stderr
+    assert f'2 fleet runs on the scheduler {cluster.scheduler_address}' in done.stderr
+    rows = (tmp_path / 'crossing' / 'runs.csv').read_text().splitlines()[1:]
+    expected = [one_run(4, seed, 2, True) for seed in (3, 4)]
+    assert [row.rsplit(',', 1)[0] for row in rows] == [
+        ','.join(str(v) for k, v in row.items() if k != 'wall_s') for row in expected]
+    refused = omni_micro('fleet-study', '--out', str(tmp_path / 'none'), '--crossing', '1',
+                         '--scheduler', 'tcp://127.0.0.1:9', '--scheduler-timeout', '1')
+    assert refused.returncode == 2 and 'cannot connect' in refused.stderr
+    assert 'Traceback' not in refused.stderr and not (tmp_path / 'none').exists()

@@ -311,3 +311,24 @@ def add_storage_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bag storage (default mcap, Jazzy's default)")
     parser.add_argument('--force', action='store_true',
                         help='replace an existing bag at the output path')
+
+
+def add_dask_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where a study's runs go: a local Dask cluster (``--workers``) or a running scheduler."""
+    parser.add_argument('--workers',
+                        type=whole_number_in(0, 256), default=0, metavar='N',
+                        help='worker processes of the local Dask cluster (default: one per '
+                             'core)')
+    parser.add_argument('--scheduler', metavar='tcp://HOST:PORT',
+                        help='submit to this running Dask scheduler instead of a local cluster')
+    parser.add_argument('--scheduler-timeout', type=positive_float, default=10.0, metavar='S',
+                        help='give up connecting to --scheduler after S seconds (default 10)')
+
+
+def check_dask_arguments(args: argparse.Namespace) -> None:
+    """Raises UsageError for --workers beside --scheduler, or a scheduler that is no address."""
+    if args.scheduler and args.workers:
+        raise UsageError('--workers sizes the local cluster; a --scheduler has its own workers')
+    if args.scheduler and not args.scheduler.startswith(('tcp://', 'tls://', 'inproc://')):
+        raise UsageError(f'--scheduler: expected an address like tcp://HOST:8786, got '
+                         f'{args.scheduler!r}')

@@ -1,4 +1,6 @@
-"""Running a study's runs on Dask (or in a plain loop), keeping every finished run on disk.
+"""Running a study's runs on Dask (or in a plain loop), keeping every finished run on disk;
+and any other scenario's runs (compare-controllers' cases, fleet-study's fleets) on the same
+cluster or scheduler (:func:`map_on_dask`).
 
 A study directory holds ``study.yaml`` (the file as given) from the start, finished runs in
 ``parts/`` as they come (each part written whole: a temporary file, then a rename), and, once
@@ -17,7 +19,7 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -194,6 +196,37 @@ def dask_client(workers: int, scheduler: str | None,
         signal.signal(signal.SIGINT, previous)
     with cluster, Client(cluster) as client:
         yield client
+
+
+def map_on_dask(function: Callable[..., Any], tasks: Sequence[tuple[Any, ...]], *,
+                workers: int = 0, scheduler: str | None = None,
+                scheduler_timeout_s: float = 10.0,
+                on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
+    """``function(*task)`` for every task, on a local cluster of ``workers`` processes (0: one
+    per core) or on ``scheduler``'s workers; the results in the tasks' order, whatever order
+    they finish in. ``on_result(done, result)`` is called as each arrives (progress).
+
+    Raises
+    ------
+    StudyError
+        ``scheduler`` cannot be reached.
+    """
+    from distributed import as_completed
+
+    results: list[Any] = [None] * len(tasks)
+    if not tasks:
+        return results
+    with dask_client(workers or os.cpu_count() or 1, scheduler, scheduler_timeout_s) as client:
+        futures = {client.submit(function, *task, pure=False): index
+                   for index, task in enumerate(tasks)}
+        try:
+            for done, future in enumerate(as_completed(futures), start=1):
+                results[futures[future]] = future.result()
+                if on_result is not None:
+                    on_result(done, results[futures[future]])
+        finally:
+            client.cancel(list(futures))
+    return results
 
 
 def _tasks(study: Study, rows: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:

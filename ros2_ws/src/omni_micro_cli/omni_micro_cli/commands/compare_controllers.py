@@ -4,14 +4,15 @@ seeded cases (omni_micro_studies.controller_comparison says which)."""
 from __future__ import annotations
 
 import argparse
-import concurrent.futures
 import json
 import os
 import sys
 import time
 
 from omni_micro_cli.arguments import (
+    add_dask_arguments,
     add_steering_argument,
+    check_dask_arguments,
     positive_float,
     seed_number,
     whole_number_in,
@@ -33,9 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='seed of the cases (robots, starts, goals, camera noise)')
     parser.add_argument('--tolerance-um', type=positive_float, default=0.5, metavar='UM',
                         help='tolerance of both modes (default 0.5 um)')
-    parser.add_argument('--workers',
-                        type=whole_number_in(0, 256), default=0, metavar='N',
-                        help='processes (default: one per core)')
+    add_dask_arguments(parser)
     add_steering_argument(parser)
     parser.add_argument('--out', type=output_folder, default='out/compare-controllers',
                         metavar='DIR', help='where the table, figure and rows go')
@@ -43,26 +42,35 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_studies.execute import map_on_dask
+
+    check_dask_arguments(args)
     cases = comparison.make_cases(args.cases, args.seed, args.steering)
     if not cases:
         print('compare-controllers: --cases 0: nothing to run', file=sys.stderr)
         return 0
     tolerance_m = args.tolerance_um * 1e-6
-    workers = args.workers or os.cpu_count() or 1
+    print(f'compare-controllers: {len(cases)} cases on '
+          + (f'the scheduler {args.scheduler}' if args.scheduler else
+             f'a local Dask cluster of {args.workers or os.cpu_count()} processes'),
+          file=sys.stderr)
     began = time.perf_counter()
-    rows: list[dict] = [{}] * len(cases)
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(comparison.run_case, case, tolerance_m): case.index
-                   for case in cases}
-        shown = 0.0
-        for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
-            rows[futures[future]] = future.result()
-            elapsed = time.perf_counter() - began
-            if elapsed - shown >= 0.5 or done == len(cases):   # a line twice a second at most
-                shown = elapsed
-                print(f'\rcompare-controllers: {done}/{len(cases)} cases, '
-                      f'{done / elapsed:.1f}/s, {elapsed / done * (len(cases) - done):.0f} s '
-                      f'left', end='', file=sys.stderr, flush=True)
+    shown = 0.0
+
+    def progress(done: int, _row: object) -> None:
+        nonlocal shown
+        elapsed = time.perf_counter() - began
+        if elapsed - shown >= 0.5 or done == len(cases):   # a line twice a second at most
+            shown = elapsed
+            print(f'\rcompare-controllers: {done}/{len(cases)} cases, '
+                  f'{done / elapsed:.1f}/s, {elapsed / done * (len(cases) - done):.0f} s '
+                  f'left', end='', file=sys.stderr, flush=True)
+
+    rows: list[dict] = map_on_dask(comparison.run_case,
+                                   [(case, tolerance_m) for case in cases],
+                                   workers=args.workers, scheduler=args.scheduler,
+                                   scheduler_timeout_s=args.scheduler_timeout,
+                                   on_result=progress)
     print(file=sys.stderr)
     summary = comparison.summarise(rows, args.tolerance_um)
     text = comparison.table(summary)

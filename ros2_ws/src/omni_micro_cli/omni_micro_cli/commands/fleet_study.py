@@ -7,12 +7,17 @@ import argparse
 import csv
 import io
 import json
+import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import positive_int, seed_number, whole_number_in
+from omni_micro_cli.arguments import (
+    add_dask_arguments,
+    check_dask_arguments,
+    seed_number,
+    whole_number_in,
+)
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
 from omni_micro_control.feedback import MODES
 from omni_micro_studies import fleet_throughput as throughput
@@ -44,33 +49,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="every robot's controller: paper (section 4.1's rule, the "
                              'default), model or servo (docs/control.md)')
     parser.add_argument('--seed', type=seed_number, default=0, help='first seed (default 0)')
-    parser.add_argument('--workers', type=positive_int, default=2,
-                        help='processes running the runs side by side (default 2)')
+    add_dask_arguments(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_studies.execute import map_on_dask
+
+    check_dask_arguments(args)
     crossing = args.crossing is not None
     jobs = ([(4, args.seed + k) for k in range(args.crossing)] if crossing else
             [(n, args.seed + k) for n in range(1, args.robots_max + 1) for k in range(args.draws)])
-    echo_to_stderr(f'{len(jobs)} fleet runs on {args.workers} processes')
-    rows: list[dict[str, Any]] = []
+    echo_to_stderr(f'{len(jobs)} fleet runs on '
+                   + (f'the scheduler {args.scheduler}' if args.scheduler else
+                      f'a local Dask cluster of {args.workers or os.cpu_count()} processes'))
     started = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(throughput.one_run, n, seed, args.goals_per_robot, crossing,
-                               args.controller) for n, seed in jobs]
-        try:
-            for future in futures:
-                rows.append(future.result())
-                row = rows[-1]
-                echo_to_stderr(f'  [{len(rows)}/{len(jobs)}] {row["robots"]} robots, seed '
-                               f'{row["seed"]}: {row["outcome"]}, {row["goals"]} goals in '
-                               f'{row["sim_time_s"]:.0f} s, closest {row["closest_gap_mm"]:.2f}'
-                               f' mm ({time.perf_counter() - started:.0f} s)')
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
+
+    def progress(done: int, row: dict[str, Any]) -> None:
+        echo_to_stderr(f'  [{done}/{len(jobs)}] {row["robots"]} robots, seed '
+                       f'{row["seed"]}: {row["outcome"]}, {row["goals"]} goals in '
+                       f'{row["sim_time_s"]:.0f} s, closest {row["closest_gap_mm"]:.2f}'
+                       f' mm ({time.perf_counter() - started:.0f} s)')
+
+    rows: list[dict[str, Any]] = map_on_dask(
+        throughput.one_run,
+        [(n, seed, args.goals_per_robot, crossing, args.controller) for n, seed in jobs],
+        workers=args.workers, scheduler=args.scheduler,
+        scheduler_timeout_s=args.scheduler_timeout, on_result=progress)
     table = io.StringIO()
     writer = csv.DictWriter(table, fieldnames=throughput.COLUMNS)
     writer.writeheader()

@@ -9,7 +9,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from omni_micro_cli.arguments import STEERING_CHOICES, positive_float, whole_number_in
+from omni_micro_cli.arguments import (
+    STEERING_CHOICES,
+    add_dask_arguments,
+    check_dask_arguments,
+)
 from omni_micro_cli.errors import StudyError, UsageError
 from omni_micro_cli.outputs import output_folder
 
@@ -37,14 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                       help='finish an interrupted study without redoing its finished runs')
     what.add_argument('--rerun', nargs=2, metavar=('DIR', 'ROW'),
                       help="run one row of a study again, alone, and compare with its result")
-    parser.add_argument('--workers',
-                        type=whole_number_in(0, 256), default=0, metavar='N',
-                        help='worker processes of the local Dask cluster (default: one per '
-                             'core)')
-    parser.add_argument('--scheduler', metavar='tcp://HOST:PORT',
-                        help='submit to this running Dask scheduler instead of a local cluster')
-    parser.add_argument('--scheduler-timeout', type=positive_float, default=10.0, metavar='S',
-                        help='give up connecting to --scheduler after S seconds (default 10)')
+    add_dask_arguments(parser)
     parser.add_argument('--steering', choices=STEERING_CHOICES,
                         help="every run's steering motion, as the file's steering: key says "
                              '(ideal: the paper, the default; realistic: motor limits, backlash, '
@@ -72,11 +69,7 @@ def _check(args: argparse.Namespace) -> None:
                          'or rerun study keeps its own)')
     if args.serial and (args.scheduler or args.workers):
         raise UsageError('--serial runs in this process: no --workers or --scheduler')
-    if args.scheduler and args.workers:
-        raise UsageError('--workers sizes the local cluster; a --scheduler has its own workers')
-    if args.scheduler and not args.scheduler.startswith(('tcp://', 'tls://', 'inproc://')):
-        raise UsageError(f'--scheduler: expected an address like tcp://HOST:8786, got '
-                         f'{args.scheduler!r}')
+    check_dask_arguments(args)
 
 
 def run(args: argparse.Namespace) -> int:
