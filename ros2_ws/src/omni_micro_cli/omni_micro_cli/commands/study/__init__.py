@@ -1,6 +1,6 @@
 """`omni-micro study`: sweeps and Monte Carlo of the closed loop and of open-loop moves, run on
 Dask (a LocalCluster, or an existing scheduler), one parquet row per run (:mod:`.command`).
 
-:mod:`.inputs` (what a run takes and reports), :mod:`.spec` (a study file, checked and expanded),
-:mod:`.runs` (one run), :mod:`.execute` (the runs on Dask), :mod:`.report` (summary and figure).
+The study engine it calls (the file checked and expanded, one run, the runs on Dask, the
+summary and figure) is omni_micro_studies'.
 """
