@@ -198,6 +198,17 @@ def dask_client(workers: int, scheduler: str | None,
         yield client
 
 
+def local_workers(workers: int) -> int:
+    """The local cluster's size: ``workers``, or one per core for 0."""
+    return workers or os.cpu_count() or 1
+
+
+def runs_go_to(workers: int, scheduler: str | None) -> str:
+    """Where :func:`map_on_dask` sends its tasks, as a command says it."""
+    return (f'the scheduler {scheduler}' if scheduler else
+            f'a local Dask cluster of {local_workers(workers)} processes')
+
+
 def map_on_dask(function: Callable[..., Any], tasks: Sequence[tuple[Any, ...]], *,
                 workers: int = 0, scheduler: str | None = None,
                 scheduler_timeout_s: float = 10.0,
@@ -216,7 +227,7 @@ def map_on_dask(function: Callable[..., Any], tasks: Sequence[tuple[Any, ...]], 
     results: list[Any] = [None] * len(tasks)
     if not tasks:
         return results
-    with dask_client(workers or os.cpu_count() or 1, scheduler, scheduler_timeout_s) as client:
+    with dask_client(local_workers(workers), scheduler, scheduler_timeout_s) as client:
         futures = {client.submit(function, *task, pure=False): index
                    for index, task in enumerate(tasks)}
         try:

@@ -15,13 +15,13 @@ from omni_micro_common.topic_names import (
     robot_name,
     robot_topic,
 )
+from omni_micro_tools.topics import robot_and_topic
 
 
 def fleet_robots(topics: list[str]) -> list[int]:
     """The robots a bag holds odometry of under /robot_k/ (none: not a fleet's bag)."""
-    return sorted(index for topic in topics if topic.endswith(ODOM_TOPIC)
-                  and (index := robot_index(topic[1:-len(ODOM_TOPIC)])) is not None
-                  and topic == robot_topic(index, ODOM_TOPIC))
+    return sorted(index for robot, own in map(robot_and_topic, topics)
+                  if own == ODOM_TOPIC and (index := robot_index(robot)) is not None)
 
 
 def summarize_fleet(bag: Path, robots: list[int]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:

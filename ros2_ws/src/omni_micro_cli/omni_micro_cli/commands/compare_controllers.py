@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 
@@ -42,7 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_studies.execute import map_on_dask
+    from omni_micro_studies.execute import map_on_dask, runs_go_to
 
     check_dask_arguments(args)
     cases = comparison.make_cases(args.cases, args.seed, args.steering)
@@ -51,9 +50,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     tolerance_m = args.tolerance_um * 1e-6
     print(f'compare-controllers: {len(cases)} cases on '
-          + (f'the scheduler {args.scheduler}' if args.scheduler else
-             f'a local Dask cluster of {args.workers or os.cpu_count()} processes'),
-          file=sys.stderr)
+          f'{runs_go_to(args.workers, args.scheduler)}', file=sys.stderr)
     began = time.perf_counter()
     shown = 0.0
 

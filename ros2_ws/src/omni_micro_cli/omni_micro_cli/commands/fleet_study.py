@@ -7,7 +7,6 @@ import argparse
 import csv
 import io
 import json
-import os
 import time
 from pathlib import Path
 from typing import Any
@@ -54,15 +53,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_studies.execute import map_on_dask
+    from omni_micro_studies.execute import map_on_dask, runs_go_to
 
     check_dask_arguments(args)
     crossing = args.crossing is not None
     jobs = ([(4, args.seed + k) for k in range(args.crossing)] if crossing else
             [(n, args.seed + k) for n in range(1, args.robots_max + 1) for k in range(args.draws)])
-    echo_to_stderr(f'{len(jobs)} fleet runs on '
-                   + (f'the scheduler {args.scheduler}' if args.scheduler else
-                      f'a local Dask cluster of {args.workers or os.cpu_count()} processes'))
+    echo_to_stderr(f'{len(jobs)} fleet runs on {runs_go_to(args.workers, args.scheduler)}')
     started = time.perf_counter()
 
     def progress(done: int, row: dict[str, Any]) -> None:
