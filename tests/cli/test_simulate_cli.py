@@ -154,8 +154,9 @@ def test_a_demo_run_that_fails_keeps_the_logs_it_names(tmp_path, monkeypatch, ca
         runs.append(run_logs)
         if len(runs) == 3:
             raise RunFailed(f'no outcome from controller_node; logs in {run_logs}')
-        return GraphResult('completed' if options.open_loop_s else 'reached', '', 3, 0.1, 0.0,
-                           0.0, options.goal_m, 8.0, 1.0, run_logs, 1, {},
+        return GraphResult('completed' if options.open_loop_s else 'reached', '', 8.0, 1.0,
+                           run_logs, 1, periods=3, final_x_m=0.1, final_y_m=0.0,
+                           final_phi_rad=0.0, goal_m=options.goal_m,
                            route=[(0.0, 0.0, 0.0), (1.0, 0.1, 0.0)],
                            captures=[(1.0, 0.1, 0.0, 'micro')])
 
@@ -184,8 +185,9 @@ def test_demo_records_each_run_into_a_bag_of_its_own(tmp_path, monkeypatch, caps
     def run_graph(options):
         asked.append((options.record and options.record.name, options.vision,
                       options.controller_overrides))
-        return GraphResult('completed' if options.open_loop_s else 'reached', '', 3, 0.1, 0.0,
-                           0.0, options.goal_m, 8.0, 1.0, options.log_dir, 1, {},
+        return GraphResult('completed' if options.open_loop_s else 'reached', '', 8.0, 1.0,
+                           options.log_dir, 1, periods=3, final_x_m=0.1, final_y_m=0.0,
+                           final_phi_rad=0.0, goal_m=options.goal_m,
                            route=[(0.0, 0.0, 0.0), (1.0, 0.1, 0.0)],
                            captures=[(1.0, 0.1, 0.0, 'micro')])
 

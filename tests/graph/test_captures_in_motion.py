@@ -111,8 +111,9 @@ def test_the_tracker_captures_the_rendered_robot_in_motion_at_mid_exposure(omni_
 
 
 def test_a_graph_without_a_camera_node_to_publish_them_is_refused():
-    from omni_micro_bringup.composition import GraphOptions, NodeSpec, all_specs
+    from omni_micro_bringup.composition import GraphOptions, all_specs
     from omni_micro_bringup.errors import UsageError
+    from omni_micro_bringup.node_spec import NodeSpec
 
     robot_and_controller = [NodeSpec('omni_micro_sim', 'dynamics_node'),
                             NodeSpec('omni_micro_control', 'controller_node')]

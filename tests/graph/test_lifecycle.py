@@ -290,7 +290,7 @@ def test_a_node_stuck_when_told_to_stop_is_stopped_all_the_same(tmp_path):
     """What a node caught in Fast DDS's shared-memory lock wait looks like to the graph: it does
     not answer its first signal for seconds. The graph is stopped all the same: SIGTERM after
     5 s, then SIGKILL; the others exit on their first signal meanwhile."""
-    from omni_micro_bringup.composition import NodeSpec
+    from omni_micro_bringup.node_spec import NodeSpec
     from omni_micro_bringup.processes import NodeProcess, stop_together
 
     stuck_code = ('import signal, time\n'

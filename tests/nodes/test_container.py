@@ -11,15 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_bringup.composition import (
-    LOOP_CONTAINER,
-    MARKERS_NODE,
-    GraphOptions,
-    NodeSpec,
-    all_specs,
-)
+from omni_micro_bringup.composition import MARKERS_NODE, GraphOptions, all_specs
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import capture_readers, node_overrides
+from omni_micro_bringup.node_spec import LOOP_CONTAINER, NodeSpec
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
 from omni_micro_common.node_runtime import NodeComponent
 

@@ -20,6 +20,7 @@ from rclpy.serialization import serialize_message
 from websockets.typing import Subprotocol
 
 from omni_micro_bringup.fleet_composition import fleet_specs
+from omni_micro_bringup.node_spec import process_argv
 from omni_micro_common.errors import ParameterError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_tools.viewer_node import Viewer
@@ -90,8 +91,7 @@ def test_the_fleet_s_graph_starts_the_view_with_its_robots_and_without_it_none(t
         return fleet_specs([(0.0, 0.0), (0.05, 0.0), (0.1, 0.02)], [RobotParameters()] * 3, 1,
                            math.inf, (), tmp_path, markers=True, view=view)
     (viewer,) = [spec for spec in specs(('127.0.0.1', 8799)) if spec.executable == 'viewer']
-    assert viewer.command is not None
-    arguments = ' '.join(viewer.command)
+    arguments = ' '.join(process_argv(viewer))
     for expected in ("host:=127.0.0.1", 'port:=8799', 'markers:=true',
                      'robots:=[robot_0,robot_1,robot_2]'):
         assert expected in arguments, arguments

@@ -2,6 +2,7 @@
 available here): the only package that knows which nodes make the graph.
 
 :mod:`composition` (which nodes, in which processes or one container; GraphOptions),
+:mod:`node_spec` (one node process and its command line),
 :mod:`node_overrides` (what each node is told beyond the params file), :mod:`params_files` (the
 graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file
 against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
@@ -10,12 +11,14 @@ frames), :mod:`processes` (each node a child process on loopback, its log, the d
 :mod:`warm_start` and :mod:`zygote` (nodes forked from a process that has imported what is
 slow),
 :mod:`shared_memory` (Fast DDS's files in /dev/shm: who holds them, what a killed node left),
-:mod:`graph` (start, supervise, stop in phases; run_graph), :mod:`graph_description` (who
+:mod:`graph` (start, supervise, stop in phases; run_graph, the one run sequence for one robot or
+several), :mod:`graph_result` (what a run returns), :mod:`goal_sequence` (a single robot's goals
+handed one after another), :mod:`graph_description` (who
 publishes and subscribes what, as rqt_graph shows it), :mod:`orchestrator` (the orchestrator's
 own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node brought back
 mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
 robots, :mod:`fleet_composition` (one dynamics for all, each robot's nodes in its namespace) and
-:mod:`fleet_graph` (the run, the orchestration as each robot's coordinator).
+:mod:`fleet_graph` (their legs handed out, the orchestration as each robot's coordinator).
 """

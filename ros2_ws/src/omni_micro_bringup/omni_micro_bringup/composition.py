@@ -1,4 +1,4 @@
-"""What a run starts: the graph's nodes, each with its package, executable and overrides.
+"""What a single robot's run starts: the graph's nodes (node_spec.NodeSpec), and its options.
 
 The loop (dynamics, the cameras' stand-in, the controller), then who only listens (markers,
 the recorder, the live view); what each node is told beyond its package's params file.
@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.node_spec import NodeSpec, composed
 from omni_micro_bringup.params_files import node_parameters
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -25,7 +26,9 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
 )
+from omni_micro_control.fleet_plan import FleetPlan
 from omni_micro_control.servo_config import SERVO_MODE
+from omni_micro_sim.parameters import RobotParameters
 
 # The nodes of the graph, by name (a params file's sections name them): the loop, and those a
 # graph may have besides (the rendered cameras and their tracker, the markers, the recorder, the
@@ -54,71 +57,14 @@ def orchestration_odometry_topic(follow_route: bool) -> str:
     """The odometry the orchestration reads: all of it only to draw the route."""
     return ODOM_TOPIC if follow_route else ODOM_THROTTLE_TOPIC
 
-# Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
-# markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
-LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
-                  'markers_node')
+
 # What stands for the cameras: vision_node's measurement model, or rendered images and the
 # tracker that turns them into captures (what a real camera and its tracker would do).
 VISION_MODES = {'model': (('omni_micro_vision', 'vision_node'),),
                 'images': (('omni_micro_vision', 'camera_node'),
                            ('omni_micro_vision', 'tracker_node'))}
-# The process that hosts the loop's nodes with --composed (its log is <name>.log).
-LOOP_CONTAINER = 'loop_container'
 # What may come from the bench instead of the simulation (run --camera / --robot).
 SOURCES = ('simulated', 'external')
-
-
-@dataclass(frozen=True)
-class NodeSpec:
-    """One node process: its package, executable and parameter overrides."""
-
-    package: str
-    executable: str
-    overrides: dict[str, object] = field(default_factory=dict)
-    # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
-    command: tuple[str, ...] | None = None
-    respawn: bool = False
-    # A command that reports on /lockstep all the same (the recorder keeping every frame).
-    lockstep: bool = False
-    # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
-    hosts: tuple[NodeSpec, ...] = ()
-    # A robot's namespace in a micro-factory's graph (omni_micro_bringup.fleet_composition).
-    namespace: str = ''
-
-    @property
-    def name(self) -> str:
-        """The process's name (its log is <name>.log): ``robot_1.controller_node`` in a
-        robot's namespace."""
-        if self.hosts:
-            return LOOP_CONTAINER
-        return f'{self.namespace}.{self.executable}' if self.namespace else self.executable
-
-    @property
-    def reports_lockstep(self) -> bool:
-        return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
-
-    @property
-    def lockstep_names(self) -> tuple[str, ...]:
-        """The nodes of this process that report on /lockstep."""
-        if self.hosts:
-            return tuple(name for spec in self.hosts for name in spec.lockstep_names)
-        return (self.name,) if self.reports_lockstep else ()
-
-
-def composed(specs: list[NodeSpec]) -> NodeSpec:
-    """One process, omni_micro_common's container, hosting the nodes of ``specs``.
-
-    Raises
-    ------
-    UsageError
-        A node given as a command (a stand-in driver): the container hosts installed nodes.
-    """
-    commands = [spec.name for spec in specs if spec.command is not None]
-    if commands:
-        raise UsageError(f'--composed hosts installed nodes only, not the command of '
-                         f'{", ".join(commands)}: run them as separate processes')
-    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs))
 
 
 def default_nodes(vision: str = 'model') -> list[NodeSpec]:
@@ -164,9 +110,26 @@ MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'macro.yaw_rad', 'micr
                        'micro.field_m', 'micro.yaw_rad')
 
 
+@dataclass(frozen=True)
+class FleetRun:
+    """What several robots' run adds to a graph's options: the plan of their legs, each
+    robot's true robot (``robots[k]``) and controller mode, and how much simulated time it may
+    take (looked at as goals end)."""
+
+    plan: FleetPlan
+    robots: list[RobotParameters]
+    controllers: list[str]
+    max_sim_time_s: float = 1800.0
+    # Called as each leg that ends tasks ends: (tasks done, tasks in all, simulated time).
+    on_progress: Callable[[int, int, float], None] | None = None
+
+
 @dataclass
 class GraphOptions:
-    goal_m: tuple[float, float]
+    """A run through the graph: one robot in the root namespace driven to ``goal_m`` (and
+    ``more_goals_m``), or with ``fleet`` several under /robot_k, each driven along its legs."""
+
+    goal_m: tuple[float, float] | None = None
     seed: int = 0
     real_time_factor: float = 1.0         # math.inf: as fast as the lockstep allows
     lockstep: bool = True                 # False: the dynamics runs free at the factor
@@ -208,6 +171,7 @@ class GraphOptions:
     # With an external camera: the driver's image topic per tracker camera (its CameraInfo
     # beside it); empty: the tracker's params say.
     image_topics: dict[str, str] = field(default_factory=dict)
+    fleet: FleetRun | None = None
 
     @property
     def external(self) -> bool:

@@ -23,16 +23,14 @@ import yaml
 from omni_micro_bringup.composition import (
     ORCHESTRATOR_NODE,
     READS_FROM_ROBOT,
-    GraphOptions,
-    NodeSpec,
 )
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.node_overrides import servo_timing
+from omni_micro_bringup.node_overrides import servo_timing_of
+from omni_micro_bringup.node_spec import NodeSpec
+from omni_micro_bringup.node_spec import composed as composed_loop
 from omni_micro_bringup.params_files import (
-    format_parameter,
     graph_params_file,
     node_parameters,
-    resolve_executable,
 )
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.params import load_params_file
@@ -77,18 +75,6 @@ def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Pat
     return written
 
 
-def _command(package: str, executable: str, params: list[Path],
-             overrides: dict[str, object], remaps: tuple[str, ...] = ()) -> tuple[str, ...]:
-    argv = [str(resolve_executable(package, executable)), '--ros-args']
-    for rule in remaps:
-        argv += ['-r', rule]
-    for path in params:
-        argv += ['--params-file', str(path)]
-    for name, value in overrides.items():
-        argv += ['-p', f'{name}:={format_parameter(value)}']
-    return tuple(argv)
-
-
 def recorded_topics(count: int, markers: bool, in_motion: tuple[int, ...] = (),
                     images: bool = False) -> list[str]:
     """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
@@ -109,23 +95,6 @@ def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[s
     return [str(node_parameters('controller_node', params_files,
                                 {'mode': mode} if mode != 'paper' else {}).get('mode', 'paper'))
             for mode in modes]
-
-
-def servo_overrides(params_files: tuple[Path, ...]) -> dict[str, object]:
-    """A servo robot's controller: how old its captures in motion come and the command grid,
-    as a single robot's bringup sets them from the same params."""
-    return servo_timing(GraphOptions(goal_m=(0.0, 0.0), params_files=params_files,
-                                     controller_overrides={'mode': SERVO_MODE}))
-
-
-def hosting(specs: list[NodeSpec]) -> NodeSpec:
-    """omni_micro_common's container running ``specs``: each node module with the ROS arguments
-    its own process would have (its namespace and remaps among them)."""
-    argv = [str(resolve_executable('omni_micro_common', 'container'))]
-    for spec in specs:
-        assert spec.command is not None and spec.command[1] == '--ros-args', spec.command
-        argv += [f'{spec.package}.{spec.executable}', *spec.command[1:], '--']
-    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs), command=tuple(argv))
 
 
 def check_vision(modes: list[str], vision: str) -> None:
@@ -151,7 +120,7 @@ def shared_cameras(count: int, seed: int, params: list[Path],
     tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
                                   'covariance_readers': [f'{robot}/{name}' for robot in robots
                                                          for name in capture_readers]}
-    return [NodeSpec(package, node, command=_command(package, node, params, values))
+    return [NodeSpec(package, node, params=tuple(params), overrides=values)
             for (package, node), values in ((CAMERA_NODE, camera), (TRACKER_NODE, tracker))]
 
 
@@ -178,7 +147,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         A servo robot with ``vision`` images: the tracker gives captures in motion of one
         robot only.
     """
-    shipped = [graph_params_file(), *params_files]
+    shipped = (graph_params_file(), *params_files)
     count = len(starts_m)
     modes = controller_modes(controllers or ['paper'] * count, params_files)
     servos = tuple(k for k in range(count) if modes[k] == SERVO_MODE)
@@ -211,15 +180,14 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         'robot_wheel_offsets_rad': [float(v) for robot in robots
                                     for v in robot.wheel_offsets_rad],
         'lockstep_nodes': taking_part, 'awaited_readers': awaited}
-    specs = [NodeSpec('omni_micro_sim', 'dynamics_node', command=_command(
-        'omni_micro_sim', 'dynamics_node', shipped, dynamics))]
+    specs = [NodeSpec('omni_micro_sim', 'dynamics_node', params=shipped, overrides=dynamics)]
     if images:
-        specs += shared_cameras(count, seed, shipped, [name for _, name in nodes])
+        specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes])
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
                                        for topic in ROBOT_TOPICS))
-        params = namespaced_params(shipped, robot, folder)
+        params = tuple(namespaced_params(list(shipped), robot, folder))
         servo = k in servos
         own: dict[str, dict[str, object]] = {'vision_node': {
                    # Each robot's captures their own noise, as the fleet twin draws it.
@@ -233,7 +201,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                        'dynamics_node',
                                        *((f'{robot}/markers_node',) if markers else ()),
                                        *((RECORDER_NODE,) if record is not None else ())],
-                                   **(servo_overrides(params_files) if servo else {})},
+                                   **(servo_timing_of(params_files) if servo else {})},
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
@@ -241,21 +209,18 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                    # Its first array waits for the recorder's reader, which must not miss it.
                    'markers_readers': ['bag_recorder'] if record is not None else []}}
         for package, node in nodes:
-            specs.append(NodeSpec(package, node, namespace=robot, command=_command(
-                package, node, params, own[node], remaps)))
+            specs.append(NodeSpec(package, node, own[node], namespace=robot, remaps=remaps,
+                                  params=params))
     if composed:
-        specs = [hosting(specs)]
+        specs = [composed_loop(specs)]
     if record is not None:
         bag, storage = record
-        specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, command=_command(
-            'omni_micro_tools', RECORDER_NODE, shipped,
-            {'bag': str(bag), 'storage': storage,
-             'topics': recorded_topics(count, markers, servos, images),
-             'lockstep_ticks': True})))
+        specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, params=shipped, overrides={
+            'bag': str(bag), 'storage': storage,
+            'topics': recorded_topics(count, markers, servos, images), 'lockstep_ticks': True}))
     if view is not None:
         host, port = view
-        specs.append(NodeSpec('omni_micro_tools', 'viewer', command=_command(
-            'omni_micro_tools', 'viewer', shipped,
-            {'host': host, 'port': int(port), 'markers': bool(markers),
-             'robots': [robot_name(k) for k in range(count)]})))
+        specs.append(NodeSpec('omni_micro_tools', 'viewer', params=shipped, overrides={
+            'host': host, 'port': int(port), 'markers': bool(markers),
+            'robots': [robot_name(k) for k in range(count)]}))
     return specs

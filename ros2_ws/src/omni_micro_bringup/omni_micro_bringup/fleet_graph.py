@@ -1,5 +1,6 @@
-"""A micro-factory run through the node graph: the robots of a fleet plan, each driven by its own
-controller_node on its own vision_node's captures, one dynamics_node simulating them all.
+"""How a fleet's run is driven through the node graph (graph.run_graph with ``options.fleet``):
+the robots of a fleet plan, each driven by its own controller_node on its own vision_node's
+captures, one dynamics_node simulating them all.
 
 The orchestration is the coordinator: it hands each robot its goals on ``/robot_k/goal_pose``
 as :class:`~omni_micro_control.fleet_legs.LegDispatcher` says (the fleet twin's dispatcher),
@@ -18,7 +19,6 @@ import json
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -34,9 +34,13 @@ from omni_micro_bringup.fleet_composition import (
     controller_modes,
     fleet_specs,
 )
-from omni_micro_bringup.graph import RUN_ON_PAST_BAG_END_S, Graph
-from omni_micro_bringup.orchestrator import SERVICE_RESEND_S, Orchestrator
-from omni_micro_bringup.processes import DomainLease, new_log_dir, prepare_node_starts
+from omni_micro_bringup.graph_result import GraphResult, RobotLog
+from omni_micro_bringup.node_spec import NodeSpec
+from omni_micro_bringup.orchestrator import (
+    RUN_ON_PAST_BAG_END_S,
+    SERVICE_RESEND_S,
+    Orchestrator,
+)
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
@@ -61,37 +65,9 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
-from omni_micro_control.fleet_plan import FleetPlan, Leg
-from omni_micro_sim.parameters import RobotParameters
 
 # How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
 REPORT_REPEAT_S = 0.1
-
-
-@dataclass
-class RobotLog:
-    """One robot's part of a fleet graph run, as the coordinator saw it."""
-
-    tasks_done_s: list[float] = field(default_factory=list)
-    moves: int = 0
-    outcome: str = ''
-    route: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, phi
-    legs: list[tuple[float, float, Leg]] = field(default_factory=list)   # started, ended, leg
-    learnt_offsets_rad: tuple[float, float] | None = None   # its controller's last said
-
-
-@dataclass
-class FleetGraphResult:
-    outcome: str                        # done, lost, contact or timeout (as the fleet twin's)
-    reason: str
-    sim_time_s: float
-    robots: list[RobotLog]
-    closest_gap_m: float                # of the centres, on the robots' 10 Hz odometry (a contact
-                                        # is dynamics_node's, every tick)
-    closest_pair: tuple[int, int] | None
-    wall_time_s: float
-    log_dir: Path
-    domain_id: int
 
 
 class FleetMonitor(Orchestrator):
@@ -125,6 +101,7 @@ class FleetMonitor(Orchestrator):
         self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
                                       STATUS_QOS)
         self._reported_at = 0.0
+        self.goals_given: dict[str, int] = {}   # per robot's goal topic
 
     def _on_contact(self, msg: DiagnosticStatus) -> None:
         self.contacts.append({item.key: item.value for item in msg.values})
@@ -194,6 +171,8 @@ class FleetMonitor(Orchestrator):
         # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
         # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
         publisher.publish(goal)
+        topic = robot_topic(order.robot, GOAL_TOPIC)
+        self.goals_given[topic] = self.goals_given.get(topic, 0) + 1
         while True:
             for robot, status in self.fleet_statuses[seen:]:
                 if robot != order.robot:
@@ -231,149 +210,144 @@ def ready_topics(count: int) -> list[tuple[str, ...]]:
                           *CAPTURE_COVARIANCE_TOPICS.values())]
 
 
-def run_fleet_graph(plan: FleetPlan, robots: list[RobotParameters], *, seed: int = 0,
-                    real_time_factor: float = math.inf, params_files: tuple[Path, ...] = (),
-                    log_root: Path = Path('out/runs'), max_sim_time_s: float = 1800.0,
-                    timeout_s: float = 3600.0, record: Path | None = None,
-                    composed: bool = False, markers: bool = False,
-                    view: tuple[str, int] | None = None,
-                    controllers: list[str] | None = None, vision: str = 'model',
-                    echo: Callable[[str], None] | None = None,
-                    on_progress: Callable[[int, int, float], None] | None = None,
-                    ) -> FleetGraphResult:
-    """Drive every robot of ``plan`` through the graph (``robots[k]``: robot k's true robot),
-    up to ``max_sim_time_s`` of simulated time (looked at as goals end) and ``timeout_s`` of
-    wall time. With ``record`` the run is recorded into that bag (mcap): /clock and every
-    robot's topics under its namespace, ending BAG_TAIL_S after the last goal's end.
-    ``composed``: the dynamics and every robot's nodes in one process. ``markers``: each robot
-    drawn on ``/robot_k/markers`` by a markers_node of its own, in its colour, labelled.
-    ``view`` (host, port): every robot's topics served live to Foxglove. ``controllers``: each
-    robot's controller mode (``paper``, the default, leaves it to the params files).
-    ``vision``: ``model`` (each robot its vision_node) or ``images`` (one rendering camera and
-    one tracker for all, :func:`~omni_micro_bringup.fleet_composition.fleet_specs`).
+class FleetDispatch:
+    """The orchestration of a fleet's run (``options.fleet``): every robot handed its legs as
+    the plan's dispatcher says, each end held in the lockstep until handled."""
 
-    Raises
-    ------
-    RunFailed
-        A node died, the graph did not come up, or a controller did not take its goal.
-    """
-    from omni_micro_tools.bags import check_bag_output
-    from omni_micro_tools.topics import BAG_TAIL_S
+    def __init__(self, options: GraphOptions) -> None:
+        assert options.fleet is not None
+        self.options = options
+        self.fleet = options.fleet
+        self.count = len(self.fleet.plan.starts_m)
+        self.modes = controller_modes(self.fleet.controllers, options.params_files)
+        self.monitor: FleetMonitor | None = None
 
-    if record is not None:
-        check_bag_output(record, force=False)   # refused before anything runs
-    count = len(plan.starts_m)
-    modes = controller_modes(controllers or ['paper'] * count, params_files)
-    check_vision(modes, vision)   # refused before anything runs
-    prepare_node_starts(log_root)
-    lease = DomainLease(None)
-    with lease as domain_id:
-        log_dir = new_log_dir(log_root)
-        specs = fleet_specs(list(plan.starts_m), robots, seed, real_time_factor, params_files,
-                            log_dir, record=None if record is None else (record, 'mcap'),
-                            composed=composed, markers=markers, view=view,
-                            controllers=modes, vision=vision)
-        # The graph's options say the bag: one its recorder left unfinished is recovered.
-        graph = Graph(GraphOptions(goal_m=(0.0, 0.0), echo=echo, log_dir=log_root,
-                                   record=record), domain_id, log_dir, lease.fileno, specs=specs)
-        monitor = FleetMonitor(domain_id, count, echo, recording=record is not None,
-                               markers=markers)
+    def check(self) -> None:
+        """Raises UsageError if the vision cannot serve the robots' controllers."""
+        check_vision(self.modes, self.options.vision)
+
+    def specs(self, log_dir: Path) -> list[NodeSpec]:
+        options, record = self.options, self.options.record
+        return fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
+                           options.real_time_factor, options.params_files, log_dir,
+                           record=None if record is None else (record, options.storage),
+                           composed=options.composed, markers=options.markers,
+                           view=options.view, controllers=self.modes, vision=options.vision)
+
+    def orchestrator(self, domain_id: int) -> FleetMonitor:
+        self.monitor = FleetMonitor(domain_id, self.count, self.options.echo,
+                                    recording=self.options.record is not None,
+                                    markers=self.options.markers)
+        return self.monitor
+
+    def drive(self, graph: Supervisor, on_running: Callable[[], None],
+              domain_id: int) -> GraphResult:
+        """From the graph started to every task done (or the first robot lost, two robots
+        touching, the time up) and the bag's tail."""
+        from omni_micro_tools.topics import BAG_TAIL_S
+
+        monitor, plan, options = self.monitor, self.fleet.plan, self.options
+        assert monitor is not None
         logs = monitor.robots
         outcome, reason, now_s = 'done', '', 0.0
         total = sum(len(tasks) for tasks in plan.tasks)
         for log, tasks in zip(logs, plan.done_at_start, strict=True):
             log.tasks_done_s += [0.0] * len(tasks)
-        try:
-            graph.start()
-            monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(count),
-                                     recording=record is not None)
-            for k in range(count):
-                monitor.report_handled(k, -1)   # the coordinator takes part from here
-            dispatcher = LegDispatcher(plan, modes)
-            started: dict[int, float] = {}
+        monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(self.count),
+                                 recording=options.record is not None)
+        for k in range(self.count):
+            monitor.report_handled(k, -1)   # the coordinator takes part from here
+        dispatcher = LegDispatcher(plan, self.modes)
+        started: dict[int, float] = {}
 
-            def give(order: GoalOrder) -> None:
-                started.setdefault(order.robot, order.stamp_s)
-                monitor.give(graph, order)
+        def give(order: GoalOrder) -> None:
+            started.setdefault(order.robot, order.stamp_s)
+            monitor.give(graph, order)
 
-            for order in dispatcher.startable():
-                give(order)
-            monitor.set_paused(graph, False)
-            wall_start = time.monotonic()
-            seen = 0
-            while not dispatcher.finished:
-                if monitor.contacts:
-                    contact = monitor.contacts[0]
-                    a, b = contact['robots'].split(',')
-                    outcome = 'contact'
-                    reason = (f'{a} and {b} touched at {float(contact["time_s"]):.2f} s: centres '
-                              f'{float(contact["gap_m"]) * 1e3:.2f} mm apart, 9 mm discs')
-                    break
-                if time.monotonic() - wall_start > timeout_s:
-                    outcome, reason = 'timeout', f'tasks left after {timeout_s:g} s of wall time'
-                    break
-                if now_s > max_sim_time_s:
-                    outcome = 'timeout'
-                    reason = f'tasks left after {max_sim_time_s:g} s of simulated time'
-                    break
-                if seen == len(monitor.fleet_statuses):
-                    graph.check_alive()
-                    monitor.check_recorder()
-                    monitor.repeat_reports()
-                    monitor.spin_for(0.02)
-                    continue
-                robot, status = monitor.fleet_statuses[seen]
-                seen += 1
-                if status['message'] == 'moving':
-                    logs[robot].moves += 1
-                if 'estimate.xi2' in status:
-                    logs[robot].learnt_offsets_rad = (float(status['estimate.xi2']),
-                                                      float(status['estimate.xi3']))
-                if status['message'] not in OUTCOME_NAMES:
-                    continue
-                at_s = float(status[STATUS_TIME_KEY])
-                if status.get('reason') == REPLACED_REASON:
-                    # Not an end that gives a goal: said handled, so that time goes on.
-                    monitor.report_handled(robot, round(at_s * 1e9))
-                    continue
-                now_s = max(now_s, at_s)
-                if status['message'] != 'reached':
-                    outcome = 'lost'
-                    logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
-                    reason = f'robot {robot} {logs[robot].outcome}'
-                    break
-                following, ended = dispatcher.reached(robot, at_s)
-                if following is not None:
-                    give(following)
-                else:
-                    assert ended is not None
-                    logs[robot].legs.append((started.pop(robot), at_s, ended))
-                    logs[robot].tasks_done_s += [at_s] * len(ended.tasks)
-                    if on_progress is not None and ended.tasks:
-                        on_progress(sum(len(log.tasks_done_s) for log in logs), total, at_s)
-                    for order in dispatcher.startable():
-                        give(order)   # from the later of the ends it follows
+        for order in dispatcher.startable():
+            give(order)
+        monitor.set_paused(graph, False)
+        on_running()
+        wall_start = time.monotonic()
+        seen = 0
+        while not dispatcher.finished:
+            if monitor.contacts:
+                contact = monitor.contacts[0]
+                a, b = contact['robots'].split(',')
+                outcome = 'contact'
+                reason = (f'{a} and {b} touched at {float(contact["time_s"]):.2f} s: centres '
+                          f'{float(contact["gap_m"]) * 1e3:.2f} mm apart, 9 mm discs')
+                break
+            if time.monotonic() - wall_start > options.timeout_s:
+                outcome = 'timeout'
+                reason = f'tasks left after {options.timeout_s:g} s of wall time'
+                break
+            if now_s > self.fleet.max_sim_time_s:
+                outcome = 'timeout'
+                reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
+                break
+            if seen == len(monitor.fleet_statuses):
+                graph.check_alive()
+                monitor.check_recorder()
+                monitor.repeat_reports()
+                monitor.spin_for(0.02)
+                continue
+            robot, status = monitor.fleet_statuses[seen]
+            seen += 1
+            if status['message'] == 'moving':
+                logs[robot].moves += 1
+            if 'estimate.xi2' in status:
+                logs[robot].learnt_offsets_rad = (float(status['estimate.xi2']),
+                                                  float(status['estimate.xi3']))
+            if status['message'] not in OUTCOME_NAMES:
+                continue
+            at_s = float(status[STATUS_TIME_KEY])
+            if status.get('reason') == REPLACED_REASON:
+                # Not an end that gives a goal: said handled, so that time goes on.
                 monitor.report_handled(robot, round(at_s * 1e9))
-            wall_time = time.monotonic() - wall_start
-            if outcome == 'done':
-                reason = f'every task done in {now_s:.2f} s'
-                monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
-            if record is not None:
-                # The bag ends BAG_TAIL_S after the last end: all of it received before the stop
-                # (and the markers' arrays up to there drawn: they lag the odometry).
-                monitor.wait_for_recorder_past(
-                    graph, now_s + BAG_TAIL_S + (RUN_ON_PAST_BAG_END_S if markers else 0.0),
-                    timeout_s=60.0)
-        finally:
-            # Every robot's statuses as the coordinator took them, in its order.
+                continue
+            now_s = max(now_s, at_s)
+            if status['message'] != 'reached':
+                outcome = 'lost'
+                logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
+                reason = f'robot {robot} {logs[robot].outcome}'
+                break
+            following, ended = dispatcher.reached(robot, at_s)
+            if following is not None:
+                give(following)
+            else:
+                assert ended is not None
+                logs[robot].legs.append((started.pop(robot), at_s, ended))
+                logs[robot].tasks_done_s += [at_s] * len(ended.tasks)
+                if self.fleet.on_progress is not None and ended.tasks:
+                    self.fleet.on_progress(sum(len(log.tasks_done_s) for log in logs), total,
+                                           at_s)
+                for order in dispatcher.startable():
+                    give(order)   # from the later of the ends it follows
+            monitor.report_handled(robot, round(at_s * 1e9))
+        wall_time = time.monotonic() - wall_start
+        if outcome == 'done':
+            reason = f'every task done in {now_s:.2f} s'
+            monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
+        if options.record is not None:
+            # The bag ends BAG_TAIL_S after the last end: all of it received before the stop
+            # (and the markers' arrays up to there drawn: they lag the odometry).
+            monitor.wait_for_recorder_past(
+                graph, now_s + BAG_TAIL_S + (RUN_ON_PAST_BAG_END_S if options.markers else 0.0),
+                timeout_s=60.0)
+        gap, pair = closest_approach(logs)
+        return GraphResult(outcome, reason, now_s, wall_time, graph.log_dir, domain_id,
+                           robots=logs, closest_gap_m=gap, closest_pair=pair)
+
+    def goals_published(self) -> dict[str, int]:
+        return dict(self.monitor.goals_given) if self.monitor else {}
+
+    def close(self, log_dir: Path) -> None:
+        """Every robot's statuses as the coordinator took them, in its order."""
+        if self.monitor is not None:
             (log_dir / 'statuses.jsonl').write_text(''.join(
                 json.dumps({'robot': robot, **status}) + '\n'
-                for robot, status in monitor.fleet_statuses))
-            monitor.close()
-            graph.stop()
-    gap, pair = closest_approach(logs)
-    return FleetGraphResult(outcome, reason, now_s, logs, gap, pair, wall_time, log_dir,
-                            domain_id)
+                for robot, status in self.monitor.fleet_statuses))
 
 
 def closest_approach(logs: list[RobotLog]) -> tuple[float, tuple[int, int] | None]:

@@ -5,20 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from omni_micro_bringup.composition import (
-    GRAPH_NODE_NAMES,
-    OPTIONAL_NODE_NAMES,
-    GraphOptions,
-    streaming_cameras,
-)
-from omni_micro_bringup.graph import Graph
-from omni_micro_bringup.params_files import check_params_file
-from omni_micro_bringup.processes import DomainLease, new_log_dir
-from omni_micro_bringup.readiness import (
-    external_publications,
-    ready_subscriptions,
-    simulates_robot,
-)
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph import brought_up
 
 
 @dataclass(frozen=True)
@@ -50,43 +38,30 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     """Bring the graph of ``options`` up (its clock paused, no goal), read from the ROS graph
     who publishes and who subscribes each topic with which type and QoS, as rqt_graph would,
     and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
-    from omni_micro_bringup.orchestrator import Orchestrator
+    from omni_micro_bringup.goal_sequence import GoalSequence
 
-    for path in options.params_files:
-        check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
-    log_dir = new_log_dir(options.log_dir)
-    lease = DomainLease(options.domain_id)
-    with lease as domain_id:
-        graph = Graph(options, domain_id, log_dir, lease.fileno)
-        monitor = Orchestrator(domain_id, echo=options.echo)
-        try:
-            graph.start()
-            monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,
-                                     markers=options.markers,
-                                     images=streaming_cameras(options),
-                                     subscriptions=ready_subscriptions(options),
-                                     publications=external_publications(options),
-                                     clock=simulates_robot(options))
-            # Every endpoint seen, not only the readers wait_until_ready looks for.
-            monitor.spin_for(GRAPH_SETTLE_S)
-            node = monitor.node
-            described = []
-            for topic, types in sorted(node.get_topic_names_and_types()):
-                if topic in _INFRASTRUCTURE_TOPICS:
-                    continue
+    sequence = GoalSequence(options)
+    with brought_up(options, sequence) as (graph, _):
+        sequence.wait_until_ready(graph)
+        monitor = sequence.monitor
+        assert monitor is not None
+        # Every endpoint seen, not only the readers wait_until_ready looks for.
+        monitor.spin_for(GRAPH_SETTLE_S)
+        node = monitor.node
+        described = []
+        for topic, types in sorted(node.get_topic_names_and_types()):
+            if topic in _INFRASTRUCTURE_TOPICS:
+                continue
 
-                def endpoints(infos: list) -> tuple[Endpoint, ...]:
-                    return tuple(sorted(
-                        (Endpoint(info.node_name, info.qos_profile.reliability.name.lower(),
-                                  info.qos_profile.durability.name.lower())
-                         for info in infos),
-                        key=lambda e: e.node))
+            def endpoints(infos: list) -> tuple[Endpoint, ...]:
+                return tuple(sorted(
+                    (Endpoint(info.node_name, info.qos_profile.reliability.name.lower(),
+                              info.qos_profile.durability.name.lower())
+                     for info in infos),
+                    key=lambda e: e.node))
 
-                publishers = endpoints(node.get_publishers_info_by_topic(topic))
-                subscribers = endpoints(node.get_subscriptions_info_by_topic(topic))
-                if publishers or subscribers:
-                    described.append(TopicEndpoints(topic, types[0], publishers, subscribers))
-            return described
-        finally:
-            monitor.close()
-            graph.stop()
+            publishers = endpoints(node.get_publishers_info_by_topic(topic))
+            subscribers = endpoints(node.get_subscriptions_info_by_topic(topic))
+            if publishers or subscribers:
+                described.append(TopicEndpoints(topic, types[0], publishers, subscribers))
+        return described

@@ -5,12 +5,14 @@ cameras' fields, the tracker blurs as the rendering camera exposes).
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+
 from omni_micro_bringup.composition import (
     MARKERS_FROM_VISION,
     ORCHESTRATOR_NODE,
     READS_FROM_ROBOT,
     GraphOptions,
-    NodeSpec,
     all_specs,
     camera_node_of,
     graph_nodes,
@@ -18,7 +20,12 @@ from omni_micro_bringup.composition import (
     publishes_in_motion,
     servo_mode,
 )
-from omni_micro_bringup.params_files import node_parameters, params_from_files
+from omni_micro_bringup.node_spec import NodeSpec
+from omni_micro_bringup.params_files import (
+    graph_params_file,
+    node_parameters,
+    params_from_files,
+)
 from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError
@@ -26,6 +33,22 @@ from omni_micro_vision.motion_capture import CameraTiming, capture_age_bound_s
 
 # The graph's nodes that must have every move: the robot and the two in the lockstep with it.
 TRAJECTORY_READERS = ('dynamics_node', 'markers_node', 'bag_recorder')
+
+
+def wired_specs(options: GraphOptions) -> list[NodeSpec]:
+    """Every process of the graph as it starts (:func:`~.composition.all_specs`), each node
+    with its params files (the package's, then the user's) and its overrides; a process given
+    as a command is started as it is."""
+    params = (graph_params_file(), *options.params_files)
+
+    def wired(spec: NodeSpec) -> NodeSpec:
+        if spec.command is not None:
+            return spec
+        if spec.hosts:
+            return replace(spec, hosts=tuple(wired(hosted) for hosted in spec.hosts))
+        return replace(spec, params=params, overrides=node_overrides(spec, options))
+
+    return [wired(spec) for spec in all_specs(options)]
 
 
 def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
@@ -125,9 +148,18 @@ def servo_timing(options: GraphOptions) -> dict[str, object]:
     neither: then the params say."""
     if options.external:
         return {}
-    dynamics = node_parameters('dynamics_node', options.params_files, options.dynamics_overrides)
-    camera = camera_node_of(options)
-    vision = node_parameters(camera, options.params_files, options.vision_overrides)
+    return servo_timing_of(options.params_files, camera_node_of(options),
+                           options.dynamics_overrides, options.vision_overrides)
+
+
+def servo_timing_of(params_files: tuple[Path, ...], camera: str = 'vision_node',
+                    dynamics_overrides: dict[str, object] | None = None,
+                    vision_overrides: dict[str, object] | None = None) -> dict[str, object]:
+    """:func:`servo_timing` of a simulated robot seen by ``camera`` (vision_node, or
+    camera_node's rendered images), its nodes' parameters from ``params_files`` and the
+    overrides."""
+    dynamics = node_parameters('dynamics_node', params_files, dynamics_overrides or {})
+    vision = node_parameters(camera, params_files, vision_overrides or {})
     try:
         period = _number(dynamics.get('publish_period_s', DEFAULT_PERIOD_S))
         if camera == 'vision_node':

@@ -65,6 +65,9 @@ GOAL_READERS_MATCH_S = 5.0
 # robot's tolerance) waits before it goes again: a server may answer before its response writer
 # has matched this client, and the answer is lost.
 SERVICE_RESEND_S = 2.0
+# A recorded run goes on this far (simulated time) past the bag's end before it is stopped:
+# markers_node draws an array once the odometry is two arrays (0.2 s) past it.
+RUN_ON_PAST_BAG_END_S = 0.4
 
 
 class Orchestrator:

@@ -23,7 +23,7 @@ from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.warm_start import WarmProcess, start_warm, warm_up
 
 if TYPE_CHECKING:
-    from omni_micro_bringup.composition import NodeSpec
+    from omni_micro_bringup.node_spec import NodeSpec
 
 # numpy's OpenBLAS starts a thread per core when numpy is imported, whose start-up costs a node
 # process 0.1 s of CPU (scipy's, loaded by numba in dynamics_node, as much again); the nodes'

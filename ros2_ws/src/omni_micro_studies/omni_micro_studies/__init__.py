@@ -2,7 +2,8 @@
 
 :mod:`twin` (one robot's closed loop, a period at a time, as the graph's nodes run it: the paper's
 rule, the model mode, the servo), :mod:`fleet_twin` (several robots on one platform, each such a
-loop, leg by leg through the planner's legs). The study engine: :mod:`inputs` (what a study's run
+loop, leg by leg through the planner's legs), :mod:`fleet_routes` (a graph's fleet run told as the
+fleet twin tells its own). The study engine: :mod:`inputs` (what a study's run
 takes and reports), :mod:`spec` (a study file, checked and expanded), :mod:`runs` (one run),
 :mod:`execute` (the runs on Dask: a local cluster or an existing scheduler; any scenario's runs
 through ``map_on_dask``), :mod:`report` (a study's summary and figure); its other scenarios,

@@ -95,10 +95,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_control.fleet_plan import PlanningError, plan_fleet
-    from omni_micro_control.fleet_roadmap import RoadmapError
-    from omni_micro_studies.fleet_twin import DONE, run_fleet
-
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
     for option in ('composed', 'markers', 'view'):
@@ -111,17 +107,42 @@ def run(args: argparse.Namespace) -> int:
                          'goals are given')
     fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed,
                        args.controller)
+    graph = None
     if args.graph:
+        from omni_micro_bringup.composition import GraphOptions
+
+        graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
+                             timeout_s=WALL_TIMEOUT_S, record=args.record,
+                             composed=args.composed, markers=args.markers,
+                             view=view_from_args(args), vision=args.vision)
+    return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
+                         record=args.record, plot=args.plot, as_json=args.json)
+
+
+# How long a run through the graph may take on the wall clock (run --robots: its --timeout).
+WALL_TIMEOUT_S = 3600.0
+
+
+def micro_factory(fleet: Fleet, seed: int, graph: Any, *, max_sim_time_s: float,
+                  record: Path | None, plot: Path | None, as_json: bool) -> int:
+    """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's
+    options) through the node graph, print the table (and ``as_json``, the JSON), write the
+    twin's bag and the routes' plot."""
+    from omni_micro_control.fleet_plan import PlanningError, plan_fleet
+    from omni_micro_control.fleet_roadmap import RoadmapError
+    from omni_micro_studies.fleet_twin import DONE, run_fleet
+
+    if graph is not None:
         from omni_micro_bringup.fleet_composition import check_vision
 
-        check_vision(fleet.controllers, args.vision)   # refused before the planning
-    if args.record is not None:
+        check_vision(fleet.controllers, graph.vision)   # refused before the planning
+    if record is not None:
         from omni_micro_tools.bags import check_bag_output
 
-        check_bag_output(args.record, force=False)   # refused before anything runs
+        check_bag_output(record, force=False)   # refused before anything runs
     started = time.perf_counter()
     try:
-        plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=args.seed)
+        plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
     except (PlanningError, RoadmapError) as error:
         raise UsageError(str(error)) from None
     planned_s = time.perf_counter() - started
@@ -131,77 +152,37 @@ def run(args: argparse.Namespace) -> int:
     def progress(done: int, total: int, sim_time_s: float) -> None:
         echo_to_stderr(f'  {done}/{total} goals reached at {sim_time_s:.1f} s')
 
-    if args.graph:
-        result = through_graph(plan, fleet, args, progress)
+    if graph is not None:
+        from dataclasses import replace
+
+        from omni_micro_bringup.composition import FleetRun
+        from omni_micro_bringup.graph import run_graph
+        from omni_micro_studies.fleet_routes import told_as_the_twin
+
+        ran = run_graph(replace(graph, fleet=FleetRun(
+            plan, fleet.robots, fleet.controllers, max_sim_time_s, on_progress=progress)))
+        echo_to_stderr(f'graph: logs in {ran.log_dir} (ROS_DOMAIN_ID {ran.domain_id}), '
+                       f'{ran.sim_time_s:.2f} s simulated in {ran.wall_time_s:.1f} s wall')
+        result = told_as_the_twin(plan, ran)
     else:
-        result = run_fleet(plan, robots=fleet.robots, seed=args.seed,
-                           controllers=fleet.controllers,
-                           max_sim_time_s=float(args.max_sim_time), on_progress=progress)
+        result = run_fleet(plan, robots=fleet.robots, seed=seed, controllers=fleet.controllers,
+                           max_sim_time_s=max_sim_time_s, on_progress=progress)
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
     print_table(summary)
-    if args.record is not None and not args.graph:   # the graph's recorder wrote its own
-        record(args.record, plan, result)
-    if args.plot is not None:
-        atomic_bytes(args.plot, route_figure(plan, result))
-        echo_to_stderr(f'routes drawn in {args.plot}')
-    if args.json:
+    if record is not None and graph is None:   # the graph's recorder wrote its own
+        write_bag(record, plan, result)
+    if plot is not None:
+        atomic_bytes(plot, route_figure(plan, result))
+        echo_to_stderr(f'routes drawn in {plot}')
+    if as_json:
         print(json.dumps(summary))
     if result.outcome != DONE:
         raise RunFailed(f'{result.outcome}: {result.reason}')
     return 0
 
 
-# How long a run through the graph may take on the wall clock (run --robots: its --timeout).
-WALL_TIMEOUT_S = 3600.0
-
-
-def through_graph(plan: Any, fleet: Fleet, args: argparse.Namespace, progress: Any) -> Any:
-    """The run through the node graph, told as the fleet twin tells its own."""
-    import numpy as np
-
-    from omni_micro_bringup.fleet_graph import run_fleet_graph
-    from omni_micro_control.fleet_roadmap import point_segment_distance
-    from omni_micro_sim.state import RobotState
-    from omni_micro_studies.fleet_twin import FleetResult, RobotRun
-
-    result = run_fleet_graph(plan, fleet.robots, seed=args.seed, real_time_factor=args.rtf,
-                             log_root=args.log_dir, max_sim_time_s=float(args.max_sim_time),
-                             timeout_s=float(getattr(args, 'wall_timeout', WALL_TIMEOUT_S)),
-                             record=args.record, composed=args.composed, markers=args.markers,
-                             view=view_from_args(args), controllers=fleet.controllers,
-                             vision=args.vision, on_progress=progress)
-    echo_to_stderr(f'graph: logs in {result.log_dir} (ROS_DOMAIN_ID {result.domain_id}), '
-                   f'{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.1f} s wall')
-    runs = []
-    for k, log in enumerate(result.robots):
-        route = np.array(log.route) if log.route else np.zeros((0, 4))
-        off_leg = 0.0
-        for started, ended, leg in log.legs:
-            during = route[(route[:, 0] >= started) & (route[:, 0] <= ended)] \
-                if len(route) else route
-            if len(during):
-                off_leg = max(off_leg, float(np.max(point_segment_distance(
-                    during[:, 1:3], np.array(leg.start_m), np.array(leg.end_m)))))
-        deviations = []
-        for done_s, goal in zip(log.tasks_done_s, [task.goal_m for task in plan.tasks[k]],
-                                strict=False):
-            after = route[route[:, 0] >= done_s] if len(route) else route
-            deviations.append(math.dist(after[0, 1:3], goal) if len(after) else math.nan)
-        # Where it was when the run ended (a robot at rest still creeps by 1e-14 m a tick: the
-        # last sample received would depend on when the graph was stopped).
-        at_end = route[route[:, 0] >= result.sim_time_s] if len(route) else route
-        final = at_end[0] if len(at_end) else (0.0, *plan.starts_m[k], 0.0)
-        runs.append(RobotRun(k, len(log.legs), log.tasks_done_s, deviations, log.moves,
-                             off_leg, log.outcome,
-                             RobotState(x_m=float(final[1]), y_m=float(final[2]),
-                                        phi_rad=float(final[3])), route,
-                             log.learnt_offsets_rad))
-    return FleetResult(result.outcome, result.reason, result.sim_time_s, runs,
-                       result.closest_gap_m, result.closest_pair)
-
-
-def record(bag: Path, plan: Any, result: Any) -> None:
+def write_bag(bag: Path, plan: Any, result: Any) -> None:
     """The bag whole, or none: a write that fails leaves nothing behind."""
     import shutil
 

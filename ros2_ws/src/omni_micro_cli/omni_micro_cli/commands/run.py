@@ -204,7 +204,8 @@ FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log
 
 def fleet_run(args: argparse.Namespace) -> int:
     """``run --robots``: the micro-factory through the graph, as ``fleet --graph`` runs it."""
-    from omni_micro_cli.commands import fleet
+    from omni_micro_cli.commands.fleet import micro_factory
+    from omni_micro_control.fleet_files import fleet_from
 
     others = sorted(f'--{dest.replace("_", "-")}' for dest, default in _DEFAULTS.items()
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
@@ -212,13 +213,12 @@ def fleet_run(args: argparse.Namespace) -> int:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
                          '--log-dir, --record, --composed, --no-markers, --view, --json, --quiet')
-    return fleet.run(argparse.Namespace(
-        robots=args.robots, tasks=args.tasks, goals_per_robot=None, seed=args.seed,
-        controller=args.controller,
-        max_sim_time=1800, record=args.record, plot=None, json=args.json, graph=True, rtf=args.rtf,
-        log_dir=args.log_dir, wall_timeout=args.timeout, composed=args.composed,
-        markers=args.markers, view=args.view, view_port=args.view_port,
-        view_host=args.view_host, vision=args.vision))
+    fleet = fleet_from(args.robots, args.tasks, 2, args.seed, args.controller)
+    graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
+                         timeout_s=args.timeout, record=args.record, composed=args.composed,
+                         markers=args.markers, view=view_from_args(args), vision=args.vision)
+    return micro_factory(fleet, args.seed, graph, max_sim_time_s=1800.0, record=args.record,
+                         plot=None, as_json=args.json)
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:

@@ -1,0 +1,97 @@
+"""One node process of a graph: what it runs (an installed node, the container hosting several,
+or a command given in its place), in which namespace, with which remaps, params files and
+overrides; and its command line, the same for a single robot's node and a fleet's."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.params_files import format_parameter, resolve_executable
+
+# Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
+# markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
+LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
+                  'markers_node')
+# The process that hosts the loop's nodes with --composed (its log is <name>.log).
+LOOP_CONTAINER = 'loop_container'
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node process: its package, executable and parameter overrides."""
+
+    package: str
+    executable: str
+    overrides: dict[str, object] = field(default_factory=dict)
+    # A command line that replaces the installed entry point (e.g. a stand-in camera driver).
+    command: tuple[str, ...] | None = None
+    respawn: bool = False
+    # A command that reports on /lockstep all the same (the recorder keeping every frame).
+    lockstep: bool = False
+    # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
+    hosts: tuple[NodeSpec, ...] = ()
+    # A robot's namespace in a micro-factory's graph (omni_micro_bringup.fleet_composition).
+    namespace: str = ''
+    # Its topics' remaps (``/odom:=/robot_1/odom``) and its params files, in order (later files
+    # win): what its command line says before the overrides.
+    remaps: tuple[str, ...] = ()
+    params: tuple[Path, ...] = ()
+
+    @property
+    def name(self) -> str:
+        """The process's name (its log is <name>.log): ``robot_1.controller_node`` in a
+        robot's namespace."""
+        if self.hosts:
+            return LOOP_CONTAINER
+        return f'{self.namespace}.{self.executable}' if self.namespace else self.executable
+
+    @property
+    def reports_lockstep(self) -> bool:
+        return self.lockstep or (self.command is None and self.executable in LOCKSTEP_NODES)
+
+    @property
+    def lockstep_names(self) -> tuple[str, ...]:
+        """The nodes of this process that report on /lockstep."""
+        if self.hosts:
+            return tuple(name for spec in self.hosts for name in spec.lockstep_names)
+        return (self.name,) if self.reports_lockstep else ()
+
+
+def composed(specs: list[NodeSpec]) -> NodeSpec:
+    """One process, omni_micro_common's container, hosting the nodes of ``specs``.
+
+    Raises
+    ------
+    UsageError
+        A node given as a command (a stand-in driver): the container hosts installed nodes.
+    """
+    commands = [spec.name for spec in specs if spec.command is not None]
+    if commands:
+        raise UsageError(f'--composed hosts installed nodes only, not the command of '
+                         f'{", ".join(commands)}: run them as separate processes')
+    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs))
+
+
+def process_argv(spec: NodeSpec) -> list[str]:
+    """The command line of a node's process: its entry point and ROS arguments; for the
+    container, each hosted node's module and its own ROS arguments up to ``--``."""
+    if spec.command is not None:
+        return list(spec.command)
+    executable = str(resolve_executable(spec.package, spec.executable))
+    if spec.hosts:
+        return [executable, *(word for hosted in spec.hosts for word in (
+            f'{hosted.package}.{hosted.executable}', *ros_arguments(hosted), '--'))]
+    return [executable, *ros_arguments(spec)]
+
+
+def ros_arguments(spec: NodeSpec) -> list[str]:
+    argv = ['--ros-args']
+    for rule in spec.remaps:
+        argv += ['-r', rule]
+    for path in spec.params:
+        argv += ['--params-file', str(path)]
+    for name, value in spec.overrides.items():
+        argv += ['-p', f'{name}:={format_parameter(value)}']
+    return argv

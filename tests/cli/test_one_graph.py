@@ -1,0 +1,100 @@
+"""One robot is a fleet of one: ``run --robots`` and ``fleet --graph`` are two doors to the one
+run sequence (graph.run_graph), every node of a fleet is started as a single robot's nodes are
+(its command line built from its spec, never a command given in its place), and a run of one
+robot without a goal is refused, named."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from omni_micro_bringup import graph
+from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.fleet_composition import fleet_specs
+from omni_micro_bringup.graph_result import GraphResult, RobotLog
+from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
+from omni_micro_cli.cli import main
+from omni_micro_sim.parameters import RobotParameters
+
+
+def asked_of_the_graph(monkeypatch, argv: list[str]) -> GraphOptions:
+    """The options ``omni-micro argv`` hands run_graph (stood in for: no graph starts)."""
+    asked: list[GraphOptions] = []
+
+    def run_graph(options: GraphOptions) -> GraphResult:
+        asked.append(options)
+        assert options.fleet is not None
+        count = len(options.fleet.plan.starts_m)
+        logs = [RobotLog(tasks_done_s=[1.0] * len(tasks), route=[(0.0, 0.0, 0.0, 0.0)])
+                for tasks in options.fleet.plan.tasks]
+        return GraphResult('done', 'every task done in 1.00 s', 1.0, 0.5, options.log_dir, 7,
+                           robots=logs, closest_gap_m=0.02,
+                           closest_pair=(0, 1) if count > 1 else None)
+
+    monkeypatch.setattr(graph, 'run_graph', run_graph)
+    assert main(argv) == 0
+    (options,) = asked
+    return options
+
+
+def test_run_robots_and_fleet_graph_hand_the_graph_the_same_run(monkeypatch, tmp_path, capsys):
+    common = ['--robots', '3', '--seed', '4', '--rtf', '2', '--log-dir', str(tmp_path),
+              '--vision', 'images', '--controller', 'model']
+    through_run = asked_of_the_graph(monkeypatch, ['run', *common, '--timeout', '3600',
+                                                   '--no-markers'])
+    through_fleet = asked_of_the_graph(monkeypatch, ['fleet', '--graph', *common])
+    capsys.readouterr()
+    assert through_run.fleet is not None and through_fleet.fleet is not None
+    for name in ('seed', 'real_time_factor', 'log_dir', 'timeout_s', 'markers', 'vision',
+                 'composed', 'record', 'view', 'goal_m'):
+        assert getattr(through_run, name) == getattr(through_fleet, name), name
+    assert through_run.real_time_factor == 2.0 and through_run.goal_m is None
+    run_fleet, fleet_fleet = through_run.fleet, through_fleet.fleet
+    assert run_fleet.controllers == fleet_fleet.controllers == ['model'] * 3
+    assert run_fleet.robots == fleet_fleet.robots
+    assert run_fleet.plan.starts_m == fleet_fleet.plan.starts_m
+    assert run_fleet.plan.tasks == fleet_fleet.plan.tasks
+    assert run_fleet.max_sim_time_s == fleet_fleet.max_sim_time_s == 1800.0
+
+
+@pytest.mark.parametrize('composed_loop', [False, True])
+def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_loop):
+    specs = fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1, math.inf, (),
+                        tmp_path, record=(tmp_path / 'bag', 'mcap'), composed=composed_loop,
+                        markers=True)
+    hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+    assert all(spec.command is None for spec in [*specs, *hosted])
+    names = [spec.name for spec in hosted]
+    assert names == ['dynamics_node', *(f'robot_{k}.{node}' for k in (0, 1) for node in (
+        'vision_node', 'controller_node', 'markers_node')), 'bag_recorder']
+    controller = next(spec for spec in hosted if spec.name == 'robot_1.controller_node')
+    argv = process_argv(controller)
+    # Its namespace and topics remapped first, then its params files (robot_1's sections),
+    # then what it alone is told.
+    assert argv[1:4] == ['--ros-args', '-r', '__ns:=/robot_1']
+    assert '/odom:=/robot_1/odom' in argv
+    files = [argv[i + 1] for i, word in enumerate(argv) if word == '--params-file']
+    assert files == [str(path) for path in controller.params]
+    assert files[-1].endswith('robot_1.params.0.yaml')
+    assert 'goal_time:=stamp' in argv and argv.index('goal_time:=stamp') > argv.index(files[-1])
+    if composed_loop:
+        container = process_argv(specs[0])
+        # The container hosts each node with the very arguments its own process would have.
+        start = [i for i, word in enumerate(container)
+                 if word == 'omni_micro_control.controller_node'][1]   # robot_1's
+        assert container[start + 1:start + len(argv)] == argv[1:]
+        assert container[start + len(argv)] == '--'
+
+
+def test_a_node_given_as_a_command_is_refused_by_the_container():
+    stand_in = NodeSpec('omni_micro_vision', 'camera_node', command=('driver',))
+    with pytest.raises(UsageError, match='camera_node'):
+        composed([stand_in])
+
+
+def test_a_single_robot_s_run_without_its_goal_is_refused_before_anything_starts(tmp_path):
+    with pytest.raises(UsageError, match='needs its goal'):
+        graph.run_graph(GraphOptions(log_dir=tmp_path / 'runs'))
+    assert not (tmp_path / 'runs').exists()
