@@ -3,6 +3,7 @@ analysis from the bag alone, a replay round trip, and recovery after a real SIGK
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -141,6 +142,37 @@ def test_replay_round_trip_keeps_every_message(recorded, domain_id, tmp_path, om
     assert next(again.glob('*.db3'))
     for topic, messages in original.raw.items():
         assert replayed.raw[topic] == messages, topic
+
+
+def test_replay_says_what_it_plays_and_an_interrupted_replay_exits_130(recorded, domain_id,
+                                                                       tmp_path):
+    """Ctrl-C (SIGINT) on a replay: exit 130 as every command interrupted, saying how far it
+    went; before it, one line of what it plays and how long that takes at its --rate."""
+    bag, _ = recorded
+    replay = subprocess.Popen(
+        [sys.executable, '-m', 'omni_micro_cli', 'replay', str(bag), '--rate', '0.05',
+         '--domain-id', str(domain_id)], cwd=ROOT,
+        env=node_environment(domain_id, tmp_path), stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        assert replay.stderr is not None
+        said = replay.stderr.readline()
+        match = re.match(r'replaying (\d+) messages on (\d+) topics from .*: ([\d.]+) s of the '
+                         r'bag at --rate 0.05, about ([\d.]+) s$', said.strip())
+        assert match, said
+        total, span_s, wall_s = int(match[1]), float(match[3]), float(match[4])
+        assert total > 100 and span_s > 5.0 and wall_s == pytest.approx(span_s / 0.05, rel=0.01)
+        time.sleep(1.0)
+        replay.send_signal(signal.SIGINT)
+        _, rest = replay.communicate(timeout=30)
+    finally:
+        if replay.poll() is None:
+            replay.kill()
+            replay.wait()
+    assert replay.returncode == 130, rest
+    played = re.search(r'interrupted after (\d+) of (\d+) messages', rest)
+    assert played and int(played[2]) == total and int(played[1]) < total, rest
+    assert 'replay: interrupted' in rest
 
 
 def test_a_killed_recorder_loses_at_most_its_last_flush_and_the_unsure_second(

@@ -10,7 +10,7 @@ reported on /lockstep as handled, so a node that cannot keep up loses nothing.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -36,6 +36,9 @@ SYNC_TIMEOUT_S = 30.0
 def header_stamp_ns(msg: object) -> int | None:
     header = getattr(msg, 'header', None)
     return None if header is None else stamp_ns(header.stamp)
+
+# How often play() says how far it is, in wall time.
+PROGRESS_EVERY_S = 1.0
 
 
 class BagPlayer:
@@ -111,9 +114,17 @@ class BagPlayer:
                                   f'{SYNC_TIMEOUT_S:g} s (is it running, in this domain?)')
             self.executor.spin_once(timeout_sec=0.05)
 
-    def play(self, rate: float, loop: bool = False) -> int:
+    @property
+    def duration_s(self) -> float:
+        """The bag's span, first message to last, in its own time."""
+        return (self.events[-1][0] - self.events[0][0]) * 1e-9
+
+    def play(self, rate: float, loop: bool = False,
+             on_progress: Callable[[int, float], None] | None = None) -> int:
         """Publish every message at its original spacing divided by ``rate`` (again and again
-        with ``loop``, until interrupted); return how many were published.
+        with ``loop``, until interrupted); return how many were published. ``on_progress`` is
+        called about every PROGRESS_EVERY_S of wall time with the messages published in this
+        pass and how far into the bag it is (s).
 
         Raises
         ------
@@ -122,14 +133,17 @@ class BagPlayer:
         """
         while True:
             first = self.events[0][0]
-            started = time.monotonic()
-            for stamp, topic, index in self.events:
+            started = reported = time.monotonic()
+            for done, (stamp, topic, index) in enumerate(self.events, start=1):
                 delay = (stamp - first) * 1e-9 / rate - (time.monotonic() - started)
                 if delay > 0:
                     time.sleep(delay)
                 self._wait_for_sync(REPLAY_SYNC_WINDOW)
                 self.publishers[topic].publish(self.data.raw[topic][index])
                 self.published += 1
+                if on_progress is not None and time.monotonic() - reported >= PROGRESS_EVERY_S:
+                    reported = time.monotonic()
+                    on_progress(done, (stamp - first) * 1e-9)
                 if self.sync:
                     header_ns = header_stamp_ns(self.data.messages[topic][index])
                     if header_ns is not None:
