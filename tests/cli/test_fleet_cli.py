@@ -55,7 +55,7 @@ def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
     assert second['reached_at_s'][0] > first['reached_at_s'][0]
     assert first['deviation_um'][0] <= 3.0 and second['deviation_um'][0] <= 50.0
     assert summary['closest_gap_mm'] > 9.0
-    assert '2/2' in done.stdout and 'planned 2 robots' in done.stderr
+    assert '2/2' in done.stderr and 'planned 2 robots' in done.stderr
     assert '3/3 goals reached at' in done.stderr
     assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 

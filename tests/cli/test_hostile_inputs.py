@@ -201,11 +201,11 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--composed, --no-markers, --view, --json, --quiet'),
+     '--force, --composed, --no-markers, --view, --json, --quiet'),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--composed, --no-markers, --view, --json, --quiet'),
+     '--force, --composed, --no-markers, --view, --json, --quiet'),
     (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
      'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
      'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '

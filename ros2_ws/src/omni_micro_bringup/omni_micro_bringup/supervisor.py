@@ -20,4 +20,3 @@ class Supervisor(Protocol):
     def wait_ready(self, name: str, timeout_s: float) -> bool:
         """Wait until the node's current process says it is ready."""
         ...
-

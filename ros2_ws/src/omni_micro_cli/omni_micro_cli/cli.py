@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
+from omni_micro_cli.outputs import json_alone_on_stdout
 from omni_micro_common.errors import OmniMicroError
 
 DEBUG_ENV = 'OMNI_MICRO_DEBUG'
@@ -203,6 +204,9 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     debug = args.debug or os.environ.get(DEBUG_ENV, '') not in ('', '0')
     try:
+        if getattr(args, 'json', False):
+            with json_alone_on_stdout():
+                return int(args.handler(args))
         return int(args.handler(args))
     except KeyboardInterrupt:
         print(f'omni-micro {args.command}: interrupted', file=sys.stderr)

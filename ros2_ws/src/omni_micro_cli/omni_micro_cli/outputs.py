@@ -7,12 +7,37 @@ import argparse
 import contextlib
 import csv
 import io
+import json
 import os
 import shutil
 import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
+from typing import TextIO
+
+# Where print_json writes: the real standard output while a --json command runs with everything
+# else it prints sent to standard error (json_alone_on_stdout).
+_json_stream: TextIO | None = None
+
+
+@contextlib.contextmanager
+def json_alone_on_stdout() -> Iterator[None]:
+    """With ``--json``, standard output is the JSON document alone (``omni-micro fleet --json |
+    jq`` works): what the command prints otherwise, tables and progress, goes to standard
+    error."""
+    global _json_stream
+    _json_stream = sys.stdout
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        _json_stream = None
+
+
+def print_json(value: object) -> None:
+    """``value`` as one JSON line on standard output (the real one under json_alone_on_stdout)."""
+    print(json.dumps(value), file=_json_stream or sys.stdout, flush=True)
 
 
 def output_problem(path: Path, kind: str) -> str | None:

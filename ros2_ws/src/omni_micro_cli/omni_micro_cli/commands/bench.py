@@ -20,6 +20,7 @@ import numpy as np
 
 from omni_micro_cli.arguments import positive_float, whole_number_in
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.outputs import print_json
 from omni_micro_sim import paper
 
 if TYPE_CHECKING:
@@ -43,7 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              '(default 30)')
     parser.add_argument('--reference-timeout', type=positive_float, default=600.0, metavar='S',
                         help='give up on the reference after S seconds (default 600)')
-    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: one JSON object alone (the rest on stderr)')
     parser.set_defaults(handler=run)
 
 
@@ -143,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
         'cores': os.cpu_count(),
     }
     if args.json:
-        print(json.dumps(figures))
+        print_json(figures)
         return 0
     print('omni-micro bench (7 s open-loop move of Fig. 11; batch = Fig. 7 sweep of 1 s moves)')
     print(f'  reference solve_ivp LSODA rtol 1e-9, Python rhs : '

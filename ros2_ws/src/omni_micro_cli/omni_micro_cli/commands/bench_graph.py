@@ -10,7 +10,6 @@ slow a run down, never change it.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import pstats
@@ -22,7 +21,7 @@ from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import non_negative_int
-from omni_micro_cli.outputs import output_folder
+from omni_micro_cli.outputs import output_folder, print_json
 from omni_micro_sim import paper
 
 # (label, real-time factor, lockstep, cores kept busy by other programs, loop in one process)
@@ -52,7 +51,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--markers-pairs', type=non_negative_int, default=3, metavar='N',
                         help='then N pairs of idle runs without and with markers_node, for '
                              'what the markers cost (default 3; 0 skips it)')
-    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: one JSON object alone (the rest on stderr)')
     parser.set_defaults(handler=run)
 
 
@@ -137,5 +137,5 @@ def run(args: argparse.Namespace) -> int:
                 print(f'  {seconds:7.3f}  {function}')
         report['profile'] = summary
     if args.json:
-        print(json.dumps(report))
+        print_json(report)
     return 0

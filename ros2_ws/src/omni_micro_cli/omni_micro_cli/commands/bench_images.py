@@ -13,7 +13,6 @@ simulated second.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import tempfile
 import time
@@ -26,6 +25,7 @@ import numpy as np
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import whole_number_in
+from omni_micro_cli.outputs import print_json
 from omni_micro_sim import paper
 from omni_micro_tools.topics import IMAGE_TOPICS
 
@@ -57,7 +57,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='frames timed per case (default 50)')
     parser.add_argument('--no-graph', dest='graph', action='store_false',
                         help='only the per-frame timings')
-    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: one JSON object alone (the rest on stderr)')
     parser.set_defaults(handler=run)
 
 
@@ -237,5 +238,5 @@ def run(args: argparse.Namespace) -> int:
         with tempfile.TemporaryDirectory(prefix='omni-micro-bench-images-') as folder:
             report['loop'] = loop_costs(Path(folder))
     if args.json:
-        print(json.dumps(report))
+        print_json(report)
     return 0

@@ -10,7 +10,6 @@ under 0.3 s and ``simulate`` (one 1 s move) under 0.7 s on the 2-core machine.
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import statistics
 import subprocess
@@ -20,6 +19,7 @@ from pathlib import Path
 
 from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import RunFailed
+from omni_micro_cli.outputs import print_json
 
 CASES = (('omni-micro --help', ['--help']),
          ('omni-micro simulate --help', ['simulate', '--help']),
@@ -34,7 +34,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--repeats',
                         type=whole_number_in(1, 1000), default=7, metavar='N',
                         help='fresh processes per case; the median counts (default 7)')
-    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: one JSON object alone (the rest on stderr)')
     parser.set_defaults(handler=run)
 
 
@@ -67,5 +68,5 @@ def run(args: argparse.Namespace) -> int:
                                              ('met' if seconds < target else 'NOT met'))
         print(f'{name:34} {seconds:8.3f}s {seconds / reference:8.1f}x  {verdict}')
     if args.json:
-        print(json.dumps(figures))
+        print_json(figures)
     return 0

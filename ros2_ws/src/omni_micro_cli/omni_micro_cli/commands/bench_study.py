@@ -13,7 +13,6 @@ the paper's rule), all through :func:`omni_micro_studies.execute.execute`:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -22,6 +21,7 @@ from typing import TYPE_CHECKING
 
 from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.errors import UsageError
+from omni_micro_cli.outputs import print_json
 
 if TYPE_CHECKING:
     from omni_micro_studies.execute import Execution
@@ -41,7 +41,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--big',
                         type=whole_number_in(0, 10_000_000), default=1000, metavar='N',
                         help='runs of the timed whole study (default 1000; 0 skips it)')
-    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: one JSON object alone (the rest on stderr)')
     parser.set_defaults(handler=run)
 
 
@@ -102,5 +103,5 @@ def run(args: argparse.Namespace) -> int:
                f'{args.big}-run study:       {big:6.1f} s on {cores} workers, cluster start '
                'included (target < 60 s for 1,000)')
     if args.json:
-        print(json.dumps(figures))
+        print_json(figures)
     return 0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -19,7 +18,13 @@ from omni_micro_cli.arguments import (
     whole_number_in,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import atomic_bytes, echo_to_stderr, output_file, output_folder
+from omni_micro_cli.outputs import (
+    atomic_bytes,
+    echo_to_stderr,
+    output_file,
+    output_folder,
+    print_json,
+)
 from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_files import MAX_ROBOTS, Fleet, fleet_from
@@ -86,11 +91,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'under /robot_k/: the twin its odometry and goals, --graph every '
                              'robot topic its recorder reads (docs/fleet.md); replay --robot k '
                              'plays one robot back')
+    parser.add_argument('--force', action='store_true',
+                        help='replace an existing bag at --record')
     parser.add_argument('--plot', type=output_file, metavar='PNG',
                         help='draw every robot\'s route, in its colour, with its label')
     parser.add_argument('--json', action='store_true',
-                        help='print one JSON object (per robot and for the whole) as the last '
-                             'line of stdout')
+                        help='standard output: one JSON object (per robot and for the whole) '
+                             'alone; the table and progress go to stderr')
     parser.set_defaults(handler=run)
 
 
@@ -112,11 +119,11 @@ def run(args: argparse.Namespace) -> int:
         from omni_micro_bringup.composition import GraphOptions
 
         graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
-                             timeout_s=WALL_TIMEOUT_S, record=args.record,
+                             timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
                              composed=args.composed, markers=args.markers,
                              view=view_from_args(args), vision=args.vision)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
-                         record=args.record, plot=args.plot, as_json=args.json)
+                         record=args.record, plot=args.plot, as_json=args.json, force=args.force)
 
 
 # How long a run through the graph may take on the wall clock (run --robots: its --timeout).
@@ -124,7 +131,8 @@ WALL_TIMEOUT_S = 3600.0
 
 
 def micro_factory(fleet: Fleet, seed: int, graph: Any, *, max_sim_time_s: float,
-                  record: Path | None, plot: Path | None, as_json: bool) -> int:
+                  record: Path | None, plot: Path | None, as_json: bool,
+                  force: bool = False) -> int:
     """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's
     options) through the node graph, print the table (and ``as_json``, the JSON), write the
     twin's bag and the routes' plot."""
@@ -139,7 +147,7 @@ def micro_factory(fleet: Fleet, seed: int, graph: Any, *, max_sim_time_s: float,
     if record is not None:
         from omni_micro_tools.bags import check_bag_output
 
-        check_bag_output(record, force=False)   # refused before anything runs
+        check_bag_output(record, force)   # refused (or replaced) before anything runs
     started = time.perf_counter()
     try:
         plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
@@ -176,7 +184,7 @@ def micro_factory(fleet: Fleet, seed: int, graph: Any, *, max_sim_time_s: float,
         atomic_bytes(plot, route_figure(plan, result))
         echo_to_stderr(f'routes drawn in {plot}')
     if as_json:
-        print(json.dumps(summary))
+        print_json(summary)
     if result.outcome != DONE:
         raise RunFailed(f'{result.outcome}: {result.reason}')
     return 0

@@ -10,7 +10,6 @@ left, the topics in the middle and who subscribes on the right; --json prints th
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from dataclasses import asdict
 from pathlib import Path
@@ -18,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.arguments import add_view_arguments, view_from_args
 from omni_micro_cli.errors import UsageError
-from omni_micro_cli.outputs import atomic_bytes, output_file
+from omni_micro_cli.outputs import atomic_bytes, output_file, print_json
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph_description import TopicEndpoints
@@ -62,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'wrote {args.out}: {len(topics)} topics, '
               f'{len(nodes_of(topics))} nodes')
     if args.json:
-        print(json.dumps([asdict(topic) for topic in topics]))
+        print_json([asdict(topic) for topic in topics])
     return 0
 
 

@@ -11,7 +11,6 @@ pin down is reported as not identifiable instead of as a number, and is left at 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
@@ -22,7 +21,7 @@ import yaml
 
 from omni_micro_cli.arguments import add_steering_argument
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import atomic_text, output_file
+from omni_micro_cli.outputs import atomic_text, output_file, print_json
 from omni_micro_control import recorded_runs
 from omni_micro_control.errors import IdentificationError, RecordingError
 from omni_micro_control.identification import (
@@ -75,7 +74,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                           'and backlash and contact_radius (the pivot friction) can be fitted '
                           '(default fit: the above and backlash)')
     parser.add_argument('--json', action='store_true',
-                        help='print a final JSON line: wheel_offsets_deg, wheel_offsets_ci_deg '
+                        help='standard output: one JSON object alone (the report on '
+                             'stderr): wheel_offsets_deg, wheel_offsets_ci_deg '
                              '(95 %% half-widths), steering_backlash_deg and '
                              'steering_backlash_ci_deg when fitted, and every other fitted '
                              'parameter under its ROS parameter name')
@@ -198,7 +198,7 @@ def run(args: argparse.Namespace) -> int:
             atomic_text(args.write_params, params_yaml(fit))
             print(f'identify: params written to {args.write_params}', file=sys.stderr)
     if args.json:
-        print(json.dumps(summary_json(fit, dropped)))
+        print_json(summary_json(fit, dropped))
     if missing_offsets:
         raise RunFailed(vague_text({name: dropped[name] for name in missing_offsets}))
     return 0

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
@@ -28,7 +27,7 @@ from omni_micro_cli.arguments import (
     view_from_args,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import echo_to_stderr, output_folder
+from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.feedback import MODES
 
@@ -164,7 +163,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='no feedback: one move of S seconds toward the goal (the paper '
                              'uses 7 s for 100 mm)')
     parser.add_argument('--json', action='store_true',
-                        help='print a final JSON line with the outcome and true final pose')
+                        help='standard output: one JSON object alone, the outcome and true '
+                             'final pose (the rest on stderr)')
     add_controller_arguments(parser)
     add_graph_arguments(parser)
     add_bench_arguments(parser)
@@ -199,7 +199,7 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision')
+                 'vision', 'force')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -212,13 +212,15 @@ def fleet_run(args: argparse.Namespace) -> int:
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
-                         '--log-dir, --record, --composed, --no-markers, --view, --json, --quiet')
+                         '--log-dir, --record, --force, --composed, --no-markers, --view, --json, '
+                         '--quiet')
     fleet = fleet_from(args.robots, args.tasks, 2, args.seed, args.controller)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
-                         timeout_s=args.timeout, record=args.record, composed=args.composed,
+                         timeout_s=args.timeout, record=args.record, force=args.force,
+                         composed=args.composed,
                          markers=args.markers, view=view_from_args(args), vision=args.vision)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=1800.0, record=args.record,
-                         plot=None, as_json=args.json)
+                         plot=None, as_json=args.json, force=args.force)
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
@@ -328,7 +330,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_graph(options)
     print(summary_line(result, options.external), file=sys.stderr)
     if args.json:
-        print(json.dumps(result.as_json()))
+        print_json(result.as_json())
     succeeded = 'completed' if args.open_loop else 'reached'
     if result.outcome != succeeded:
         raise RunFailed(f'controller_node reported {result.outcome}: {result.reason}')

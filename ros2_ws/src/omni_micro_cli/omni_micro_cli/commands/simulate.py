@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 
@@ -14,6 +13,7 @@ from omni_micro_cli.arguments import (
     number_in,
 )
 from omni_micro_cli.errors import UsageError
+from omni_micro_cli.outputs import print_json
 from omni_micro_sim.parameters import MotorLimits, RobotParameters, steering_preset
 
 # A steering angle as the wheel contract bounds it (omni_micro_sim.wheel_trajectory): beyond a
@@ -53,7 +53,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='the wheels\' steering angle before the move, degrees (default: '
                              'already at theta, as the paper has it)')
     parser.add_argument('--json', action='store_true',
-                        help='print one JSON object (mm, deg) as the last line of stdout')
+                        help='standard output: one JSON object (mm, deg) alone')
     parser.set_defaults(handler=run)
 
 
@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         'compute_time_s': elapsed,
     }
     if args.json:
-        print(json.dumps(summary))
+        print_json(summary)
         return 0
     print(f'open-loop move: theta {args.theta_deg:g} deg, t = {args.duration:g} s, '
           f'xi = {",".join(f"{v:g}" for v in args.xi_deg)} deg, wheel 1 '

@@ -24,7 +24,7 @@ from omni_micro_cli.arguments import (
     whole_number_in,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
-from omni_micro_cli.outputs import echo_to_stderr, output_folder
+from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG
 
@@ -50,7 +50,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='seed of the goals and of the camera noise (default 1)')
     parser.add_argument('--out', type=output_folder, default='out/soak', metavar='DIR',
                         help='the bag, logs and report go into a new folder here')
-    parser.add_argument('--json', action='store_true', help='print the report as a JSON line')
+    parser.add_argument('--json', action='store_true',
+                        help='standard output: the report as one JSON object alone (the rest '
+                             'on stderr)')
     parser.add_argument('--quiet', action='store_true',
                         help="do not echo the nodes' logs (they are still kept)")
     add_view_arguments(parser, flag=True)
@@ -112,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     print(f'  bag: {sum(recorded.values())} messages; missing against what was published: '
           f'{missing or "none"}', file=sys.stderr)
     if args.json:
-        print(json.dumps(report))
+        print_json(report)
     if reached != args.goals or missing:
         raise RunFailed(f'{reached}/{args.goals} goals reached; missing from the bag: {missing}')
     return 0
