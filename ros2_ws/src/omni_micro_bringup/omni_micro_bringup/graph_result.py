@@ -59,8 +59,9 @@ class GraphResult:
         return math.hypot(self.final_x_m - self.goal_m[0], self.final_y_m - self.goal_m[1])
 
     def as_json(self) -> dict[str, object]:
-        """A single robot's run, as ``run --json`` prints it."""
-        goal = self.goal_m if self.goal_m is not None else (math.nan, math.nan)
+        """A single robot's run (a fleet's has no one goal), as ``run --json`` prints it."""
+        assert self.goal_m is not None, 'as_json tells a single robot\'s run'
+        goal = self.goal_m
         return {
             'outcome': self.outcome, 'reason': self.reason, 'periods': self.periods,
             'final_x_mm': self.final_x_m * 1e3, 'final_y_mm': self.final_y_m * 1e3,

@@ -7,7 +7,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.arguments import (
     add_view_arguments,
@@ -29,6 +29,9 @@ from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_files import MAX_ROBOTS, Fleet, fleet_from
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
+
+if TYPE_CHECKING:   # the graph's modules load only for a run through it
+    from omni_micro_bringup.composition import GraphOptions
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -130,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
 WALL_TIMEOUT_S = 3600.0
 
 
-def micro_factory(fleet: Fleet, seed: int, graph: Any, *, max_sim_time_s: float,
+def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_sim_time_s: float,
                   record: Path | None, plot: Path | None, as_json: bool,
                   force: bool = False) -> int:
     """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's

@@ -102,29 +102,33 @@ def run(args: argparse.Namespace) -> int:
           f'{player.duration_s:.2f} s of the bag at --rate {args.rate:g}, about '
           f'{player.duration_s / args.rate:.1f} s' + (', again and again (--loop)'
                                                       if args.loop else ''), file=sys.stderr)
-    terminal = sys.stderr.isatty()
-    after_progress = '\n' if terminal else ''   # the progress line ends before what follows
+    shown = False   # a progress line is drawn: what follows starts on a line of its own
 
     def progress(done: int, at_s: float) -> None:
+        nonlocal shown
+        shown = True
         print(f'\r  {done}/{total} messages, {at_s:.1f}/{player.duration_s:.1f} s of the bag',
               end='', file=sys.stderr, flush=True)
 
     try:
         if args.wait_subscribers:
             player.wait_for_subscribers(args.wait_subscribers)
-        player.play(args.rate, args.loop, on_progress=progress if terminal else None)
+        player.play(args.rate, args.loop, on_progress=progress if sys.stderr.isatty() else None)
     except ReplayError as error:
         raise RunFailed(str(error)) from None
     except KeyboardInterrupt:
         # Exit 130 as every command interrupted does, having said how far it went.
-        print(f'{after_progress}interrupted after {player.published} of {total} '
+        print(f'{NEWLINE if shown else ""}interrupted after {player.published} of {total} '
               f'messages', file=sys.stderr)
         raise
     finally:
         player.close()
-    print(f'{after_progress}replayed {player.published} messages on '
+    print(f'{NEWLINE if shown else ""}replayed {player.published} messages on '
           f'{len(topics)} topics', file=sys.stderr)
     return 0
+
+
+NEWLINE = '\n'
 
 
 def _as_one_robot(data: BagMessages, topics: list[str],
