@@ -194,18 +194,26 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
 @pytest.mark.parametrize(('argv', 'line'), [
     (['rn'], "omni-micro: error: 'rn' is not a command; did you mean run? (omni-micro --help "
              'lists them)'),
-    (['run', '--goal', '100,0'], 'omni-micro: error: unrecognized arguments: --goal 100,0 '
-                                 '(omni-micro --help lists the arguments)'),
+    (['run', '--goal', '100,0'], 'omni-micro run: error: unrecognized arguments: --goal 100,0; '
+                                 'did you mean --goal-mm? (omni-micro run --help lists the '
+                                 'arguments)'),
+    (['fleet', '--robots', '2', '--bogus'], 'omni-micro fleet: error: unrecognized arguments: '
+                                            '--bogus (omni-micro fleet --help lists the '
+                                            'arguments)'),
+    (['fleet', '--robots', '-1'], "omni-micro fleet: error: --robots must be a whole number "
+                                  "1..42 or a YAML file, got '-1'"),
     (['run'], 'omni-micro run: error: --goal-mm X,Y is needed (or --robots N|FILE for several '
               'robots)'),
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --json, --quiet'),
+     '--force, --composed, --no-markers, --view, --json, --quiet, --goals-per-robot, '
+     '--max-sim-time, --plot'),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --json, --quiet'),
+     '--force, --composed, --no-markers, --view, --json, --quiet, --goals-per-robot, '
+     '--max-sim-time, --plot'),
     (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
      'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
      'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '
@@ -221,7 +229,7 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
                                       'robot_0,robot_1 (omni-micro view --help lists the '
                                       'arguments)'),
     (['run', '--goal-mm', '1,0', '--tasks', 'tasks.yaml'],
-     'omni-micro run: error: --tasks gives several robots their goals: with --robots'),
+     'omni-micro run: error: --tasks: for several robots; give --robots N|FILE'),
     (['fleet', '--rtf', '2'], 'omni-micro fleet: error: --rtf paces the node graph: give it with '
                               '--graph'),
     (['run', '--goal-mm', '1,0', '--seed', '100000000000000000000000'],

@@ -59,6 +59,22 @@ def test_run_robots_and_fleet_graph_hand_the_graph_the_same_run(monkeypatch, tmp
     assert run_fleet.max_sim_time_s == fleet_fleet.max_sim_time_s == 1800.0
 
 
+def test_the_two_doors_take_the_same_micro_factory_flags(monkeypatch, tmp_path, capsys):
+    common = ['--robots', '2', '--seed', '1', '--goals-per-robot', '1', '--max-sim-time', '900',
+              '--log-dir', str(tmp_path)]
+    plots = {door: tmp_path / f'{door}.png' for door in ('run', 'fleet')}
+    through_run = asked_of_the_graph(monkeypatch, ['run', *common, '--timeout', '3600',
+                                                   '--no-markers', '--plot', str(plots['run'])])
+    through_fleet = asked_of_the_graph(monkeypatch, ['fleet', '--graph', *common, '--plot',
+                                                     str(plots['fleet'])])
+    capsys.readouterr()
+    assert through_run.fleet is not None and through_fleet.fleet is not None
+    assert through_run.fleet.plan.tasks == through_fleet.fleet.plan.tasks
+    assert [len(tasks) for tasks in through_run.fleet.plan.tasks] == [1, 1]
+    assert through_run.fleet.max_sim_time_s == through_fleet.fleet.max_sim_time_s == 900.0
+    assert all(plot.read_bytes().startswith(b'\x89PNG') for plot in plots.values())
+
+
 @pytest.mark.parametrize('composed_loop', [False, True])
 def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_loop):
     specs = fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1, math.inf, (),

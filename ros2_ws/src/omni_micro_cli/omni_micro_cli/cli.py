@@ -118,6 +118,20 @@ class _CommandSubparsers:
                                        aliases=list(command.aliases), **kwargs)
 
 
+def refuse_unknown(parser: argparse.ArgumentParser, command: str, unknown: list[str]) -> NoReturn:
+    """Arguments ``command`` does not take, said by its own parser (its --help lists them),
+    with the closest spelling it takes."""
+    commands = next(action for action in parser._actions
+                    if isinstance(action, argparse._SubParsersAction))
+    own: argparse.ArgumentParser = commands.choices[command]
+    # Compared without the dashes every flag shares (--bogus is not close to --robots).
+    names = [flag[2:] for flag in own._option_string_actions if flag.startswith('--')]
+    close = [match for word in unknown if word.startswith('-')
+             for match in difflib.get_close_matches(word.split('=')[0].lstrip('-'), names, n=1)]
+    own.error(f'unrecognized arguments: {" ".join(unknown)}'
+              + (f'; did you mean --{close[0]}?' if close else ''))
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The parser, with every command's own arguments, or only ``only``'s (the others are
     listed with their summary, their modules not imported; ``''``: none imported)."""
@@ -194,7 +208,10 @@ def main(argv: list[str] | None = None) -> int:
     arguments = sys.argv[1:] if argv is None else argv
     # No command named (--help, or a typo): list the commands, import none of them.
     try:
-        args = build_parser(command_named(arguments) or '').parse_args(arguments)
+        parser = build_parser(command_named(arguments) or '')
+        args, unknown = parser.parse_known_args(arguments)
+        if unknown:
+            refuse_unknown(parser, args.command, unknown)
     except (OmniMicroError, OSError) as error:
         # A check inside an argument's type (a path the system refuses, say): still one line.
         print(f'omni-micro: error: {error}', file=sys.stderr)

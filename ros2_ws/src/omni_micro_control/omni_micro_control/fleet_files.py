@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import random
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -104,10 +105,13 @@ def robots_from(spec: str, seed: int, controller: str = 'paper') -> tuple[
     """Starts, wheel offsets and controller modes of ``--robots``: a count (lattice places, each
     robot's controller ``controller``) or a YAML file (a robot's own, else ``controller``)."""
     rng = random.Random(f'robots {seed}')
-    if spec.isdigit():
-        count = int(spec)
-        if not 1 <= count <= MAX_ROBOTS:
-            raise FleetFileError(f'--robots must be 1..{MAX_ROBOTS} or a YAML file, got {spec!r}')
+    # A number, whole or not, signed or not, is a count (-1 is no file of robots).
+    if re.fullmatch(r'[+-]?(\d+\.?\d*|\.\d+)', spec.strip()):
+        number = float(spec)
+        if number != int(number) or not 1 <= number <= MAX_ROBOTS:
+            raise FleetFileError(f'--robots must be a whole number 1..{MAX_ROBOTS} or a YAML '
+                                 f'file, got {spec!r}')
+        count = int(number)
         places = _spread_starts(count)
         return places, [drawn_offsets(rng) for _ in places], [controller] * count
     path = Path(spec)

@@ -58,8 +58,10 @@ class Task:
     tolerance_m: float | None = None      # None: the micro's 3 um in its field, else 50 um
 
     def tolerance(self) -> float:
-        if self.tolerance_m is not None:
-            return self.tolerance_m
+        return self.tolerance_m if self.tolerance_m is not None else self.default_tolerance_m()
+
+    def default_tolerance_m(self) -> float:
+        """The tolerance of a goal that gives none: the micro camera's in its field."""
         inside = all(abs(self.goal_m[axis] - MICRO_FIELD_CENTER_M[axis])
                      <= MICRO_FIELD_SIZE_M[axis] / 2.0 for axis in (0, 1))
         return GOAL_TOLERANCE_M if inside else MACRO_GOAL_TOLERANCE_M

@@ -21,7 +21,7 @@ import numpy as np
 
 from omni_micro_control.feedback import FeedbackConfig, Finished, Outcome, VisionFeedbackController
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
-from omni_micro_control.fleet_plan import FleetPlan
+from omni_micro_control.fleet_plan import FleetPlan, PlanningError, Task
 from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M, point_segment_distance
 from omni_micro_control.model_based import learnt_offsets, planner_for
 from omni_micro_control.servo_config import SERVO_MODE
@@ -151,6 +151,26 @@ class _Robot:
         else:
             self.run.outcome = f'{finished.outcome.value}: {finished.reason}'
         return finished
+
+
+def check_tolerances(tasks: list[list[Task]], rig: CameraRig = DEFAULT_RIG) -> None:
+    """Raises PlanningError naming the first goal whose ``tolerance_um`` is no wider than the
+    camera that sees the goal resolves (its captures' 95 % radius): the controller would end it
+    ``unresolved``, however close the robot came."""
+    for robot, goals in enumerate(tasks):
+        for index, task in enumerate(goals):
+            seen = rig.resolution_at(*task.goal_m)
+            if task.tolerance_m is None or seen is None:
+                continue   # the defaults fit their cameras; a goal off the platform is refused
+            camera, radius_m = seen
+            if task.tolerance_m <= radius_m:
+                x_mm, y_mm = (v * 1e3 for v in task.goal_m)
+                raise PlanningError(
+                    f'robot {robot}\'s goal {index} at ({x_mm:g}, {y_mm:g}) mm: tolerance_um '
+                    f'{task.tolerance_m * 1e6:g} is finer than the {camera} camera that sees it '
+                    f'resolves (+-{radius_m * 1e6:.2f} um at 95 %): give more than '
+                    f'{radius_m * 1e6:.2f}, or leave it out (the default: '
+                    f'{task.default_tolerance_m() * 1e6:g} um there)')
 
 
 def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,

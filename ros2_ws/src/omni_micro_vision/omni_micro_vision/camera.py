@@ -160,6 +160,16 @@ class CameraRig:
             return self.macro
         return None
 
+    def resolution_at(self, x_m: float, y_m: float) -> tuple[str, float] | None:
+        """The camera that sees a robot at (``x_m``, ``y_m``) and the 95 % radius of its
+        captures there: a goal's tolerance must be wider than it to be told reached (the
+        controller counts a capture reached only with that radius added). None: no camera sees
+        it."""
+        camera = self.camera_for(x_m, y_m)
+        if camera is None:
+            return None
+        return camera.name, camera.uncertainty(0.0).radius_95_m
+
 
 # The macro camera sees the whole platform (omni_micro_common.conventions); the micro work
 # platform is centred on the goal of Fig. 11.

@@ -53,12 +53,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'platform\'s left edge, wheel offsets drawn from the seed), or a '
                              'YAML file of robots (start_mm, wheel_offsets_deg, controller; '
                              'docs/fleet.md)')
-    parser.add_argument('--tasks', type=Path, metavar='FILE',
-                        help='a YAML file of goals per robot, in order, with "after" waits '
-                             '(docs/fleet.md); default: drawn from the seed, each robot to the '
-                             'micro field then to a place of its own, --goals-per-robot in all')
-    parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), metavar='K',
-                        help='goals drawn per robot without --tasks (default 2)')
+    add_micro_factory_arguments(parser)
     parser.add_argument('--controller', choices=MODES, default='paper',
                         help="every robot's controller (a robots file may give a robot its "
                              "own): paper, section 4.1's rule (default); model, plans through "
@@ -66,8 +61,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'corrected from captures in motion (docs/control.md)')
     parser.add_argument('--seed', type=seed_number, default=0,
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
-    parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
-                        help='give up after this much simulated time (default 1800 s)')
     parser.add_argument('--graph', action='store_true',
                         help='run through the node graph, in lockstep (loopback only, a '
                              'private ROS_DOMAIN_ID; logs in out/runs/)')
@@ -96,12 +89,34 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'plays one robot back')
     parser.add_argument('--force', action='store_true',
                         help='replace an existing bag at --record')
-    parser.add_argument('--plot', type=output_file, metavar='PNG',
-                        help='draw every robot\'s route, in its colour, with its label')
     parser.add_argument('--json', action='store_true',
                         help='standard output: one JSON object (per robot and for the whole) '
                              'alone; the table and progress go to stderr')
     parser.set_defaults(handler=run)
+
+
+def add_micro_factory_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """What both doors to a micro-factory take (``fleet`` and ``run --robots``): its tasks,
+    how long it may run, the picture of its routes."""
+    parser.add_argument('--tasks', type=Path, metavar='FILE',
+                        help='a YAML file of goals per robot, in order, with "after" waits '
+                             '(docs/fleet.md); default: drawn from the seed, each robot to the '
+                             'micro field then to a place of its own, --goals-per-robot in all')
+    parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), metavar='K',
+                        help='goals drawn per robot without --tasks (default 2)')
+    parser.add_argument('--max-sim-time', type=positive_int, default=1800, metavar='S',
+                        help='give up after this much simulated time (default 1800 s)')
+    parser.add_argument('--plot', type=output_file, metavar='PNG',
+                        help='draw every robot\'s route, in its colour, with its label')
+
+
+def fleet_of(args: argparse.Namespace) -> Fleet:
+    """The robots and tasks the arguments give."""
+    if args.tasks is not None and args.goals_per_robot is not None:
+        raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
+                         'goals are given')
+    return fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed,
+                      args.controller)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,11 +127,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
     if not args.graph and args.vision != 'model':
         raise UsageError(f'--vision {args.vision} is a node graph\'s: give it with --graph')
-    if args.tasks is not None and args.goals_per_robot is not None:
-        raise UsageError('--goals-per-robot is how many goals to draw: not with --tasks, whose '
-                         'goals are given')
-    fleet = fleet_from(args.robots, args.tasks, args.goals_per_robot or 2, args.seed,
-                       args.controller)
+    fleet = fleet_of(args)
     graph = None
     if args.graph:
         from omni_micro_bringup.composition import GraphOptions
@@ -141,22 +152,25 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
     twin's bag and the routes' plot."""
     from omni_micro_control.fleet_plan import PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
-    from omni_micro_studies.fleet_twin import DONE, run_fleet
+    from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
 
     if graph is not None:
         from omni_micro_bringup.fleet_composition import check_vision
 
         check_vision(fleet.controllers, graph.vision)   # refused before the planning
-    if record is not None:
-        from omni_micro_tools.bags import check_bag_output
-
-        check_bag_output(record, force)   # refused (or replaced) before anything runs
     started = time.perf_counter()
     try:
+        check_tolerances(fleet.tasks)
         plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
     except (PlanningError, RoadmapError) as error:
         raise UsageError(str(error)) from None
     planned_s = time.perf_counter() - started
+    if record is not None:
+        from omni_micro_tools.bags import check_bag_output
+
+        # Refused (or replaced) before anything runs, once the tasks are known to be good:
+        # tasks refused leave nothing on disk.
+        check_bag_output(record, force)
     legs = sum(len(robot) for robot in plan.legs)
     echo_to_stderr(f'planned {len(fleet.starts_m)} robots, {legs} legs in {planned_s:.2f} s')
 

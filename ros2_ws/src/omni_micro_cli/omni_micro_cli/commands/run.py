@@ -26,6 +26,7 @@ from omni_micro_cli.arguments import (
     steering_overrides,
     view_from_args,
 )
+from omni_micro_cli.commands.fleet import add_micro_factory_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
@@ -185,10 +186,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                             'its vision_node and controller_node under /robot_k, one '
                             'dynamics_node for all; with --tasks (or drawn goals), --controller '
                             '(every robot\'s; a robots file may give one its own), --seed, --rtf, '
-                            '--timeout, '
-                            '--log-dir, --json; what omni-micro fleet --graph runs')
-    fleet.add_argument('--tasks', type=Path, metavar='FILE',
-                       help='with --robots: a YAML file of goals per robot (docs/fleet.md)')
+                            '--timeout, --log-dir, --json and those below; what omni-micro '
+                            'fleet --graph runs')
+    add_micro_factory_arguments(fleet)
     parser.set_defaults(handler=run)
     _DEFAULTS.update({action.dest: action.default for action in parser._actions})
 
@@ -199,13 +199,12 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision', 'force')
+                 'vision', 'force', 'goals_per_robot', 'max_sim_time', 'plot')
 
 
 def fleet_run(args: argparse.Namespace) -> int:
     """``run --robots``: the micro-factory through the graph, as ``fleet --graph`` runs it."""
-    from omni_micro_cli.commands.fleet import micro_factory
-    from omni_micro_control.fleet_files import fleet_from
+    from omni_micro_cli.commands.fleet import fleet_of, micro_factory
 
     others = sorted(f'--{dest.replace("_", "-")}' for dest, default in _DEFAULTS.items()
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
@@ -213,14 +212,15 @@ def fleet_run(args: argparse.Namespace) -> int:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
                          '--log-dir, --record, --force, --composed, --no-markers, --view, --json, '
-                         '--quiet')
-    fleet = fleet_from(args.robots, args.tasks, 2, args.seed, args.controller)
+                         '--quiet, --goals-per-robot, --max-sim-time, --plot')
+    fleet = fleet_of(args)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
                          composed=args.composed,
                          markers=args.markers, view=view_from_args(args), vision=args.vision)
-    return micro_factory(fleet, args.seed, graph, max_sim_time_s=1800.0, record=args.record,
-                         plot=None, as_json=args.json, force=args.force)
+    return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
+                         record=args.record, plot=args.plot, as_json=args.json,
+                         force=args.force)
 
 
 def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
@@ -321,8 +321,12 @@ def summary_line(result: GraphResult, external: bool = False) -> str:
 def run(args: argparse.Namespace) -> int:
     if args.robots is not None:
         return fleet_run(args)
-    if args.tasks is not None:
-        raise UsageError('--tasks gives several robots their goals: with --robots')
+    several = [flag for flag, given in (('--tasks', args.tasks is not None),
+                                        ('--goals-per-robot', args.goals_per_robot is not None),
+                                        ('--max-sim-time', args.max_sim_time != 1800),
+                                        ('--plot', args.plot is not None)) if given]
+    if several:
+        raise UsageError(f'{", ".join(several)}: for several robots; give --robots N|FILE')
     if args.goal_mm is None:
         raise UsageError('--goal-mm X,Y is needed (or --robots N|FILE for several robots)')
     goal = (args.goal_mm[0] * 1e-3, args.goal_mm[1] * 1e-3)

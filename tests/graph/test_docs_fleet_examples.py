@@ -1,0 +1,37 @@
+"""docs/fleet.md's robots.yaml and tasks.yaml through the node graph, as its command lines give
+them (``run --robots robots.yaml --tasks tasks.yaml ...``), as fast as the lockstep allows: the
+run is the same at any --rtf (test_fleet_graph.py shows it byte for byte)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+
+import pytest
+from conftest import ROOT
+from docs_examples import DOCS, documented_command_lines, documented_file
+
+GRAPH_LINES = [argv for argv in documented_command_lines((DOCS / 'fleet.md').read_text())
+               if argv[0] == 'run' and 'tasks.yaml' in argv]
+
+
+def test_the_page_runs_its_files_through_the_graph():
+    assert len(GRAPH_LINES) == 2   # --rtf 2 --json, and --vision images --record
+
+
+@pytest.mark.parametrize('line', GRAPH_LINES, ids=lambda argv: ' '.join(argv[5:]))
+def test_the_fleet_page_s_files_run_through_the_graph_as_printed(line, tmp_path):
+    for name in ('robots.yaml', 'tasks.yaml'):
+        (tmp_path / name).write_text(documented_file(DOCS / 'fleet.md', name))
+    ran = subprocess.run([str(ROOT / 'scripts' / 'omni-micro'), *line, '--rtf', 'max'],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                         env=dict(os.environ))
+    assert ran.returncode == 0, ran.stderr
+    assert 'done: every task done' in (ran.stderr if '--json' in line else ran.stdout)
+    if '--json' in line:
+        summary = json.loads(ran.stdout)
+        assert [robot['goals_reached'] for robot in summary['robots']] == [2, 1]
+    if '--record' in line:
+        bag = tmp_path / line[line.index('--record') + 1]
+        assert (bag / 'metadata.yaml').exists() and list(bag.glob('*.mcap'))
