@@ -61,7 +61,7 @@ def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
 
 
 @pytest.mark.parametrize('robots, tasks, message', [
-    ('0', None, "--robots must be 1..42 or a YAML file, got '0'"),
+    ('0', None, "--robots must be a whole number 1..42 or a YAML file, got '0'"),
     ('ROBOTS', 'tasks:\n  robot_5:\n    - goal_mm: [1, 2]\n',
      "names ['robot_5']: the robots are robot_0..robot_1"),
     ('ROBOTS', 'tasks:\n  robot_0:\n    - goal_mm: [300, 0]\n',
@@ -144,7 +144,8 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
     summary = json.loads(done.stdout.strip().splitlines()[-1])
     data = read_bag(bag)
     assert set(data.messages) == {'/clock'} | {f'/robot_{k}/{topic}' for k in range(3)
-                                               for topic in ('odom', 'goal_pose')}
+                                               for topic in ('odom', 'goal_pose',
+                                                             'controller/status')}
     for k, robot in enumerate(summary['robots']):
         odometry = data.messages[f'/robot_{k}/odom']
         # REP-105 frames per robot; the last sample where the run left the robot.
@@ -160,8 +161,9 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
     # In this pytest process's own DDS domain (tests/conftest.py).
     replayed = omni_micro('replay', str(bag), '--robot', '2', '--rate', '100')
     assert replayed.returncode == 0, replayed.stderr
-    count = len(data.raw['/robot_2/odom']) + len(data.raw['/robot_2/goal_pose'])
-    assert f'replayed {count} messages on 2 topics' in replayed.stderr
+    count = sum(len(data.raw[f'/robot_2/{topic}'])
+                for topic in ('odom', 'goal_pose', 'controller/status'))
+    assert f'replayed {count} messages on 3 topics' in replayed.stderr
     refused = omni_micro('replay', str(bag), '--robot', '5')
     assert refused.returncode == 2
     assert refused.stderr.strip() == ('omni-micro replay: error: --robot 5: the bag has no '
@@ -181,11 +183,17 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
         assert np.any(np.all(np.abs(pixels - blended) < 0.02, axis=1)), f'robot_{k} not drawn'
     table = json.loads((tmp_path / 'analysis' / 'summary.json').read_text())['robots']
     assert [row['robot'] for row in table] == ['robot_0', 'robot_1', 'robot_2']
+    bag_length_s = (max(data.timestamps['/clock']) - min(data.timestamps['/clock'])) * 1e-9
     for row, robot in zip(table, summary['robots'], strict=True):
-        assert row['goals'] == 1
+        assert row['goals'] == row['goals_reached'] == 1
         assert row['last_goal_deviation_um'] == pytest.approx(robot['deviation_um'][0], abs=0.5)
+        # Each robot's own times, as the run had them: not the bag's length for every robot.
+        assert row['set_out_s'] == 0.0
+        assert row['reached_at_s'] == pytest.approx(robot['reached_at_s'], abs=1e-9)
+        assert row['duration_s'] == pytest.approx(robot['reached_at_s'][-1], abs=1e-9)
+    assert min(row['duration_s'] for row in table) < bag_length_s - 1.0
     assert (tmp_path / 'analysis' / 'route.png').exists()
-    assert '| robot_1 | 1 |' in analyzed.stdout
+    assert '| robot_1 | 1/1 | 0.00 |' in analyzed.stdout
 
 
 def test_the_study_runs_on_an_existing_dask_scheduler_as_on_its_own_cluster(tmp_path):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import sys
 
+import numpy as np
 import pytest
 
 from omni_micro_cli.cli import main
@@ -58,3 +59,64 @@ def test_the_force_an_existing_bag_s_message_names_is_taken(door, tmp_path, caps
         assert main([*door, '--record', str(bag), '--force', '--tasks',
                      str(tmp_path / 'missing.yaml')]) == 2
         assert 'unknown' not in capsys.readouterr().err
+
+
+def test_the_json_and_the_table_say_each_goal_with_its_camera_s_own_error(capsys):
+    assert main([*FLEET[:3], '--goals-per-robot', '2', '--seed', '0', '--json']) == 0
+    out, err = capsys.readouterr()
+    summary = json.loads(out)
+    for robot in summary['robots']:
+        micro, macro = robot['goal_results']
+        assert micro['camera'] == 'micro' and macro['camera'] == 'macro'
+        # Where the goal was, how close it was reached, and what the camera can tell there.
+        assert abs(micro['goal_mm'][0] - 100.0) <= 0.5 and abs(micro['goal_mm'][1]) <= 0.5
+        assert micro['deviation_um'] <= 3.0 and micro['capture_95_um'] == pytest.approx(0.35,
+                                                                                     abs=0.01)
+        assert macro['deviation_um'] <= 50.0 and macro['capture_95_um'] == pytest.approx(
+            26.39, abs=0.01)
+        assert [goal['reached_at_s'] for goal in robot['goal_results']] == robot['reached_at_s']
+        assert -180.0 <= robot['final_phi_deg'] <= 180.0
+    header, *rows = [line for line in err.splitlines() if line.startswith('robot')]
+    assert 'micro um' in header and 'macro um' in header
+    micro = summary['robots'][0]['goal_results'][0]
+    assert f"{micro['deviation_um']:.2f}+-0.35" in rows[0]
+    # What the plan keeps and what the run measured, each named.
+    assert '(robots 0 and 1; planned 12 mm or more)' in err
+
+
+def test_track_s_help_gives_the_exit_code_of_a_robot_never_named(capsys):
+    with pytest.raises(SystemExit):
+        main(['track', '--help'])
+    said = ' '.join(capsys.readouterr().out.split())
+    assert '1 when none did (with --robots: when a robot never was, named)' in said
+
+
+def test_overlapping_routes_stay_visible_each_robot_in_its_colour(tmp_path):
+    """Two robots driven along the same line: both colours show along it, each start and end
+    labelled, the whole platform and the micro field close up in the picture."""
+    import io
+
+    from matplotlib.image import imread
+
+    from omni_micro_vision.fleet_figure import DrawnRobot, colour_of, fleet_routes_png, route_style
+
+    line = np.column_stack([np.linspace(0.0, 0.1, 200), np.zeros(200)])
+    robots = [DrawnRobot(k, f'robot_{k}', line, np.array([[0.1, 0.0]]), 1) for k in (0, 1)]
+    assert route_style(0, 2) != route_style(1, 2) and route_style(0, 1) == '-'
+    pixels = imread(io.BytesIO(fleet_routes_png(robots, 'overlap')))[:, :, :3]
+    for k in (0, 1):
+        near = np.all(np.abs(pixels - np.array(colour_of(k))) < 0.05, axis=2)
+        assert near.sum() > 200, f'robot_{k} hidden'
+    assert len(fleet_routes_png(robots[:1], 'one')) > 0
+
+
+def test_a_robot_among_others_draws_its_route_in_its_colour():
+    from omni_micro_vision.camera import DEFAULT_RIG
+    from omni_micro_vision.scene import FLEET_COLOURS, ROUTE, Scene
+
+    for scene, colour in ((Scene(DEFAULT_RIG), ROUTE),
+                          (Scene(DEFAULT_RIG, robot_colour=FLEET_COLOURS[2], label='robot_2'),
+                           (*FLEET_COLOURS[2][:3], 1.0))):
+        for x in (0.0, 0.01, 0.02):
+            scene.on_odometry(x, 0.0, 0.0)
+        assert {shape.colour for shape in scene.route_shapes(only_last=False)} == {colour}

@@ -1,10 +1,13 @@
-"""A fleet run as a rosbag2 bag: each robot's odometry and goals under its namespace.
+"""A fleet run as a rosbag2 bag: each robot's odometry, goals and goals reached under its
+namespace.
 
 Per robot k, ``/robot_k/odom`` (nav_msgs/Odometry, REP-105 frames ``robot_k/odom`` ->
-``robot_k/base_link``, twist in the robot's frame) at ``ODOM_RATE_HZ`` and ``/robot_k/goal_pose``
-(each task's goal, stamped when the robot set out for it); ``/clock``, the simulated time, at
-the same rate. Every message is logged at its simulated time. ``omni-micro replay --robot k``
-publishes one robot's topics under the single robot's names (``/odom``, ``/goal_pose``).
+``robot_k/base_link``, twist in the robot's frame) at ``ODOM_RATE_HZ``, ``/robot_k/goal_pose``
+(each task's goal, stamped when the robot set out for it) and ``/robot_k/controller/status``
+(each goal reached, as the robot's controller node says it: ``reached`` at the time of what
+decided it, with the goal); ``/clock``, the simulated time, at the same rate. Every message
+is logged at its simulated time. ``omni-micro replay --robot k`` publishes one robot's topics
+under the single robot's names (``/odom``, ``/goal_pose``, ``/controller/status``).
 """
 
 from __future__ import annotations
@@ -13,9 +16,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from omni_micro_common.conventions import yaw_to_quaternion
+from omni_micro_common.conventions import STATUS_TIME_KEY, yaw_to_quaternion
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
+    CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     ODOM_TOPIC,
     namespaced_frame,
@@ -32,6 +36,7 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
     """Write the bag of ``result`` (a fleet twin run of ``plan``) into ``path``; return how many
     messages it holds. ``path`` must not exist."""
     from builtin_interfaces.msg import Time
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
@@ -45,6 +50,8 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
     for robot in range(len(result.robots)):
         topics[robot_topic(robot, ODOM_TOPIC)] = RECORDABLE_TOPICS[ODOM_TOPIC]
         topics[robot_topic(robot, GOAL_TOPIC)] = RECORDABLE_TOPICS[GOAL_TOPIC]
+        topics[robot_topic(robot, CONTROLLER_STATUS_TOPIC)] = \
+            RECORDABLE_TOPICS[CONTROLLER_STATUS_TOPIC]
     events: list[tuple[int, str, bytes]] = []
 
     def stamp(time_s: float) -> Time:
@@ -88,6 +95,14 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
             message.pose.orientation.w = 1.0
             events.append((round(set_out[task] * 1e9), robot_topic(robot, GOAL_TOPIC),
                            serialize_message(message)))
+        for task, reached_s in enumerate(run.tasks_done_s):
+            goal_x, goal_y = plan.tasks[robot][task].goal_m
+            status = DiagnosticStatus(level=DiagnosticStatus.OK, name='omni_micro_controller',
+                                      message='reached', hardware_id='omni_micro')
+            status.values = [KeyValue(key=key, value=repr(float(value))) for key, value in (
+                (STATUS_TIME_KEY, reached_s), ('goal_x_m', goal_x), ('goal_y_m', goal_y))]
+            events.append((round(reached_s * 1e9), robot_topic(robot, CONTROLLER_STATUS_TOPIC),
+                           serialize_message(status)))
     writer, connections = open_writer(path, 'mcap', topics)
     try:
         for time_ns, topic, data in sorted(events, key=lambda event: event[:2]):

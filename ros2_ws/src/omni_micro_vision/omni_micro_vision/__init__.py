@@ -12,7 +12,8 @@ mount and lens), :mod:`targets` (a chessboard calibration target), :mod:`calibra
 map fitted from frames of it), :mod:`motion_capture` (captures of a moving robot: stamp, spread,
 loss), :mod:`frame_ages` (how old a driver's frames come, by their stamps), :mod:`scene` (what a
 viewer draws) and :mod:`scene_kernel` (the frames' reflectance, numba), :mod:`animation` (a
-recorded run drawn as a GIF or MP4, scene by scene), :mod:`errors`. At the
+recorded run drawn as a GIF or MP4, scene by scene), :mod:`fleet_figure` (a micro-factory's
+routes in one picture), :mod:`errors`. At the
 message boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
 :mod:`camera_frames` (a simulated camera's frames as a driver sends them), :mod:`marker_messages`
 (the scene as a serialized MarkerArray), :mod:`capture_messages` (a capture as the camera contract

@@ -19,7 +19,13 @@ from typing import Any
 import numpy as np
 
 from omni_micro_common.clocks import is_wall_clock
-from omni_micro_common.conventions import STEERING_JOINT, CaptureUncertainty, quaternion_to_yaw
+from omni_micro_common.conventions import (
+    PLATFORM_CENTER_M,
+    PLATFORM_SIZE_M,
+    STEERING_JOINT,
+    CaptureUncertainty,
+    quaternion_to_yaw,
+)
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
@@ -33,10 +39,13 @@ from omni_micro_common.topic_names import (
 from omni_micro_tools.bag_reading import read_bag
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.errors import AnimationError
+from omni_micro_vision.fleet_figure import route_style
 from omni_micro_vision.scene import FLEET_COLOURS, Scene, Shape, move_of, slip_of
 
 FIGURE_SIZE_IN = (10.0, 4.5)
 DPI = 100                      # frames of 1000 x 450 pixels
+# Around the platform, so that a robot on its edge is drawn whole.
+PLATFORM_MARGIN_MM = 6.0
 # The robot as a capture shows it, where the bag has no /odom (a real robot's run).
 SEEN = 'seen by a camera'
 TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
@@ -72,16 +81,6 @@ def _events(bag: Path, robots: list[str]) -> list[Event]:
     return events
 
 
-def _first_positions(events: list[Event]) -> list[tuple[float, float]]:
-    """Where each robot is first placed (x, y)."""
-    first: dict[str, tuple[float, float]] = {}
-    for _, robot, topic, message in events:
-        if topic in (ODOM_TOPIC, SEEN) and robot not in first:
-            pose = message.pose.pose if topic == ODOM_TOPIC else message.pose
-            first[robot] = (pose.position.x, pose.position.y)
-    return list(first.values())
-
-
 def _apply(scene: Scene, topic: str, message: Any) -> None:
     if topic in (ODOM_TOPIC, SEEN):
         pose = message.pose.pose if topic == ODOM_TOPIC else message.pose
@@ -105,8 +104,9 @@ def _apply(scene: Scene, topic: str, message: Any) -> None:
                                      uncertainty.radius_95_m)
 
 
-def _draw(axis: Any, shapes: list[Shape], micro: bool) -> None:
-    """Shapes in mm; line widths in points, so that both views stay legible."""
+def _draw(axis: Any, shapes: list[Shape], micro: bool, route_style: Any = '-') -> None:
+    """Shapes in mm; line widths in points, so that both views stay legible. ``route_style``:
+    the route's line style (a robot among others: :func:`.fleet_figure.route_style`)."""
     from matplotlib.patches import Circle
 
     for shape in shapes:
@@ -122,7 +122,8 @@ def _draw(axis: Any, shapes: list[Shape], micro: bool) -> None:
                     axis.plot(points[start:start + 2, 0], points[start:start + 2, 1],
                               color=colour, linewidth=2.5)
             else:
-                axis.plot(points[:, 0], points[:, 1], color=colour, linewidth=1.2)
+                axis.plot(points[:, 0], points[:, 1], color=colour, linewidth=1.2,
+                          linestyle=route_style if shape.namespace.endswith('route') else '-')
         elif shape.kind == 'sphere_list':
             axis.scatter(points[:, 0], points[:, 1], s=14, color=colour, zorder=3)
         elif shape.kind == 'disc':
@@ -152,7 +153,6 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
     names = [robot_name(k) for k in robots] if robots else ['']
     events = _events(bag, names)
     first, last = events[0][0], events[-1][0]
-    starts = _first_positions(events)
     clock = 'on the wall clock' if is_wall_clock(first * 1e-9) else 'simulated'
     times = np.linspace(first, last, frames)
     scenes = {name: Scene(DEFAULT_RIG) for name in names} if not robots else {
@@ -171,23 +171,19 @@ def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
             _, robot, topic, message = events[cursor]
             _apply(scenes[robot], topic, message)
             cursor += 1
-        shapes = [shape for scene in scenes.values()
-                  for shape in (scene.static_shapes() + scene.route_shapes(only_last=False)
-                                + scene.robot_shapes())]
         for axis, micro in ((main, False), (inset, True)):
             axis.cla()
-            _draw(axis, shapes, micro)
+            for k, scene in zip(robots or [0], scenes.values(), strict=True):
+                _draw(axis, scene.static_shapes() + scene.route_shapes(only_last=False)
+                      + scene.robot_shapes(), micro, route_style(k, len(scenes)))
             axis.set_aspect('equal')
             axis.grid(True, alpha=0.3)
-        # Before a robot is first placed (a real robot's run shows it at its first capture):
-        # where it will be.
-        seen = [point for scene in scenes.values() for point in scene.route] or starts
-        goals = [scene.goal_m for scene in scenes.values() if scene.goal_m is not None]
-        x_values = [x for x, _ in seen + goals]
-        y_values = [y for _, y in seen + goals]
-        margin = 6.0
-        main.set_xlim(min(x_values) * 1e3 - margin, max(x_values) * 1e3 + margin)
-        main.set_ylim(min(y_values) * 1e3 - margin - 20, max(y_values) * 1e3 + margin + 20)
+        # The whole platform, the micro field well inside it: where every robot may go.
+        (cx, cy), (w, h) = PLATFORM_CENTER_M, PLATFORM_SIZE_M
+        main.set_xlim((cx - w / 2) * 1e3 - PLATFORM_MARGIN_MM, (cx + w / 2) * 1e3
+                      + PLATFORM_MARGIN_MM)
+        main.set_ylim((cy - h / 2) * 1e3 - PLATFORM_MARGIN_MM, (cy + h / 2) * 1e3
+                      + PLATFORM_MARGIN_MM)
         main.set(xlabel='x (mm)', ylabel='y (mm)', title='platform (15 cm field)')
         title.set_text(f'{bag.name}: t = {(times[index] - first) * 1e-9:6.2f} s {clock}')
         (cx, cy), (w, h) = DEFAULT_RIG.micro.center_m, DEFAULT_RIG.micro.field_m

@@ -233,15 +233,17 @@ class Scene:
         ``only_last``: just the segment still growing."""
         count = max(1, math.ceil((len(self.route) - 1) / (ROUTE_SEGMENT_POINTS - 1)))
         first = count - 1 if only_last else 0
+        # A robot among others draws its route in its own colour, opaque.
+        colour = ROUTE if not self.label else (*self.robot_colour[:3], 1.0)
         shapes = []
         for segment in range(first, count):
             start = segment * (ROUTE_SEGMENT_POINTS - 1)
             points = tuple(self.route[start:start + ROUTE_SEGMENT_POINTS])
             if len(points) < 2:
                 continue
-            shapes.append(Shape('route', segment, 'line_strip', points, ROUTE, MACRO_WIDTH_M))
+            shapes.append(Shape('route', segment, 'line_strip', points, colour, MACRO_WIDTH_M))
             if self._near_micro_field(points):
-                shapes.append(Shape('micro/route', segment, 'line_strip', points, ROUTE,
+                shapes.append(Shape('micro/route', segment, 'line_strip', points, colour,
                                     MACRO_WIDTH_M * MICRO_SCALE))
         return shapes
 

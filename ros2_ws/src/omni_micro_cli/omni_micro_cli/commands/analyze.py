@@ -186,13 +186,16 @@ def run(args: argparse.Namespace) -> int:
 
 def analyze_fleet(args: argparse.Namespace, robots: list[int]) -> int:
     """A fleet's bag: a table per robot and every robot's route in one figure."""
-    from omni_micro_cli import plots
     from omni_micro_tools.fleet_analysis import fleet_markdown, summarize_fleet
+    from omni_micro_vision.fleet_figure import DrawnRobot, fleet_routes_png
 
-    summary, routes = summarize_fleet(args.bag, robots)
+    summary, drawn = summarize_fleet(args.bag, robots)
     with staged_directory(args.out) as scratch:
-        plots.routes(scratch / 'route.png', routes, title=f'{len(robots)} robots (from the bag)',
-                     equal_aspect=True)
+        (scratch / 'route.png').write_bytes(fleet_routes_png(
+            [DrawnRobot(k, row['robot'], drawn[row['robot']]['route_m'],
+                        drawn[row['robot']]['goals_m'], row['goals_reached'])
+             for k, row in zip(robots, summary['robots'], strict=True)],
+            f'{len(robots)} robots (from {args.bag.name})'))
         if args.animate:
             from omni_micro_vision.animation import animate
 

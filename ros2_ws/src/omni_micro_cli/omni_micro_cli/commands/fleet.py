@@ -41,7 +41,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'own slip dynamics and wheel offsets, its own captures, its own '
                     'controller (the paper\'s rule, the model or the servo mode); a planner '
                     'reserves the platform (9 mm discs, centres '
-                    f'kept {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
+                    f'planned {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
                     'time) and every robot '
                     'drives its legs once those it waits for have ended. Runs in one process '
                     '(the fleet twin), or with --graph through the node graph (one '
@@ -186,14 +186,18 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
 
         ran = run_graph(replace(graph, fleet=FleetRun(
             plan, fleet.robots, fleet.controllers, max_sim_time_s, on_progress=progress)))
-        echo_to_stderr(f'graph: logs in {ran.log_dir} (ROS_DOMAIN_ID {ran.domain_id}), '
-                       f'{ran.sim_time_s:.2f} s simulated in {ran.wall_time_s:.1f} s wall')
+        running_wall_s = ran.wall_time_s
+        echo_to_stderr(f'graph: logs in {ran.log_dir} (ROS_DOMAIN_ID {ran.domain_id}); '
+                       f'{ran.sim_time_s:.2f} s simulated in {running_wall_s:.1f} s of wall '
+                       'time from the clock\'s start to the last goal')
         result = told_as_the_twin(plan, ran)
     else:
         result = run_fleet(plan, robots=fleet.robots, seed=seed, controllers=fleet.controllers,
                            max_sim_time_s=max_sim_time_s, on_progress=progress)
+        running_wall_s = None
     wall_s = time.perf_counter() - started
     summary = summarize(fleet, plan, result, planned_s, wall_s)
+    summary['running_wall_s'] = running_wall_s
     print_table(summary)
     if record is not None and graph is None:   # the graph's recorder wrote its own
         write_bag(record, plan, result)
@@ -224,18 +228,33 @@ def write_bag(bag: Path, plan: Any, result: Any) -> None:
 
 def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
               wall_s: float) -> dict[str, Any]:
+    from omni_micro_vision.camera import DEFAULT_RIG
+
     robots = []
     for k, run in enumerate(result.robots):
         final = run.final_state
+        goals = []
+        for index, task in enumerate(fleet.tasks[k]):
+            seen = DEFAULT_RIG.resolution_at(*task.goal_m)
+            reached = index < len(run.tasks_done_s)
+            goals.append({
+                'goal_mm': [v * 1e3 for v in task.goal_m],
+                'camera': seen[0] if seen else None,
+                'reached_at_s': run.tasks_done_s[index] if reached else None,
+                'deviation_um': run.deviations_m[index] * 1e6 if reached else None,
+                # The 95 % radius of the captures that told it reached: its own error.
+                'capture_95_um': seen[1] * 1e6 if seen else None})
         robots.append({
             'robot': robot_name(k), 'start_mm': [v * 1e3 for v in fleet.starts_m[k]],
             'wheel_offsets_deg': list(fleet.offsets_deg[k]), 'controller': fleet.controllers[k],
             'goals': len(fleet.tasks[k]), 'goals_reached': len(run.tasks_done_s),
             'reached_at_s': run.tasks_done_s,
             'deviation_um': [d * 1e6 for d in run.deviations_m],
+            'goal_results': goals,
             'legs': len(plan.legs[k]), 'moves': run.moves,
             'farthest_off_leg_mm': run.off_leg_m * 1e3,
-            'final_mm': [final.x_m * 1e3, final.y_m * 1e3], 'outcome': run.outcome or 'done',
+            'final_mm': [final.x_m * 1e3, final.y_m * 1e3],
+            'final_phi_deg': math.degrees(final.phi_rad), 'outcome': run.outcome or 'done',
             'learnt_offsets_deg': ([math.degrees(v) for v in run.learnt_offsets_rad]
                                    if run.learnt_offsets_rad is not None else None)})
     return {'outcome': result.outcome, 'reason': result.reason, 'robots': robots,
@@ -247,71 +266,51 @@ def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
             'planning_s': planned_s, 'wall_s': wall_s}
 
 
+def worst_by_camera(robot: dict[str, Any], camera: str) -> str:
+    """The robot's worst true distance from a goal ``camera`` sees, with that camera's
+    captures' own error (95 %) beside it: ``12.13+-26.39``; ``-`` for none reached."""
+    seen = [goal for goal in robot['goal_results']
+            if goal['camera'] == camera and goal['deviation_um'] is not None]
+    if not seen:
+        return '-'
+    worst = max(seen, key=lambda goal: goal['deviation_um'])
+    return f"{worst['deviation_um']:.2f}+-{worst['capture_95_um']:.2f}"
+
+
 def print_table(summary: dict[str, Any]) -> None:
-    print(f'{"robot":<8} {"control":<7} {"goals":>7} {"last at s":>9} {"worst um":>9} '
-          f'{"legs":>5} {"moves":>6} {"off leg mm":>10} {"learnt xi2,xi3 deg":>18}  outcome')
+    print(f'{"robot":<8} {"control":<7} {"goals":>7} {"last at s":>9} {"micro um":>12} '
+          f'{"macro um":>12} {"legs":>5} {"moves":>6} {"off leg mm":>10} '
+          f'{"learnt xi2,xi3 deg":>18}  outcome')
     for robot in summary['robots']:
         last = max(robot['reached_at_s'], default=float('nan'))
-        worst = max(robot['deviation_um'], default=float('nan'))
         learnt = robot['learnt_offsets_deg']
         learnt_text = f'{learnt[0]:.3f}, {learnt[1]:.3f}' if learnt is not None else '-'
         print(f'{robot["robot"]:<8} {robot["controller"]:<7} '
               f'{robot["goals_reached"]:>3}/{robot["goals"]:<3} '
-              f'{last:>9.2f} {worst:>9.2f} {robot["legs"]:>5} {robot["moves"]:>6} '
+              f'{last:>9.2f} {worst_by_camera(robot, "micro"):>12} '
+              f'{worst_by_camera(robot, "macro"):>12} {robot["legs"]:>5} {robot["moves"]:>6} '
               f'{robot["farthest_off_leg_mm"]:>10.3f} {learnt_text:>18}  {robot["outcome"]}')
     gap = summary['closest_gap_mm']
     pair = summary['closest_pair']
     print(f'{summary["outcome"]}: {summary["reason"]}; {summary["goals_reached"]} goals, '
           f'{summary["goals_per_minute"]:.2f} per simulated minute; closest centres '
-          + (f'{gap:.2f} mm (robots {pair[0]} and {pair[1]})' if gap is not None else 'n/a')
-          + f'; planned in {summary["planning_s"]:.2f} s, {summary["wall_s"]:.1f} s wall')
+          + (f'{gap:.2f} mm (robots {pair[0]} and {pair[1]}; planned {CLEARANCE_M * 1e3:g} mm '
+             'or more)' if gap is not None else 'n/a')
+          + f'; planned in {summary["planning_s"]:.2f} s, {summary["wall_s"]:.1f} s of wall '
+            'time in all')
     sys.stdout.flush()
 
 
 def route_figure(plan: Any, result: Any) -> bytes:
-    """Each robot's route in its colour, its start (open) and end (filled) as 9 mm discs,
-    labelled, the micro field marked."""
-    import io
+    """Every robot's route, start, goals and end, and the micro field
+    (:mod:`omni_micro_vision.fleet_figure`)."""
+    import numpy as np
 
-    import matplotlib
+    from omni_micro_vision.fleet_figure import DrawnRobot, fleet_routes_png
 
-    matplotlib.use('Agg')
-    from matplotlib import pyplot as plt
-    from matplotlib.patches import Circle, Rectangle
-
-    from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
-    from omni_micro_vision.camera import DEFAULT_RIG
-    from omni_micro_vision.scene import FLEET_COLOURS
-
-    figure, axes = plt.subplots(figsize=(7, 7))
-    radius_mm = ROBOT_DIAMETER_M / 2.0 * 1e3
-    for k, run in enumerate(result.robots):
-        colour = FLEET_COLOURS[k % len(FLEET_COLOURS)][:3]   # as /robot_k/markers draws it
-        route = run.route_m
-        if len(route):
-            axes.plot(route[:, 1] * 1e3, route[:, 2] * 1e3, color=colour, lw=1.2,
-                      label=f'{robot_name(k)}: {len(run.tasks_done_s)} goals')
-        start = plan.starts_m[k]
-        axes.add_patch(Circle((start[0] * 1e3, start[1] * 1e3), radius_mm, fill=False,
-                              color=colour, ls='--'))
-        final = run.final_state
-        axes.add_patch(Circle((final.x_m * 1e3, final.y_m * 1e3), radius_mm, color=colour,
-                              alpha=0.35))
-        axes.annotate(str(k), (final.x_m * 1e3, final.y_m * 1e3), ha='center', va='center')
-    micro = DEFAULT_RIG.micro
-    axes.add_patch(Rectangle(((micro.center_m[0] - micro.field_m[0] / 2) * 1e3,
-                              (micro.center_m[1] - micro.field_m[1] / 2) * 1e3),
-                             micro.field_m[0] * 1e3, micro.field_m[1] * 1e3, color='k',
-                             fill=False, lw=1.5, label='micro field'))
-    axes.set_xlim(-25, 125)
-    axes.set_ylim(-75, 75)
-    axes.set_aspect('equal')
-    axes.set_xlabel('x (mm)')
-    axes.set_ylabel('y (mm)')
-    axes.set_title(f'{len(result.robots)} robots: {result.outcome}, '
-                   f'{result.sim_time_s:.1f} s simulated')
-    axes.legend(loc='upper left', fontsize=8)
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format='png', dpi=110)
-    plt.close(figure)
-    return buffer.getvalue()
+    drawn = [DrawnRobot(k, robot_name(k), run.route_m[:, 1:3] if len(run.route_m) else
+                        np.zeros((0, 2)), np.array([task.goal_m for task in plan.tasks[k]]),
+                        len(run.tasks_done_s), plan.starts_m[k])
+             for k, run in enumerate(result.robots)]
+    return fleet_routes_png(drawn, f'{len(result.robots)} robots: {result.outcome}, '
+                                   f'{result.sim_time_s:.1f} s simulated')

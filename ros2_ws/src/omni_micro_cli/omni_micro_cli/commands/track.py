@@ -38,7 +38,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     'over still frames beside the covariance tracker_node would publish. The '
                     "camera's pose on the platform comes from tracker_node's params "
                     '(its package defaults, then --params). Exit 0 when at least one frame '
-                    'showed the fiducial, 1 when none did, 2 for a bad argument.')
+                    'showed the fiducial (with --robots: when every robot given was named in '
+                    'a frame), 1 when none did (with --robots: when a robot never was, named), '
+                    '2 for a bad argument.')
     parser.add_argument('bag', type=Path, metavar='BAG', help='a bag holding the images')
     parser.add_argument('--camera', choices=('macro', 'micro'), default='micro',
                         help='whose params (pose, field, spread) apply (default micro)')
