@@ -209,6 +209,10 @@ def test_no_process_outlives_a_killed_orchestrator(tmp_path):
         # The nodes, and whatever started them (the zygote of omni_micro_bringup.warm_start).
         children = descendants(run.pid)
         assert set(NODES) <= set(children.values()), children
+        for pid, name in children.items():   # and by `ps aux` and `pgrep -f`, as started
+            if name in NODES:
+                assert f'{name} --ros-args' in Path(f'/proc/{pid}/cmdline').read_text().replace(
+                    '\0', ' '), name
         domain = leased_domain(next(pid for pid, name in children.items() if name in NODES))
         pause_the_robots_clock(domain)
         time.sleep(0.3)   # what was under way arrives

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from omni_micro_bringup import warm_start
+from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
 from omni_micro_bringup.processes import node_environment
 from omni_micro_bringup.warm_start import WARM_START_ENV, WarmProcess, entry_point_of, start_warm
 
@@ -73,7 +74,38 @@ def test_a_warm_node_is_given_what_a_started_one_is(probe_env, tmp_path, monkeyp
     # Only stdio and the descriptor handed over, at its number (and the probe's own listing).
     assert warm['open_fds'] == cold['open_fds'] and warm['lifeline_open']
     assert warm['name'] == 'warm_probe'   # what `top` and `pgrep` show
+    # What `ps aux`, `htop` and `pgrep -f` show: the script and its arguments, as started.
+    assert warm['cmdline'] == f'{PROBE.with_suffix("")} 0'
+    assert cold['cmdline'] == f'{sys.executable} {PROBE} 0'
     assert warm['pid'] != os.getpid() and warm['pid'] > 0
+
+
+@pytest.mark.parametrize('spec', [
+    NodeSpec('omni_micro_vision', 'vision_node', {'seed': 3}, namespace='robot_1',
+             remaps=('__ns:=/robot_1',)),
+    composed([NodeSpec('omni_micro_sim', 'dynamics_node', {'paused': True}),
+              NodeSpec('omni_micro_control', 'controller_node')])],
+    ids=['a node', 'the container'])
+def test_a_warm_node_is_found_by_pgrep_f_as_ros2_run_would_start_it(spec, probe_env):
+    """A node's own command line (the container's with each hosted node's module and ROS
+    arguments), run on the probe: ``pgrep -f`` finds it by its executable and arguments."""
+    env, lifeline = probe_env
+    argv = [*process_argv(spec), '0']
+    process, given = start_warm_argv(argv, env, lifeline)
+    assert finish(process) == (0, '')
+    assert given['cmdline'] == ' '.join(argv)
+    assert given['name'] == Path(argv[0]).name[:15]
+    assert given['invocation'] == argv[0]   # its ROS log file is named by it, as started
+    assert f'{spec.executable} --ros-args' in given['cmdline'] or all(
+        f'{hosted.package}.{hosted.executable} --ros-args' in given['cmdline']
+        for hosted in spec.hosts)
+
+
+def start_warm_argv(argv: list[str], env: dict[str, str], lifeline: int) -> tuple[WarmProcess,
+                                                                                    dict]:
+    process = start_warm(argv, env, (lifeline,), entry_point='warm_probe:main')
+    assert process is not None and process.stdout is not None
+    return process, json.loads(process.stdout.readline())
 
 
 @pytest.mark.parametrize('ending', ['3', 'raise', 'SIGINT', 'SIGTERM', 'SIGKILL'])

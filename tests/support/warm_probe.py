@@ -1,7 +1,8 @@
 """An entry point for warm_start's tests: prints what the process it runs in was given, then
-does what its first argument says (exit with a code, raise, use 0.3 s of CPU, wait for a
+does what its last argument says (exit with a code, raise, use 0.3 s of CPU, wait for a
 signal or for its lifeline's end)."""
 
+import ctypes
 import json
 import os
 import signal
@@ -21,11 +22,15 @@ def main() -> int:
         'argv': sys.argv, 'cwd': os.getcwd(), 'domain': os.environ.get('ROS_DOMAIN_ID'),
         'own_session': os.getsid(0) == os.getpid(), 'pid': os.getpid(),
         'name': Path('/proc/self/comm').read_text().strip(),
+        'cmdline': Path('/proc/self/cmdline').read_text().rstrip('\0').replace('\0', ' '),
+        # What rcutils names a ROS log file by.
+        'invocation': ctypes.c_char_p.in_dll(ctypes.CDLL(None), 'program_invocation_name')
+        .value.decode(),
         'open_fds': sorted(fds), 'lifeline_open': lifeline in fds,
         'stdin_is_null': os.path.samefile('/proc/self/fd/0', os.devnull),
         'compiled_kernels': compiled,
     }), flush=True)
-    what = sys.argv[1]
+    what = sys.argv[-1]   # after a node's ROS arguments, when it is given them
     if what == 'raise':
         raise RuntimeError('the probe fails as asked')
     if what == 'wait':

@@ -20,7 +20,7 @@ ROSDEP_KEYS = {
     'tqdm': 'python3-tqdm', 'pyarrow': 'python3-pyarrow-pip', 'dask': 'python3-dask-pip',
     'distributed': 'python3-distributed-pip', 'rosbags': 'python3-rosbags-pip',
     'mcap': 'python3-mcap-pip', 'mcap_ros2': 'python3-mcap-ros2-support-pip',
-    'foxglove': 'python3-foxglove-sdk-pip',
+    'foxglove': 'python3-foxglove-sdk-pip', 'setproctitle': 'python3-setproctitle',
 }
 # ROS packages import as themselves (rclpy, geometry_msgs, ...), as do the siblings.
 ROS_PACKAGES = {'rclpy', 'builtin_interfaces', 'diagnostic_msgs', 'geometry_msgs', 'nav_msgs',

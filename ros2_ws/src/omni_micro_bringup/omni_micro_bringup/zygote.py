@@ -152,16 +152,34 @@ def become(launch: Launch, fds: list[int]) -> Callable[[], int | str | None]:
     os.environ.clear()
     os.environ.update(launch.env)
     sys.argv = list(launch.argv)
-    _name_process(Path(launch.argv[0]).name)
+    _name_process(launch.argv)
     module, function = launch.entry_point.split(':')
     return getattr(importlib.import_module(module), function)
 
 
-def _name_process(name: str) -> None:
-    """The kernel's name of the process (``top``, ``ps -e``, ``pgrep``): the executable's, as a
-    started script has it."""
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_NAME, name.encode()[:15], 0, 0, 0)
+# The name glibc keeps for the program (rcutils names a node's ROS log file by it), held here
+# for the process's life: setproctitle writes the title over the memory it pointed into.
+_invocation_name: ctypes.Array[ctypes.c_char] | None = None
+
+
+def _name_process(argv: list[str]) -> None:
+    """Name the process as the started script is named: its command line (``ps aux``, ``htop``,
+    ``pgrep -f``) the executable and its arguments, as ``ros2 run`` gives them, where the fork
+    would show the zygote's (``python -P -m omni_micro_bringup.zygote 4``); its kernel name
+    (``top``, ``ps -e``, ``pgrep``) and glibc's program name (its ROS log file's) the
+    executable's."""
+    global _invocation_name
+    import setproctitle
+
+    setproctitle.setproctitle(' '.join(argv))
+    with contextlib.suppress(OSError, AttributeError, ValueError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_NAME, Path(argv[0]).name.encode()[:15], 0, 0, 0)
+        _invocation_name = ctypes.create_string_buffer(argv[0].encode())
+        address = ctypes.addressof(_invocation_name)
+        ctypes.c_void_p.in_dll(libc, 'program_invocation_name').value = address
+        ctypes.c_void_p.in_dll(libc, 'program_invocation_short_name').value = (
+            address + len(argv[0].encode()) - len(Path(argv[0]).name.encode()))
 
 
 def _open_fds() -> list[int]:
@@ -170,6 +188,10 @@ def _open_fds() -> list[int]:
 
 def main() -> None:
     sock = socket.socket(fileno=int(sys.argv[1]))
+    # setproctitle finds the command line's memory by walking from the environment, which a
+    # child replaces before it names itself: found here, while both are as exec left them.
+    import setproctitle
+    setproctitle.setproctitle(setproctitle.getproctitle())
     _preload()
     child = serve(sock)
     if child is None:
