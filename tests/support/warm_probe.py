@@ -24,8 +24,8 @@ def main() -> int:
         'name': Path('/proc/self/comm').read_text().strip(),
         'cmdline': Path('/proc/self/cmdline').read_text().rstrip('\0').replace('\0', ' '),
         # What rcutils names a ROS log file by.
-        'invocation': ctypes.c_char_p.in_dll(ctypes.CDLL(None), 'program_invocation_name')
-        .value.decode(),
+        'invocation': (ctypes.c_char_p.in_dll(ctypes.CDLL(None), 'program_invocation_name')
+                       .value or b'').decode(),
         'open_fds': sorted(fds), 'lifeline_open': lifeline in fds,
         'stdin_is_null': os.path.samefile('/proc/self/fd/0', os.devnull),
         'compiled_kernels': compiled,
