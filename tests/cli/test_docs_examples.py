@@ -1,6 +1,7 @@
 """The docs' examples as a newcomer types them: every ``omni-micro`` command line in docs/ and
 README.md is taken by the command's parser, and docs/fleet.md's robots.yaml and tasks.yaml run
-as printed (their graph runs are tests/graph/test_fleet_graph.py's)."""
+as printed (in the twin here; through the graph: tests/graph/test_docs_fleet_examples.py, and
+the line on rendered images up to the graph here)."""
 
 from __future__ import annotations
 
@@ -74,3 +75,28 @@ def test_a_tolerance_finer_than_the_seeing_camera_resolves_is_refused_writing_no
     assert main(['fleet', '--robots', 'robots.yaml', '--tasks', 'tasks.yaml',
                  '--max-sim-time', '1']) == 1   # planned and run (it times out)
     assert 'timeout: tasks left after 1 s' in capsys.readouterr().err
+
+
+def test_the_fleet_page_s_line_on_images_hands_the_graph_its_files(fleet_files, monkeypatch,
+                                                                   capsys):
+    """``run --robots robots.yaml --tasks tasks.yaml --vision images --record ...`` is taken,
+    checked and planned, and reaches the graph with the robots' controllers on images."""
+    from omni_micro_bringup import graph
+    from omni_micro_bringup.graph_result import GraphResult, RobotLog
+
+    line = next(argv for argv in documented_command_lines((DOCS / 'fleet.md').read_text())
+                if argv[0] == 'run' and 'tasks.yaml' in argv and '--vision' in argv)
+    asked = []
+
+    def run_graph(options):
+        asked.append(options)
+        logs = [RobotLog(tasks_done_s=[1.0] * len(tasks), route=[(0.0, 0.0, 0.0, 0.0)])
+                for tasks in options.fleet.plan.tasks]
+        return GraphResult('done', 'every task done in 1.00 s', 1.0, 0.5, options.log_dir, 7,
+                           robots=logs, closest_gap_m=0.02, closest_pair=(0, 1))
+
+    monkeypatch.setattr(graph, 'run_graph', run_graph)
+    assert main(line) == 0, capsys.readouterr().err
+    (options,) = asked
+    assert options.vision == 'images' and options.record is not None
+    assert options.fleet.controllers == ['model', 'paper']
