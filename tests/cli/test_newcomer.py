@@ -120,3 +120,26 @@ def test_a_robot_among_others_draws_its_route_in_its_colour():
         for x in (0.0, 0.01, 0.02):
             scene.on_odometry(x, 0.0, 0.0)
         assert {shape.colour for shape in scene.route_shapes(only_last=False)} == {colour}
+
+
+@pytest.mark.parametrize(('robots', 'tasks', 'named'), [
+    ('[{start_mm: [0, 0]}, {start_mm: [40, 0]}]',
+     '{robot_0: [{goal_mm: [500, 0]}], robot_1: [{goal_mm: [40, 40]}]}', 'off the platform'),
+    ('[{start_mm: [0, 0]}, {start_mm: [5, 0]}]',
+     '{robot_0: [{goal_mm: [60, 0]}], robot_1: [{goal_mm: [40, 40]}]}', 'start 5.00 mm apart'),
+    ('[{start_mm: [0, 0]}, {start_mm: [40, 0]}]',
+     '{robot_0: [{goal_mm: [60, 0], after: [1, 5]}], robot_1: [{goal_mm: [40, 40]}]}',
+     'waits for robot 1'),
+    ('[{start_mm: [0, 0]}, {start_mm: [40, 0]}]',
+     '{robot_0: [{goal_mm: [60, 0], after: [1, 0]}], '
+     'robot_1: [{goal_mm: [40, 40], after: [0, 0]}]}', 'cycle')],
+    ids=['goal off the platform', 'starting touching', 'after naming no goal', 'a cycle'])
+def test_a_refused_fleet_leaves_nothing_on_disk(robots, tasks, named, tmp_path, capsys):
+    (tmp_path / 'robots.yaml').write_text(f'robots: {robots}\n')
+    (tmp_path / 'tasks.yaml').write_text(f'tasks: {tasks}\n')
+    bag = tmp_path / 'bags' / 'factory'
+    assert main(['fleet', '--robots', str(tmp_path / 'robots.yaml'), '--tasks',
+                 str(tmp_path / 'tasks.yaml'), '--record', str(bag)]) == 2
+    said = capsys.readouterr().err.strip()
+    assert named in said and said.count('\n') == 0, said
+    assert not (tmp_path / 'bags').exists()
