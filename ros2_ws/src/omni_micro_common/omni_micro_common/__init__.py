@@ -7,7 +7,8 @@ gate and its reports, plain Python), :mod:`lockstep_groups` (one lockstep over s
 :mod:`clocks` (which clock a stamp is on, and when two cannot share one), :mod:`node_runtime` (how
 a node process starts, spins and stops), :mod:`parameter_checks` (what rclpy would pass over in
 silence at start-up), :mod:`reader_matching` (readers a node waits to have matched),
-:mod:`publication_counts` (what a node published, said at shutdown), :mod:`container` (several
+:mod:`publication_counts` (what a node published, said at shutdown),
+:mod:`controller_status` (a controller's ``/controller/status``), :mod:`container` (several
 nodes in one process), :mod:`params` (the one reader of params files), :mod:`messages` (message
 classes by type name), :mod:`cdr` (messages serialized once and patched in place),
 :mod:`template_layouts` (what those templates find, kept on disk between processes),

@@ -19,7 +19,6 @@ from omni_micro_common.conventions import (
     IMAGE_TOPIC_KEY,
     JOINT_NAMES,
     OUTCOME_KEY,
-    STATUS_TIME_KEY,
     split_stamp,
 )
 from omni_micro_control.feedback import (
@@ -153,18 +152,6 @@ def outcome_values(finished: Finished, robot_time_s: float,
     if goal_m is not None:
         values.update(goal_x_m=repr(goal_m[0]), goal_y_m=repr(goal_m[1]))
     return values
-
-
-def status_message(level: int, message: str, at_s: float, values: dict[str, str]
-                   ) -> DiagnosticStatus:
-    """``at_s``: the simulated time of what the status says (a decision's capture, a goal's
-    arrival), not of its publication: a bag records it at that time (STATUS_TIME_KEY), so
-    that the same run records the same statuses in the same place."""
-    status = DiagnosticStatus(level=level, name='omni_micro_controller', message=message,
-                              hardware_id='omni_micro')
-    values = {STATUS_TIME_KEY: repr(float(at_s)), **values}
-    status.values = [KeyValue(key=key, value=value) for key, value in values.items()]
-    return status
 
 
 def capture_age_line(camera: str, values: dict[str, str], own_s: float, bound_s: float) -> str:

@@ -38,6 +38,7 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.clocks import clock_mismatch
+from omni_micro_common.controller_status import status_message
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
     CaptureUncertainty,
@@ -72,7 +73,6 @@ from omni_micro_control.controller_messages import (
     outcome_values,
     ready_line,
     servo_move,
-    status_message,
     stop_trajectory,
     take_tracker_status,
     waiting_line,
