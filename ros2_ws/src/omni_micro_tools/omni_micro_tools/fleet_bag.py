@@ -16,7 +16,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from omni_micro_common.conventions import STATUS_TIME_KEY, yaw_to_quaternion
+from omni_micro_common.controller_status import status_message
+from omni_micro_common.conventions import yaw_to_quaternion
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
     CONTROLLER_STATUS_TOPIC,
@@ -36,7 +37,7 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
     """Write the bag of ``result`` (a fleet twin run of ``plan``) into ``path``; return how many
     messages it holds. ``path`` must not exist."""
     from builtin_interfaces.msg import Time
-    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from diagnostic_msgs.msg import DiagnosticStatus
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
@@ -97,10 +98,9 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
                            serialize_message(message)))
         for task, reached_s in enumerate(run.tasks_done_s):
             goal_x, goal_y = plan.tasks[robot][task].goal_m
-            status = DiagnosticStatus(level=DiagnosticStatus.OK, name='omni_micro_controller',
-                                      message='reached', hardware_id='omni_micro')
-            status.values = [KeyValue(key=key, value=repr(float(value))) for key, value in (
-                (STATUS_TIME_KEY, reached_s), ('goal_x_m', goal_x), ('goal_y_m', goal_y))]
+            status = status_message(DiagnosticStatus.OK, 'reached', reached_s,
+                                    {'goal_x_m': repr(float(goal_x)),
+                                     'goal_y_m': repr(float(goal_y))})
             events.append((round(reached_s * 1e9), robot_topic(robot, CONTROLLER_STATUS_TOPIC),
                            serialize_message(status)))
     writer, connections = open_writer(path, 'mcap', topics)
