@@ -95,6 +95,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
+# The destinations add_micro_factory_arguments adds.
+MICRO_FACTORY_OPTIONS = ('tasks', 'goals_per_robot', 'max_sim_time', 'plot')
+
+
 def add_micro_factory_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """What both doors to a micro-factory take (``fleet`` and ``run --robots``): its tasks,
     how long it may run, the picture of its routes."""
@@ -196,8 +200,7 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
                            max_sim_time_s=max_sim_time_s, on_progress=progress)
         running_wall_s = None
     wall_s = time.perf_counter() - started
-    summary = summarize(fleet, plan, result, planned_s, wall_s)
-    summary['running_wall_s'] = running_wall_s
+    summary = summarize(fleet, plan, result, planned_s, wall_s, running_wall_s)
     print_table(summary)
     if record is not None and graph is None:   # the graph's recorder wrote its own
         write_bag(record, plan, result)
@@ -226,8 +229,8 @@ def write_bag(bag: Path, plan: Any, result: Any) -> None:
     echo_to_stderr(f'recorded {count} messages into {bag}')
 
 
-def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
-              wall_s: float) -> dict[str, Any]:
+def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float, wall_s: float,
+              running_wall_s: float | None = None) -> dict[str, Any]:
     from omni_micro_vision.camera import DEFAULT_RIG
 
     robots = []
@@ -263,7 +266,7 @@ def summarize(fleet: Fleet, plan: Any, result: Any, planned_s: float,
             'closest_gap_mm': (result.closest_gap_m * 1e3
                                if math.isfinite(result.closest_gap_m) else None),
             'closest_pair': list(result.closest_pair) if result.closest_pair else None,
-            'planning_s': planned_s, 'wall_s': wall_s}
+            'planning_s': planned_s, 'wall_s': wall_s, 'running_wall_s': running_wall_s}
 
 
 def worst_by_camera(robot: dict[str, Any], camera: str) -> str:

@@ -26,7 +26,7 @@ from omni_micro_cli.arguments import (
     steering_overrides,
     view_from_args,
 )
-from omni_micro_cli.commands.fleet import add_micro_factory_arguments
+from omni_micro_cli.commands.fleet import MICRO_FACTORY_OPTIONS, add_micro_factory_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
@@ -199,7 +199,7 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision', 'force', 'goals_per_robot', 'max_sim_time', 'plot')
+                 'vision', 'force', *MICRO_FACTORY_OPTIONS)
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -321,10 +321,8 @@ def summary_line(result: GraphResult, external: bool = False) -> str:
 def run(args: argparse.Namespace) -> int:
     if args.robots is not None:
         return fleet_run(args)
-    several = [flag for flag, given in (('--tasks', args.tasks is not None),
-                                        ('--goals-per-robot', args.goals_per_robot is not None),
-                                        ('--max-sim-time', args.max_sim_time != 1800),
-                                        ('--plot', args.plot is not None)) if given]
+    several = [f'--{dest.replace("_", "-")}' for dest in MICRO_FACTORY_OPTIONS
+               if getattr(args, dest) != _DEFAULTS[dest]]
     if several:
         raise UsageError(f'{", ".join(several)}: for several robots; give --robots N|FILE')
     if args.goal_mm is None:
