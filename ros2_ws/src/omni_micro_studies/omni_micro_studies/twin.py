@@ -109,6 +109,22 @@ def _tick(grid: GridSimulator, max_sim_time_s: float,
     return sample
 
 
+def _drive(loop: StopAndGoLoop | ServoLoop, grid: GridSimulator,
+           max_sim_time_s: float) -> tuple[Finished, np.ndarray]:
+    """Period after period until ``loop`` ends its goal: how it ended, and the route (t, x, y).
+
+    Raises
+    ------
+    SimulationError
+        Once past ``max_sim_time_s`` of simulated time with no outcome.
+    """
+    route: list[tuple[float, float, float]] = []
+    finished: Finished | None = None
+    while finished is None:
+        finished = loop.step(_tick(grid, max_sim_time_s, route))
+    return finished, np.array(route)
+
+
 class StopAndGoLoop:
     """One robot's stop-and-go loop (the paper's rule, or the model mode), a period at a time:
     what the vision and controller nodes do with one of the dynamics' samples. The fleet twin
@@ -187,14 +203,11 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     loop = StopAndGoLoop(grid, StationaryCamera(rig, rule, seed),
                          VisionFeedbackController(config, planner), limits)
     loop.controller.set_goal(goal_m, 0.0)
-    route: list[tuple[float, float, float]] = []
-    finished: Finished | None = None
-    while finished is None:
-        finished = loop.step(_tick(grid, max_sim_time_s, route))
+    finished, route = _drive(loop, grid, max_sim_time_s)
     return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
                             grid.simulator.state, grid.time_s,
                             (float(goal_m[0]), float(goal_m[1])), loop.used,
-                            np.array(route), loop.moves, planner)
+                            route, loop.moves, planner)
 
 
 @dataclass
@@ -298,14 +311,11 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     loop = ServoLoop(grid, StationaryCamera(rig, rule, seed), MovingCamera(rig, timings, seed),
                      session, limits)
     session.set_goal(goal_m, 0.0)
-    route: list[tuple[float, float, float]] = []
-    finished: Finished | None = None
-    while finished is None:
-        finished = loop.step(_tick(grid, max_sim_time_s, route))
+    finished, route = _drive(loop, grid, max_sim_time_s)
     servo = session.servo
     learnt = servo.filter.offsets_rad if servo.filter is not None else (0.0, 0.0)
     return ServoResult(finished.outcome, finished.reason, finished.periods,
                        grid.simulator.state, grid.time_s, (float(goal_m[0]), float(goal_m[1])),
-                       [finished.observation] if finished.observation else [], np.array(route),
+                       [finished.observation] if finished.observation else [], route,
                        stops=servo.stops, replans=servo.replans,
                        captures_in_motion=session.captures_in_motion, offsets_rad=learnt)
