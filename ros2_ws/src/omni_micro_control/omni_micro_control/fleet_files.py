@@ -121,12 +121,7 @@ def robots_from(spec: str, seed: int, controller: str = 'paper') -> tuple[
     starts, offsets, controllers = [], [], []
     for index, entry in enumerate(entries):
         where = f'{spec!r}: robots[{index}]'
-        if not isinstance(entry, dict) or 'start_mm' not in entry:
-            raise FleetFileError(f'{where} must be a mapping with start_mm, got {entry!r}')
-        unknown = set(entry) - {'start_mm', 'wheel_offsets_deg', 'controller'}
-        if unknown:
-            raise FleetFileError(f'{where} has unknown keys {sorted(unknown)} (start_mm, '
-                             'wheel_offsets_deg, controller)')
+        entry = _mapping(where, entry, ('start_mm', 'wheel_offsets_deg', 'controller'))
         starts.append(_pair(f'{where}.start_mm', entry['start_mm'], 1e-3))
         offsets.append(_offsets(f'{where}.wheel_offsets_deg', entry['wheel_offsets_deg'])
                        if 'wheel_offsets_deg' in entry else drawn_offsets(rng))
@@ -162,13 +157,19 @@ def tasks_from(path: Path, robots: int) -> list[list[Task]]:
     return tasks
 
 
-def _task(where: str, goal: object) -> Task:
-    if not isinstance(goal, dict) or 'goal_mm' not in goal:
-        raise FleetFileError(f'{where} must be a mapping with goal_mm, got {goal!r}')
-    unknown = set(goal) - {'goal_mm', 'after', 'tolerance_um'}
+def _mapping(where: str, value: object, keys: tuple[str, ...]) -> dict[str, Any]:
+    """``value`` as an entry of a file: a mapping with ``keys[0]``, the others optional, no
+    other key."""
+    if not isinstance(value, dict) or keys[0] not in value:
+        raise FleetFileError(f'{where} must be a mapping with {keys[0]}, got {value!r}')
+    unknown = set(value) - set(keys)
     if unknown:
-        raise FleetFileError(f'{where} has unknown keys {sorted(unknown)} (goal_mm, after, '
-                         'tolerance_um)')
+        raise FleetFileError(f'{where} has unknown keys {sorted(unknown)} ({", ".join(keys)})')
+    return value
+
+
+def _task(where: str, entry: object) -> Task:
+    goal = _mapping(where, entry, ('goal_mm', 'after', 'tolerance_um'))
     after = goal.get('after')
     if after is not None and (not isinstance(after, list) or len(after) != 2 or not all(
             isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in after)):
