@@ -14,6 +14,7 @@ from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_composition import fleet_specs
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
+from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
 from omni_micro_cli.cli import main
 from omni_micro_sim.parameters import RobotParameters
@@ -102,6 +103,44 @@ def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_
                  if word == 'omni_micro_control.controller_node'][1]   # robot_1's
         assert container[start + 1:start + len(argv)] == argv[1:]
         assert container[start + len(argv)] == '--'
+
+
+@pytest.mark.parametrize('vision', ['model', 'images'])
+def test_one_wiring_tells_time_whom_to_wait_for_in_a_fleet_and_a_single_robot(tmp_path, vision):
+    """dynamics_node's lockstep_nodes and awaited_readers come from the same functions for N
+    robots and for one: every node that reports is waited for by the name it reports under,
+    and every reader of the robots' streams is awaited in its robot's namespace."""
+    def dynamics_of(specs):
+        hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+        return next(spec for spec in hosted if spec.executable == 'dynamics_node').overrides
+
+    fleet = dynamics_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
+                                    math.inf, (), tmp_path, record=(tmp_path / 'bag', 'mcap'),
+                                    markers=True, vision=vision))
+    robots = ('robot_0', 'robot_1')
+    assert set(fleet['lockstep_nodes']) == {
+        *(f'{robot}/{node}' for robot in robots for node in (
+            'controller_node', 'markers_node', 'omni_micro_orchestration',
+            *(('tracker_node',) if vision == 'images' else ('vision_node',)))),
+        'bag_recorder', *(('camera_node',) if vision == 'images' else ())}
+    odometry_reader = 'camera_node' if vision == 'images' else '{robot}/vision_node'
+    for robot in robots:
+        assert f'{odometry_reader.format(robot=robot)}:/{robot}/odom' in fleet['awaited_readers']
+        assert f'{robot}/controller_node:/{robot}/joint_states' in fleet['awaited_readers']
+        assert f'bag_recorder:/{robot}/wheel_slip' in fleet['awaited_readers']
+        assert f'omni_micro_orchestration:/{robot}/odom_throttle' in fleet['awaited_readers']
+    assert fleet['awaited_readers'].count('bag_recorder:/clock') == 1
+
+    single = dynamics_of(wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision=vision,
+                                                  record=tmp_path / 'one' / 'bag')))
+    # The fleet of one in the root namespace: bare names and topics, the orchestration only
+    # reading (a single robot's goals wait for no coordinator).
+    assert set(single['lockstep_nodes']) == {
+        'controller_node', 'markers_node', 'bag_recorder',
+        *(('camera_node', 'tracker_node') if vision == 'images' else ('vision_node',))}
+    assert {f'{odometry_reader.format(robot="").strip("/")}:/odom',
+            'controller_node:/joint_states', 'bag_recorder:/clock',
+            'omni_micro_orchestration:/odom_throttle'} <= set(single['awaited_readers'])
 
 
 def test_a_node_given_as_a_command_is_refused_by_the_container():

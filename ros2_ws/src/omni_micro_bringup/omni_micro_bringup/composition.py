@@ -6,13 +6,14 @@ the recorder, the live view); what each node is told beyond its package's params
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_spec import NodeSpec, composed
 from omni_micro_bringup.params_files import node_parameters
+from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
@@ -25,6 +26,7 @@ from omni_micro_common.topic_names import (
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
+    namespaced_topic,
 )
 from omni_micro_control.fleet_plan import FleetPlan
 from omni_micro_control.servo_config import SERVO_MODE
@@ -51,6 +53,7 @@ READS_FROM_ROBOT: dict[str, tuple[str, ...]] = {
 # the odometry it takes the run's final pose from (omni_micro_bringup.orchestrator); not part of
 # the graph.
 ORCHESTRATOR_NODE = 'omni_micro_orchestration'
+RECORDER_NODE = 'bag_recorder'
 
 
 def orchestration_odometry_topic(follow_route: bool) -> str:
@@ -76,32 +79,67 @@ def default_nodes(vision: str = 'model') -> list[NodeSpec]:
             NodeSpec('omni_micro_control', controller)]
 
 
-def recorder_spec(bag: Path, storage: str, markers: bool = True,
-                  images: tuple[str, ...] = (), without: tuple[str, ...] = (),
-                  whole: bool = False, in_motion: bool = False,
-                  cameras: tuple[str, ...] = ('macro', 'micro')) -> NodeSpec:
-    """The recorder of a run, taking part in the lockstep: the robot never runs so far ahead
-    of it that a stream's writer drops a sample it has not recorded (``lockstep_ticks``), and
-    with ``images`` (cameras), whose streams it records too, no frame is lost to a slow disk
-    (``lockstep_frames``). ``without``: topics nobody in this graph publishes (it waits for a
-    publisher of each before the clock starts).
-    ``whole``: the bag keeps every message received, not only up to the outcome's tail."""
+def recorded_topics(robots: Sequence[str] = ('',), markers: bool = True,
+                    without: tuple[str, ...] = (), in_motion: Sequence[str] = (),
+                    cameras: Sequence[str] = tuple(CAPTURE_IN_MOTION_TOPICS),
+                    images: Sequence[str] = ()) -> list[str]:
+    """What a run's bag holds: /clock, and each robot's topics of the graph (GRAPH_TOPICS) in
+    its namespace (``robots``; ``''`` the root one, a single robot's), /markers with
+    ``markers``, none of ``without`` (topics nobody in the graph publishes); the ``images``
+    cameras' streams; and the captures in motion of ``cameras`` of the robots ``in_motion``,
+    whose servo (or the user) asked for them."""
     from omni_micro_tools.topics import GRAPH_TOPICS
 
-    topics = [topic for topic in GRAPH_TOPICS
-              if (markers or topic != MARKERS_TOPIC) and topic not in without]
-    topics += [f'/camera/{camera}/{stream}' for camera in images
-               for stream in ('image_raw', 'camera_info')]
-    topics += [CAPTURE_IN_MOTION_TOPICS[camera] for camera in cameras] if in_motion else []
-    return NodeSpec('omni_micro_tools', 'bag_recorder', overrides={
-        'bag': str(bag), 'storage': storage, 'topics': topics,
-        'lockstep_frames': bool(images), 'lockstep_ticks': True, 'end_at_outcome': not whole},
-        lockstep=True)
+    own = [topic for topic in GRAPH_TOPICS if topic != CLOCK_TOPIC and topic not in without
+           and (markers or topic != MARKERS_TOPIC)]
+    return [*(() if CLOCK_TOPIC in without else (CLOCK_TOPIC,)),
+            *(namespaced_topic(robot, topic) for robot in robots for topic in own),
+            *(f'/camera/{camera}/{stream}' for camera in images
+              for stream in ('image_raw', 'camera_info')),
+            *(namespaced_topic(robot, CAPTURE_IN_MOTION_TOPICS[camera]) for robot in in_motion
+              for camera in cameras)]
 
 
-def viewer_spec(host: str, port: int, markers: bool) -> NodeSpec:
-    return NodeSpec('omni_micro_tools', 'viewer',
-                    overrides={'host': host, 'port': int(port), 'markers': bool(markers)})
+def recorder_spec(bag: Path, storage: str, topics: list[str], frames: bool = False,
+                  whole: bool = False) -> NodeSpec:
+    """The recorder of ``topics``, taking part in the lockstep: the robots never run so far
+    ahead of it that a stream's writer drops a sample it has not recorded (``lockstep_ticks``),
+    and with ``frames`` (images among the topics) no frame is lost to a slow disk
+    (``lockstep_frames``). ``whole``: the bag keeps every message received, not only up to the
+    outcome's tail."""
+    return NodeSpec('omni_micro_tools', RECORDER_NODE, overrides={
+        'bag': str(bag), 'storage': storage, 'topics': topics, 'lockstep_frames': frames,
+        'lockstep_ticks': True, 'end_at_outcome': not whole}, lockstep=True)
+
+
+def viewer_spec(host: str, port: int, markers: bool, robots: Sequence[str] = ()) -> NodeSpec:
+    """The live view; of a micro-factory's ``robots`` (namespaces), each one's topics."""
+    return NodeSpec('omni_micro_tools', 'viewer', overrides={
+        'host': host, 'port': int(port), 'markers': bool(markers),
+        **({'robots': list(robots)} if robots else {})})
+
+
+def lockstep_nodes(specs: list[NodeSpec], also: Sequence[str] = ()) -> list[str]:
+    """dynamics_node's ``lockstep_nodes``: every node of ``specs`` that reports on /lockstep,
+    as it names itself, and ``also`` (the orchestration's, where it coordinates)."""
+    return [*(name for spec in specs for name in spec.lockstep_names), *also]
+
+
+def awaited_readers(specs: list[NodeSpec], robots: Sequence[str],
+                    orchestration_topic: str) -> list[str]:
+    """dynamics_node's ``awaited_readers``: each node of ``specs`` (hosted ones too) with what
+    it reads from the robots (READS_FROM_ROBOT), a robot's node in its namespace and a shared
+    one in every robot's, then the orchestration's ``orchestration_topic`` of every robot."""
+    entries: list[str] = []
+    for reader in (hosted for spec in specs for hosted in (spec.hosts or (spec,))):
+        node = qualified_node_name(reader.namespace, reader.executable)
+        for topic in READS_FROM_ROBOT.get(reader.executable, ()):
+            entries += [f'{node}:{topic}'] if topic == CLOCK_TOPIC else [
+                f'{node}:{namespaced_topic(robot, topic)}'
+                for robot in ((reader.namespace,) if reader.namespace else robots)]
+    entries += [f'{ORCHESTRATOR_NODE}:{namespaced_topic(robot, orchestration_topic)}'
+                for robot in robots]
+    return list(dict.fromkeys(entries))
 
 
 MARKERS_NODE = NodeSpec('omni_micro_vision', 'markers_node')
@@ -304,9 +342,11 @@ def recorder_of_graph(options: GraphOptions, bag: Path) -> NodeSpec:
     cameras = tracked_cameras(options)
     unpublished += tuple(topic for name in CAPTURE_TOPICS if name not in cameras
                          for topic in (CAPTURE_TOPICS[name], CAPTURE_COVARIANCE_TOPICS[name]))
-    spec = recorder_spec(bag, options.storage, options.markers, images, unpublished,
-                         whole=options.record_whole, in_motion=publishes_in_motion(options),
-                         cameras=cameras)
+    topics = recorded_topics(markers=options.markers, without=unpublished,
+                             in_motion=('',) if publishes_in_motion(options) else (),
+                             cameras=cameras, images=images)
+    spec = recorder_spec(bag, options.storage, topics, frames=bool(images),
+                         whole=options.record_whole)
     overrides = dict(spec.overrides)
     if driver_images:
         overrides.update(driver_images=list(driver_images))

@@ -16,13 +16,19 @@ a bare section name only in the root namespace), and they report on the one ``/l
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import yaml
 
 from omni_micro_bringup.composition import (
     ORCHESTRATOR_NODE,
-    READS_FROM_ROBOT,
+    RECORDER_NODE,
+    awaited_readers,
+    lockstep_nodes,
+    recorded_topics,
+    recorder_spec,
+    viewer_spec,
 )
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import servo_timing_of
@@ -36,22 +42,15 @@ from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.params import load_params_file
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
-    CAPTURE_IN_MOTION_TOPICS,
-    CLOCK_TOPIC,
-    JOINT_STATES_TOPIC,
-    MARKERS_TOPIC,
     ODOM_THROTTLE_TOPIC,
-    ODOM_TOPIC,
     ROBOT_TOPICS,
     robot_name,
     robot_topic,
 )
 from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import RobotParameters
-from omni_micro_tools.topics import GRAPH_TOPICS, robot_and_topic
 from omni_micro_vision.scene import FLEET_COLOURS
 
-RECORDER_NODE = 'bag_recorder'
 # A robot's nodes, each with its package; and, drawing it on /robot_k/markers, its markers_node.
 ROBOT_NODES = (('omni_micro_vision', 'vision_node'), ('omni_micro_control', 'controller_node'))
 MARKERS_NODE = ('omni_micro_vision', 'markers_node')
@@ -73,20 +72,6 @@ def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Pat
         path.write_text(yaml.safe_dump(renamed, sort_keys=False))
         written.append(path)
     return written
-
-
-def recorded_topics(count: int, markers: bool, in_motion: tuple[int, ...] = (),
-                    images: bool = False) -> list[str]:
-    """What a fleet's bag holds: /clock, and each robot's topics of a single robot's bag under
-    its namespace (``/robot_k/markers`` with ``markers``; the captures in motion of the robots
-    ``in_motion``, whose servo reads them). On rendered ``images`` no robot has a vision_node
-    to say ``camera/status`` (the shared tracker says why per camera, as a single robot's)."""
-    left_out = {CLOCK_TOPIC, *(() if markers else (MARKERS_TOPIC,)),
-                *((CAMERA_STATUS_TOPIC,) if images else ())}
-    return [CLOCK_TOPIC, *(robot_topic(k, topic) for k in range(count) for topic in GRAPH_TOPICS
-                           if topic not in left_out),
-            *(robot_topic(k, topic) for k in in_motion
-              for topic in CAPTURE_IN_MOTION_TOPICS.values())]
 
 
 def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[str]:
@@ -120,8 +105,11 @@ def shared_cameras(count: int, seed: int, params: list[Path],
     tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
                                   'covariance_readers': [f'{robot}/{name}' for robot in robots
                                                          for name in capture_readers]}
-    return [NodeSpec(package, node, params=tuple(params), overrides=values)
-            for (package, node), values in ((CAMERA_NODE, camera), (TRACKER_NODE, tracker))]
+    # The tracker takes part in each robot's lockstep as that robot's (it gates its captures).
+    return [NodeSpec(*CAMERA_NODE, params=tuple(params), overrides=camera),
+            NodeSpec(*TRACKER_NODE, params=tuple(params), overrides=tracker,
+                     reports_as=tuple(qualified_node_name(robot, TRACKER_NODE[1])
+                                      for robot in robots))]
 
 
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
@@ -154,32 +142,16 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     images = vision == 'images'
     check_vision(modes, vision)
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
-    # Each robot's nodes (markers_node a watcher), and the orchestration as each robot's
-    # coordinator (fleet_graph); the shared camera for all, the tracker for each robot's gate.
-    taking_part = [qualified_node_name(robot_name(k), node) for k in range(count)
-                   for node in (*(name for _, name in nodes), ORCHESTRATOR_NODE,
-                                *((TRACKER_NODE[1],) if images else ()))]
-    taking_part += [CAMERA_NODE[1]] if images else []
-    taking_part += [RECORDER_NODE] if record is not None else []   # its recorded_ns
-    awaited = [entry for k in range(count) for entry in (
-        f'{CAMERA_NODE[1] if images else robot_name(k) + "/vision_node"}:'
-        f'{robot_topic(k, ODOM_TOPIC)}',
-        f'{robot_name(k)}/controller_node:{robot_topic(k, JOINT_STATES_TOPIC)}',
-        f'{ORCHESTRATOR_NODE}:{robot_topic(k, ODOM_THROTTLE_TOPIC)}',
-        *(f'{robot_name(k)}/{MARKERS_NODE[1]}:{robot_topic(k, topic)}'
-          for topic in (READS_FROM_ROBOT[MARKERS_NODE[1]] if markers else ())))]
-    if record is not None:
-        # The recorder keeps every tick from the first (composition.READS_FROM_ROBOT).
-        awaited += [f'{RECORDER_NODE}:{topic}'
-                    for topic in recorded_topics(count, markers, servos, images)
-                    if robot_and_topic(topic)[1] in READS_FROM_ROBOT[RECORDER_NODE]]
+    names = [robot_name(k) for k in range(count)]
+    recorder = None if record is None else recorder_spec(*record, recorded_topics(
+        names, markers, (CAMERA_STATUS_TOPIC,) if images else (),
+        in_motion=[names[k] for k in servos]))
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
-        'robots': [robot_name(k) for k in range(count)],
+        'robots': names,
         'robot_poses': [float(v) for x, y in starts_m for v in (x, y, 0.0)],
         'robot_wheel_offsets_rad': [float(v) for robot in robots
-                                    for v in robot.wheel_offsets_rad],
-        'lockstep_nodes': taking_part, 'awaited_readers': awaited}
+                                    for v in robot.wheel_offsets_rad]}
     specs = [NodeSpec('omni_micro_sim', 'dynamics_node', params=shipped, overrides=dynamics)]
     if images:
         specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes])
@@ -200,27 +172,30 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                    'trajectory_readers': [
                                        'dynamics_node',
                                        *((f'{robot}/markers_node',) if markers else ()),
-                                       *((RECORDER_NODE,) if record is not None else ())],
+                                       *((RECORDER_NODE,) if recorder else ())],
                                    **(servo_timing_of(params_files) if servo else {})},
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
                    'robot.label': robot,
                    # Its first array waits for the recorder's reader, which must not miss it.
-                   'markers_readers': ['bag_recorder'] if record is not None else []}}
+                   'markers_readers': [RECORDER_NODE] if recorder else []}}
         for package, node in nodes:
             specs.append(NodeSpec(package, node, own[node], namespace=robot, remaps=remaps,
                                   params=params))
-    if composed:
-        specs = [composed_loop(specs)]
-    if record is not None:
-        bag, storage = record
-        specs.append(NodeSpec('omni_micro_tools', RECORDER_NODE, params=shipped, overrides={
-            'bag': str(bag), 'storage': storage,
-            'topics': recorded_topics(count, markers, servos, images), 'lockstep_ticks': True}))
-    if view is not None:
-        host, port = view
-        specs.append(NodeSpec('omni_micro_tools', 'viewer', params=shipped, overrides={
-            'host': host, 'port': int(port), 'markers': bool(markers),
-            'robots': [robot_name(k) for k in range(count)]}))
-    return specs
+    listeners = [replace(spec, params=shipped) for spec in (
+        *(() if recorder is None else (recorder,)),
+        *(() if view is None else (viewer_spec(*view, markers, names),)))]
+    # Time waits for every node's reports (the orchestration's as each robot's coordinator:
+    # fleet_graph) and for the readers that must have every robot's streams from the first.
+    specs[0] = replace(specs[0], overrides={
+        **dynamics,
+        'lockstep_nodes': lockstep_nodes([*specs, *listeners],
+                                         [coordinator_name(k) for k in range(count)]),
+        'awaited_readers': awaited_readers([*specs, *listeners], names, ODOM_THROTTLE_TOPIC)})
+    return [*([composed_loop(specs)] if composed else specs), *listeners]
+
+
+def coordinator_name(robot: int) -> str:
+    """How the orchestration reports on /lockstep as robot ``robot``'s coordinator."""
+    return qualified_node_name(robot_name(robot), ORCHESTRATOR_NODE)

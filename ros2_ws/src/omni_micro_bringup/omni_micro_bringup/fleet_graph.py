@@ -27,11 +27,12 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
-from omni_micro_bringup.composition import ORCHESTRATOR_NODE, GraphOptions
+from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
     check_vision,
     controller_modes,
+    coordinator_name,
     fleet_specs,
 )
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
@@ -195,11 +196,6 @@ class FleetMonitor(Orchestrator):
             if time.monotonic() > deadline:
                 raise RunFailed(f'no odometry of every robot at or after t={stamp_s:.3f} s')
             self.spin_for(0.05)
-
-
-def coordinator_name(robot: int) -> str:
-    """How the coordinator reports on /lockstep for robot ``robot``: in its namespace."""
-    return f'{robot_name(robot)}/{ORCHESTRATOR_NODE}'
 
 
 def ready_topics(count: int) -> list[tuple[str, ...]]:

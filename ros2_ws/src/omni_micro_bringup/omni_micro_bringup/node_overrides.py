@@ -10,12 +10,12 @@ from pathlib import Path
 
 from omni_micro_bringup.composition import (
     MARKERS_FROM_VISION,
-    ORCHESTRATOR_NODE,
-    READS_FROM_ROBOT,
     GraphOptions,
     all_specs,
+    awaited_readers,
     camera_node_of,
     graph_nodes,
+    lockstep_nodes,
     orchestration_odometry_topic,
     publishes_in_motion,
     servo_mode,
@@ -56,16 +56,12 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
-        taking_part = [name for other in all_specs(options) for name in other.lockstep_names]
-        overrides.update(lockstep_nodes=taking_part if options.in_lockstep else [])
+        specs = all_specs(options)
+        overrides.update(lockstep_nodes=lockstep_nodes(specs) if options.in_lockstep else [])
         # Time waits for the readers of every node of the graph that must have the robot's
         # streams from the first sample (READS_FROM_ROBOT).
-        in_graph = [hosted.executable for other in all_specs(options)
-                    for hosted in (other.hosts or (other,))]
-        overrides.update(awaited_readers=[
-            f'{node}:{topic}' for node in dict.fromkeys(in_graph)
-            for topic in READS_FROM_ROBOT.get(node, ())]
-            + [f'{ORCHESTRATOR_NODE}:{orchestration_odometry_topic(options.follow_route)}'])
+        overrides.update(awaited_readers=awaited_readers(
+            specs, ('',), orchestration_odometry_topic(options.follow_route)))
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
             overrides.update(stamp_origin='wall', real_time_factor=1.0)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.params_files import format_parameter, resolve_executable
+from omni_micro_common.lockstep_groups import qualified_node_name
 
 # Nodes that report to the dynamics in lockstep (a stand-in started by command does not);
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
@@ -38,6 +39,9 @@ class NodeSpec:
     # win): what its command line says before the overrides.
     remaps: tuple[str, ...] = ()
     params: tuple[Path, ...] = ()
+    # The names it reports under on /lockstep when not its own: the tracker a micro-factory's
+    # robots share reports once per robot, as that robot's (``robot_1/tracker_node``).
+    reports_as: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
@@ -53,10 +57,13 @@ class NodeSpec:
 
     @property
     def lockstep_names(self) -> tuple[str, ...]:
-        """The nodes of this process that report on /lockstep."""
+        """The nodes of this process that report on /lockstep, as each names itself
+        (``robot_1/controller_node`` in a robot's namespace)."""
         if self.hosts:
             return tuple(name for spec in self.hosts for name in spec.lockstep_names)
-        return (self.name,) if self.reports_lockstep else ()
+        if not self.reports_lockstep:
+            return ()
+        return self.reports_as or (qualified_node_name(self.namespace, self.executable),)
 
 
 def composed(specs: list[NodeSpec]) -> NodeSpec:
