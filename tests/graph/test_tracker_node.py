@@ -3,6 +3,7 @@ CameraInfo): captures of a still robot where it is, none while it moves, a reaso
 without the fiducial, and a corrupt frame refused with the node staying up."""
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -204,3 +205,88 @@ def test_an_incompatible_driver_is_named_by_the_tracker_with_the_setting_to_chan
     probe.spin_for(0.5)
     log = (tmp_path / 'tracker_node.log').read_text()
     assert expected in log
+
+
+def test_frames_that_never_arrive_are_counted_and_named(start_node, probe, tmp_path):
+    """A driver at 30 Hz whose frames 40-79 mostly never arrive (as a large best-effort frame
+    through too small a segment is lost): the tracker counts exactly those from the gaps in the
+    stamps, says the stretch once in its log with the cause and what to do, and carries the
+    figures in its status. Each frame waits for the tracker's report of the last, so that no
+    frame is lost here but those withheld on purpose, however busy the machine."""
+    from omni_micro_common.lockstep import ACK_TOPIC
+    from omni_micro_common.lockstep_reporting import decode_ack
+    from omni_micro_common.qos import LOCKSTEP_QOS
+
+    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+               'image_reliability:=reliable')
+    images = probe.node.create_publisher(Image, '/camera/macro/image_raw', CAPTURE_QOS)
+    handled: list[int] = []
+    statuses: list[DiagnosticStatus] = []
+    probe.node.create_subscription(DiagnosticStatus, '/camera/macro/tracker_status',
+                                   statuses.append, latched(1))
+
+    def on_report(msg: DiagnosticStatus) -> None:
+        ack = decode_ack(msg)
+        if ack is not None and ack.frame_handled_ns is not None:
+            handled.append(ack.frame_handled_ns)
+
+    probe.node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report, LOCKSTEP_QOS)
+    probe.spin_until(lambda: images.get_subscription_count() > 0, 30.0, 'the tracker to listen')
+    pixels = np.zeros((int(CAMERA.resolution_px[1]), int(CAMERA.resolution_px[0])), np.uint8)
+    withheld = {index for index in range(40, 80) if index % 5 != 0}
+    for index in range(160):
+        if index in withheld:
+            continue
+        image, _ = frame_messages(pixels, 1.0 + index / 30)
+        images.publish(image)
+        stamp = image.header.stamp.sec * 10**9 + image.header.stamp.nanosec
+        probe.spin_until(lambda stamp=stamp: stamp in handled, 30.0, f'frame {index} handled')
+    probe.spin_until(lambda: any(status.message.endswith('(none since)')
+                                 for status in statuses), 10.0, 'the stretch ended')
+    ended = next(status for status in statuses if status.message.endswith('(none since)'))
+    # From frame 41 to 140, the first two seconds after the last loss (frame 79).
+    assert ended.message == f'frames lost: {len(withheld)} of 100 (none since)'
+    values = {kv.key: kv.value for kv in ended.values}
+    assert (values['frames_lost'], values['frames_lost_total']) == (str(len(withheld)),) * 2
+    assert float(values['frames_lost_since_s']) == pytest.approx(1.0 + 41 / 30, abs=1e-3)
+    # Mono8 1280 x 1024, read reliable: not the shared-memory segments' doing.
+    assert values['frames_lost_cause'].startswith('likely cause: the transport')
+    probe.spin_for(0.3)
+    said = [line for line in (tmp_path / 'tracker_node.log').read_text().splitlines()
+            if 'frames from /camera/macro/image_raw lost since' in line]
+    assert len(said) == 1, said
+    assert 'the driver sends 30.0 Hz by its stamps' in said[0]
+
+
+def test_a_megapixel_driver_on_fast_dds_defaults_is_told_what_to_export(
+        start_node, domain_id, tmp_path):
+    """A machine-vision driver left on Fast DDS's defaults (tests/bench/mono16_driver.py: 3.8 MB
+    mono16 frames at 30 Hz, best effort) loses about two frames in three before the tracker
+    (docs/images.md, "Frames lost on the way"): the tracker names the loss in its log with the
+    cause and the export line that fixes it, and at shutdown how many came of how many."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from omni_micro_bringup.processes import node_environment
+
+    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+               'macro.image_topic:=/cam/image_raw', 'macro.info_topic:=/cam/camera_info',
+               'macro.resolution_px:=[1600,1200]', 'macro.bit_depth:=12')
+    env = node_environment(domain_id, tmp_path)
+    del env['FASTRTPS_DEFAULT_PROFILES_FILE']   # the driver's own shell exported nothing
+    driver = Path(__file__).parents[1] / 'bench' / 'mono16_driver.py'
+    finished = subprocess.run([sys.executable, str(driver), '/cam', '6'], env=env,
+                              capture_output=True, text=True, timeout=60)
+    sent = int(finished.stdout.split()[-1])
+    assert sent >= 150, finished.stdout
+    log = tmp_path / 'tracker_node.log'
+    deadline = time.monotonic() + 10.0
+    while 'lost since' not in log.read_text() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    said = [line for line in log.read_text().splitlines() if 'lost since' in line]
+    assert len(said) == 1, log.read_text()
+    assert ('MB frames read best effort through Fast DDS\'s default 0.5 MB shared-memory '
+            'segments; start the driver with the project\'s profile: export '
+            f'FASTRTPS_DEFAULT_PROFILES_FILE={dds_profile()}') in said[0]
+    assert 'the driver sends 30.0 Hz by its stamps' in said[0]

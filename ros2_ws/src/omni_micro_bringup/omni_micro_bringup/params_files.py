@@ -5,18 +5,13 @@ from __future__ import annotations
 import difflib
 import math
 import os
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_common import params
 from omni_micro_common.errors import ParamsFileError
-
-
-def install_prefixes() -> list[Path]:
-    prefixes = os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep)
-    return [Path(p) for p in prefixes if p]
+from omni_micro_common.installed import dds_profile_file, install_prefixes
 
 
 def resolve_executable(package: str, executable: str) -> Path:
@@ -84,10 +79,9 @@ def check_params_file(path: Path, nodes: Sequence[str] = ()) -> None:
 
 def dds_profile() -> Path:
     """The Fast DDS profile of the graph's processes (installed with omni_micro_common)."""
-    for prefix in install_prefixes():
-        path = prefix / 'share' / 'omni_micro_common' / 'config' / 'fastdds.xml'
-        if path.is_file():
-            return path
+    path = dds_profile_file()
+    if path is not None:
+        return path
     raise RunFailed('config/fastdds.xml of omni_micro_common is not installed')
 
 

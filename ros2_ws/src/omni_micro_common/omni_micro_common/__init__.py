@@ -12,7 +12,8 @@ silence at start-up), :mod:`reader_matching` (readers a node waits to have match
 nodes in one process), :mod:`params` (the one reader of params files), :mod:`messages` (message
 classes by type name), :mod:`cdr` (messages serialized once and patched in place),
 :mod:`template_layouts` (what those templates find, kept on disk between processes),
-:mod:`tick_messages` (the robot's per-tick messages as such templates), :mod:`errors`.
+:mod:`tick_messages` (the robot's per-tick messages as such templates), :mod:`installed`
+(where the packages and the Fast DDS profile are installed), :mod:`errors`.
 
 A camera driver, a tracker or a recorder that follows these contracts depends on this package
 alone: it imports no physics (no numba, no scipy).

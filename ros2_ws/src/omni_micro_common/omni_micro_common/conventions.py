@@ -139,6 +139,15 @@ FRAME_AGE_KEY = 'frame_age_s'
 CAPTURE_AGE_KEY = 'capture_age_s'
 FRAME_RATE_KEY = 'frame_rate_hz'
 IMAGE_TOPIC_KEY = 'image_topic'
+# A tracker's frames lost on the way (omni_micro_vision.frame_losses): the latest stretch's
+# count of the frames the driver sent, since when (the driver's clock), the likely cause; and all
+# lost of all sent since the tracker started.
+FRAMES_LOST_KEY = 'frames_lost'
+FRAMES_SENT_KEY = 'frames_sent'
+FRAMES_LOST_SINCE_KEY = 'frames_lost_since_s'
+FRAMES_LOST_CAUSE_KEY = 'frames_lost_cause'
+FRAMES_LOST_TOTAL_KEY = 'frames_lost_total'
+FRAMES_SENT_TOTAL_KEY = 'frames_sent_total'
 
 # The line a node prints at shutdown with what it published (node_runtime.PublicationCounter).
 PUBLISHED_MARKER = 'published message counts: '

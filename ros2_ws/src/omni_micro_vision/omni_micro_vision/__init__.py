@@ -10,7 +10,8 @@ speaks), :mod:`code_reading` (who is who in a frame of several robots) and :mod:
 tracker reads its settings, and the CameraInfo it accepts), :mod:`optics` (a simulated camera's
 mount and lens), :mod:`targets` (a chessboard calibration target), :mod:`calibration` (a camera's
 map fitted from frames of it), :mod:`motion_capture` (captures of a moving robot: stamp, spread,
-loss), :mod:`frame_ages` (how old a driver's frames come, by their stamps), :mod:`scene` (what a
+loss), :mod:`frame_ages` (how old a driver's frames come, by their stamps), :mod:`frame_losses`
+(frames a driver sent that never arrived, and why), :mod:`scene` (what a
 viewer draws) and :mod:`scene_kernel` (the frames' reflectance, numba), :mod:`animation` (a
 recorded run drawn as a GIF or MP4, scene by scene), :mod:`fleet_figure` (a micro-factory's
 routes in one picture), :mod:`errors`. At the

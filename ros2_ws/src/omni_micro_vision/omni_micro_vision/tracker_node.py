@@ -265,7 +265,15 @@ class TrackerNode(Node):
             if moving else None))
 
 
-COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,))
+def say_frames(node: TrackerNode) -> None:
+    """Its last words: each camera's frames, those that came of those the driver sent."""
+    for reader in node.readers:
+        if reader.losses.sent_total:
+            print(reader.frames_summary(), flush=True)
+
+
+COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,),
+                          on_shutdown=say_frames)
 
 
 def main(args: list[str] | None = None) -> None:

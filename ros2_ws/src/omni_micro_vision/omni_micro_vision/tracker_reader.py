@@ -6,6 +6,7 @@ The node (:mod:`omni_micro_vision.tracker_node`) holds the readers and arbitrate
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import Any, Protocol
 
@@ -15,8 +16,19 @@ from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEve
 from rclpy.qos import QoSPolicyKind
 from sensor_msgs.msg import CameraInfo
 
-from omni_micro_common.conventions import join_stamp, split_stamp, stamp_ns
-from omni_micro_common.qos import CAPTURE_QOS, latched
+from omni_micro_common.conventions import (
+    FRAMES_LOST_CAUSE_KEY,
+    FRAMES_LOST_KEY,
+    FRAMES_LOST_SINCE_KEY,
+    FRAMES_LOST_TOTAL_KEY,
+    FRAMES_SENT_KEY,
+    FRAMES_SENT_TOTAL_KEY,
+    join_stamp,
+    split_stamp,
+    stamp_ns,
+)
+from omni_micro_common.installed import dds_profile_file
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
@@ -30,6 +42,7 @@ from omni_micro_vision.encodings import full_scale
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.fleet_tracking import FleetCaptures
 from omni_micro_vision.frame_ages import FrameAges
+from omni_micro_vision.frame_losses import FrameLosses, LossStretch, likely_cause
 from omni_micro_vision.image_messages import ImageLike, image_array, read_image
 from omni_micro_vision.motion_capture import trackable, uncertainty_in_motion
 from omni_micro_vision.tracked_camera import TrackedCamera
@@ -70,6 +83,11 @@ class CameraReader:
         # A driver's frames (wall-clock stamps): how old they come, said in the status.
         self.ages = FrameAges(mid_exposure_after_stamp_s)
         self._age_values: list[KeyValue] = []
+        # Frames the driver sent that never came (frame_losses), said once per stretch.
+        self.losses = FrameLosses(camera.plane.name, image_topic)
+        self._loss_values: list[KeyValue] = []
+        self._tracking_s = 0.0   # the longest this node took over a frame lately
+        self._frame_bytes = 0
         self.camera = camera
         self.exposure_s = exposure_s
         self.mid_exposure_after_stamp_s = mid_exposure_after_stamp_s
@@ -111,6 +129,7 @@ class CameraReader:
         return SubscriptionEventCallbacks(incompatible_qos=on_incompatible)
 
     def on_info(self, msg: CameraInfo) -> None:
+        self.losses.add_info(stamp_ns(msg.header.stamp))
         refusal = self.camera.refusal(int(msg.width), int(msg.height), list(msg.k), list(msg.d))
         if refusal != self.info_refusal and refusal is not None:
             self.node.get_logger().warning(f'{self.name}: frames refused: {refusal}')
@@ -122,7 +141,15 @@ class CameraReader:
         if message != self._said or again:
             self._said, self._said_level = message, level
             self.status_pub.publish(DiagnosticStatus(level=level, name=f'tracker {self.name}',
-                                                     message=message, values=self._age_values))
+                                                     message=message, values=self._values))
+
+    @property
+    def _values(self) -> list[KeyValue]:
+        """What a status carries: the frames' ages, the latest stretch of lost frames, and
+        all lost of all sent so far (as they stand when it is said)."""
+        totals = [KeyValue(key=FRAMES_LOST_TOTAL_KEY, value=str(self.losses.lost_total)),
+                  KeyValue(key=FRAMES_SENT_TOTAL_KEY, value=str(self.losses.sent_total))]
+        return self._age_values + self._loss_values + (totals if self.losses.lost_total else [])
 
     def on_image(self, data: bytes) -> None:
         arrived_ns = time.time_ns()
@@ -139,8 +166,42 @@ class CameraReader:
         else:
             found, capture, in_motion = self._see(msg)
             self.node.on_frame(self, stamp, found, capture, in_motion)
-        if self.ages.add(stamp, arrived_ns, time.time_ns()):
+        done_ns = time.time_ns()
+        # Decays, so that one slow frame (the first, compiling) is not blamed for ever.
+        self._tracking_s = max((done_ns - arrived_ns) * 1e-9, 0.9 * self._tracking_s)
+        self._frame_bytes = len(data)
+        stretch = self.losses.add(stamp, self._loss_cause)
+        if stretch is not None:
+            self._state_losses(stretch)
+        if self.ages.add(stamp, arrived_ns, done_ns):
             self._state_ages()
+
+    def _loss_cause(self) -> str:
+        period_ns = self.losses.period_ns
+        return likely_cause(self._frame_bytes, self.node.reliability == 'best_effort',
+                            self._tracking_s, (period_ns or 0.0) * 1e-9,
+                            os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE')
+                            or (str(dds_profile_file()) if dds_profile_file() else None),
+                            IMAGE_QOS.depth)
+
+    def frames_summary(self) -> str:
+        """The frames that came of those the driver sent (by their stamps), in one line."""
+        losses = self.losses
+        return (f'{self.name}: {losses.sent_total - losses.lost_total + 1} frames from '
+                f'{self.image_topic} came of the {losses.sent_total + 1} the driver sent by '
+                f'their stamps ({losses.lost_total} lost)')
+
+    def _state_losses(self, stretch: LossStretch) -> None:
+        """Frames that never came: one log line per stretch, and the status's values."""
+        if not stretch.said:
+            self.node.get_logger().warning(stretch.message(time.time_ns()))
+        self._loss_values = [KeyValue(key=key, value=value) for key, value in (
+            (FRAMES_LOST_KEY, str(stretch.lost)), (FRAMES_SENT_KEY, str(stretch.sent)),
+            (FRAMES_LOST_SINCE_KEY, f'{stretch.since_ns * 1e-9:.6f}'),
+            (FRAMES_LOST_CAUSE_KEY, stretch.cause))]
+        self._say(DiagnosticStatus.OK if stretch.ended else DiagnosticStatus.WARN,
+                  f'frames lost: {stretch.lost} of {stretch.sent}'
+                  + (' (none since)' if stretch.ended else ''), again=True)
 
     def _state_ages(self) -> None:
         """How old the driver's frames come (frame_ages), in the status and, the first time,
@@ -204,7 +265,7 @@ class CameraReader:
             self._said_level = DiagnosticStatus.WARN if unnamed else DiagnosticStatus.OK
             self.status_pub.publish(DiagnosticStatus(
                 level=self._said_level, name=f'tracker {self.name}', message=message,
-                values=self._age_values + (where if unnamed else [])))
+                values=self._values + (where if unnamed else [])))
 
     def _see(self, msg: ImageLike) -> tuple[bool, HeldCapture | None, HeldInMotion | None]:
         """Track one frame: whether the fiducial is in it, and the capture or the capture in

@@ -1,0 +1,28 @@
+"""Where the workspace's packages are installed (``AMENT_PREFIX_PATH``, else this Python's
+prefix, where pip puts them), and the files they install: the Fast DDS profile of the graph,
+which a node names when it tells the user to export it."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+
+def install_prefixes() -> list[Path]:
+    prefixes = os.environ.get('AMENT_PREFIX_PATH', sys.prefix).split(os.pathsep)
+    return [Path(p) for p in prefixes if p]
+
+
+def installed_file(package: str, *parts: str) -> Path | None:
+    """``<prefix>/share/<package>/<parts...>`` under the first prefix that has it."""
+    for prefix in install_prefixes():
+        path = prefix.joinpath('share', package, *parts)
+        if path.is_file():
+            return path
+    return None
+
+
+def dds_profile_file() -> Path | None:
+    """The project's Fast DDS profile (installed with omni_micro_common), or None."""
+    return installed_file('omni_micro_common', 'config', 'fastdds.xml')
