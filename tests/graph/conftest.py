@@ -7,7 +7,9 @@ import fcntl
 import functools
 import json
 import os
+import signal
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -232,3 +234,33 @@ def fig11_recorded(tmp_path_factory, worker_id) -> tuple[Path, dict]:
             assert result.returncode == 0, result.stderr[-3000:]
             summary.write_text(result.stdout.strip().splitlines()[-1])
     return bag, json.loads(summary.read_text())
+
+
+# The stand-ins for real drivers (tests/bench), written from those drivers' conventions.
+BENCH = Path(__file__).resolve().parents[1] / 'bench'
+
+
+@pytest.fixture
+def bench(domain_id, tmp_path):
+    """``bench(script, *args)`` starts a stand-in in the test's domain; all are stopped with
+    SIGINT afterwards, as a user stops a driver."""
+    processes: list[tuple[subprocess.Popen, object]] = []
+
+    def start(script: str, *args: str) -> subprocess.Popen:
+        log = open(tmp_path / f'{script}-{len(processes)}.log', 'w')  # noqa: SIM115
+        process = subprocess.Popen([sys.executable, str(BENCH / script), *args],
+                                   env=node_environment(domain_id, tmp_path), stdout=log,
+                                   stderr=subprocess.STDOUT)
+        processes.append((process, log))
+        return process
+
+    yield start
+    for process, _ in processes:
+        process.send_signal(signal.SIGINT)
+    for process, log in processes:
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+        log.close()  # type: ignore[attr-defined]

@@ -18,50 +18,24 @@ import re
 import runpy
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from conftest import BENCH
 from nav_msgs.msg import Odometry
 
 from omni_micro_bringup.processes import node_environment
 
 pytestmark = pytest.mark.slow
 
-BENCH = Path(__file__).resolve().parents[1] / 'bench'
+
 ROOT = Path(__file__).resolve().parents[2]
 # Where the stand-in camera's target lies (tests/bench/camera_driver.py, TARGET).
 TARGET = ['--target-center-mm', '100.1,0', '--target-yaw-deg', '10', '--pitch-mm', '0.12']
 GOAL_MM = (100.3, 0.2)
 # How many times each start order is tried (OMNI_MICRO_BENCH_REPEATS: 20 for the docs' figure).
 REPEATS = int(os.environ.get('OMNI_MICRO_BENCH_REPEATS', '1'))
-
-
-@pytest.fixture
-def bench(domain_id, tmp_path):
-    """``bench(script, *args)`` starts a stand-in in the test's domain; all are stopped with
-    SIGINT afterwards, as a user stops a driver."""
-    processes: list[tuple[subprocess.Popen, object]] = []
-
-    def start(script: str, *args: str) -> subprocess.Popen:
-        log = open(tmp_path / f'{script}-{len(processes)}.log', 'w')  # noqa: SIM115
-        process = subprocess.Popen([sys.executable, str(BENCH / script), *args],
-                                   env=node_environment(domain_id, tmp_path), stdout=log,
-                                   stderr=subprocess.STDOUT)
-        processes.append((process, log))
-        return process
-
-    yield start
-    for process, _ in processes:
-        process.send_signal(signal.SIGINT)
-    for process, log in processes:
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-        log.close()  # type: ignore[attr-defined]
 
 
 def stop(process: subprocess.Popen) -> None:

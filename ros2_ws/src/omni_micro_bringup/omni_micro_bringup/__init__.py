@@ -7,7 +7,8 @@ available here): the only package that knows which nodes make the graph.
 graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file
 against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
 :mod:`bench_start` (what a bench run's goal waits for: the real robot's state, the cameras'
-frames), :mod:`processes` (each node a child process on loopback, its log, the domain's lease),
+frames), :mod:`preflight` and :mod:`preflight_probe` (the bench's live drivers checked before a
+run), :mod:`processes` (each node a child process on loopback, its log, the domain's lease),
 :mod:`warm_start` and :mod:`zygote` (nodes forked from a process that has imported what is
 slow),
 :mod:`shared_memory` (Fast DDS's files in /dev/shm: who holds them, what a killed node left),

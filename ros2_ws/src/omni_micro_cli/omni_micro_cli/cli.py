@@ -50,6 +50,8 @@ COMMANDS: dict[str, Command] = {
     'replay': Command('replay', "publish a bag's messages again, e.g. to feed a node"),
     'track': Command('track', "run the tracker on a bag's recorded images (a real camera's, "
                               'say)'),
+    'preflight': Command('preflight', "check the bench's live camera and robot drivers before "
+                                      'a run: one line per thing to fix'),
     'record-target': Command('record_target', "a simulated camera's frames of a calibration "
                                               'target, to rehearse calibrate-camera'),
     'calibrate-camera': Command('calibrate_camera', "a camera's map to the platform from its "

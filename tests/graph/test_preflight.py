@@ -1,0 +1,72 @@
+"""`omni-micro preflight` against live stand-ins written from real drivers' conventions
+(tests/bench): what a lab is told before a bench run. A camera driver streaming Bayer frames
+best effort with a calibrated CameraInfo and a robot driver on joint_state_broadcaster's
+conventions are read as they are; a machine-vision driver left on Fast DDS's defaults, an
+uncalibrated lens, frames of another size than the tracker's params and a robot whose driver is
+not running are each one line saying what to do, exit 1."""
+
+import json
+import re
+
+import yaml
+
+from omni_micro_common.conventions import JOINT_NAMES
+
+
+def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tmp_path):
+    camera = bench('camera_driver.py', '/bench/camera', 'bayer_rggb8', 'chessboard')
+    bench('robot_driver.py', '0.1', '0.0', '0.0')
+    params = tmp_path / 'tracker.yaml'
+    # The stand-in's own sensor (camera_driver.py: OPTICS), as a lab's params file says it.
+    params.write_text(yaml.safe_dump({'tracker_node': {'ros__parameters': {
+        'micro.resolution_px': [1280, 1024]}}}))
+    done = omni_micro('preflight', '--camera', 'micro=/bench/camera/image_raw', '--params',
+                      str(params), '--duration', '4', '--domain-id', str(domain_id), '--json')
+    report = json.loads(done.stdout)
+    (seen,), (robot,) = report['cameras'], report['robots']
+    assert (seen['encoding'], seen['calibrated']) == ('bayer_rggb8', True)
+    assert seen['sent_hz'] is not None and abs(seen['sent_hz'] - 15.0) < 0.1
+    assert 0 < seen['age_s'] < 0.1
+    assert [offer.split(': ')[1] for offer in seen['qos_offered']] == [
+        'best_effort, volatile']
+    assert robot['joints'] == sorted(JOINT_NAMES) and abs(robot['rate_hz'] - 50.0) < 2.0
+    assert robot['qos_offered'][0].endswith('reliable, volatile')
+    # Under load a best-effort frame may be lost, and is then said; nothing else is.
+    assert all(' frames lost on the way ' in line for line in report['findings']), report
+    assert done.returncode == (1 if report['findings'] else 0)
+    assert camera.poll() is None
+
+
+def test_what_needs_fixing_is_one_line_each(bench, omni_micro, domain_id, tmp_path):
+    import subprocess
+    import sys
+
+    from conftest import BENCH
+
+    from omni_micro_bringup.processes import node_environment
+
+    env = node_environment(domain_id, tmp_path)
+    del env['FASTRTPS_DEFAULT_PROFILES_FILE']   # a driver's shell that exported nothing
+    driver = subprocess.Popen([sys.executable, str(BENCH / 'mono16_driver.py'), '/cam', '10'],
+                              env=env, stdout=subprocess.DEVNULL)
+    try:
+        done = omni_micro('preflight', '--camera', 'macro=/cam/image_raw', '--duration', '4',
+                          '--domain-id', str(domain_id))
+    finally:
+        driver.terminate()
+        driver.wait(10)
+    assert done.returncode == 1, done.stdout + done.stderr
+    needs = [line for line in done.stdout.splitlines() if line.startswith('needs action: ')]
+    said = '\n'.join(needs)
+    assert re.search(r'macro \(/cam/image_raw\): \d+ of \d+ frames lost on the way \(30.0 Hz '
+                     r'sent by their stamps, [\d.]+ Hz arriving\); likely cause: 3.7 MB frames '
+                     r'read best effort through Fast DDS\'s default 0.5 MB shared-memory '
+                     r'segments; start the driver with the project\'s profile: export '
+                     r'FASTRTPS_DEFAULT_PROFILES_FILE=\S+fastdds.xml', said), said
+    assert ("macro (/cam/image_raw): frames are 1600 x 1200, the tracker's params say 1280 x "
+            '1024: set macro.resolution_px, or calibrate this camera') in said
+    assert ('macro (/cam/camera_info): K is all zero (no intrinsic calibration): calibrate the '
+            'lens with the ROS camera_calibration package') in said
+    assert ("robot (/joint_states): nothing publishes it: start the robot's driver in this "
+            'domain') in said
+    assert len(needs) == 4, said
