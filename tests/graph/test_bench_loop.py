@@ -22,12 +22,12 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import BENCH
 from nav_msgs.msg import Odometry
 
 from omni_micro_bringup.processes import node_environment
 
 pytestmark = pytest.mark.slow
+BENCH = Path(__file__).resolve().parents[1] / 'bench'
 
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -7,10 +7,14 @@ not running are each one line saying what to do, exit 1."""
 
 import json
 import re
+from pathlib import Path
 
+import pytest
 import yaml
 
 from omni_micro_common.conventions import JOINT_NAMES
+
+BENCH = Path(__file__).resolve().parents[1] / 'bench'
 
 
 def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tmp_path):
@@ -25,14 +29,22 @@ def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tm
     report = json.loads(done.stdout)
     (seen,), (robot,) = report['cameras'], report['robots']
     assert (seen['encoding'], seen['calibrated']) == ('bayer_rggb8', True)
-    assert seen['sent_hz'] is not None and abs(seen['sent_hz'] - 15.0) < 0.1
-    assert 0 < seen['age_s'] < 0.1
+    # The rate the driver sent at while the preflight listened, by the stamps it says it sent
+    # (it stamps each frame when it renders it: under load irregularly, below 15 Hz).
+    first, last = (round(stamp * 1e9) for stamp in seen['camera_info_stamps_s'])
+    stamps = [stamp for line in (tmp_path / 'camera_driver.py-0.log').read_text().splitlines()
+              if line.startswith('sent frame stamped')
+              and first - 1000 <= (stamp := int(line.split()[-1])) <= last + 1000]
+    sent_hz = (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9)
+    assert seen['sent_hz'] == pytest.approx(sent_hz, rel=1e-3)
+    assert 0 < seen['age_s'] < 1.0   # on this machine's clock (how late: the machine's load)
     assert [offer.split(': ')[1] for offer in seen['qos_offered']] == [
         'best_effort, volatile']
     assert robot['joints'] == sorted(JOINT_NAMES) and abs(robot['rate_hz'] - 50.0) < 2.0
     assert robot['qos_offered'][0].endswith('reliable, volatile')
-    # Under load a best-effort frame may be lost, and is then said; nothing else is.
-    assert all(' frames lost on the way ' in line for line in report['findings']), report
+    # Under load a best-effort frame may be lost or come late, and is then said; nothing else.
+    assert all(' frames lost on the way ' in line or ' after their stamps ' in line
+               for line in report['findings']), report
     assert done.returncode == (1 if report['findings'] else 0)
     assert camera.poll() is None
 
@@ -40,8 +52,6 @@ def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tm
 def test_what_needs_fixing_is_one_line_each(bench, omni_micro, domain_id, tmp_path):
     import subprocess
     import sys
-
-    from conftest import BENCH
 
     from omni_micro_bringup.processes import node_environment
 

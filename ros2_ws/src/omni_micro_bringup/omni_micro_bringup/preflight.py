@@ -51,6 +51,7 @@ class CameraWatch:
     frame_bytes: int = 0
     ages_s: list[float] = field(default_factory=list)
     infos: int = 0
+    info_stamps_ns: tuple[int, int] | None = None     # the first and last CameraInfo's
     info_size: tuple[int, int] | None = None
     info_k_zero: bool = False
     offered: list[Offered] = field(default_factory=list)
@@ -73,6 +74,8 @@ class CameraWatch:
 
     def on_info(self, stamp_ns: int, width: int, height: int, k: list[float]) -> None:
         self.infos += 1
+        first = self.info_stamps_ns[0] if self.info_stamps_ns else stamp_ns
+        self.info_stamps_ns = (first, stamp_ns)
         self.info_size = (width, height)
         self.info_k_zero = not any(k)
         self.losses.add_info(stamp_ns)
@@ -152,6 +155,8 @@ class CameraWatch:
                     self.arriving_hz(seconds)),
                 'frames_lost': self.losses.lost_total, 'frames_sent': self.losses.sent_total,
                 'age_s': _rounded(self.age_s, 4), 'camera_info': self.infos,
+                'camera_info_stamps_s': [stamp * 1e-9 for stamp in self.info_stamps_ns]
+                if self.info_stamps_ns else None,
                 'calibrated': None if not self.infos else not self.info_k_zero,
                 'qos_offered': [str(o) for o in self.offered], 'named': self.named}
 

@@ -1,12 +1,13 @@
 """Frames a camera driver sent that never reached the tracker, counted from the gaps in their
 stamps, and the likely cause. No rclpy.
 
-A driver stamps its frames at a steady rate, and its CameraInfo with each frame's stamp; the
-rate it sends at is read from the stamps that arrive (the shortest gaps seen since the start),
-and each longer gap between two frames holds that many frames that did not. The CameraInfo is
-small and comes whole where its frame does not, so its stamps give the rate even when two frames
-in a row never arrive (a 3.8 MB frame through 0.5 MB segments came every third period, as
-steadily as a 10 Hz driver's would). Without CameraInfo, only the frames' own gaps say it.
+A driver publishes a CameraInfo with each frame's stamp. It is small and comes where its
+3.8 MB frame does not, so each CameraInfo whose frame never came is a frame lost, and their
+stamps give the rate sent, however irregular (a 3.8 MB frame through 0.5 MB segments came every
+third period, as steadily as a 10 Hz driver's would). Without CameraInfo, the rate is read from
+the frames' own stamps (the commonest of their shorter gaps) and each longer gap holds
+that many frames that never came: a driver losing two frames of three every time then looks
+like one sending at a third of the rate.
 Losses come in stretches: one begins at a gap, and ends once ``quiet_s`` of the driver's time
 passes with none. :meth:`FrameLosses.add` returns a stretch once it has lasted ``said_after_s``
 (to be logged, once) and again when it ends (its final figures): how many frames of how many
@@ -22,6 +23,7 @@ since when, and what most likely lost them:
 
 from __future__ import annotations
 
+import bisect
 import statistics
 from collections import deque
 from collections.abc import Callable
@@ -33,10 +35,10 @@ from omni_micro_common.clocks import CLOCK_MISMATCH_S
 # Fast DDS's default shared-memory segment (its XML reference: segment_size, 512 KiB): a frame
 # near or above it cannot be held twice by a writer left on the defaults.
 DEFAULT_SEGMENT_BYTES = 512 * 1024
-# How many gaps must have come, and how many of them one period long, before a loss is counted.
+# How many gaps must have come, and how many of them near one period, before a loss is counted.
 PERIOD_AFTER = 10
 PERIOD_SEEN = 3
-# Gaps within this factor of the shortest are taken as one period (a driver's stamps jitter).
+# Gaps within this factor of each other are taken as one period (a driver's stamps jitter).
 PERIOD_JITTER = 1.25
 
 
@@ -73,21 +75,26 @@ class LossStretch:
 
 def likely_cause(frame_bytes: int, best_effort: bool, tracking_s: float, period_s: float,
                  profile: str | None, queue_depth: int) -> str:
-    """What most likely lost the frames, and what to do, in one sentence."""
-    if tracking_s > period_s:
-        return (f'likely cause: the tracker takes {tracking_s * 1e3:.1f} ms a frame, longer '
-                f'than the driver\'s {period_s * 1e3:.1f} ms period, and its queue (depth '
-                f'{queue_depth}) drops the rest: fewer cameras, binned or cropped frames, or a '
-                f'lower rate')
+    """What most likely lost the frames, and what to do, in one sentence (both causes when
+    both hold: a busy machine's tracker slower than a driver on the defaults)."""
+    causes = []
     if best_effort and frame_bytes > DEFAULT_SEGMENT_BYTES // 2:
         export = (f'export FASTRTPS_DEFAULT_PROFILES_FILE={profile}' if profile else
                   'export FASTRTPS_DEFAULT_PROFILES_FILE=<omni_micro_common share>/config/'
                   'fastdds.xml')
-        return (f'likely cause: {frame_bytes / 2**20:.1f} MB frames read best effort through '
-                f'Fast DDS\'s default 0.5 MB shared-memory segments; start the driver with the '
-                f'project\'s profile: {export}')
-    return ('likely cause: the transport (fragments lost over UDP, or the driver\'s own queue): '
-            'run the driver on this machine with the project\'s profile, or publish reliable')
+        causes.append(f'{frame_bytes / 2**20:.1f} MB frames read best effort through Fast '
+                      f'DDS\'s default 0.5 MB shared-memory segments; start the driver with '
+                      f'the project\'s profile: {export}')
+    if tracking_s > period_s:
+        causes.append(f'the tracker takes {tracking_s * 1e3:.1f} ms a frame, longer than the '
+                      f'driver\'s {period_s * 1e3:.1f} ms period, and its queue (depth '
+                      f'{queue_depth}) drops the rest: fewer cameras, binned or cropped frames, '
+                      f'or a lower rate')
+    if not causes:
+        causes.append('the transport (fragments lost over UDP, or the driver\'s own queue): '
+                      'run the driver on this machine with the project\'s profile, or publish '
+                      'reliable')
+    return ('likely cause: ' if len(causes) == 1 else 'likely causes: ') + '; and '.join(causes)
 
 
 @dataclass
@@ -100,10 +107,12 @@ class FrameLosses:
     quiet_s: float = 2.0       # a stretch ends after this long of the driver's time without loss
     said_after_s: float = 1.0  # and is said once it has lasted this long (or when it ends)
     _gaps_seen: int = 0
-    _periods: deque[int] = field(default_factory=lambda: deque(maxlen=30))   # the shortest gaps
     _gaps: deque[int] = field(default_factory=lambda: deque(maxlen=300))     # the latest gaps
     _last_ns: int | None = None
-    _info_last_ns: int | None = None
+    _infos: deque[int] = field(default_factory=lambda: deque(maxlen=300))    # CameraInfo stamps
+    # CameraInfo stamps whose frame has not come (yet), and frames whose CameraInfo has not.
+    _pending: dict[int, None] = field(default_factory=dict)
+    _early: deque[int] = field(default_factory=lambda: deque(maxlen=30))
     _stretch: tuple[int, int, int] | None = None   # since, lost, sent
     _said: bool = False
     _last_loss_ns: int = 0
@@ -112,41 +121,72 @@ class FrameLosses:
 
     @property
     def period_ns(self) -> float | None:
-        """The driver's period by its stamps (None until PERIOD_AFTER gaps, PERIOD_SEEN of them
-        one period long, have come)."""
-        if self._gaps_seen < PERIOD_AFTER or len(self._periods) < PERIOD_SEEN:
+        """The driver's period by its stamps (None until enough have come).
+
+        With CameraInfo, the latest of its stamps over their span: one for every frame sent,
+        however irregularly. Else the commonest of the frames' shorter gaps (not the shortest: a
+        driver that stamps a late frame when it gets to it sends the next one soon after) gives
+        it roughly, and the latest gaps, each counted in whole periods of that, over seconds."""
+        if len(self._infos) >= PERIOD_SEEN:
+            return (self._infos[-1] - self._infos[0]) / (len(self._infos) - 1)
+        if self._gaps_seen < PERIOD_AFTER:
             return None
-        # The shortest gaps are biased short by the stamps' jitter: the latest gaps, each
-        # counted in whole periods, give the rate over seconds.
-        rough = statistics.median(self._periods)
+        ordered = sorted(self._gaps)
+
+        def near(gap: int) -> tuple[int, int]:
+            return (bisect.bisect_left(ordered, gap / PERIOD_JITTER),
+                    bisect.bisect_right(ordered, gap * PERIOD_JITTER))
+
+        # The most common gap among the shorter half: a late frame's catch-up is rarer.
+        low, high = max((near(gap) for gap in ordered[:len(ordered) // 2 + 1]),
+                        key=lambda bounds: bounds[1] - bounds[0])
+        if high - low < PERIOD_SEEN:
+            return None
+        rough = statistics.median(ordered[low:high])
         return sum(self._gaps) / sum(max(1, round(gap / rough)) for gap in self._gaps)
 
     def _note_gap(self, gap: int) -> None:
-        """Keep the gaps within PERIOD_JITTER of the shortest: a shorter one starts anew."""
         self._gaps_seen += 1
         self._gaps.append(gap)
-        shortest = min(self._periods, default=None)
-        if shortest is None or gap * PERIOD_JITTER < shortest:
-            self._periods.clear()
-        if not self._periods or gap <= min(self._periods) * PERIOD_JITTER:
-            self._periods.append(gap)
 
     def add_info(self, stamp_ns: int) -> None:
-        """A CameraInfo stamped ``stamp_ns`` arrived: its gap to the last is the driver's."""
-        last, self._info_last_ns = self._info_last_ns, stamp_ns
-        if last is not None and stamp_ns > last:
-            self._note_gap(stamp_ns - last)
+        """A CameraInfo stamped ``stamp_ns`` arrived: a frame of that stamp was sent."""
+        if self._infos and stamp_ns <= self._infos[-1]:
+            if stamp_ns < self._infos[-1]:
+                self._infos.clear()   # a driver that restarted its clock
+            return
+        self._infos.append(stamp_ns)
+        if stamp_ns in self._early:
+            self._early.remove(stamp_ns)
+        else:
+            self._pending[stamp_ns] = None
+
+    def _missing_by_info(self, stamp_ns: int, first: bool) -> list[int]:
+        """The frames sent before this one (their CameraInfo came) that never came; none
+        before the first frame (the image reader may match the driver after the info's)."""
+        if stamp_ns in self._pending:
+            del self._pending[stamp_ns]
+        else:
+            self._early.append(stamp_ns)
+        older = [stamp for stamp in self._pending if stamp < stamp_ns]
+        for stamp in older:
+            del self._pending[stamp]
+        return [] if first else older
 
     def add(self, stamp_ns: int, cause: Callable[[], str]) -> LossStretch | None:
         """A frame stamped ``stamp_ns`` arrived; the stretch of losses to say now, if one is
         due (``cause``: what :func:`likely_cause` says of the frames now, asked only then)."""
         last, self._last_ns = self._last_ns, stamp_ns
+        by_info = self._missing_by_info(stamp_ns, last is None) if self._infos else None
         if last is None or stamp_ns <= last:
             return None   # the first frame, or a driver that restarted its clock
         gap = stamp_ns - last
         period = self.period_ns
         self._note_gap(gap)
-        missing = 0 if period is None else max(0, round(gap / period) - 1)
+        if by_info is not None:
+            missing = len(by_info)
+        else:
+            missing = 0 if period is None else max(0, round(gap / period) - 1)
         self.sent_total += missing + 1
         self.lost_total += missing
         due: LossStretch | None = None
@@ -158,7 +198,8 @@ class FrameLosses:
             else:
                 self._stretch = (since, lost + missing, sent + missing + 1)
         elif missing:
-            self._stretch = (last + round(period or gap), missing, missing + 1)
+            first_lost = by_info[0] if by_info else last + round(period or gap)
+            self._stretch = (first_lost, missing, missing + 1)
         if missing:
             self._last_loss_ns = stamp_ns
         if self._stretch is not None and not self._said \
