@@ -132,6 +132,13 @@ def test_every_third_frame_is_read_as_a_30_hz_driver_by_its_camera_info():
             stretch = losses.add(stamp, lambda: CAUSE)
             said += [stretch] if stretch else []
     assert 1e9 / period_of(losses) == pytest.approx(30.0, rel=1e-6)
+    # A frame that comes before its CameraInfo (another topic, another reader) is no loss.
+    reversed_order = FrameLosses('macro', '/cam/image_raw')
+    for index in range(100):
+        stamp = 10**9 + index * PERIOD_NS
+        assert reversed_order.add(stamp, lambda: CAUSE) is None
+        reversed_order.add_info(stamp)
+    assert reversed_order.lost_total == 0
     assert said[0].sent_hz == pytest.approx(30.0) and said[0].arrived_hz == pytest.approx(10.0)
     # Each CameraInfo whose frame never came is a frame lost: two between each two frames.
     assert losses.lost_total == 2 * (len(range(0, 600, 3)) - 1)

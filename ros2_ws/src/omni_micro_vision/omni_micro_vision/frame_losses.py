@@ -177,7 +177,9 @@ class FrameLosses:
         """A frame stamped ``stamp_ns`` arrived; the stretch of losses to say now, if one is
         due (``cause``: what :func:`likely_cause` says of the frames now, asked only then)."""
         last, self._last_ns = self._last_ns, stamp_ns
-        by_info = self._missing_by_info(stamp_ns, last is None) if self._infos else None
+        # Kept before any CameraInfo came too: the first frame can come before its own.
+        missing_by_info = self._missing_by_info(stamp_ns, last is None)
+        by_info = missing_by_info if self._infos else None
         if last is None or stamp_ns <= last:
             return None   # the first frame, or a driver that restarted its clock
         gap = stamp_ns - last
