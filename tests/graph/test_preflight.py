@@ -68,11 +68,14 @@ def test_what_needs_fixing_is_one_line_each(bench, omni_micro, domain_id, tmp_pa
     assert done.returncode == 1, done.stdout + done.stderr
     needs = [line for line in done.stdout.splitlines() if line.startswith('needs action: ')]
     said = '\n'.join(needs)
-    assert re.search(r'macro \(/cam/image_raw\): \d+ of \d+ frames lost on the way \(30.0 Hz '
-                     r'sent by their stamps, [\d.]+ Hz arriving\); likely cause: 3.7 MB frames '
+    # 30 Hz sent when the machine keeps up with the driver; slower under load, as it really
+    # sends (the CameraInfo's stamps say).
+    lost = re.search(r'macro \(/cam/image_raw\): \d+ of \d+ frames lost on the way \(([\d.]+) Hz '
+                     r'sent by their stamps, ([\d.]+) Hz arriving\); likely cause: 3.7 MB frames '
                      r'read best effort through Fast DDS\'s default 0.5 MB shared-memory '
                      r'segments; start the driver with the project\'s profile: export '
-                     r'FASTRTPS_DEFAULT_PROFILES_FILE=\S+fastdds.xml', said), said
+                     r'FASTRTPS_DEFAULT_PROFILES_FILE=\S+fastdds.xml', said)
+    assert lost is not None and float(lost[2]) < float(lost[1]) <= 30.1, said
     assert ("macro (/cam/image_raw): frames are 1600 x 1200, the tracker's params say 1280 x "
             '1024: set macro.resolution_px, or calibrate this camera') in said
     assert ('macro (/cam/camera_info): K is all zero (no intrinsic calibration): calibrate the '
