@@ -167,3 +167,14 @@ def test_a_late_frame_and_the_one_soon_after_are_not_lost_frames():
         said += [stretch] if stretch else []
     assert said == [] and losses.lost_total == 0
     assert 1e9 / period_of(losses) == pytest.approx(30.0, rel=1e-3)
+
+
+def test_camera_info_without_frames_is_kept_within_bounds():
+    """A driver whose frames never come at all (the image topic mistyped, say): the CameraInfo
+    waiting for them is bounded, not kept for ever."""
+    from omni_micro_vision.frame_losses import PENDING_LIMIT
+
+    losses = FrameLosses('macro', '/cam/image_raw')
+    for index in range(10 * PENDING_LIMIT):
+        losses.add_info(10**9 + index * PERIOD_NS)
+    assert len(losses._pending) == PENDING_LIMIT

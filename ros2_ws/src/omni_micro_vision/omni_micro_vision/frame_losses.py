@@ -40,6 +40,8 @@ PERIOD_AFTER = 10
 PERIOD_SEEN = 3
 # Gaps within this factor of each other are taken as one period (a driver's stamps jitter).
 PERIOD_JITTER = 1.25
+# CameraInfo stamps kept waiting for their frame (10 s at 30 Hz).
+PENDING_LIMIT = 300
 
 
 @dataclass(frozen=True)
@@ -160,6 +162,8 @@ class FrameLosses:
             self._early.remove(stamp_ns)
         else:
             self._pending[stamp_ns] = None
+            if len(self._pending) > PENDING_LIMIT:   # frames that never come at all: bounded
+                del self._pending[next(iter(self._pending))]
 
     def _missing_by_info(self, stamp_ns: int, first: bool) -> list[int]:
         """The frames sent before this one (their CameraInfo came) that never came; none

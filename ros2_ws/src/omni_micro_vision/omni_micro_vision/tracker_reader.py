@@ -181,7 +181,7 @@ class CameraReader:
         return likely_cause(self._frame_bytes, self.node.reliability == 'best_effort',
                             self._tracking_s, (period_ns or 0.0) * 1e-9,
                             os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE')
-                            or (str(dds_profile_file()) if dds_profile_file() else None),
+                            or str(dds_profile_file() or '') or None,
                             IMAGE_QOS.depth)
 
     def frames_summary(self) -> str:
