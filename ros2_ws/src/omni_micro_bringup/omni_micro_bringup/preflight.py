@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from omni_micro_common.clocks import CLOCK_MISMATCH_S
 from omni_micro_common.conventions import JOINT_NAMES
+from omni_micro_common.installed import dds_profile_to_export
 from omni_micro_vision.encodings import ENCODINGS
 from omni_micro_vision.frame_losses import FrameLosses, likely_cause
 
@@ -111,9 +112,10 @@ class CameraWatch:
                         f'{self.expected_size[0]} x {self.expected_size[1]}: set '
                         f'{self.name}.resolution_px, or calibrate this camera')
         if self.losses.lost_total:
+            # It does not track: only the transport's causes can be its (no queue depth).
             cause = likely_cause(self.frame_bytes, best_effort_reader, 0.0,
                                  (self.losses.period_ns or 0.0) * 1e-9,
-                                 _profile(), 10)
+                                 dds_profile_to_export(), 0)
             said.append(f'{where}: {self.losses.lost_total} of {self.losses.sent_total} frames '
                         f'lost on the way ({self.sent_hz or 0.0:.1f} Hz sent by their stamps, '
                         f'{self.arriving_hz(seconds):.1f} Hz arriving); {cause}')
@@ -222,9 +224,3 @@ def naming_findings(robots: list[str], cameras: list[CameraWatch]) -> list[str]:
 def _rounded(value: float | None, digits: int = 2) -> float | None:
     return None if value is None else round(value, digits)
 
-
-def _profile() -> str | None:
-    from omni_micro_common.installed import dds_profile_file
-
-    path = dds_profile_file()
-    return str(path) if path else None

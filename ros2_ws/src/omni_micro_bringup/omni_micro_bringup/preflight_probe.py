@@ -13,7 +13,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import CameraInfo, JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from omni_micro_bringup.preflight import CameraWatch, Offered, RobotWatch
 from omni_micro_common.conventions import stamp_ns
@@ -53,7 +53,7 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
                 camera.on_info(stamp_ns(msg.header.stamp), int(msg.width), int(msg.height),
                                list(msg.k))
 
-            node.create_subscription(_image_type(), camera.image_topic, on_image, best_effort,
+            node.create_subscription(Image, camera.image_topic, on_image, best_effort,
                                      raw=True)
             node.create_subscription(CameraInfo, camera.info_topic, on_info, best_effort)
         for robot in robots:
@@ -81,12 +81,6 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
             if camera.name in last_frames and camera.name in tracked:
                 camera.named = _named(last_frames[camera.name], tracked[camera.name],
                                       robot_names)
-
-
-def _image_type() -> type:
-    from sensor_msgs.msg import Image
-
-    return Image
 
 
 def _offered(node: rclpy.node.Node, topic: str) -> list[Offered]:

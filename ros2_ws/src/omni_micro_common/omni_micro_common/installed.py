@@ -26,3 +26,10 @@ def installed_file(package: str, *parts: str) -> Path | None:
 def dds_profile_file() -> Path | None:
     """The project's Fast DDS profile (installed with omni_micro_common), or None."""
     return installed_file('omni_micro_common', 'config', 'fastdds.xml')
+
+
+def dds_profile_to_export() -> str | None:
+    """The profile a driver should be given: the one this process runs with (a run gives
+    every node the project's), else the installed one; None when neither is known."""
+    path = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or dds_profile_file()
+    return str(path) if path else None

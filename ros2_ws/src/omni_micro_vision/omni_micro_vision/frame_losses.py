@@ -108,7 +108,6 @@ class FrameLosses:
     image_topic: str
     quiet_s: float = 2.0       # a stretch ends after this long of the driver's time without loss
     said_after_s: float = 1.0  # and is said once it has lasted this long (or when it ends)
-    _gaps_seen: int = 0
     _gaps: deque[int] = field(default_factory=lambda: deque(maxlen=300))     # the latest gaps
     _last_ns: int | None = None
     _infos: deque[int] = field(default_factory=lambda: deque(maxlen=300))    # CameraInfo stamps
@@ -131,7 +130,7 @@ class FrameLosses:
         it roughly, and the latest gaps, each counted in whole periods of that, over seconds."""
         if len(self._infos) >= PERIOD_SEEN:
             return (self._infos[-1] - self._infos[0]) / (len(self._infos) - 1)
-        if self._gaps_seen < PERIOD_AFTER:
+        if len(self._gaps) < PERIOD_AFTER:
             return None
         ordered = sorted(self._gaps)
 
@@ -146,10 +145,6 @@ class FrameLosses:
             return None
         rough = statistics.median(ordered[low:high])
         return sum(self._gaps) / sum(max(1, round(gap / rough)) for gap in self._gaps)
-
-    def _note_gap(self, gap: int) -> None:
-        self._gaps_seen += 1
-        self._gaps.append(gap)
 
     def add_info(self, stamp_ns: int) -> None:
         """A CameraInfo stamped ``stamp_ns`` arrived: a frame of that stamp was sent."""
@@ -182,13 +177,13 @@ class FrameLosses:
         due (``cause``: what :func:`likely_cause` says of the frames now, asked only then)."""
         last, self._last_ns = self._last_ns, stamp_ns
         # Kept before any CameraInfo came too: the first frame can come before its own.
-        missing_by_info = self._missing_by_info(stamp_ns, last is None)
-        by_info = missing_by_info if self._infos else None
+        lost_by_info = self._missing_by_info(stamp_ns, last is None)
+        by_info = lost_by_info if self._infos else None
         if last is None or stamp_ns <= last:
             return None   # the first frame, or a driver that restarted its clock
         gap = stamp_ns - last
         period = self.period_ns
-        self._note_gap(gap)
+        self._gaps.append(gap)
         if by_info is not None:
             missing = len(by_info)
         else:
@@ -212,6 +207,13 @@ class FrameLosses:
                 and (stamp_ns - self._stretch[0]) * 1e-9 >= self.said_after_s:
             due, self._said = self._stretch_said(cause), True
         return due
+
+    def summary(self) -> str:
+        """The frames that came of those the driver sent (by their stamps), in one line: the
+        whole run's (the first frame is counted here, not in ``sent_total``)."""
+        return (f'{self.camera}: {self.sent_total - self.lost_total + 1} frames from '
+                f'{self.image_topic} came of the {self.sent_total + 1} the driver sent by their '
+                f'stamps ({self.lost_total} lost)')
 
     def _stretch_said(self, cause: Callable[[], str], ended: bool = False) -> LossStretch:
         assert self._stretch is not None

@@ -269,7 +269,7 @@ def say_frames(node: TrackerNode) -> None:
     """Its last words: each camera's frames, those that came of those the driver sent."""
     for reader in node.readers:
         if reader.losses.sent_total:
-            print(reader.frames_summary(), flush=True)
+            print(reader.losses.summary(), flush=True)
 
 
 COMPONENT = NodeComponent(TrackerNode, config_errors=(CameraConfigError,),

@@ -6,7 +6,6 @@ The node (:mod:`omni_micro_vision.tracker_node`) holds the readers and arbitrate
 from __future__ import annotations
 
 import math
-import os
 import time
 from typing import Any, Protocol
 
@@ -27,7 +26,7 @@ from omni_micro_common.conventions import (
     split_stamp,
     stamp_ns,
 )
-from omni_micro_common.installed import dds_profile_file
+from omni_micro_common.installed import dds_profile_to_export
 from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -180,16 +179,7 @@ class CameraReader:
         period_ns = self.losses.period_ns
         return likely_cause(self._frame_bytes, self.node.reliability == 'best_effort',
                             self._tracking_s, (period_ns or 0.0) * 1e-9,
-                            os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE')
-                            or str(dds_profile_file() or '') or None,
-                            IMAGE_QOS.depth)
-
-    def frames_summary(self) -> str:
-        """The frames that came of those the driver sent (by their stamps), in one line."""
-        losses = self.losses
-        return (f'{self.name}: {losses.sent_total - losses.lost_total + 1} frames from '
-                f'{self.image_topic} came of the {losses.sent_total + 1} the driver sent by '
-                f'their stamps ({losses.lost_total} lost)')
+                            dds_profile_to_export(), IMAGE_QOS.depth)
 
     def _state_losses(self, stretch: LossStretch) -> None:
         """Frames that never came: one log line per stretch, and the status's values."""
