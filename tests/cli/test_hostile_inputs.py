@@ -207,13 +207,13 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --json, --quiet, --goals-per-robot, '
-     '--max-sim-time, --plot'),
+     '--force, --composed, --no-markers, --view, --respawn, --json, --quiet, '
+     '--goals-per-robot, --max-sim-time, --plot'),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --json, --quiet, --goals-per-robot, '
-     '--max-sim-time, --plot'),
+     '--force, --composed, --no-markers, --view, --respawn, --json, --quiet, '
+     '--goals-per-robot, --max-sim-time, --plot'),
     (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
      'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
      'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '
@@ -224,6 +224,11 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
                               'with --graph'),
     (['fleet', '--view'], "omni-micro fleet: error: --view is a node graph's: give it with "
                           '--graph'),
+    (['fleet', '--respawn'], "omni-micro fleet: error: --respawn is a node graph's: give it "
+                             'with --graph'),
+    (['run', '--robots', '2', '--respawn', '--composed'],
+     'omni-micro run: error: --respawn restarts a crashed node in a process of its own; with '
+     '--composed the loop shares one process: choose one of them'),
     (['view', '--robots', 'robot 1'], "omni-micro view: error: argument --robots: 'robot 1': "
                                       'expected a number of robots or namespaces such as '
                                       'robot_0,robot_1 (omni-micro view --help lists the '

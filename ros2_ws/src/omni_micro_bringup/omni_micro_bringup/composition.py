@@ -279,6 +279,13 @@ def tracked_cameras(options: GraphOptions) -> tuple[str, ...]:
     return tuple(str(name) for name in cameras) if isinstance(cameras, list) else ()
 
 
+def check_respawn(options: GraphOptions) -> None:
+    """Raises UsageError for ``respawn`` with ``composed``: one robot's nodes or several's."""
+    if options.composed and options.respawn:
+        raise UsageError('--respawn restarts a crashed node in a process of its own; with '
+                         '--composed the loop shares one process: choose one of them')
+
+
 def all_specs(options: GraphOptions) -> list[NodeSpec]:
     """Every process of the graph: the loop (one process with ``composed``), then who listens
     (markers, recorder, viewer)."""
@@ -296,9 +303,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
                                               for spec in loop):
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
                          'in motion, and this graph has neither')
-    if options.composed and options.respawn:
-        raise UsageError('--respawn restarts a crashed node in a process of its own; with '
-                         '--composed the loop shares one process: choose one of them')
+    check_respawn(options)
     specs = [composed(loop)] if options.composed else list(loop)
     if options.markers:
         specs.append(MARKERS_NODE)

@@ -27,7 +27,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
-from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.composition import GraphOptions, check_respawn
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
     check_vision,
@@ -42,7 +42,8 @@ from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
 )
-from omni_micro_bringup.supervisor import Supervisor
+from omni_micro_bringup.respawns import FleetRespawns
+from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
     join_stamp,
@@ -76,8 +77,10 @@ class FleetMonitor(Orchestrator):
     in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
 
     def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
-                 recording: bool = False, markers: bool = False) -> None:
+                 recording: bool = False, markers: bool = False,
+                 respawnable: list[str] | None = None) -> None:
         super().__init__(domain_id, echo=echo, markers=markers)
+        self.respawns = self.fleet_respawns = FleetRespawns(self, respawnable or [])
         self.count = count
         self.recording = recording   # the recorder must have every goal, as each controller
         self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
@@ -117,6 +120,11 @@ class FleetMonitor(Orchestrator):
         self.robots[robot].route.append((
             join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec), pose.position.x,
             pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
+
+    def simulated_time_s(self) -> float | None:
+        """How far the robots' time has gone, by the latest odometry of any robot."""
+        stamps = [log.route[-1][0] for log in self.robots if log.route]
+        return max(stamps) if stamps else None
 
     def report_handled(self, robot: int, outcome_ns: int) -> None:
         self._handled[robot] = outcome_ns
@@ -217,23 +225,30 @@ class FleetDispatch:
         self.count = len(self.fleet.plan.starts_m)
         self.modes = controller_modes(self.fleet.controllers, options.params_files)
         self.monitor: FleetMonitor | None = None
+        self.respawnable: list[str] = []
 
     def check(self) -> None:
-        """Raises UsageError if the vision cannot serve the robots' controllers."""
+        """Raises UsageError if the vision cannot serve the robots' controllers, or for
+        ``respawn`` with ``composed``."""
         check_vision(self.modes, self.options.vision)
+        check_respawn(self.options)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         options, record = self.options, self.options.record
-        return fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
+        specs = fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
                            options.real_time_factor, options.params_files, log_dir,
                            record=None if record is None else (record, options.storage),
                            composed=options.composed, markers=options.markers,
                            view=options.view, controllers=self.modes, vision=options.vision)
+        if options.respawn:
+            self.respawnable = [spec.name for spec in specs if spec.respawnable]
+        return specs
 
     def orchestrator(self, domain_id: int) -> FleetMonitor:
         self.monitor = FleetMonitor(domain_id, self.count, self.options.echo,
                                     recording=self.options.record is not None,
-                                    markers=self.options.markers)
+                                    markers=self.options.markers,
+                                    respawnable=self.respawnable)
         return self.monitor
 
     def drive(self, graph: Supervisor, on_running: Callable[[], None],
@@ -244,6 +259,7 @@ class FleetDispatch:
 
         monitor, plan, options = self.monitor, self.fleet.plan, self.options
         assert monitor is not None
+        graph = RestartsNoted(graph)
         logs = monitor.robots
         outcome, reason, now_s = 'done', '', 0.0
         total = sum(len(tasks) for tasks in plan.tasks)
@@ -255,9 +271,11 @@ class FleetDispatch:
             monitor.report_handled(k, -1)   # the coordinator takes part from here
         dispatcher = LegDispatcher(plan, self.modes)
         started: dict[int, float] = {}
+        driving: dict[int, GoalOrder] = {}   # each robot's leg under way
 
         def give(order: GoalOrder) -> None:
             started.setdefault(order.robot, order.stamp_s)
+            driving[order.robot] = order
             monitor.give(graph, order)
 
         for order in dispatcher.startable():
@@ -284,6 +302,12 @@ class FleetDispatch:
                 break
             if seen == len(monitor.fleet_statuses):
                 graph.check_alive()
+                if graph.restarted:
+                    # Brought back once every status read so far is handled: a leg that
+                    # ended meanwhile is not given again.
+                    restarted, graph.restarted = graph.restarted, []
+                    monitor.fleet_respawns.bring_back_robots(graph, restarted, driving, seen)
+                    continue
                 monitor.check_recorder()
                 monitor.repeat_reports()
                 monitor.spin_for(0.02)
@@ -309,6 +333,7 @@ class FleetDispatch:
                 reason = f'robot {robot} {logs[robot].outcome}'
                 break
             following, ended = dispatcher.reached(robot, at_s)
+            driving.pop(robot, None)
             if following is not None:
                 give(following)
             else:

@@ -63,8 +63,6 @@ RECORDER_FINISH_S = 120.0
 class Graph:
     """The running processes of one graph, stopped in order however the run ends."""
 
-    RESPAWNABLE = ('vision_node', 'controller_node')
-
     def __init__(self, options: GraphOptions, domain_id: int, log_dir: Path,
                  lease_fd: int | None = None, specs: list[NodeSpec] | None = None) -> None:
         self.options = options
@@ -78,7 +76,7 @@ class Graph:
         inherited = (self._lifeline_read,) + (() if lease_fd is None else (lease_fd,))
         specs = wired_specs(options) if specs is None else specs
         if options.respawn:
-            specs = [replace(spec, respawn=True) if spec.name in self.RESPAWNABLE else spec
+            specs = [replace(spec, respawn=True) if spec.respawnable else spec
                      for spec in specs]
         self.processes = [NodeProcess(spec, process_argv(spec), env,
                                       log_dir / f'{spec.name}.log', options.echo, inherited)

@@ -15,6 +15,8 @@ from omni_micro_common.lockstep_groups import qualified_node_name
 # markers_node as a watcher (omni_micro_common.lockstep), so that /markers is the same every run.
 LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node',
                   'markers_node')
+# Nodes restarted when they crash, with --respawn (a robot's own: the others' deaths end the run).
+RESPAWNABLE_NODES = ('vision_node', 'controller_node')
 # The process that hosts the loop's nodes with --composed (its log is <name>.log).
 LOOP_CONTAINER = 'loop_container'
 
@@ -50,6 +52,11 @@ class NodeSpec:
         if self.hosts:
             return LOOP_CONTAINER
         return f'{self.namespace}.{self.executable}' if self.namespace else self.executable
+
+    @property
+    def respawnable(self) -> bool:
+        """A robot's own node, restarted when it crashes with --respawn."""
+        return not self.hosts and self.executable in RESPAWNABLE_NODES
 
     @property
     def reports_lockstep(self) -> bool:

@@ -318,6 +318,11 @@ class Orchestrator:
                                 f'{graph.log_dir}')
             self.spin_for(0.05)
 
+    def simulated_time_s(self) -> float | None:
+        """The robot's time as its odometry last said (the orchestration reads one tick in
+        five at least)."""
+        return self.latest_odometry[0] if self.latest_odometry else None
+
     def _robot_time_said(self) -> str:
         """Where the robot's time stands now, read from /odom, for a message."""
         if self.latest_odometry is None:

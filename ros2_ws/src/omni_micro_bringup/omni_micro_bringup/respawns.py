@@ -1,6 +1,8 @@
 """A node respawned in the middle of a run, brought back: the clock held while it comes up, its
 new readers told from the dead process's, the goal given again, and time started anew if it
-stands still (Orchestrator's part in supervision; graph.Graph respawns the process)."""
+stands still (Orchestrator's part in supervision; graph.Graph respawns the process). The same
+for a robot of a micro-factory (``robot_1.controller_node``): its readers are told in its
+namespace, and the leg it was driving is given again (:class:`FleetRespawns`)."""
 
 from __future__ import annotations
 
@@ -15,7 +17,11 @@ from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
     GOAL_TOPIC,
+    namespaced_topic,
+    robot_index,
+    robot_name,
 )
+from omni_micro_control.feedback import OUTCOME_NAMES
 
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
 # again, and how far simulated time must go (beyond the lockstep's lead) to show that the
@@ -44,6 +50,10 @@ class RespawnsHost(Protocol):
     camera_statuses: list[str]
     latest_odometry: tuple[float, float, float, float] | None
 
+    def simulated_time_s(self) -> float | None:
+        """How far the robots' time has gone, as this node has read it (None: not yet)."""
+        ...
+
     def set_paused(self, graph: Supervisor, paused: bool) -> None: ...
 
     def spin_for(self, seconds: float) -> None: ...
@@ -58,8 +68,10 @@ class RespawnsHost(Protocol):
 class Respawns:
     """What the orchestrator does when its supervisor says nodes were respawned."""
 
-    def __init__(self, monitor: RespawnsHost) -> None:
+    def __init__(self, monitor: RespawnsHost, processes: list[str] | None = None) -> None:
         self.monitor = monitor
+        # The processes that may be respawned: the single robot's nodes by default.
+        self.processes = processes or list(self.INPUTS)
         self.known_endpoints: dict[str, set[bytes]] = {}
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
@@ -71,30 +83,38 @@ class Respawns:
                             (GOAL_TOPIC,),
                             (CAPTURE_COVARIANCE_TOPICS['macro'], CAPTURE_TOPICS['macro']))}
 
-    def _endpoints(self, name: str) -> set[bytes]:
-        return {bytes(info.endpoint_gid) for topics in self.INPUTS.get(name, ())
-                for topic in topics
-                for info in self.monitor.node.get_subscriptions_info_by_topic(topic)
-                if info.node_name == name}
+    def _readers(self, process: str, topics: tuple[str, ...]) -> list[Any]:
+        """The readers of ``topics`` (a robot's own in its namespace) that the node of
+        ``process`` (``vision_node``, ``robot_1.vision_node``) holds."""
+        namespace, _, name = process.rpartition('.')
+        return [info for topic in topics
+                for info in self.monitor.node.get_subscriptions_info_by_topic(
+                    namespaced_topic(namespace, topic))
+                if info.node_name == name and info.node_namespace == f'/{namespace}']
 
-    def _has_new_endpoints(self, name: str) -> bool:
-        known = self.known_endpoints.get(name, set())
-        return all(any(info.node_name == name and bytes(info.endpoint_gid) not in known
-                       for topic in topics
-                       for info in self.monitor.node.get_subscriptions_info_by_topic(topic))
-                   for topics in self.INPUTS.get(name, ()))
+    def _endpoints(self, process: str) -> set[bytes]:
+        return {bytes(info.endpoint_gid) for topics in self._inputs(process)
+                for info in self._readers(process, topics)}
+
+    def _inputs(self, process: str) -> tuple[tuple[str, ...], ...]:
+        return self.INPUTS.get(process.rpartition('.')[2], ())
+
+    def _has_new_endpoints(self, process: str) -> bool:
+        known = self.known_endpoints.get(process, set())
+        return all(any(bytes(info.endpoint_gid) not in known
+                       for info in self._readers(process, topics))
+                   for topics in self._inputs(process))
 
     def remember_endpoints(self) -> None:
         """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
-        self.known_endpoints = {name: self._endpoints(name) for name in self.INPUTS}
+        self.known_endpoints = {process: self._endpoints(process) for process in self.processes}
 
-    def bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
-                    recording: bool) -> None:
-        """A node was respawned: hold the clock while it comes back, then go on from there."""
-        self.monitor.set_paused(graph, True)
-        # The dead node's endpoints stay in the ROS graph until their lease runs out, so a
-        # count of subscribers cannot tell: wait for the new process to say it is ready and
-        # for endpoints of it that were not there before to appear on the topics it reads.
+    def wait_for_new_processes(self, graph: Supervisor, restarted: list[str]) -> None:
+        """With the clock held: until each respawned node is up and in the ROS graph.
+
+        The dead node's endpoints stay in the ROS graph until their lease runs out, so a count
+        of subscribers cannot tell: wait for the new process to say it is ready and for
+        endpoints of it that were not there before to appear on the topics it reads."""
         for name in restarted:
             if not graph.wait_ready(name, 60.0):
                 raise RunFailed(f'respawned {name} did not come up within 60 s')
@@ -106,6 +126,12 @@ class Respawns:
                 self.monitor.spin_for(0.05)
         self.monitor.let_matching_settle()
         graph.check_alive()
+
+    def bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
+                    recording: bool) -> None:
+        """A node was respawned: hold the clock while it comes back, then go on from there."""
+        self.monitor.set_paused(graph, True)
+        self.wait_for_new_processes(graph, restarted)
         # The goal again: a new controller knows nothing, and an old one may have counted its
         # capture timeout while the camera was gone. Either starts over from the next stop.
         self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s,
@@ -159,7 +185,6 @@ class Respawns:
         (a slow CI run: "respawned vision_node published no capture within 60 s"). Starting the
         clock again levels every node at the time it stands at and looks at the readers anew.
         """
-        # Time is read from the orchestrator's own odometry reader (one tick in five at least).
         self.monitor.set_paused(graph, False)
         self._wait_for_time_to_move(graph, restarted, stall_s)
 
@@ -167,12 +192,12 @@ class Respawns:
                                stall_s: float) -> None:
         deadline = time.monotonic() + 60.0
         first: float | None = None
-        latest = self.monitor.latest_odometry[0] if self.monitor.latest_odometry else None
+        latest = self.monitor.simulated_time_s()
         moved_at = time.monotonic()
         while True:
             graph.check_alive()
             self.monitor.spin_for(0.05)
-            stamp = self.monitor.latest_odometry[0] if self.monitor.latest_odometry else None
+            stamp = self.monitor.simulated_time_s()
             if stamp != latest:
                 latest, moved_at = stamp, time.monotonic()
                 first = stamp if first is None else first
@@ -190,3 +215,70 @@ class Respawns:
                 self.monitor.let_matching_settle()
                 first, moved_at = None, time.monotonic()
                 self.monitor.set_paused(graph, False)
+
+
+class FleetRespawnsHost(RespawnsHost, Protocol):
+    """What bringing a micro-factory robot's node back needs besides: every robot's statuses
+    and the coordinator's way of handing a robot its leg
+    (:class:`omni_micro_bringup.fleet_graph.FleetMonitor`)."""
+
+    fleet_statuses: list[tuple[int, dict[str, str]]]
+
+    def give(self, graph: Supervisor, order: Any, timeout_s: float = 30.0) -> None: ...
+
+
+class FleetRespawns(Respawns):
+    """A micro-factory robot's vision_node or controller_node respawned (``robot_1.vision_node``):
+    the clock held while it comes back, the leg the robot was driving given again from where it
+    stands, and time started again. The other robots wait meanwhile: the clock is theirs too, and
+    the plan's legs keep them clear of it whatever their timing."""
+
+    monitor: FleetRespawnsHost
+
+    def bring_back_robots(self, graph: Supervisor, restarted: list[str],
+                          driving: dict[int, Any], handled_up_to: int) -> None:
+        """``driving``: each robot's leg under way (its GoalOrder); ``handled_up_to``: how many
+        of the statuses the coordinator has handled. A robot whose leg ended in a status not
+        handled yet is not given it again (it would end twice)."""
+        self.monitor.set_paused(graph, True)
+        self.wait_for_new_processes(graph, restarted)
+        nodes: dict[int, set[str]] = {}
+        for name in restarted:
+            namespace, _, node = name.partition('.')
+            index = robot_index(namespace)
+            if index is not None:
+                nodes.setdefault(index, set()).add(node)
+        ended = {robot for robot, status in self.monitor.fleet_statuses[handled_up_to:]
+                 if status['message'] in OUTCOME_NAMES}
+        given_at: dict[int, int] = {}
+        for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
+            # A new controller knows nothing; an old one, its camera gone a while, ends the leg
+            # as replaced and takes it again.
+            given_at[robot] = len(self.monitor.fleet_statuses)
+            if self.monitor.echo:
+                x_mm, y_mm = (v * 1e3 for v in driving[robot].goal_m)
+                self.monitor.echo(f'[orchestration] {robot_name(robot)}\'s leg to '
+                                  f'({x_mm:g}, {y_mm:g}) mm given again, from where it stands')
+            self.monitor.give(graph, driving[robot])
+        self.remember_endpoints()
+        self.resume(graph, restarted)
+        for robot, since in given_at.items():
+            if 'vision_node' in nodes[robot]:
+                self._until_it_acts(graph, robot, driving[robot], since)
+
+    def _until_it_acts(self, graph: Supervisor, robot: int, order: Any, since: int) -> None:
+        """Until the robot's controller acts on a capture of its respawned vision_node, whose
+        writer its reader may match later still: the leg given again meanwhile."""
+        for _ in range(20):
+            asked_at = time.monotonic()
+            while time.monotonic() - asked_at < 3.0:
+                if any(k == robot and (status['message'] == 'moving'
+                                       or status['message'] in OUTCOME_NAMES)
+                       for k, status in self.monitor.fleet_statuses[since:]):
+                    return
+                graph.check_alive()
+                self.monitor.spin_for(0.05)
+            since = len(self.monitor.fleet_statuses)
+            self.monitor.give(graph, order)
+        raise RunFailed(f'robot {robot}\'s controller_node receives no capture from its '
+                        'respawned vision_node')

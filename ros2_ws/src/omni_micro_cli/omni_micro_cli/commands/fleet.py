@@ -79,6 +79,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--composed', action='store_true',
                         help='with --graph: dynamics_node and every robot\'s nodes in one '
                              'process (omni_micro_common\'s container); the run is the same')
+    parser.add_argument('--respawn', action='store_true',
+                        help='with --graph: restart a robot\'s crashed vision_node or '
+                             'controller_node, hold the clock meanwhile and give it its leg '
+                             'again (docs/reliability.md)')
     parser.add_argument('--log-dir', type=output_folder, default='out/runs', metavar='DIR',
                         help='with --graph: where each node\'s log goes, in a folder per run '
                              '(default out/runs)')
@@ -126,7 +130,7 @@ def fleet_of(args: argparse.Namespace) -> Fleet:
 def run(args: argparse.Namespace) -> int:
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
-    for option in ('composed', 'markers', 'view'):
+    for option in ('composed', 'markers', 'view', 'respawn'):
         if not args.graph and getattr(args, option):
             raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
     if not args.graph and args.vision != 'model':
@@ -139,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
         graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                              timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
                              composed=args.composed, markers=args.markers,
-                             view=view_from_args(args), vision=args.vision)
+                             view=view_from_args(args), vision=args.vision,
+                             respawn=args.respawn)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json, force=args.force)
 
@@ -159,9 +164,11 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
     from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
 
     if graph is not None:
+        from omni_micro_bringup.composition import check_respawn
         from omni_micro_bringup.fleet_composition import check_vision
 
         check_vision(fleet.controllers, graph.vision)   # refused before the planning
+        check_respawn(graph)
     started = time.perf_counter()
     try:
         check_tolerances(fleet.tasks)

@@ -199,7 +199,7 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision', 'force', *MICRO_FACTORY_OPTIONS)
+                 'vision', 'force', 'respawn', *MICRO_FACTORY_OPTIONS)
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -211,12 +211,12 @@ def fleet_run(args: argparse.Namespace) -> int:
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
-                         '--log-dir, --record, --force, --composed, --no-markers, --view, --json, '
-                         '--quiet, --goals-per-robot, --max-sim-time, --plot')
+                         '--log-dir, --record, --force, --composed, --no-markers, --view, '
+                         '--respawn, --json, --quiet, --goals-per-robot, --max-sim-time, --plot')
     fleet = fleet_of(args)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
-                         composed=args.composed,
+                         composed=args.composed, respawn=args.respawn,
                          markers=args.markers, view=view_from_args(args), vision=args.vision)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
