@@ -332,3 +332,30 @@ def check_dask_arguments(args: argparse.Namespace) -> None:
     if args.scheduler and not args.scheduler.startswith(('tcp://', 'tls://', 'inproc://')):
         raise UsageError(f'--scheduler: expected an address like tcp://HOST:8786, got '
                          f'{args.scheduler!r}')
+
+
+def add_fault_arguments(parser: argparse.ArgumentParser) -> argparse._ArgumentGroup:
+    """The simulated camera's faults (vision_node's ``faults.*``), in a group of their own."""
+    faults = parser.add_argument_group('fault injection (see docs/reliability.md)')
+    faults.add_argument('--drop-captures', type=probability, default=0.0, metavar='P',
+                        help='lose each camera capture with probability P (seeded)')
+    faults.add_argument('--late-captures', type=non_negative_float, default=0.0, metavar='S',
+                        help='publish each capture S simulated seconds after its exposure')
+    faults.add_argument('--freeze-camera-at', type=non_negative_float, metavar='S',
+                        help='from simulated time S the camera repeats its last frame')
+    faults.add_argument('--fault-camera', choices=('macro', 'micro', 'both'), default='both',
+                        help='which camera the faults hit (default both)')
+    return faults
+
+
+def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
+    overrides: dict[str, object] = {}
+    if getattr(args, 'drop_captures', 0.0):
+        overrides['faults.drop_probability'] = args.drop_captures
+    if getattr(args, 'late_captures', 0.0):
+        overrides['faults.delay_s'] = args.late_captures
+    if getattr(args, 'freeze_camera_at', None) is not None:
+        overrides['faults.frozen_after_s'] = args.freeze_camera_at
+    if overrides:
+        overrides['faults.camera'] = args.fault_camera
+    return overrides

@@ -12,16 +12,16 @@ from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
+    add_fault_arguments,
     add_steering_argument,
     add_storage_arguments,
     add_timing_arguments,
     add_view_arguments,
     check_timing,
     domain_id,
+    fault_overrides,
     float_list,
-    non_negative_float,
     positive_float,
-    probability,
     seed_number,
     steering_overrides,
     view_from_args,
@@ -169,15 +169,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_controller_arguments(parser)
     add_graph_arguments(parser)
     add_bench_arguments(parser)
-    faults = parser.add_argument_group('fault injection (see docs/reliability.md)')
-    faults.add_argument('--drop-captures', type=probability, default=0.0, metavar='P',
-                        help='lose each camera capture with probability P (seeded)')
-    faults.add_argument('--late-captures', type=non_negative_float, default=0.0, metavar='S',
-                        help='publish each capture S simulated seconds after its exposure')
-    faults.add_argument('--freeze-camera-at', type=non_negative_float, metavar='S',
-                        help='from simulated time S the camera repeats its last frame')
-    faults.add_argument('--fault-camera', choices=('macro', 'micro', 'both'), default='both',
-                        help='which camera the faults hit (default both)')
+    faults = add_fault_arguments(parser)
     faults.add_argument('--respawn', action='store_true',
                         help='restart a crashed vision_node or controller_node and go on')
     fleet = parser.add_argument_group('several robots on one platform (docs/fleet.md)')
@@ -221,19 +213,6 @@ def fleet_run(args: argparse.Namespace) -> int:
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
                          force=args.force)
-
-
-def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
-    overrides: dict[str, object] = {}
-    if getattr(args, 'drop_captures', 0.0):
-        overrides['faults.drop_probability'] = args.drop_captures
-    if getattr(args, 'late_captures', 0.0):
-        overrides['faults.delay_s'] = args.late_captures
-    if getattr(args, 'freeze_camera_at', None) is not None:
-        overrides['faults.frozen_after_s'] = args.freeze_camera_at
-    if overrides:
-        overrides['faults.camera'] = args.fault_camera
-    return overrides
 
 
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
