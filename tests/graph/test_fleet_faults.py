@@ -33,7 +33,8 @@ def fleet_options(tmp_path: Path, **options: Any) -> GraphOptions:
     robots = [RobotParameters() for _ in STARTS_M]
     # Twice real time: the run lasts about 9 s of wall time, the kill lands mid-run whatever
     # the load.
-    return GraphOptions(seed=5, real_time_factor=2.0, markers=False, log_dir=tmp_path / 'logs',
+    options.setdefault('real_time_factor', 2.0)
+    return GraphOptions(seed=5, markers=False, log_dir=tmp_path / 'logs',
                         fleet=FleetRun(plan, robots, ['paper'] * len(robots)), **options)
 
 
@@ -89,3 +90,27 @@ def test_respawn_with_composed_is_refused_for_a_micro_factory_too(tmp_path):
     with pytest.raises(UsageError, match='--respawn restarts a crashed node'):
         run_graph(fleet_options(tmp_path, respawn=True, composed=True))
     assert not (tmp_path / 'logs').exists()
+
+
+def test_dropped_and_late_captures_in_a_micro_factory_still_do_every_task(tmp_path):
+    """Each robot's vision_node loses three captures in ten (each its own draws) and publishes
+    the rest 0.2 s late: latency costs time, never position or clearance."""
+    faults = {'faults.drop_probability': 0.3, 'faults.delay_s': 0.2, 'faults.camera': 'both'}
+    result = run_graph(fleet_options(tmp_path, real_time_factor=float('inf'),
+                                     vision_overrides=faults))
+    assert result.outcome == 'done', result.reason
+    for log, goal in zip(result.robots, GOALS_M, strict=True):
+        _, x, y, _ = log.route[-1]
+        assert abs(x - goal[0]) < 60e-6 and abs(y - goal[1]) < 60e-6
+    assert result.closest_gap_m > ROBOT_DIAMETER_M
+    # Slower than without faults (18.5 s): every period waits 0.2 s more at least.
+    assert result.sim_time_s > 20.0
+
+
+def test_a_frozen_camera_in_a_micro_factory_ends_the_run_lost_naming_the_robot(tmp_path):
+    faults = {'faults.frozen_after_s': 3.0, 'faults.camera': 'both'}
+    result = run_graph(fleet_options(tmp_path, real_time_factor=float('inf'),
+                                     vision_overrides=faults))
+    assert result.outcome == 'lost'
+    assert result.reason.startswith('robot ') and 'lost' in result.reason, result.reason
+    assert result.sim_time_s >= 3.0

@@ -279,6 +279,15 @@ def tracked_cameras(options: GraphOptions) -> tuple[str, ...]:
     return tuple(str(name) for name in cameras) if isinstance(cameras, list) else ()
 
 
+def check_camera_faults(vision_overrides: dict[str, object], vision: str) -> None:
+    """Raises UsageError for camera faults (``faults.*`` of ``vision_overrides``) on a vision
+    other than vision_node's, which injects them."""
+    faults = sorted(name for name in vision_overrides if name.startswith('faults.'))
+    if faults and vision != 'model':
+        raise UsageError(f'fault injection ({", ".join(faults)}) is vision_node\'s: it needs '
+                         f'--vision model, got --vision {vision}')
+
+
 def check_respawn(options: GraphOptions) -> None:
     """Raises UsageError for ``respawn`` with ``composed``: one robot's nodes or several's."""
     if options.composed and options.respawn:

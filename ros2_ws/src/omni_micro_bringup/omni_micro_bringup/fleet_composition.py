@@ -117,7 +117,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                 folder: Path, record: tuple[Path, str] | None = None,
                 composed: bool = False, markers: bool = False,
                 view: tuple[str, int] | None = None,
-                controllers: list[str] | None = None, vision: str = 'model') -> list[NodeSpec]:
+                controllers: list[str] | None = None, vision: str = 'model',
+                vision_overrides: dict[str, object] | None = None) -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
     ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
     (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
@@ -125,7 +126,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     default, leaves it to the params files); a servo's vision_node publishes the captures in
     motion it reads. ``vision``: ``model``, each robot its vision_node; ``images``, one
     camera_node rendering every robot with its code and one tracker_node naming them, in place
-    of the vision_nodes (the cameras a micro-factory shares). ``composed``: dynamics and every
+    of the vision_nodes (the cameras a micro-factory shares); ``vision_overrides`` (the camera
+    faults) set on every robot's vision_node. ``composed``: dynamics and every
     robot's nodes in one process (the container), each node with the same arguments as on its
     own; the recorder and the view stay processes of their own, as a single robot's.
 
@@ -166,7 +168,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                    'seed': int(seed) * 1000 + k,
                    'covariance_readers': [f'{robot}/{name}' for _, name in nodes
                                           if name != 'vision_node'],
-                   **({'captures_in_motion': True} if servo else {})},
+                   **({'captures_in_motion': True} if servo else {}),
+                   **(vision_overrides or {})},
                'controller_node': {'goal_time': 'stamp', 'mode': modes[k],
                                    # Its first move waits for the readers that must have it.
                                    'trajectory_readers': [

@@ -27,7 +27,11 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 
-from omni_micro_bringup.composition import GraphOptions, check_respawn
+from omni_micro_bringup.composition import (
+    GraphOptions,
+    check_camera_faults,
+    check_respawn,
+)
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
     check_vision,
@@ -228,10 +232,11 @@ class FleetDispatch:
         self.respawnable: list[str] = []
 
     def check(self) -> None:
-        """Raises UsageError if the vision cannot serve the robots' controllers, or for
-        ``respawn`` with ``composed``."""
+        """Raises UsageError if the vision cannot serve the robots' controllers, for
+        ``respawn`` with ``composed``, or for camera faults without vision_nodes."""
         check_vision(self.modes, self.options.vision)
         check_respawn(self.options)
+        check_camera_faults(self.options.vision_overrides, self.options.vision)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         options, record = self.options, self.options.record
@@ -239,7 +244,8 @@ class FleetDispatch:
                            options.real_time_factor, options.params_files, log_dir,
                            record=None if record is None else (record, options.storage),
                            composed=options.composed, markers=options.markers,
-                           view=options.view, controllers=self.modes, vision=options.vision)
+                           view=options.view, controllers=self.modes, vision=options.vision,
+                           vision_overrides=options.vision_overrides)
         if options.respawn:
             self.respawnable = [spec.name for spec in specs if spec.respawnable]
         return specs

@@ -10,7 +10,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.arguments import (
+    add_fault_arguments,
     add_view_arguments,
+    fault_overrides,
     positive_int,
     real_time_factor,
     seed_number,
@@ -83,6 +85,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='with --graph: restart a robot\'s crashed vision_node or '
                              'controller_node, hold the clock meanwhile and give it its leg '
                              'again (docs/reliability.md)')
+    add_fault_arguments(parser).description = (
+        'with --graph: every robot\'s vision_node, each drawing from its own seed')
     parser.add_argument('--log-dir', type=output_folder, default='out/runs', metavar='DIR',
                         help='with --graph: where each node\'s log goes, in a folder per run '
                              '(default out/runs)')
@@ -133,6 +137,10 @@ def run(args: argparse.Namespace) -> int:
     for option in ('composed', 'markers', 'view', 'respawn'):
         if not args.graph and getattr(args, option):
             raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
+    faults = fault_overrides(args)
+    if not args.graph and faults:
+        raise UsageError('fault injection is a node graph\'s (vision_node\'s): give it with '
+                         '--graph')
     if not args.graph and args.vision != 'model':
         raise UsageError(f'--vision {args.vision} is a node graph\'s: give it with --graph')
     fleet = fleet_of(args)
@@ -144,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
                              timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
                              composed=args.composed, markers=args.markers,
                              view=view_from_args(args), vision=args.vision,
-                             respawn=args.respawn)
+                             respawn=args.respawn, vision_overrides=faults)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json, force=args.force)
 
@@ -164,11 +172,13 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
     from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
 
     if graph is not None:
-        from omni_micro_bringup.composition import check_respawn
+        from omni_micro_bringup.composition import check_camera_faults, check_respawn
         from omni_micro_bringup.fleet_composition import check_vision
 
-        check_vision(fleet.controllers, graph.vision)   # refused before the planning
+        # Refused before the planning.
+        check_vision(fleet.controllers, graph.vision)
         check_respawn(graph)
+        check_camera_faults(graph.vision_overrides, graph.vision)
     started = time.perf_counter()
     try:
         check_tolerances(fleet.tasks)

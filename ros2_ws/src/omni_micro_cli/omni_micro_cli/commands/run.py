@@ -7,7 +7,12 @@ import os
 import sys
 from pathlib import Path
 
-from omni_micro_bringup.composition import SOURCES, VISION_MODES, GraphOptions
+from omni_micro_bringup.composition import (
+    SOURCES,
+    VISION_MODES,
+    GraphOptions,
+    check_camera_faults,
+)
 from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
@@ -191,7 +196,8 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision', 'force', 'respawn', *MICRO_FACTORY_OPTIONS)
+                 'vision', 'force', 'respawn', 'drop_captures', 'late_captures',
+                 'freeze_camera_at', 'fault_camera', *MICRO_FACTORY_OPTIONS)
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -204,11 +210,13 @@ def fleet_run(args: argparse.Namespace) -> int:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
                          '--log-dir, --record, --force, --composed, --no-markers, --view, '
-                         '--respawn, --json, --quiet, --goals-per-robot, --max-sim-time, --plot')
+                         '--respawn, the camera faults, --json, --quiet, --goals-per-robot, '
+                         '--max-sim-time, --plot')
     fleet = fleet_of(args)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
                          composed=args.composed, respawn=args.respawn,
+                         vision_overrides=fault_overrides(args),
                          markers=args.markers, view=view_from_args(args), vision=args.vision)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
@@ -226,9 +234,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     except argparse.ArgumentTypeError as error:
         raise UsageError(str(error)) from None
     faults = fault_overrides(args)
-    if faults and args.vision != 'model':
-        raise UsageError(f'fault injection ({", ".join(sorted(faults))}) is vision_node\'s: '
-                         f'it needs --vision model, got --vision {args.vision}')
+    check_camera_faults(faults, args.vision)
     external = 'external' in (args.camera, args.robot)
     if args.image_topic and args.camera != 'external':
         raise UsageError('--image-topic names an external camera\'s topics: it needs --camera '
