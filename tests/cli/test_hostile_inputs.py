@@ -207,13 +207,13 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
     (['run', '--robots', '3', '--open-loop', '3', '--vision', 'images'],
      "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --respawn, the camera faults, --json, '
-     '--quiet, --goals-per-robot, --max-sim-time, --plot'),
+     '--record-images, --force, --composed, --no-markers, --view, --respawn, the camera '
+     'faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot'),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
-     '--force, --composed, --no-markers, --view, --respawn, the camera faults, --json, '
-     '--quiet, --goals-per-robot, --max-sim-time, --plot'),
+     '--record-images, --force, --composed, --no-markers, --view, --respawn, the camera '
+     'faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot'),
     (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
      'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
      'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '
@@ -226,6 +226,11 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
                           '--graph'),
     (['fleet', '--respawn'], "omni-micro fleet: error: --respawn is a node graph's: give it "
                              'with --graph'),
+    (['fleet', '--record-images'], "omni-micro fleet: error: --record-images is a node "
+                                   "graph's: give it with --graph"),
+    (['fleet', '--graph', '--record-images', '--vision', 'images'],
+     'omni-micro fleet: error: --record-images needs --record BAG and images to record: '
+     '--vision images or --camera external'),
     (['fleet', '--drop-captures', '0.3'], "omni-micro fleet: error: fault injection is a node "
                                           "graph's (vision_node's): give it with --graph"),
     (['run', '--robots', '2', '--vision', 'images', '--late-captures', '0.2'],

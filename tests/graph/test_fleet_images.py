@@ -108,3 +108,31 @@ def test_the_same_run_and_bag_composed_at_twice_real_time(on_images, omni_micro,
     assert paced == fastest
     (recorded,) = (on_images / 'bag').glob('*.mcap')
     assert (tmp_path / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()
+
+
+def test_the_shared_cameras_images_recorded_name_each_robot_offline(omni_micro, tmp_path):
+    """``run --robots --vision images --record-images``: the bag keeps every frame of both
+    shared cameras, and ``track`` reading them afterwards names both robots in every macro frame
+    and finds each still as often as the live tracker published its captures."""
+    (tmp_path / 'robots.yaml').write_text(ROBOTS)
+    # Short moves (3 mm each, no crossing): the frames are 2 x 3.9 MB at 30 Hz.
+    (tmp_path / 'tasks.yaml').write_text('tasks:\n  robot_0:\n    - goal_mm: [33, 0]\n'
+                                         '  robot_1:\n    - goal_mm: [67, 0]\n')
+    done = omni_micro('run', '--robots', str(tmp_path / 'robots.yaml'), '--tasks',
+                      str(tmp_path / 'tasks.yaml'), '--vision', 'images', '--seed', '3',
+                      '--no-markers', '--rtf', 'max', '--log-dir', str(tmp_path / 'logs'),
+                      '--record', str(tmp_path / 'bag'), '--record-images', '--quiet')
+    assert done.returncode == 0, done.stderr[-3000:]
+    topics = [f'/camera/{camera}/{stream}' for camera in CAMERAS
+              for stream in ('image_raw', 'camera_info')]
+    captures = [f'/robot_{k}/camera/macro/pose' for k in range(2)]
+    bag = read_bag(tmp_path / 'bag', topics=[*topics, *captures])
+    frames = {len(bag.messages[topic]) for topic in topics}
+    assert len(frames) == 1 and frames.pop() > 30    # every frame, with its camera info
+    tracked = omni_micro('track', str(tmp_path / 'bag'), '--camera', 'macro', '--robots',
+                         'robot_0,robot_1')
+    assert tracked.returncode == 0, tracked.stderr[-2000:]
+    count = len(bag.messages['/camera/macro/image_raw'])
+    for k, topic in enumerate(captures):
+        assert (f'robot_{k}: named in {count} frames, still (a capture) in '
+                f'{len(bag.messages[topic])}') in tracked.stdout, tracked.stdout

@@ -249,7 +249,13 @@ def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
     """The cameras whose images camera_node streams in this graph (none without it)."""
     if 'camera_node' not in {spec.executable for spec in graph_nodes(options)}:
         return ()
-    values = node_parameters('camera_node', options.params_files, options.vision_overrides)
+    return rendered_cameras(options.params_files, options.vision_overrides)
+
+
+def rendered_cameras(params_files: tuple[Path, ...],
+                     overrides: dict[str, object]) -> tuple[str, ...]:
+    """The cameras camera_node renders with these params files and overrides."""
+    values = node_parameters('camera_node', params_files, overrides)
     cameras = values.get('cameras', ['macro', 'micro'])
     return tuple(str(name) for name in cameras) if isinstance(cameras, (list, tuple)) else ()
 
@@ -286,6 +292,14 @@ def check_camera_faults(vision_overrides: dict[str, object], vision: str) -> Non
     if faults and vision != 'model':
         raise UsageError(f'fault injection ({", ".join(faults)}) is vision_node\'s: it needs '
                          f'--vision model, got --vision {vision}')
+
+
+def check_record_images(options: GraphOptions) -> None:
+    """Raises UsageError for ``record_images`` without a bag or images to record."""
+    if options.record_images and (options.record is None or (
+            options.vision != 'images' and options.camera != 'external')):
+        raise UsageError('--record-images needs --record BAG and images to record: --vision '
+                         'images or --camera external')
 
 
 def check_respawn(options: GraphOptions) -> None:

@@ -28,6 +28,7 @@ from omni_micro_bringup.composition import (
     lockstep_nodes,
     recorded_topics,
     recorder_spec,
+    rendered_cameras,
     viewer_spec,
 )
 from omni_micro_bringup.errors import UsageError
@@ -95,13 +96,15 @@ def check_vision(modes: list[str], vision: str) -> None:
 
 
 def shared_cameras(count: int, seed: int, params: list[Path],
-                   capture_readers: list[str]) -> list[NodeSpec]:
+                   capture_readers: list[str], recorded: bool = False) -> list[NodeSpec]:
     """The camera pair a micro-factory shares: camera_node rendering every robot with its
     code, its frames read reliably by tracker_node, which names each robot and publishes its
-    captures under its namespace to the robot's ``capture_readers`` (node names)."""
+    captures under its namespace to the robot's ``capture_readers`` (node names); with
+    ``recorded``, the recorder reads the frames too, and the first waits for it as well."""
     robots = [robot_name(k) for k in range(count)]
     camera: dict[str, object] = {'seed': int(seed), 'robots': robots,
-                                 'image_readers': [TRACKER_NODE[1]]}
+                                 'image_readers': [TRACKER_NODE[1],
+                                                   *((RECORDER_NODE,) if recorded else ())]}
     tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
                                   'covariance_readers': [f'{robot}/{name}' for robot in robots
                                                          for name in capture_readers]}
@@ -118,7 +121,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                 composed: bool = False, markers: bool = False,
                 view: tuple[str, int] | None = None,
                 controllers: list[str] | None = None, vision: str = 'model',
-                vision_overrides: dict[str, object] | None = None) -> list[NodeSpec]:
+                vision_overrides: dict[str, object] | None = None,
+                record_images: bool = False) -> list[NodeSpec]:
     """The processes of a fleet's graph: dynamics for all, each robot's two nodes (with
     ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
     (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
@@ -127,7 +131,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     motion it reads. ``vision``: ``model``, each robot its vision_node; ``images``, one
     camera_node rendering every robot with its code and one tracker_node naming them, in place
     of the vision_nodes (the cameras a micro-factory shares); ``vision_overrides`` (the camera
-    faults) set on every robot's vision_node. ``composed``: dynamics and every
+    faults) set on every robot's vision_node; ``record_images``: the recorder keeps the shared
+    cameras' images too. ``composed``: dynamics and every
     robot's nodes in one process (the container), each node with the same arguments as on its
     own; the recorder and the view stay processes of their own, as a single robot's.
 
@@ -145,9 +150,10 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     check_vision(modes, vision)
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     names = [robot_name(k) for k in range(count)]
+    streamed = rendered_cameras(params_files, {}) if images and record_images else ()
     recorder = None if record is None else recorder_spec(*record, recorded_topics(
         names, markers, (CAMERA_STATUS_TOPIC,) if images else (),
-        in_motion=[names[k] for k in servos]))
+        in_motion=[names[k] for k in servos], images=streamed), frames=bool(streamed))
     dynamics = {
         'paused': True, 'real_time_factor': float(real_time_factor),
         'robots': names,
@@ -156,7 +162,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                     for v in robot.wheel_offsets_rad]}
     specs = [NodeSpec('omni_micro_sim', 'dynamics_node', params=shipped, overrides=dynamics)]
     if images:
-        specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes])
+        specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes],
+                                recorded=bool(streamed) and recorder is not None)
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'

@@ -30,6 +30,7 @@ from rcl_interfaces.srv import SetParameters
 from omni_micro_bringup.composition import (
     GraphOptions,
     check_camera_faults,
+    check_record_images,
     check_respawn,
 )
 from omni_micro_bringup.errors import RunFailed, UsageError
@@ -232,11 +233,17 @@ class FleetDispatch:
         self.respawnable: list[str] = []
 
     def check(self) -> None:
-        """Raises UsageError if the vision cannot serve the robots' controllers, for
-        ``respawn`` with ``composed``, or for camera faults without vision_nodes."""
-        check_vision(self.modes, self.options.vision)
-        check_respawn(self.options)
-        check_camera_faults(self.options.vision_overrides, self.options.vision)
+        self.check_options(self.options, self.modes)
+
+    @staticmethod
+    def check_options(options: GraphOptions, modes: list[str]) -> None:
+        """Raises UsageError if the vision cannot serve the robots' controller ``modes``, for
+        ``respawn`` with ``composed``, camera faults without vision_nodes, or images to record
+        without a bag or images."""
+        check_vision(modes, options.vision)
+        check_respawn(options)
+        check_camera_faults(options.vision_overrides, options.vision)
+        check_record_images(options)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         options, record = self.options, self.options.record
@@ -245,7 +252,8 @@ class FleetDispatch:
                            record=None if record is None else (record, options.storage),
                            composed=options.composed, markers=options.markers,
                            view=options.view, controllers=self.modes, vision=options.vision,
-                           vision_overrides=options.vision_overrides)
+                           vision_overrides=options.vision_overrides,
+                           record_images=options.record_images)
         if options.respawn:
             self.respawnable = [spec.name for spec in specs if spec.respawnable]
         return specs

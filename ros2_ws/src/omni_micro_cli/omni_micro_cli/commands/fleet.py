@@ -95,6 +95,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'under /robot_k/: the twin its odometry and goals, --graph every '
                              'robot topic its recorder reads (docs/fleet.md); replay --robot k '
                              'plays one robot back')
+    parser.add_argument('--record-images', action='store_true',
+                        help='with --graph, --record and --vision images: the shared cameras\' '
+                             'images and camera infos too (about 80 MB per simulated second)')
     parser.add_argument('--force', action='store_true',
                         help='replace an existing bag at --record')
     parser.add_argument('--json', action='store_true',
@@ -134,9 +137,10 @@ def fleet_of(args: argparse.Namespace) -> Fleet:
 def run(args: argparse.Namespace) -> int:
     if not args.graph and args.rtf != math.inf:
         raise UsageError('--rtf paces the node graph: give it with --graph')
-    for option in ('composed', 'markers', 'view', 'respawn'):
+    for option in ('composed', 'markers', 'view', 'respawn', 'record_images'):
         if not args.graph and getattr(args, option):
-            raise UsageError(f'--{option} is a node graph\'s: give it with --graph')
+            raise UsageError(f'--{option.replace("_", "-")} is a node graph\'s: give it with '
+                             '--graph')
     faults = fault_overrides(args)
     if not args.graph and faults:
         raise UsageError('fault injection is a node graph\'s (vision_node\'s): give it with '
@@ -152,7 +156,8 @@ def run(args: argparse.Namespace) -> int:
                              timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
                              composed=args.composed, markers=args.markers,
                              view=view_from_args(args), vision=args.vision,
-                             respawn=args.respawn, vision_overrides=faults)
+                             respawn=args.respawn, vision_overrides=faults,
+                             record_images=args.record_images)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json, force=args.force)
 
@@ -172,13 +177,9 @@ def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_si
     from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
 
     if graph is not None:
-        from omni_micro_bringup.composition import check_camera_faults, check_respawn
-        from omni_micro_bringup.fleet_composition import check_vision
+        from omni_micro_bringup.fleet_graph import FleetDispatch
 
-        # Refused before the planning.
-        check_vision(fleet.controllers, graph.vision)
-        check_respawn(graph)
-        check_camera_faults(graph.vision_overrides, graph.vision)
+        FleetDispatch.check_options(graph, fleet.controllers)   # refused before the planning
     started = time.perf_counter()
     try:
         check_tolerances(fleet.tasks)

@@ -12,6 +12,7 @@ from omni_micro_bringup.composition import (
     VISION_MODES,
     GraphOptions,
     check_camera_faults,
+    check_record_images,
 )
 from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.params_files import check_params_file
@@ -196,7 +197,7 @@ _DEFAULTS: dict[str, object] = {}
 # What a run of several robots reads (the rest is the single robot's).
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
-                 'vision', 'force', 'respawn', 'drop_captures', 'late_captures',
+                 'vision', 'force', 'respawn', 'record_images', 'drop_captures', 'late_captures',
                  'freeze_camera_at', 'fault_camera', *MICRO_FACTORY_OPTIONS)
 
 
@@ -209,15 +210,16 @@ def fleet_run(args: argparse.Namespace) -> int:
     if others:
         raise UsageError(f'{", ".join(others)}: a single robot\'s run only; with --robots '
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
-                         '--log-dir, --record, --force, --composed, --no-markers, --view, '
-                         '--respawn, the camera faults, --json, --quiet, --goals-per-robot, '
-                         '--max-sim-time, --plot')
+                         '--log-dir, --record, --record-images, --force, --composed, '
+                         '--no-markers, --view, --respawn, the camera faults, --json, '
+                         '--quiet, --goals-per-robot, --max-sim-time, --plot')
     fleet = fleet_of(args)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
                          composed=args.composed, respawn=args.respawn,
                          vision_overrides=fault_overrides(args),
-                         markers=args.markers, view=view_from_args(args), vision=args.vision)
+                         record_images=args.record_images, markers=args.markers,
+                         view=view_from_args(args), vision=args.vision)
     return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
                          force=args.force)
@@ -245,10 +247,8 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     if external and faults:
         raise UsageError('fault injection is the simulated camera\'s: not with --camera '
                          'external or --robot external')
-    if args.record_images and (args.record is None
-                               or (args.vision != 'images' and args.camera != 'external')):
-        raise UsageError('--record-images needs --record BAG and images to record: --vision '
-                         'images or --camera external')
+    check_record_images(GraphOptions(record=args.record, record_images=args.record_images,
+                                     vision=args.vision, camera=args.camera))
     domain = getattr(args, 'domain_id', None)
     if external and domain is None:
         from_environment = os.environ.get('ROS_DOMAIN_ID', '')
