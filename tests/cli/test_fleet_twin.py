@@ -1,4 +1,4 @@
-"""The micro-factory's twin: robots crossing each other's goals all arrive and never touch, a
+"""The fleet's twin: robots crossing each other's goals all arrive and never touch, a
 goal that waits for another robot's is reached after it, a contact is a fault naming both."""
 
 from __future__ import annotations

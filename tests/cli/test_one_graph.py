@@ -60,7 +60,7 @@ def test_run_robots_and_fleet_graph_hand_the_graph_the_same_run(monkeypatch, tmp
     assert run_fleet.max_sim_time_s == fleet_fleet.max_sim_time_s == 1800.0
 
 
-def test_the_two_doors_take_the_same_micro_factory_flags(monkeypatch, tmp_path, capsys):
+def test_the_two_doors_take_the_same_fleet_flags(monkeypatch, tmp_path, capsys):
     common = ['--robots', '2', '--seed', '1', '--goals-per-robot', '1', '--max-sim-time', '900',
               '--log-dir', str(tmp_path)]
     plots = {door: tmp_path / f'{door}.png' for door in ('run', 'fleet')}

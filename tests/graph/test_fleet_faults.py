@@ -1,4 +1,4 @@
-"""Faults in a micro-factory (docs/reliability.md, "A micro-factory"): a robot's vision_node or
+"""Faults in a fleet (docs/reliability.md, "A fleet"): a robot's vision_node or
 controller_node killed mid-run comes back with --respawn, its leg given again, and every task
 is done with the robots clear of each other; dynamics_node killed, which no robot can do
 without, stops the run within 5 s, named, every process stopped and the bag readable."""
@@ -74,7 +74,7 @@ def test_a_robots_node_killed_comes_back_and_every_task_is_done(process, tmp_pat
     assert any(f"{robot}'s leg to" in line and 'given again' in line for line in lines), lines
 
 
-def test_dynamics_killed_stops_the_micro_factory_named_with_the_bag_readable(tmp_path):
+def test_dynamics_killed_stops_the_fleet_named_with_the_bag_readable(tmp_path):
     events: dict = {}
     with pytest.raises(RunFailed, match='dynamics_node exited with code -9'):
         run_graph(fleet_options(tmp_path, record=tmp_path / 'bag'),
@@ -86,13 +86,13 @@ def test_dynamics_killed_stops_the_micro_factory_named_with_the_bag_readable(tmp
     assert all(len(bag.messages[topic]) > 10 for topic in ('/robot_0/odom', '/robot_1/odom'))
 
 
-def test_respawn_with_composed_is_refused_for_a_micro_factory_too(tmp_path):
+def test_respawn_with_composed_is_refused_for_a_fleet_too(tmp_path):
     with pytest.raises(UsageError, match='--respawn restarts a crashed node'):
         run_graph(fleet_options(tmp_path, respawn=True, composed=True))
     assert not (tmp_path / 'logs').exists()
 
 
-def test_dropped_and_late_captures_in_a_micro_factory_still_do_every_task(tmp_path):
+def test_dropped_and_late_captures_in_a_fleet_still_do_every_task(tmp_path):
     """Each robot's vision_node loses three captures in ten (each its own draws) and publishes
     the rest 0.2 s late: latency costs time, never position or clearance."""
     faults = {'faults.drop_probability': 0.3, 'faults.delay_s': 0.2, 'faults.camera': 'both'}
@@ -107,7 +107,7 @@ def test_dropped_and_late_captures_in_a_micro_factory_still_do_every_task(tmp_pa
     assert result.sim_time_s > 20.0
 
 
-def test_a_frozen_camera_in_a_micro_factory_ends_the_run_lost_naming_the_robot(tmp_path):
+def test_a_frozen_camera_in_a_fleet_ends_the_run_lost_naming_the_robot(tmp_path):
     faults = {'faults.frozen_after_s': 3.0, 'faults.camera': 'both'}
     result = run_graph(fleet_options(tmp_path, real_time_factor=float('inf'),
                                      vision_overrides=faults))

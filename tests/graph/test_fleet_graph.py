@@ -1,4 +1,4 @@
-"""A micro-factory through the node graph (`fleet --graph`): three robots crossing each other's
+"""A fleet through the node graph (`fleet --graph`): three robots crossing each other's
 goals, each its own controller (the model mode, the servo, the paper's rule), one dynamics_node
 for all, each robot's vision_node and controller_node under /robot_k: every goal reached within
 its tolerance, no two discs ever touching, the run the fleet twin runs, and the same run, goal

@@ -1,4 +1,4 @@
-"""A micro-factory on rendered images (`fleet --graph --vision images`): one camera_node renders
+"""A fleet on rendered images (`fleet --graph --vision images`): one camera_node renders
 every robot with its code, one tracker_node names each in the frames and publishes its captures
 under its namespace, each robot's lockstep gate hearing of its own captures only. Two robots
 crossing each other's goals reach them clear of each other (in the model mode, the quickest to

@@ -1,4 +1,4 @@
-"""camera_node over a micro-factory's robots, in-process: every frame draws every robot with its
+"""camera_node over a fleet's robots, in-process: every frame draws every robot with its
 code, once every robot's odometry has reached the frame's time, and tracker_node with the same
 robots names each one and publishes its captures under its namespace (the camera's codes are the
 tracker's); what it cannot draw is refused in one line."""

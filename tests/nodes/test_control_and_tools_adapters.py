@@ -188,7 +188,7 @@ def test_bag_recorder_in_the_lockstep_counts_a_frame_written_once_its_camera_inf
     ({'bag': 'x', 'log_clock': 'sundial'}, "'sundial'"),
     ({'bag': 'x', 'driver_images': ['camera/image_raw']}, 'camera/image_raw'),
     ({'bag': 'x', 'topics': ['/nope']}, "'/nope'"),
-    # A micro-factory robot's clock is the graph's; a namespace is one plain name.
+    # A fleet robot's clock is the graph's; a namespace is one plain name.
     ({'bag': 'x', 'topics': ['/robot_1/clock']}, "'/robot_1/clock'"),
     ({'bag': 'x', 'topics': ['/robot 1/odom']}, "'/robot 1/odom'"),
     ({'bag': 'x', 'storage': 'zip'}, "'zip'"),
@@ -201,7 +201,7 @@ def test_bag_recorder_refuses_what_it_cannot_record(context, tmp_path, values, n
     assert not (tmp_path / 'x').exists()
 
 
-def test_bag_recorder_records_each_robot_of_a_micro_factory_and_says_how_far_it_has_all(
+def test_bag_recorder_records_each_robot_of_a_fleet_and_says_how_far_it_has_all(
         context, tmp_path):
     """Each robot's per-tick streams count: it has everything up to the oldest of them."""
     topics = ['/clock', *(f'/robot_{k}/{stream}' for k in (0, 1)

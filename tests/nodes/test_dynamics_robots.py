@@ -1,4 +1,4 @@
-"""dynamics_node simulating a micro-factory's robots on its one clock, in-process: each robot's
+"""dynamics_node simulating a fleet's robots on its one clock, in-process: each robot's
 topics under its namespace with its own REP-105 frames, its own start pose and offsets, its
 commands moving it alone; bad robot parameters refused by name."""
 

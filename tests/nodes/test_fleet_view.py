@@ -1,5 +1,5 @@
 """The live view: a client that connects the moment the port opens is offered every channel at
-once; for a micro-factory the viewer serves every robot's topics under its namespace and the one
+once; for a fleet the viewer serves every robot's topics under its namespace and the one
 /clock, a Foxglove client is offered each with its schema, and the fleet's graph starts it with
 its robots."""
 

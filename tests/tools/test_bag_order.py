@@ -121,7 +121,7 @@ def test_the_finished_bag_is_in_simulated_time_and_ends_a_tail_after_the_outcome
     assert times == sorted(times)
 
 
-def test_a_micro_factory_bag_holds_each_instant_robot_by_robot_whatever_the_arrival(tmp_path):
+def test_a_fleet_bag_holds_each_instant_robot_by_robot_whatever_the_arrival(tmp_path):
     """Each robot's topics rank where the single robot's do, then by robot: two robots'
     odometry of one tick never stays in the order it happened to arrive in."""
     topics = {topic: spec for topic in ('/clock', '/robot_0/odom', '/robot_1/odom',

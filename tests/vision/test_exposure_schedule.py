@@ -1,6 +1,6 @@
 """When a simulated camera's frames are due and where each robot stands in them: 30 Hz frames on
 the 50 Hz grid, each once, each robot where it was at the exposure's start; a late camera makes up
-no past frame; a micro-factory's frame waits for every robot's odometry."""
+no past frame; a fleet's frame waits for every robot's odometry."""
 
 from __future__ import annotations
 

@@ -45,7 +45,7 @@ def test_the_robot_is_drawn_where_the_odometry_puts_it_with_wheels_along_the_ste
         RobotGeometry().wheel_contacts(0.05, -0.01, 0.3)[0])
 
 
-def test_a_micro_factory_robot_is_drawn_in_its_colour_with_its_label_above_it():
+def test_a_fleet_robot_is_drawn_in_its_colour_with_its_label_above_it():
     scene = Scene(DEFAULT_RIG, robot_colour=FLEET_COLOURS[2], label='robot_2')
     scene.on_odometry(0.05, -0.01, 0.3)
     shapes = {shape.namespace: shape for shape in scene.robot_shapes()}

@@ -113,7 +113,7 @@ def recorder_spec(bag: Path, storage: str, topics: list[str], frames: bool = Fal
 
 
 def viewer_spec(host: str, port: int, markers: bool, robots: Sequence[str] = ()) -> NodeSpec:
-    """The live view; of a micro-factory's ``robots`` (namespaces), each one's topics."""
+    """The live view; of a fleet's ``robots`` (namespaces), each one's topics."""
     return NodeSpec('omni_micro_tools', 'viewer', overrides={
         'host': host, 'port': int(port), 'markers': bool(markers),
         **({'robots': list(robots)} if robots else {})})

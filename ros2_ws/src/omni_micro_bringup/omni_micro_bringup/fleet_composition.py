@@ -1,8 +1,8 @@
-"""What a micro-factory's graph starts: one dynamics_node simulating every robot on one clock,
+"""What a fleet's graph starts: one dynamics_node simulating every robot on one clock,
 per robot ``robot_k`` its vision_node and controller_node (and, drawing it, its markers_node) in
 the namespace ``/robot_k``, and the recorder of every robot's topics; all but the recorder in
 one process when composed. On rendered images, one camera_node and one tracker_node for all in
-place of the vision_nodes: the robots share the cameras, as in a micro-factory, and the tracker
+place of the vision_nodes: the robots share the cameras, and the tracker
 tells them apart by the codes the camera draws.
 
 One dynamics process for all (not one per robot): the robots share one ``/clock`` and one
@@ -97,7 +97,7 @@ def check_vision(modes: list[str], vision: str) -> None:
 
 def shared_cameras(count: int, seed: int, params: list[Path],
                    capture_readers: list[str], recorded: bool = False) -> list[NodeSpec]:
-    """The camera pair a micro-factory shares: camera_node rendering every robot with its
+    """The camera pair a fleet shares: camera_node rendering every robot with its
     code, its frames read reliably by tracker_node, which names each robot and publishes its
     captures under its namespace to the robot's ``capture_readers`` (node names); with
     ``recorded``, the recorder reads the frames too, and the first waits for it as well."""
@@ -130,7 +130,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     default, leaves it to the params files); a servo's vision_node publishes the captures in
     motion it reads. ``vision``: ``model``, each robot its vision_node; ``images``, one
     camera_node rendering every robot with its code and one tracker_node naming them, in place
-    of the vision_nodes (the cameras a micro-factory shares); ``vision_overrides`` (the camera
+    of the vision_nodes (the cameras a fleet shares); ``vision_overrides`` (the camera
     faults) set on every robot's vision_node; ``record_images``: the recorder keeps the shared
     cameras' images too. ``composed``: dynamics and every
     robot's nodes in one process (the container), each node with the same arguments as on its

@@ -25,7 +25,7 @@ from omni_micro_common.params import flatten, load_params_file
 # Parameters a node declares that the file leaves to the command line, the bringup or another
 # file: the bag to write (and a camera driver's images in it), who takes part in the lockstep,
 # whose readers a node waits for (the bringup's composition sets them for each run), a
-# micro-factory's robots (run --robots), a camera's calibration (what `omni-micro
+# fleet's robots (run --robots), a camera's calibration (what `omni-micro
 # calibrate-camera` writes), and rclpy's own.
 LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
                    'dynamics_node': {'lockstep_nodes', 'awaited_readers', 'robots',

@@ -35,13 +35,13 @@ class NodeSpec:
     lockstep: bool = False
     # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
     hosts: tuple[NodeSpec, ...] = ()
-    # A robot's namespace in a micro-factory's graph (omni_micro_bringup.fleet_composition).
+    # A robot's namespace in a fleet's graph (omni_micro_bringup.fleet_composition).
     namespace: str = ''
     # Its topics' remaps (``/odom:=/robot_1/odom``) and its params files, in order (later files
     # win): what its command line says before the overrides.
     remaps: tuple[str, ...] = ()
     params: tuple[Path, ...] = ()
-    # The names it reports under on /lockstep when not its own: the tracker a micro-factory's
+    # The names it reports under on /lockstep when not its own: the tracker a fleet's
     # robots share reports once per robot, as that robot's (``robot_1/tracker_node``).
     reports_as: tuple[str, ...] = ()
 

@@ -1,7 +1,7 @@
 """A node respawned in the middle of a run, brought back: the clock held while it comes up, its
 new readers told from the dead process's, the goal given again, and time started anew if it
 stands still (Orchestrator's part in supervision; graph.Graph respawns the process). The same
-for a robot of a micro-factory (``robot_1.controller_node``): its readers are told in its
+for a robot of a fleet (``robot_1.controller_node``): its readers are told in its
 namespace, and the leg it was driving is given again (:class:`FleetRespawns`)."""
 
 from __future__ import annotations
@@ -218,7 +218,7 @@ class Respawns:
 
 
 class FleetRespawnsHost(RespawnsHost, Protocol):
-    """What bringing a micro-factory robot's node back needs besides: every robot's statuses
+    """What bringing a fleet robot's node back needs besides: every robot's statuses
     and the coordinator's way of handing a robot its leg
     (:class:`omni_micro_bringup.fleet_graph.FleetMonitor`)."""
 
@@ -228,7 +228,7 @@ class FleetRespawnsHost(RespawnsHost, Protocol):
 
 
 class FleetRespawns(Respawns):
-    """A micro-factory robot's vision_node or controller_node respawned (``robot_1.vision_node``):
+    """A fleet robot's vision_node or controller_node respawned (``robot_1.vision_node``):
     the clock held while it comes back, the leg the robot was driving given again from where it
     stands, and time started again. The other robots wait meanwhile: the clock is theirs too, and
     the plan's legs keep them clear of it whatever their timing."""

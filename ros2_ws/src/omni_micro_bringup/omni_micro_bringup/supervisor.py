@@ -1,6 +1,6 @@
 """What the orchestrator's node needs of whoever runs the processes (graph.Graph): it watches
 the ROS side and leaves the processes to its supervisor, so the dependency runs one way; and a
-supervisor that notes the nodes it respawned for a micro-factory's coordinator to bring back
+supervisor that notes the nodes it respawned for a fleet's coordinator to bring back
 (:class:`RestartsNoted`)."""
 
 from __future__ import annotations

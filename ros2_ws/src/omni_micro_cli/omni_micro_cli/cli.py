@@ -61,9 +61,9 @@ COMMANDS: dict[str, Command] = {
                                     'run'),
     'bag-recover': Command('recover', 'make a readable bag from one whose recorder was killed'),
     'soak': Command('soak', 'many goals in one graph run: memory growth and bag completeness'),
-    'fleet': Command('fleet', 'several robots on one platform (the micro-factory): a plan '
+    'fleet': Command('fleet', 'several robots on one platform (a fleet): a plan '
                               'that keeps them apart, driven in one process'),
-    'fleet-study': Command('fleet_study', 'the micro-factory measured: throughput against the '
+    'fleet-study': Command('fleet_study', 'the fleet measured: throughput against the '
                                           'number of robots, crossing runs'),
     'simulate': Command('simulate', 'one open-loop move from rest at the origin (no ROS)'),
     'figures': Command('figures', "reproduce the paper's open-loop figures and compare its "

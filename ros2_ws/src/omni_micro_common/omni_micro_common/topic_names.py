@@ -42,7 +42,7 @@ CAMERA_STATUS_TOPIC = '/camera/status'
 RECORDER_STATUS_TOPIC = '/bag_recorder/status'
 # What markers_node draws.
 MARKERS_TOPIC = '/markers'
-# Every topic that is a robot's own, remapped into its namespace in a micro-factory; /clock,
+# Every topic that is a robot's own, remapped into its namespace in a fleet; /clock,
 # /lockstep and /robot_contacts stay the graph's.
 ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
                 JOINT_STATES_THROTTLE_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
@@ -57,7 +57,7 @@ def camera_info_beside(image_topic: str) -> str:
     return image_topic.rsplit('/', 1)[0] + '/camera_info'
 
 
-# A micro-factory's robot k lives in the namespace robot_k (its fiducial carries code k); the
+# A fleet's robot k lives in the namespace robot_k (its fiducial carries code k); the
 # single robot is the fleet of one in the root namespace, its topics the bare names above.
 ROBOT_NAMESPACE_PREFIX = 'robot_'
 
@@ -93,6 +93,6 @@ def robot_topic(index: int, topic: str) -> str:
 
 
 def is_plain_name(name: str) -> bool:
-    """One ROS name token (letters, digits and _, a letter first): what a micro-factory robot's
+    """One ROS name token (letters, digits and _, a letter first): what a fleet robot's
     namespace must be (``robot_1``), whose topics are then ``/robot_1/odom``, ..."""
     return name[:1].isalpha() and name.replace('_', 'a').isalnum()

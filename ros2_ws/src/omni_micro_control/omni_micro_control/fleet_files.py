@@ -1,4 +1,4 @@
-"""What a micro-factory run is given: the robots (where they start, their wheels' offsets, their
+"""What a fleet run is given: the robots (where they start, their wheels' offsets, their
 controllers) and their tasks, from YAML files or drawn from a seed; every bad value named in one
 line.
 
@@ -187,9 +187,10 @@ def _task(where: str, entry: object) -> Task:
 
 def drawn_tasks(starts_m: list[tuple[float, float]], goals_per_robot: int,
                 seed: int) -> list[list[Task]]:
-    """A micro-factory's day: each robot brings a part to the micro field (fine positioning to
-    3 um), then takes it to a place on the platform, and again: ``goals_per_robot`` goals in
-    all, the last a place of its own (no two robots end at the same one)."""
+    """A fleet's day in a micro-factory: each robot brings a part to the micro field (fine
+    positioning to 3 um), then takes it to a place on the platform, and again:
+    ``goals_per_robot`` goals in all, the last a place of its own (no two robots end at the same
+    one)."""
     rng = random.Random(f'tasks {seed}')
     places = [place for place in LATTICE_M if math.dist(place, MICRO_FIELD_CENTER_M) > 0.03]
     rng.shuffle(places)

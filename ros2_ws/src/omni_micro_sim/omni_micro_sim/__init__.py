@@ -9,7 +9,7 @@ Python), :mod:`kernels` (eqs. 1-13, numba), :mod:`integrator` (RK4 through the k
 contract), :mod:`paper` (the paper's scenarios and numbers), :mod:`reference` (a solve_ivp check of
 the integrator), :mod:`errors`. :mod:`dynamics_node` is the ROS adapter, :mod:`dynamics_parameters`
 its parameters, :mod:`simulated_robots` the robots it simulates on its clock (one, or a
-micro-factory's, each under its namespace).
+fleet's, each under its namespace).
 
 The names below load on first use (PEP 562), so that importing a light module of this package
 (parameters, state, profile) does not compile the slip kernels.

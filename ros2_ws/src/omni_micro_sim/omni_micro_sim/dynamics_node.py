@@ -13,7 +13,7 @@ Publishes, once per grid period of simulated time (``publish_period_s``):
                   ``throttle_every`` (5 by default): for who only watches (markers_node), to
                   whom every tick would be a delivery it does not need (topic_tools throttle's
                   names, so that a real robot's driver can be throttled the same way)
-With several robots (``robots``: a micro-factory), each robot's streams and commands are under
+With several robots (``robots``: a fleet), each robot's streams and commands are under
 its namespace (omni_micro_sim.simulated_robots), /clock is one for all, and
   /robot_contacts diagnostic_msgs/DiagnosticStatus, latched: two robots' chassis discs
                   touching (``robots``: both, ``time_s``, ``gap_m``), once per pair
@@ -118,7 +118,7 @@ class DynamicsNode(Node):
         self.paused = settings.paused
         # The readers time waits for at its start, by node (see the module docstring).
         self.awaited_readers = settings.awaited_readers
-        # One robot under the graph's names, or each of a micro-factory's under its namespace.
+        # One robot under the graph's names, or each of a fleet's under its namespace.
         namespaces = settings.robots or ['']
         poses = settings.robot_poses or [settings.initial_pose]
         models = settings.robot_models or [settings.robot]

@@ -55,7 +55,7 @@ class DynamicsParameters:
     lockstep_nodes: list[str]
     awaited_readers: dict[str, tuple[str, ...]]
     max_lead_s: float
-    # Several robots on the one clock (a micro-factory): their namespaces, and each one's
+    # Several robots on the one clock (a fleet): their namespaces, and each one's
     # start pose and true robot (its wheel offsets); none: the one robot above.
     robots: list[str] = field(default_factory=list)
     robot_poses: list[list[float]] = field(default_factory=list)

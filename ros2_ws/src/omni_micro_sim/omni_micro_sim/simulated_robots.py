@@ -1,7 +1,7 @@
 """The robots a dynamics node simulates on its one clock: each its grid, its topics and frames.
 
 One robot (the default) publishes under the graph's names (``/odom``, frames ``odom`` ->
-``base_link``); robot ``robot_k`` of a micro-factory under its namespace (``/robot_k/odom``,
+``base_link``); robot ``robot_k`` of a fleet under its namespace (``/robot_k/odom``,
 frames ``robot_k/odom`` -> ``robot_k/base_link``, REP-105 with a prefix per robot, as
 multi-robot TF trees do) and takes its commands on ``/robot_k/wheel_trajectory``.
 """

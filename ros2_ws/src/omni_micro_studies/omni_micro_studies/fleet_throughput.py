@@ -106,7 +106,7 @@ def throughput_figure(summary: dict[str, Any]) -> bytes:
     axes.set_xlabel('robots on the platform')
     axes.set_ylabel('goals reached per simulated minute')
     mode = CONTROLLER_NAMES[summary['controller']]
-    axes.set_title(f'Micro-factory throughput, every robot {mode}\n(min..max over task sets)')
+    axes.set_title(f'Fleet throughput, every robot {mode}\n(min..max over task sets)')
     axes.set_ylim(bottom=0.0)
     axes.grid(alpha=0.3)
     buffer = io.BytesIO()

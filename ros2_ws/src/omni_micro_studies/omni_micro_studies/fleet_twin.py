@@ -1,4 +1,4 @@
-"""The micro-factory's twin: several robots on one platform, in one process.
+"""The fleet's twin: several robots on one platform, in one process.
 
 Each robot is the twin's robot (:mod:`omni_micro_studies.twin`): its own slip dynamics and
 offsets, its own captures (the camera pair sees each robot; each capture is that robot's, as

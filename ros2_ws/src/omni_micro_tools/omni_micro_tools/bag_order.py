@@ -8,7 +8,7 @@ depends on the machine's load. A finished bag instead holds each message
   (omni_micro_common.conventions.STATUS_TIME_KEY); a message without one, or with a time from 0
   in a bag recorded on the wall clock (a real robot's run), keeps its arrival time;
   never earlier than the message before it on its topic (a topic keeps its publication order);
-- in one order: by event time, then by topic (``TOPIC_ORDER``; a micro-factory robot's topics
+- in one order: by event time, then by topic (``TOPIC_ORDER``; a fleet robot's topics
   where the single robot's are, robot by robot), then by publication order;
 - serialized canonically (rosbags' CDR, padding zeroed: a publisher may leave garbage in it);
 - up to an end the run defines: its last outcome plus ``BAG_TAIL_S`` of simulated time, or, for
@@ -107,7 +107,7 @@ class _Entry:
 
 
 def _rank(topic: str) -> tuple[int, str]:
-    """Where a topic comes within an instant: by TOPIC_ORDER (a micro-factory robot's topic
+    """Where a topic comes within an instant: by TOPIC_ORDER (a fleet robot's topic
     where the single robot's is), then by name (robot_0's before robot_1's; two topics of one
     rank never left to the order they arrived in)."""
     own = robot_and_topic(topic)[1]

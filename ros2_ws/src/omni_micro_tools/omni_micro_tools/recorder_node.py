@@ -11,7 +11,7 @@ each message at the simulated time it belongs to, in one order, serialized canon
 
 Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``bag`` (the folder to
 create; required, must not exist), ``storage`` (mcap or sqlite3), ``topics`` (default: every topic
-of the graph but the images; in a micro-factory each robot's under its namespace,
+of the graph but the images; in a fleet each robot's under its namespace,
 ``/robot_k/odom``), ``lockstep_frames`` (report written frames on /lockstep, so that a
 graph in lockstep waits for the disk as for its tracker), ``lockstep_ticks`` (report how far
 every tick topic is recorded on /lockstep, so that a graph in lockstep never runs so far ahead
@@ -76,7 +76,7 @@ FLUSH_PERIOD_S = 0.5
 
 
 RECORDER_DEPTH = 1000
-# The robot's per-tick streams (each robot's, in a micro-factory): the recorder says how far it
+# The robot's per-tick streams (each robot's, in a fleet): the recorder says how far it
 # has received all of them (RECEIVED_UP_TO_KEY of /bag_recorder/status), so that whoever stops
 # the graph knows the bag has everything up to a time. Each comes from one writer, in order.
 TICK_TOPICS = (CLOCK_TOPIC, ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC)
@@ -110,7 +110,7 @@ class BagRecorder(Node):
         unknown = [name for name in names if recordable_spec(name) is None]
         if unknown or not names:
             raise ParameterError(f'topics must be some of {sorted(RECORDABLE_TOPICS)}, or a '
-                                 f'micro-factory robot\'s (/robot_1/odom), got {names}')
+                                 f'fleet robot\'s (/robot_1/odom), got {names}')
         if bag.exists():
             raise ParameterError(f'bag {str(bag)!r} exists already: not recording over it')
         if log_clock not in LOG_CLOCKS:

@@ -96,7 +96,7 @@ RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS}
 
 
 def robot_and_topic(topic: str) -> tuple[str, str]:
-    """A micro-factory robot's namespace and the single robot's name of its topic:
+    """A fleet robot's namespace and the single robot's name of its topic:
     ``/robot_1/odom`` -> ``('robot_1', '/odom')``; a graph topic (``/clock``, ``/odom``) or any
     other name -> ``('', topic)``. /clock is the graph's, never a robot's."""
     if topic in RECORDABLE_TOPICS:
@@ -110,7 +110,7 @@ def robot_and_topic(topic: str) -> tuple[str, str]:
 
 
 def recordable_spec(topic: str) -> TopicSpec | None:
-    """What the recorder records a topic as: a graph topic, or one robot's of a micro-factory
+    """What the recorder records a topic as: a graph topic, or one robot's of a fleet
     (``/robot_k/odom``); None for a topic it cannot record."""
     return RECORDABLE_TOPICS.get(robot_and_topic(topic)[1])
 # The types of the camera streams: a megabyte a frame, never held in memory while a bag is put

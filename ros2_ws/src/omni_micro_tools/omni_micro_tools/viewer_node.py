@@ -7,7 +7,7 @@ The server advertises no capability: clients cannot publish, call services or se
 
 Parameters (its section of omni_micro_bringup's ``config/omni_micro.yaml``): ``host`` (default
 127.0.0.1: loopback only), ``port`` (default 8765; 0 for any free one), ``markers`` (serve
-/markers; false for a graph without markers_node), ``robots`` (a micro-factory's namespaces:
+/markers; false for a graph without markers_node), ``robots`` (a fleet's namespaces:
 each robot's topics under its own, ``/robot_k/markers``, ``/robot_k/odom``, ..., and the one
 /clock). ``omni-micro view`` and ``run --view`` start it.
 """

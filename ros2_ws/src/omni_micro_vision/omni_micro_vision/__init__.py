@@ -13,7 +13,7 @@ map fitted from frames of it), :mod:`motion_capture` (captures of a moving robot
 loss), :mod:`frame_ages` (how old a driver's frames come, by their stamps), :mod:`frame_losses`
 (frames a driver sent that never arrived, and why), :mod:`scene` (what a
 viewer draws) and :mod:`scene_kernel` (the frames' reflectance, numba), :mod:`animation` (a
-recorded run drawn as a GIF or MP4, scene by scene), :mod:`fleet_figure` (a micro-factory's
+recorded run drawn as a GIF or MP4, scene by scene), :mod:`fleet_figure` (a fleet's
 routes in one picture), :mod:`errors`. At the
 message boundary: :mod:`image_messages` (sensor_msgs/Image to pixels and back),
 :mod:`camera_frames` (a simulated camera's frames as a driver sends them), :mod:`marker_messages`

@@ -3,7 +3,7 @@
 The bag's messages are fed, in the order they were recorded, to the same
 :class:`omni_micro_vision.scene.Scene` that ``markers_node`` draws from; each frame draws the
 scene at one simulated time: the platform with the route forming, captures landing, moves and
-the robot, and an inset of the micro field. A micro-factory's bag (each robot's topics under
+the robot, and an inset of the micro field. A fleet's bag (each robot's topics under
 ``/robot_k/``) gets a scene per robot, each robot in its colour and labelled, as
 ``/robot_k/markers`` draws it.
 """
@@ -59,7 +59,7 @@ Event = tuple[int, str, str, Any]
 
 def _events(bag: Path, robots: list[str]) -> list[Event]:
     """Every message that changes a robot's scene (``robots``: the namespaces of a
-    micro-factory's bag; ``['']`` for a single robot's)."""
+    fleet's bag; ``['']`` for a single robot's)."""
     data = read_bag(bag, [f'/{robot}{topic}' if robot else topic
                           for robot in robots for topic in TOPICS])
     events: list[Event] = []
@@ -140,7 +140,7 @@ def _draw(axis: Any, shapes: list[Shape], micro: bool, route_style: Any = '-') -
 def animate(bag: Path, target: Path, frames: int, fps: int, still: Path,
             robots: list[int] | None = None) -> int:
     """Render ``frames`` frames to ``target`` (.gif, or .mp4 where ffmpeg exists), and the
-    last one to ``still`` (a PNG). ``robots``: the robots of a micro-factory's bag, all drawn."""
+    last one to ``still`` (a PNG). ``robots``: the robots of a fleet's bag, all drawn."""
     import matplotlib
 
     matplotlib.use('Agg')

@@ -46,7 +46,7 @@ class CameraFrames:
 
     def pixels(self, number: int, scene: RobotState | Sequence[InView]) -> np.ndarray:
         """Frame ``number`` of a robot whose motion at the exposure's start is ``scene``, or of
-        a micro-factory's robots (each where it was then, with its code)."""
+        a fleet's robots (each where it was then, with its code)."""
         rng = np.random.default_rng([self.seed, self.index, number])
         if self.target is None:
             robots = [InView(scene)] if isinstance(scene, RobotState) else list(scene)

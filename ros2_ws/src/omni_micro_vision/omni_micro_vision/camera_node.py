@@ -10,7 +10,7 @@ noise seeded by (seed, c, k): the same run gives the same frames at any speed
 (:mod:`omni_micro_vision.exposure_schedule`). What a frame shows is
 :func:`omni_micro_vision.rendering.render_robots`'s; this node only moves numbers.
 
-With ``robots`` (a micro-factory's namespaces, ``robot_k`` carrying fiducial code k, as
+With ``robots`` (a fleet's namespaces, ``robot_k`` carrying fiducial code k, as
 ``tracker_node`` reads them) it subscribes each robot's ``/robot_k/odom`` and every frame shows
 every robot with its code, once every robot's odometry has reached the frame's time.
 

@@ -3,7 +3,7 @@ the frame's exposure started, from the odometry samples as they come. No rclpy: 
 is the adapter.
 
 Frame k is due at k / rate seconds of simulated time, once every robot's odometry has reached
-it: one robot's sample at or past it, or, for a micro-factory's robots (each a stream of its
+it: one robot's sample at or past it, or, for a fleet's robots (each a stream of its
 own), the last of theirs. Each robot is shown between its sample before the frame's time and its
 first at or after it (linear: at most a * dt^2 / 8, 4 nm at the motors' acceleration over the
 20 ms grid). Frames long past when the first samples come (a camera started late) are not made

@@ -3,7 +3,7 @@
 Two white dots on the robot's X axis, the front one larger so that the heading has a sign: a
 4 mm pair for the macro camera and, at the centre, a 0.6 mm pair the micro camera sees whole.
 
-**Who is who.** On a platform shared by several robots (a micro-factory), robot k also carries
+**Who is who.** On a platform shared by several robots (a fleet), robot k also carries
 its code: two small dots in five slots beside each pair, in the slots ``ROBOT_CODES[k]`` names
 (ten robots). Every code has exactly two dots, so a dot lost (blur, dirt) or added (a
 reflection) gives a word that is nobody's: the tracker then says it cannot tell the robot, and

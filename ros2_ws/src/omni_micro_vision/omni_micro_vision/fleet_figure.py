@@ -1,4 +1,4 @@
-"""The picture of a micro-factory's run, as ``fleet --plot`` and ``analyze`` of a fleet's bag
+"""The picture of a fleet's run, as ``fleet --plot`` and ``analyze`` of a fleet's bag
 draw it: the whole platform, every robot's route in its colour (the colour its markers and
 chassis have), its start (a dashed disc) and end (a filled disc) labelled with its number, its
 goals (crosses), the micro field, and beside it the micro field close up.

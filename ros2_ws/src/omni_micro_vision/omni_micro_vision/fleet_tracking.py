@@ -23,7 +23,7 @@ from omni_micro_vision.tracking import CameraArbiter, StillnessRule
 
 
 def robot_codes(names: Sequence[str]) -> dict[str, int]:
-    """Each micro-factory robot's code, from its namespace (``robot_k`` carries code k).
+    """Each fleet robot's code, from its namespace (``robot_k`` carries code k).
 
     Raises
     ------

@@ -7,7 +7,7 @@ No rclpy: ``camera_node`` is a thin adapter of :func:`render`. The printed patte
 printed fiducial: for the macro camera two white dots 4 mm apart on the robot's X axis (the
 front one larger, so that the heading has a sign), and at the centre a smaller pair the micro
 camera sees whole (0.6 mm apart). Both patterns are always there; each camera's tracker looks
-for the pair whose size its pixels resolve. Several robots on one platform (a micro-factory)
+for the pair whose size its pixels resolve. Several robots on one platform (a fleet)
 are drawn in one frame, each with its code dots beside the pairs (:func:`render_robots`).
 
 **The camera.** A sensor of ``resolution_px`` pixels over the camera's field (so 117 um and
@@ -252,7 +252,7 @@ class _Reach:
 
 def render_robots(camera: CameraModel, sensor: Sensor, robots: Sequence[InView],
                   rng: np.random.Generator, yaw_rad: float = 0.0) -> np.ndarray:
-    """One frame of ``camera`` seeing ``robots`` (a micro-factory's, each with its code), as
+    """One frame of ``camera`` seeing ``robots`` (a fleet's, each with its code), as
     :func:`render` sees one: the same frame for one uncoded robot."""
     import cv2
 

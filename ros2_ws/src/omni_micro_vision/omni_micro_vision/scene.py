@@ -47,7 +47,7 @@ GOAL: Colour = (0.17, 0.63, 0.17, 1.0)
 MOVE: Colour = (0.58, 0.4, 0.74, 1.0)
 SLIP_LONGITUDINAL: Colour = (0.84, 0.15, 0.16, 1.0)
 SLIP_TRANSVERSE: Colour = (0.12, 0.47, 0.71, 1.0)
-# Robot k of a micro-factory in FLEET_COLOURS[k % 10] (matplotlib's tab10, as fleet --plot
+# Robot k of a fleet in FLEET_COLOURS[k % 10] (matplotlib's tab10, as fleet --plot
 # draws the routes), its chassis a little transparent as the single robot's.
 FLEET_COLOURS: tuple[Colour, ...] = tuple(
     (int(code[0:2], 16) / 255, int(code[2:4], 16) / 255, int(code[4:6], 16) / 255, 0.85)

@@ -32,7 +32,7 @@ It reads images only once its capture writers have matched the readers of the no
 ``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
 that none of them misses the first captures.
 
-Several robots under one camera pair (a micro-factory, ``robots``: their namespaces, robot_k
+Several robots under one camera pair (a fleet, ``robots``: their namespaces, robot_k
 carrying fiducial code k): each frame's robots are named by their codes
 (:mod:`omni_micro_vision.code_reading`) and each named robot's captures published under its
 namespace, ``/robot_k/camera/<name>/pose`` and ``pose_with_covariance``
@@ -106,7 +106,7 @@ class TrackerNode(Node):
         self.captures_in_motion = bool(self.declare_parameter('captures_in_motion', False).value)
         self.robots = robot_codes(node_list_parameter(self, 'robots'))
         if self.robots and self.captures_in_motion:
-            raise CameraConfigError('captures_in_motion: not with robots (a micro-factory\'s '
+            raise CameraConfigError('captures_in_motion: not with robots (a fleet\'s '
                                     'captures are of still robots only)')
         # Best effort by default, which meets a reliable and a best-effort driver alike
         # (REP-2003); the lockstep graph asks reliable of its own camera_node.

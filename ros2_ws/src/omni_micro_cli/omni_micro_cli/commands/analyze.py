@@ -45,7 +45,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='also render the run as DIR/run.gif (or .mp4, needs ffmpeg) and '
                              'its last frame as DIR/run_last_frame.png: the route forming, '
                              'captures landing, a micro-field inset, simulated time shown; '
-                             'of a micro-factory\'s bag, every robot in its colour, labelled')
+                             'of a fleet\'s bag, every robot in its colour, labelled')
     parser.add_argument('--frames', type=whole_number_in(1, MAX_FRAMES), default=100,
                         metavar='N',
                         help='frames of the animation, evenly spaced in simulated time '

@@ -1,4 +1,4 @@
-"""`omni-micro fleet`: several robots on one platform (the micro-factory), in the fleet twin."""
+"""`omni-micro fleet`: several robots on one platform (a fleet), in the fleet twin."""
 
 from __future__ import annotations
 
@@ -39,8 +39,8 @@ if TYPE_CHECKING:   # the graph's modules load only for a run through it
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'fleet',
-        description='Several robots on one platform, as in a micro-factory: each robot its '
-                    'own slip dynamics and wheel offsets, its own captures, its own '
+        description='A fleet: several robots on one platform, as in a micro-factory; each '
+                    'robot its own slip dynamics and wheel offsets, its own captures, its own '
                     'controller (the paper\'s rule, the model or the servo mode); a planner '
                     'reserves the platform (9 mm discs, centres '
                     f'planned {CLEARANCE_M * 1e3:g} mm apart, the micro field to one robot at a '
@@ -55,7 +55,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'platform\'s left edge, wheel offsets drawn from the seed), or a '
                              'YAML file of robots (start_mm, wheel_offsets_deg, controller; '
                              'docs/fleet.md)')
-    add_micro_factory_arguments(parser)
+    add_fleet_task_arguments(parser)
     parser.add_argument('--controller', choices=MODES, default='paper',
                         help="every robot's controller (a robots file may give a robot its "
                              "own): paper, section 4.1's rule (default); model, plans through "
@@ -72,7 +72,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--vision', choices=('model', 'images'), default='model',
                         help='with --graph: model, each robot its vision_node (default); '
                              'images, one camera_node renders every robot with its code and '
-                             'one tracker_node names each (the micro-factory\'s shared cameras; '
+                             'one tracker_node names each (the fleet\'s shared cameras; '
                              'paper and model controllers)')
     parser.add_argument('--markers', action='store_true',
                         help='with --graph: a markers_node per robot draws it on '
@@ -106,12 +106,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
-# The destinations add_micro_factory_arguments adds.
-MICRO_FACTORY_OPTIONS = ('tasks', 'goals_per_robot', 'max_sim_time', 'plot')
+# The destinations add_fleet_task_arguments adds.
+FLEET_TASK_OPTIONS = ('tasks', 'goals_per_robot', 'max_sim_time', 'plot')
 
 
-def add_micro_factory_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """What both doors to a micro-factory take (``fleet`` and ``run --robots``): its tasks,
+def add_fleet_task_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """What both doors to a fleet take (``fleet`` and ``run --robots``): its tasks,
     how long it may run, the picture of its routes."""
     parser.add_argument('--tasks', type=Path, metavar='FILE',
                         help='a YAML file of goals per robot, in order, with "after" waits '
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
                              view=view_from_args(args), vision=args.vision,
                              respawn=args.respawn, vision_overrides=faults,
                              record_images=args.record_images)
-    return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
+    return run_and_report(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json, force=args.force)
 
 
@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
 WALL_TIMEOUT_S = 3600.0
 
 
-def micro_factory(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_sim_time_s: float,
+def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_sim_time_s: float,
                   record: Path | None, plot: Path | None, as_json: bool,
                   force: bool = False) -> int:
     """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's

@@ -25,7 +25,7 @@ from omni_micro_studies import fleet_throughput as throughput
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'fleet-study',
-        description='Measure the micro-factory in the fleet twin. Throughput: 1..--robots-max '
+        description='Measure the fleet in the fleet twin. Throughput: 1..--robots-max '
                     'robots, --draws task sets each (each robot to the micro field, then to '
                     'a place of its own, --goals-per-robot goals), goals reached per simulated '
                     'minute against N, with the figure. --crossing RUNS instead: RUNS seeded '

@@ -32,7 +32,7 @@ from omni_micro_cli.arguments import (
     steering_overrides,
     view_from_args,
 )
-from omni_micro_cli.commands.fleet import MICRO_FACTORY_OPTIONS, add_micro_factory_arguments
+from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
@@ -180,13 +180,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='restart a crashed vision_node or controller_node and go on')
     fleet = parser.add_argument_group('several robots on one platform (docs/fleet.md)')
     fleet.add_argument('--robots', metavar='N|FILE',
-                       help='a micro-factory: N robots (or a YAML file of robots), each with '
+                       help='a fleet: N robots (or a YAML file of robots), each with '
                             'its vision_node and controller_node under /robot_k, one '
                             'dynamics_node for all; with --tasks (or drawn goals), --controller '
                             '(every robot\'s; a robots file may give one its own), --seed, --rtf, '
                             '--timeout, --log-dir, --json and those below; what omni-micro '
                             'fleet --graph runs')
-    add_micro_factory_arguments(fleet)
+    add_fleet_task_arguments(fleet)
     parser.set_defaults(handler=run)
     _DEFAULTS.update({action.dest: action.default for action in parser._actions})
 
@@ -198,12 +198,12 @@ _DEFAULTS: dict[str, object] = {}
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
                  'vision', 'force', 'respawn', 'record_images', 'drop_captures', 'late_captures',
-                 'freeze_camera_at', 'fault_camera', *MICRO_FACTORY_OPTIONS)
+                 'freeze_camera_at', 'fault_camera', *FLEET_TASK_OPTIONS)
 
 
 def fleet_run(args: argparse.Namespace) -> int:
-    """``run --robots``: the micro-factory through the graph, as ``fleet --graph`` runs it."""
-    from omni_micro_cli.commands.fleet import fleet_of, micro_factory
+    """``run --robots``: the fleet through the graph, as ``fleet --graph`` runs it."""
+    from omni_micro_cli.commands.fleet import fleet_of, run_and_report
 
     others = sorted(f'--{dest.replace("_", "-")}' for dest, default in _DEFAULTS.items()
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
@@ -220,7 +220,7 @@ def fleet_run(args: argparse.Namespace) -> int:
                          vision_overrides=fault_overrides(args),
                          record_images=args.record_images, markers=args.markers,
                          view=view_from_args(args), vision=args.vision)
-    return micro_factory(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
+    return run_and_report(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
                          force=args.force)
 
@@ -306,7 +306,7 @@ def summary_line(result: GraphResult, external: bool = False) -> str:
 def run(args: argparse.Namespace) -> int:
     if args.robots is not None:
         return fleet_run(args)
-    several = [f'--{dest.replace("_", "-")}' for dest in MICRO_FACTORY_OPTIONS
+    several = [f'--{dest.replace("_", "-")}' for dest in FLEET_TASK_OPTIONS
                if getattr(args, dest) != _DEFAULTS[dest]]
     if several:
         raise UsageError(f'{", ".join(several)}: for several robots; give --robots N|FILE')

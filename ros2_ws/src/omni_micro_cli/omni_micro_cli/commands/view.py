@@ -20,7 +20,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not serve /markers (a graph without markers_node)')
     parser.add_argument('--robots', type=robot_namespaces, metavar='N|R0,R1,...',
-                        help="a micro-factory's graph: serve each robot's topics under its "
+                        help="a fleet's graph: serve each robot's topics under its "
                              'namespace, robot_0 to robot_{N-1} or those named')
     parser.set_defaults(handler=run)
 
