@@ -322,6 +322,7 @@ class FleetDispatch:
                     restarted, graph.restarted = graph.restarted, []
                     monitor.fleet_respawns.bring_back_robots(graph, restarted, driving, seen)
                     continue
+                monitor.fleet_respawns.watch_new_cameras(graph, driving)
                 monitor.check_recorder()
                 monitor.repeat_reports()
                 monitor.spin_for(0.02)

@@ -21,7 +21,7 @@ from omni_micro_common.topic_names import (
     robot_index,
     robot_name,
 )
-from omni_micro_control.feedback import OUTCOME_NAMES
+from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 
 # After a respawn: wall seconds with no new sample before the clock is stopped and started
 # again, and how far simulated time must go (beyond the lockstep's lead) to show that the
@@ -71,7 +71,7 @@ class Respawns:
     def __init__(self, monitor: RespawnsHost, processes: list[str] | None = None) -> None:
         self.monitor = monitor
         # The processes that may be respawned: the single robot's nodes by default.
-        self.processes = processes or list(self.INPUTS)
+        self.processes = list(self.INPUTS) if processes is None else processes
         self.known_endpoints: dict[str, set[bytes]] = {}
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
@@ -235,11 +235,18 @@ class FleetRespawns(Respawns):
 
     monitor: FleetRespawnsHost
 
+    def __init__(self, monitor: FleetRespawnsHost, processes: list[str]) -> None:
+        super().__init__(monitor, processes)
+        # Robots whose new camera their controller has not acted on yet: [statuses seen when
+        # asked, when asked, times asked again].
+        self.watched: dict[int, list[Any]] = {}
+
     def bring_back_robots(self, graph: Supervisor, restarted: list[str],
                           driving: dict[int, Any], handled_up_to: int) -> None:
         """``driving``: each robot's leg under way (its GoalOrder); ``handled_up_to``: how many
         of the statuses the coordinator has handled. A robot whose leg ended in a status not
-        handled yet is not given it again (it would end twice)."""
+        handled yet is not given it again (it would end twice). A robot with a new camera is
+        watched until its controller acts on a capture (:meth:`watch_new_cameras`)."""
         self.monitor.set_paused(graph, True)
         self.wait_for_new_processes(graph, restarted)
         nodes: dict[int, set[str]] = {}
@@ -249,36 +256,46 @@ class FleetRespawns(Respawns):
             if index is not None:
                 nodes.setdefault(index, set()).add(node)
         ended = {robot for robot, status in self.monitor.fleet_statuses[handled_up_to:]
-                 if status['message'] in OUTCOME_NAMES}
-        given_at: dict[int, int] = {}
+                 if _ends_a_leg(status)}
         for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
             # A new controller knows nothing; an old one, its camera gone a while, ends the leg
             # as replaced and takes it again.
-            given_at[robot] = len(self.monitor.fleet_statuses)
+            since = len(self.monitor.fleet_statuses)
             if self.monitor.echo:
                 x_mm, y_mm = (v * 1e3 for v in driving[robot].goal_m)
                 self.monitor.echo(f'[orchestration] {robot_name(robot)}\'s leg to '
                                   f'({x_mm:g}, {y_mm:g}) mm given again, from where it stands')
             self.monitor.give(graph, driving[robot])
-        self.remember_endpoints()
-        self.resume(graph, restarted)
-        for robot, since in given_at.items():
             if 'vision_node' in nodes[robot]:
-                self._until_it_acts(graph, robot, driving[robot], since)
+                self.watched[robot] = [since, time.monotonic(), 0]
+        self.remember_endpoints()
+        if ended:
+            # Time stands at those ends until the coordinator has handled them: it goes on
+            # once it has, and cannot be seen to move before.
+            self.monitor.set_paused(graph, False)
+        else:
+            self.resume(graph, restarted)
 
-    def _until_it_acts(self, graph: Supervisor, robot: int, order: Any, since: int) -> None:
-        """Until the robot's controller acts on a capture of its respawned vision_node, whose
-        writer its reader may match later still: the leg given again meanwhile."""
-        for _ in range(20):
-            asked_at = time.monotonic()
-            while time.monotonic() - asked_at < 3.0:
-                if any(k == robot and (status['message'] == 'moving'
-                                       or status['message'] in OUTCOME_NAMES)
-                       for k, status in self.monitor.fleet_statuses[since:]):
-                    return
-                graph.check_alive()
-                self.monitor.spin_for(0.05)
-            since = len(self.monitor.fleet_statuses)
-            self.monitor.give(graph, order)
-        raise RunFailed(f'robot {robot}\'s controller_node receives no capture from its '
-                        'respawned vision_node')
+    def watch_new_cameras(self, graph: Supervisor, driving: dict[int, Any]) -> None:
+        """Between the coordinator's statuses: each robot with a new camera watched until its
+        controller acts on a capture of it (its reader may match the new writer later than the
+        ROS graph shows), the leg given again every 3 s meanwhile. Not waited for in a loop of
+        its own: time stands at any other robot's end until the coordinator handles it."""
+        for robot, watch in list(self.watched.items()):
+            since, asked_at, tries = watch
+            if robot not in driving or any(
+                    k == robot and (status['message'] == 'moving' or _ends_a_leg(status))
+                    for k, status in self.monitor.fleet_statuses[since:]):
+                del self.watched[robot]
+            elif time.monotonic() - asked_at >= 3.0:
+                if tries >= 20:
+                    raise RunFailed(f'{robot_name(robot)}\'s controller_node receives no capture '
+                                    'from its respawned vision_node')
+                self.watched[robot] = [len(self.monitor.fleet_statuses), time.monotonic(),
+                                       tries + 1]
+                self.monitor.give(graph, driving[robot])
+
+
+def _ends_a_leg(status: dict[str, str]) -> bool:
+    """A controller's outcome, but not the end of a goal replaced by the same one given again."""
+    return status['message'] in OUTCOME_NAMES and status.get('reason') != REPLACED_REASON
