@@ -1,4 +1,4 @@
-"""Faults in a fleet (docs/reliability.md, "A fleet"): a robot's vision_node or
+"""Faults in a fleet (docs/reliability.md, "Faults"): a robot's vision_node or
 controller_node killed mid-run comes back with --respawn, its leg given again, and every task
 is done with the robots clear of each other; dynamics_node killed, which no robot can do
 without, stops the run within 5 s, named, every process stopped and the bag readable."""
