@@ -294,10 +294,11 @@ def check_camera_faults(vision_overrides: dict[str, object], vision: str) -> Non
                          f'--vision model, got --vision {vision}')
 
 
-def check_record_images(options: GraphOptions) -> None:
-    """Raises UsageError for ``record_images`` without a bag or images to record."""
-    if options.record_images and (options.record is None or (
-            options.vision != 'images' and options.camera != 'external')):
+def check_record_images(record_images: bool, record: Path | None, vision: str,
+                        camera: str) -> None:
+    """Raises UsageError for ``record_images`` without a bag or images to record (rendered
+    ``vision`` or an external ``camera``)."""
+    if record_images and (record is None or (vision != 'images' and camera != 'external')):
         raise UsageError('--record-images needs --record BAG and images to record: --vision '
                          'images or --camera external')
 

@@ -85,7 +85,7 @@ class FleetMonitor(Orchestrator):
                  recording: bool = False, markers: bool = False,
                  respawnable: list[str] | None = None) -> None:
         super().__init__(domain_id, echo=echo, markers=markers)
-        self.respawns = self.fleet_respawns = FleetRespawns(self, respawnable or [])
+        self.respawns: FleetRespawns = FleetRespawns(self, respawnable or [])
         self.count = count
         self.recording = recording   # the recorder must have every goal, as each controller
         self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
@@ -243,7 +243,8 @@ class FleetDispatch:
         check_vision(modes, options.vision)
         check_respawn(options)
         check_camera_faults(options.vision_overrides, options.vision)
-        check_record_images(options)
+        check_record_images(options.record_images, options.record, options.vision,
+                            options.camera)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         options, record = self.options, self.options.record
@@ -320,9 +321,9 @@ class FleetDispatch:
                     # Brought back once every status read so far is handled: a leg that
                     # ended meanwhile is not given again.
                     restarted, graph.restarted = graph.restarted, []
-                    monitor.fleet_respawns.bring_back_robots(graph, restarted, driving, seen)
+                    monitor.respawns.bring_back_robots(graph, restarted, driving, seen)
                     continue
-                monitor.fleet_respawns.watch_new_cameras(graph, driving)
+                monitor.respawns.watch_new_cameras(graph, driving)
                 monitor.check_recorder()
                 monitor.repeat_reports()
                 monitor.spin_for(0.02)

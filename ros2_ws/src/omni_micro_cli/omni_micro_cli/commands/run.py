@@ -247,8 +247,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
     if external and faults:
         raise UsageError('fault injection is the simulated camera\'s: not with --camera '
                          'external or --robot external')
-    check_record_images(GraphOptions(record=args.record, record_images=args.record_images,
-                                     vision=args.vision, camera=args.camera))
+    check_record_images(args.record_images, args.record, args.vision, args.camera)
     domain = getattr(args, 'domain_id', None)
     if external and domain is None:
         from_environment = os.environ.get('ROS_DOMAIN_ID', '')
