@@ -4,11 +4,8 @@ The platform is reserved on a roadmap (:mod:`omni_micro_control.fleet_roadmap`).
 planning gives every robot in turn a path of synchronous steps that keeps clear of the paths
 and final places of the robots planned before it (space-time A*); when one cannot be found,
 that robot is planned earlier and the plan tried again. Steps take no fixed time on the
-platform, so an action dependency graph (Hönig et al., "Persistent and robust execution of
-MAPF schedules in warehouses", RA-L 2019) turns them into *legs*: straight drives that start
-only once every earlier step of another robot passing within the clearance of theirs has
-ended. Whatever each leg then takes, two robots are never on conflicting segments at once,
-and since every leg waits only for legs that start earlier, nobody waits in a cycle.
+platform: the action dependency graph (:mod:`omni_micro_control.fleet_dependencies`) turns
+them into legs that wait for each other.
 
 The micro field (2 mm) is smaller than a robot: the clearance alone gives it to one robot at
 a time.
@@ -28,6 +25,11 @@ from omni_micro_common.conventions import (
     MICRO_FIELD_CENTER_M,
     MICRO_FIELD_SIZE_M,
 )
+from omni_micro_control.fleet_dependencies import (
+    WAYPOINT_TOLERANCE_M,  # noqa: F401 (the planner's, as its callers know it)
+    Leg,
+    action_dependencies,
+)
 from omni_micro_control.fleet_roadmap import (
     CLEARANCE_M,
     ROUNDING_M,
@@ -36,9 +38,6 @@ from omni_micro_control.fleet_roadmap import (
     check_on_platform,
 )
 
-# A leg's end that is not a task's goal is reached this close (the macro camera's captures
-# scatter by 26 um at 95 %); the roadmap's clearance counts it.
-WAYPOINT_TOLERANCE_M = 0.2e-3
 # A goal the macro camera sees (outside the micro field) is reached this close.
 MACRO_GOAL_TOLERANCE_M = 50.0e-6
 # Steps a robot's path may take at most (a 150 mm platform is crossed in 15).
@@ -65,20 +64,6 @@ class Task:
         inside = all(abs(self.goal_m[axis] - MICRO_FIELD_CENTER_M[axis])
                      <= MICRO_FIELD_SIZE_M[axis] / 2.0 for axis in (0, 1))
         return GOAL_TOLERANCE_M if inside else MACRO_GOAL_TOLERANCE_M
-
-
-@dataclass(frozen=True)
-class Leg:
-    """One straight drive of one robot, and what must have ended before it starts."""
-
-    robot: int
-    index: int
-    start_m: tuple[float, float]
-    end_m: tuple[float, float]
-    steps: tuple[int, int]                       # the first and last planned step it covers
-    waits_for: tuple[tuple[int, int], ...]       # (robot, leg index) that must have ended
-    tasks: tuple[int, ...]                       # the tasks it completes (ends at their goal)
-    tolerance_m: float
 
 
 @dataclass(frozen=True)
@@ -111,7 +96,7 @@ def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, 
     for _ in range(attempts or 4 * len(starts_m)):
         paths, arrivals, failed = _plan_in_order(roadmap, starts_m, tasks, order)
         if failed is None:
-            legs, done_at_start = _legs(roadmap, paths, arrivals, tasks)
+            legs, done_at_start = action_dependencies(roadmap, paths, arrivals, tasks)
             return FleetPlan(tuple(starts_m), tuple(tuple(robot) for robot in tasks), legs,
                              done_at_start, tuple(tuple(path) for path in paths), roadmap,
                              tuple(order))
@@ -278,95 +263,3 @@ def _plan_in_order(roadmap: Roadmap, starts_m: list[tuple[float, float]],
         reserved.add(path)
         paths[robot] = path
     return paths, arrivals, None
-
-
-def _legs(roadmap: Roadmap, paths: list[list[int]], arrivals: list[list[int]],
-          tasks: list[list[Task]]
-          ) -> tuple[tuple[tuple[Leg, ...], ...], tuple[tuple[int, ...], ...]]:
-    """Straight legs from the paths' moves, each waiting for the legs of other robots that hold
-    a conflicting segment at an earlier step (the action dependency graph), and for the leg
-    that completes a goal its own waits for."""
-    moves = [[(step, path[step], path[step + 1]) for step in range(len(path) - 1)
-              if path[step] != path[step + 1]] for path in paths]
-    # The move that ends at each robot's arrival step (None: the goal was its start).
-    arriving = [{arrival: next((i for i, move in enumerate(own) if move[0] == arrival - 1),
-                               None) for arrival in robot_arrivals}
-                for own, robot_arrivals in zip(moves, arrivals, strict=True)]
-    # Per robot and conflicting segment: the steps of its moves there (ascending).
-    # [robot][move] -> [(other robot, its move index, that move's step)]
-    waits: list[list[list[tuple[int, int, int]]]] = []
-    for robot, own in enumerate(moves):
-        waits.append([])
-        for step, u, v in own:
-            conflicts = roadmap.conflicts[roadmap.segment(u, v)]
-            needed = []
-            for other, theirs in enumerate(moves):
-                if other == robot:
-                    continue
-                earlier = [index for index, (their_step, a, b) in enumerate(theirs)
-                           if their_step < step and roadmap.segment(a, b) in conflicts]
-                if earlier:
-                    needed.append((other, earlier[-1], theirs[earlier[-1]][0]))
-            for index, task in enumerate(tasks[robot]):
-                if task.after is not None and arrivals[robot][index] == step + 1:
-                    other, goal = task.after
-                    move = arriving[other][arrivals[other][goal]]
-                    if move is not None:
-                        needed.append((other, move, moves[other][move][0]))
-            waits[robot].append(needed)
-    goal_steps: list[dict[int, tuple[int, ...]]] = []
-    for robot_arrivals in arrivals:
-        by_step: dict[int, tuple[int, ...]] = {}
-        for index, step in enumerate(robot_arrivals):
-            by_step[step] = (*by_step.get(step, ()), index)
-        goal_steps.append(by_step)
-    leg_of: list[list[int]] = [[0] * len(own) for own in moves]
-    spans: list[list[list[int]]] = []
-    for robot, own in enumerate(moves):
-        spans.append([])
-        for index in range(len(own)):
-            if spans[robot] and _extends(roadmap, own, spans[robot][-1], index, waits[robot],
-                                         goal_steps[robot]):
-                spans[robot][-1].append(index)
-            else:
-                spans[robot].append([index])
-            leg_of[robot][index] = len(spans[robot]) - 1
-    legs = []
-    for robot, own in enumerate(moves):
-        robot_legs = []
-        for leg_index, span in enumerate(spans[robot]):
-            first_step, start, _ = own[span[0]]
-            last_step, _, end = own[span[-1]]
-            leg_waits = sorted({(other, leg_of[other][move]) for index in span
-                                for other, move, _ in waits[robot][index]})
-            reached = goal_steps[robot].get(last_step + 1, ())
-            tolerance = min((tasks[robot][task].tolerance() for task in reached),
-                            default=WAYPOINT_TOLERANCE_M)
-            robot_legs.append(Leg(robot, leg_index, _point(roadmap, start),
-                                  _point(roadmap, end), (first_step, last_step), tuple(leg_waits),
-                                  reached, tolerance))
-        legs.append(tuple(robot_legs))
-    done_at_start = tuple(goal_steps[robot].get(0, ()) for robot in range(len(paths)))
-    return tuple(legs), done_at_start
-
-
-def _extends(roadmap: Roadmap, own: list[tuple[int, int, int]], span: list[int], index: int,
-             waits: list[list[tuple[int, int, int]]],
-             goal_steps: dict[int, tuple[int, ...]]) -> bool:
-    """Whether move ``index`` may join the leg ``span``: straight on, right after it, not past
-    a goal, and waiting for nothing that starts after the leg does (no cycle of waits)."""
-    last_step, last_from, last_to = own[span[-1]]
-    step, start, end = own[index]
-    if step != last_step + 1 or start != last_to or last_step + 1 in goal_steps:
-        return False
-    before = roadmap.places_m[last_to] - roadmap.places_m[last_from]
-    after = roadmap.places_m[end] - roadmap.places_m[start]
-    if abs(before[0] * after[1] - before[1] * after[0]) > 1e-12 or before @ after <= 0.0:
-        return False
-    first_step = own[span[0]][0]
-    return all(their_step < first_step for _, _, their_step in waits[index])
-
-
-def _point(roadmap: Roadmap, place: int) -> tuple[float, float]:
-    x, y = roadmap.places_m[place]
-    return float(x), float(y)
