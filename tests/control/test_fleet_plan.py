@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
+from omni_micro_control.fleet_files import fleet_from
 from omni_micro_control.fleet_plan import (
     MACRO_GOAL_TOLERANCE_M,
     WAYPOINT_TOLERANCE_M,
@@ -25,6 +26,7 @@ from omni_micro_control.fleet_roadmap import (
     CLEARANCE_M,
     RoadmapError,
     build_roadmap,
+    point_segment_distance,
     segment_distances,
 )
 
@@ -78,17 +80,16 @@ def closest_approach(plan: FleetPlan, spans) -> float:
     at constant speed, so each pair's offset does too; its closest to zero is on that segment."""
     times = sorted({0.0} | {t for robot in spans for start, finish, *_ in robot
                             for t in (start, finish)})
+    first, second = np.triu_indices(len(spans), 1)
     closest = math.inf
     for t0, t1 in (itertools.pairwise(times) if len(times) > 1 else [(0.0, 0.0)]):
         at0 = np.array([position(plan, spans, robot, t0) for robot in range(len(spans))])
         at1 = np.array([position(plan, spans, robot, t1 - 1e-12 if t1 > t0 else t1)
                         for robot in range(len(spans))])
-        for a in range(len(spans)):
-            for b in range(a + 1, len(spans)):
-                offsets = np.array([at0[a] - at0[b]]), np.array([at1[a] - at1[b]])
-                closest = min(closest, float(segment_distances(
-                    np.vstack([offsets[0], [[0.0, 0.0]]]),
-                    np.vstack([offsets[1], [[0.0, 0.0]]]))[0, 1]))
+        offsets0, offsets1 = at0[first] - at0[second], at1[first] - at1[second]
+        if len(offsets0):
+            closest = min(closest, float(np.min(point_segment_distance(
+                np.zeros_like(offsets0), offsets0, offsets1))))
     return closest
 
 
@@ -206,3 +207,48 @@ def test_a_robot_walled_in_by_those_planned_before_it_is_planned_first():
         closest, _ = execute(plan, random.Random(seed))
         assert closest >= CLEARANCE_M - 1e-9
     assert [legs[-1].end_m for legs in plan.legs] == [robot[0].goal_m for robot in tasks]
+
+
+def assert_carried_out(plan: FleetPlan, tasks, seeds=range(3)) -> None:
+    """Whatever each leg takes, the centres keep the clearance, and every robot ends on its
+    last goal (or its start)."""
+    for seed in seeds:
+        closest, _ = execute(plan, random.Random(seed))
+        assert closest >= CLEARANCE_M - 1e-9
+    for robot, legs in enumerate(plan.legs):
+        end = legs[-1].end_m if legs else plan.starts_m[robot]
+        assert end == (tasks[robot][-1].goal_m if tasks[robot] else plan.starts_m[robot])
+
+
+def test_tasks_no_priority_order_can_plan_are_planned_by_lacam():
+    # Drawn, 3 robots, seed 3: robot 1 starts between 0 and 2, and whichever goes first, the
+    # others' paths pass where a robot planned later still stands.
+    fleet = fleet_from('3', None, 1, 3)
+    plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=3)
+    assert plan.priority == ()           # LaCAM's: no order of priorities
+    assert_carried_out(plan, fleet.tasks)
+
+
+@pytest.mark.parametrize('robots, seed', [(16, 0), (32, 1), (42, 2)])
+def test_a_drawn_fleet_of_up_to_42_robots_is_planned_and_keeps_its_clearance(robots, seed):
+    fleet = fleet_from(str(robots), None, 1, seed)
+    plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
+    assert_carried_out(plan, fleet.tasks, seeds=range(2))
+    # No two robots end on the same place (42 robots: goals beyond the lattice too).
+    ends = [robot[-1].goal_m for robot in fleet.tasks]
+    assert len(set(ends)) == robots
+
+
+def test_waits_between_goals_hold_in_a_lacam_plan():
+    # Robot 1 may come to its goal only after robot 0 has reached the micro field, with robot
+    # 2 starting between them (prioritized planning finds no order: LaCAM plans it).
+    starts = [(-0.02, -0.06), (-0.02, -0.04), (-0.02, -0.02)]
+    tasks = [[Task(MICRO)], [Task((0.0, 0.04), after=(0, 0))], [Task((0.06, -0.04))]]
+    plan = plan_fleet(starts, tasks, seed=0, attempts=1)
+    assert plan.priority == ()
+    assert_carried_out(plan, tasks)
+    for seed in range(5):
+        _, ends = execute(plan, random.Random(seed))
+        first = next(leg for leg in plan.legs[0] if 0 in leg.tasks)
+        second = next(leg for leg in plan.legs[1] if 0 in leg.tasks)
+        assert ends[1][second.index] > ends[0][first.index]

@@ -42,38 +42,46 @@ class Leg:
 
 
 def action_dependencies(roadmap: Roadmap, paths: list[list[int]], arrivals: list[list[int]],
-                        tasks: Sequence[Sequence[_Task]]
+                        tasks: Sequence[Sequence[_Task]],
+                        ranks: Sequence[dict[int, int]] | None = None
                         ) -> tuple[tuple[tuple[Leg, ...], ...], tuple[tuple[int, ...], ...]]:
     """Straight legs from the paths' moves, each waiting for the legs of other robots that hold
-    a conflicting segment at an earlier step (the action dependency graph), and for the leg
-    that completes a goal its own waits for."""
+    a conflicting segment earlier (the action dependency graph), and for the leg that completes
+    a goal its own waits for. ``ranks[k][step]``: robot k's turn among the moves of a step
+    (none: the step's moves keep clear of each other, all at once)."""
     moves = [[(step, path[step], path[step + 1]) for step in range(len(path) - 1)
               if path[step] != path[step + 1]] for path in paths]
     # The move that ends at each robot's arrival step (None: the goal was its start).
     arriving = [{arrival: next((i for i, move in enumerate(own) if move[0] == arrival - 1),
                                None) for arrival in robot_arrivals}
                 for own, robot_arrivals in zip(moves, arrivals, strict=True)]
-    # Per robot and conflicting segment: the steps of its moves there (ascending).
-    # [robot][move] -> [(other robot, its move index, that move's step)]
-    waits: list[list[list[tuple[int, int, int]]]] = []
+    # When each move comes: its step, then its turn among the step's moves (a robot entering
+    # a place another leaves that step moves after it).
+    keys = [[(step, ranks[robot].get(step, 0) if ranks else 0) for step, _, _ in own]
+            for robot, own in enumerate(moves)]
+    by_segment: dict[int, list[tuple[int, int]]] = {}      # segment -> (robot, move index)
+    for robot, own in enumerate(moves):
+        for index, (_, u, v) in enumerate(own):
+            by_segment.setdefault(roadmap.segment(u, v), []).append((robot, index))
+    # [robot][move] -> [(other robot, its last earlier conflicting move, that move's key)]
+    waits: list[list[list[tuple[int, int, tuple[int, int]]]]] = []
     for robot, own in enumerate(moves):
         waits.append([])
-        for step, u, v in own:
-            conflicts = roadmap.conflicts[roadmap.segment(u, v)]
-            needed = []
-            for other, theirs in enumerate(moves):
-                if other == robot:
-                    continue
-                earlier = [index for index, (their_step, a, b) in enumerate(theirs)
-                           if their_step < step and roadmap.segment(a, b) in conflicts]
-                if earlier:
-                    needed.append((other, earlier[-1], theirs[earlier[-1]][0]))
-            for index, task in enumerate(tasks[robot]):
-                if task.after is not None and arrivals[robot][index] == step + 1:
+        for index, (step, u, v) in enumerate(own):
+            key = keys[robot][index]
+            latest: dict[int, int] = {}
+            for segment in roadmap.conflicts[roadmap.segment(u, v)]:
+                for other, their in by_segment.get(segment, ()):
+                    if other != robot and keys[other][their] < key and their > latest.get(
+                            other, -1):
+                        latest[other] = their
+            needed = [(other, their, keys[other][their]) for other, their in latest.items()]
+            for goal_index, task in enumerate(tasks[robot]):
+                if task.after is not None and arrivals[robot][goal_index] == step + 1:
                     other, goal = task.after
                     move = arriving[other][arrivals[other][goal]]
                     if move is not None:
-                        needed.append((other, move, moves[other][move][0]))
+                        needed.append((other, move, keys[other][move]))
             waits[robot].append(needed)
     goal_steps: list[dict[int, tuple[int, ...]]] = []
     for robot_arrivals in arrivals:
@@ -86,8 +94,8 @@ def action_dependencies(roadmap: Roadmap, paths: list[list[int]], arrivals: list
     for robot, own in enumerate(moves):
         spans.append([])
         for index in range(len(own)):
-            if spans[robot] and _extends(roadmap, own, spans[robot][-1], index, waits[robot],
-                                         goal_steps[robot]):
+            if spans[robot] and _extends(roadmap, own, keys[robot], spans[robot][-1], index,
+                                         waits[robot], goal_steps[robot]):
                 spans[robot][-1].append(index)
             else:
                 spans[robot].append([index])
@@ -111,11 +119,11 @@ def action_dependencies(roadmap: Roadmap, paths: list[list[int]], arrivals: list
     return tuple(legs), done_at_start
 
 
-def _extends(roadmap: Roadmap, own: list[tuple[int, int, int]], span: list[int], index: int,
-             waits: list[list[tuple[int, int, int]]],
+def _extends(roadmap: Roadmap, own: list[tuple[int, int, int]], keys: list[tuple[int, int]],
+             span: list[int], index: int, waits: list[list[tuple[int, int, tuple[int, int]]]],
              goal_steps: dict[int, tuple[int, ...]]) -> bool:
     """Whether move ``index`` may join the leg ``span``: straight on, right after it, not past
-    a goal, and waiting for nothing that starts after the leg does (no cycle of waits)."""
+    a goal, and waiting for nothing that comes after the leg's start (no cycle of waits)."""
     last_step, last_from, last_to = own[span[-1]]
     step, start, end = own[index]
     if step != last_step + 1 or start != last_to or last_step + 1 in goal_steps:
@@ -124,8 +132,8 @@ def _extends(roadmap: Roadmap, own: list[tuple[int, int, int]], span: list[int],
     after = roadmap.places_m[end] - roadmap.places_m[start]
     if abs(before[0] * after[1] - before[1] * after[0]) > 1e-12 or before @ after <= 0.0:
         return False
-    first_step = own[span[0]][0]
-    return all(their_step < first_step for _, _, their_step in waits[index])
+    first = keys[span[0]]
+    return all(their < first for _, _, their in waits[index])
 
 
 def _point(roadmap: Roadmap, place: int) -> tuple[float, float]:

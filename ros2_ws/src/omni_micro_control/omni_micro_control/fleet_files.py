@@ -47,6 +47,9 @@ DRAWN_OFFSET_DEG = 3.0
 # clearances apart, away from the micro field (its approach stays free).
 LATTICE_M = [(0.02 * i, 0.02 * j) for i in range(-1, 5) for j in range(-3, 4)]
 MAX_ROBOTS = len(LATTICE_M)
+# The lattice's places beyond it, on the micro field's side: goals too when the lattice's own
+# (39 away from the micro field) are fewer than the robots.
+LATTICE_BEYOND_M = [(0.02 * i, 0.02 * j) for i in range(5, 7) for j in range(-3, 4)]
 # Goals drawn in the micro field lie this close to its centre (it is 2 mm square).
 MICRO_GOAL_SPREAD_M = 0.5e-3
 
@@ -190,9 +193,13 @@ def drawn_tasks(starts_m: list[tuple[float, float]], goals_per_robot: int,
     """A fleet's day in a micro-factory: each robot brings a part to the micro field (fine
     positioning to 3 um), then takes it to a place on the platform, and again:
     ``goals_per_robot`` goals in all, the last a place of its own (no two robots end at the same
-    one)."""
+    one): a place of the lattice away from the micro field, or beyond the lattice for more than
+    39 robots."""
     rng = random.Random(f'tasks {seed}')
     places = [place for place in LATTICE_M if math.dist(place, MICRO_FIELD_CENTER_M) > 0.03]
+    if len(starts_m) > len(places):
+        places += [place for place in LATTICE_BEYOND_M
+                   if math.dist(place, MICRO_FIELD_CENTER_M) > 0.03]
     rng.shuffle(places)
     tasks = []
     for robot in range(len(starts_m)):

@@ -3,9 +3,13 @@
 The platform is reserved on a roadmap (:mod:`omni_micro_control.fleet_roadmap`). Prioritized
 planning gives every robot in turn a path of synchronous steps that keeps clear of the paths
 and final places of the robots planned before it (space-time A*); when one cannot be found,
-that robot is planned earlier and the plan tried again. Steps take no fixed time on the
-platform: the action dependency graph (:mod:`omni_micro_control.fleet_dependencies`) turns
-them into legs that wait for each other.
+that robot is planned earlier and the plan tried again. Its paths are each robot's shortest
+that the others leave free, but it is incomplete: a robot planned late may find every way
+taken, whatever the order. After ``PRIORITY_ORDERS`` orders, LaCAM
+(:mod:`omni_micro_control.fleet_lacam`), complete, plans the fleet on the roadmap with the
+20 mm lanes of the drawn places added (robots resting on them leave room to pass between).
+Steps take no fixed time on the platform: the action dependency graph
+(:mod:`omni_micro_control.fleet_dependencies`) turns them into legs that wait for each other.
 
 The micro field (2 mm) is smaller than a robot: the clearance alone gives it to one robot at
 a time.
@@ -17,7 +21,6 @@ import heapq
 import itertools
 import math
 import random
-from collections import deque
 from dataclasses import dataclass
 
 from omni_micro_common.conventions import (
@@ -30,22 +33,34 @@ from omni_micro_control.fleet_dependencies import (
     Leg,
     action_dependencies,
 )
+from omni_micro_control.fleet_lacam import NoPlanError, SearchEndedError, lacam_paths
 from omni_micro_control.fleet_roadmap import (
     CLEARANCE_M,
     ROUNDING_M,
     Roadmap,
     build_roadmap,
     check_on_platform,
+    distances_to,
 )
 
 # A goal the macro camera sees (outside the micro field) is reached this close.
 MACRO_GOAL_TOLERANCE_M = 50.0e-6
 # Steps a robot's path may take at most (a 150 mm platform is crossed in 15).
 MAX_STEPS = 400
+# Priority orders tried before LaCAM (4 per robot up to 4 robots, as they were before it).
+PRIORITY_ORDERS = 16
+# The pitch of the lanes LaCAM's roadmap adds: the lattice robots are drawn on.
+LANES_M = 0.02
+# Configurations LaCAM may keep before it gives up (42 robots take about 100).
+LACAM_MAX_NODES = 100_000
 
 
 class PlanningError(ValueError):
     """Tasks no plan can meet: a cycle of waits, two goals closer than the clearance."""
+
+
+class PlannerGaveUpError(RuntimeError):
+    """The search stopped at its bound without a plan: the tasks may have one."""
 
 
 @dataclass(frozen=True)
@@ -85,30 +100,53 @@ def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, 
     ------
     PlanningError
         Tasks that wait for each other in a cycle, places closer than the clearance that two
-        robots must hold at once, or no plan in ``attempts`` priority orders (default 4 N).
+        robots must hold at once, or tasks no plan on the roadmap meets.
+    PlannerGaveUpError
+        LaCAM searched ``LACAM_MAX_NODES`` configurations without a plan.
+
+    ``attempts``: priority orders tried before LaCAM (default ``PRIORITY_ORDERS``, at most 4
+    per robot).
     """
     _check(starts_m, tasks, clearance_m)
     points = list(starts_m) + [task.goal_m for robot in tasks for task in robot]
     roadmap = build_roadmap(points, clearance_m=clearance_m)
     order = _dependency_order(tasks)
     rng = random.Random(seed)
-    failure = ''
-    for _ in range(attempts or 4 * len(starts_m)):
+    for _ in range(attempts or min(4 * len(starts_m), PRIORITY_ORDERS)):
         paths, arrivals, failed = _plan_in_order(roadmap, starts_m, tasks, order)
         if failed is None:
             legs, done_at_start = action_dependencies(roadmap, paths, arrivals, tasks)
             return FleetPlan(tuple(starts_m), tuple(tuple(robot) for robot in tasks), legs,
                              done_at_start, tuple(tuple(path) for path in paths), roadmap,
                              tuple(order))
-        failure = (f'robot {failed}: no path within {MAX_STEPS} steps that keeps clear of the '
-                   'others')
         # The robot that found no way planned earlier; if it was first already, another order.
         promoted = _respecting_waits([failed] + [robot for robot in order if robot != failed],
                                      tasks)
         if promoted is None or promoted == order:
             promoted = _respecting_waits(rng.sample(order, len(order)), tasks)
         order = promoted or order
-    raise PlanningError(f'no plan for the tasks: {failure}')
+    return _plan_by_lacam(starts_m, tasks, seed, clearance_m)
+
+
+def _plan_by_lacam(starts_m: list[tuple[float, float]], tasks: list[list[Task]], seed: int,
+                   clearance_m: float) -> FleetPlan:
+    points = list(starts_m) + [task.goal_m for robot in tasks for task in robot]
+    roadmap = build_roadmap(points, clearance_m=clearance_m, lanes_m=LANES_M)
+    try:
+        paths, arrivals, ranks = lacam_paths(roadmap, [roadmap.place_of(s) for s in starts_m],
+                                             tasks, seed=seed, max_nodes=LACAM_MAX_NODES)
+    except SearchEndedError as error:
+        named = '; '.join(
+            f'robot {robot}\'s goal {goal} at ({tasks[robot][goal].goal_m[0] * 1e3:g}, '
+            f'{tasks[robot][goal].goal_m[1] * 1e3:g}) mm' for robot, goal in error.unfinished[:3])
+        if isinstance(error, NoPlanError):
+            raise PlanningError(f'no plan for the tasks: {named} cannot be reached with the '
+                                f'other robots where they must be ({error})') from None
+        raise PlannerGaveUpError(f'the planner gave up ({error}); still to do then: '
+                                 f'{named}') from None
+    legs, done_at_start = action_dependencies(roadmap, paths, arrivals, tasks, ranks)
+    return FleetPlan(tuple(starts_m), tuple(tuple(robot) for robot in tasks), legs,
+                     done_at_start, tuple(tuple(path) for path in paths), roadmap, ())
 
 
 def _check(starts_m: list[tuple[float, float]], tasks: list[list[Task]],
@@ -189,23 +227,11 @@ class _Reservations:
         return self.last_step_near.get(self.roadmap.segment(place, place), -1) < from_step
 
 
-def _distances_to(roadmap: Roadmap, goal: int) -> dict[int, int]:
-    distances = {goal: 0}
-    queue = deque([goal])
-    while queue:
-        place = queue.popleft()
-        for near in roadmap.neighbours[place]:
-            if near not in distances:
-                distances[near] = distances[place] + 1
-                queue.append(near)
-    return distances
-
-
 def _search(roadmap: Roadmap, reserved: _Reservations, start: int, start_step: int, goal: int,
             earliest: int, final: bool) -> list[int] | None:
     """Space-time A*: places from ``start`` at ``start_step`` to ``goal`` at a step no earlier
     than ``earliest`` (and, for a ``final`` goal, one it can stay at for good)."""
-    remaining = _distances_to(roadmap, goal)
+    remaining = distances_to(roadmap, goal)
     if start not in remaining:
         return None
     frontier = [(start_step + remaining[start], start_step, start)]

@@ -11,6 +11,7 @@ or a stay at one (a segment of length 0); two segments *conflict* when they pass
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,25 +87,27 @@ def _grid_axis(low: float, high: float, anchor: float, pitch: float) -> np.ndarr
 
 
 def build_roadmap(points_m: list[tuple[float, float]], *, pitch_m: float = PITCH_M,
-                  clearance_m: float = CLEARANCE_M) -> Roadmap:
-    """The grid, plus ``points_m`` (starts and goals) each linked to its nearest grid place."""
+                  clearance_m: float = CLEARANCE_M, lanes_m: float | None = None) -> Roadmap:
+    """The grid, plus ``points_m`` (starts and goals) each linked to its nearest grid place.
+
+    ``lanes_m``: a second square grid of that pitch over the platform, anchored alike, whose
+    places off the first grid are each linked to their two nearest places of it. Robots
+    resting on the lanes' places leave room between them to pass along the lanes."""
     x_min, x_max, y_min, y_max = platform_bounds_m(ROBOT_DIAMETER_M / 2.0)
-    xs = _grid_axis(x_min, x_max, MICRO_FIELD_CENTER_M[0], pitch_m)
-    ys = _grid_axis(y_min, y_max, MICRO_FIELD_CENTER_M[1], pitch_m)
-    grid = np.round(np.array([(x, y) for x in xs for y in ys]), 12)
-    places = [(float(x), float(y)) for x, y in grid]
-    links: list[set[int]] = [set() for _ in places]
-    columns = len(ys)
-    for index in range(len(grid)):
-        row, column = divmod(index, columns)
-        if column + 1 < columns:
-            links[index].add(index + 1)
-            links[index + 1].add(index)
-        if row + 1 < len(xs):
-            links[index].add(index + columns)
-            links[index + columns].add(index)
+    places: list[tuple[float, float]] = []
+    links: list[set[int]] = []
+    _add_grid(places, links, (x_min, x_max, y_min, y_max), pitch_m)
+    fixed = np.array(places)
+    if lanes_m is not None:
+        lanes = _add_grid(places, links, (x_min, x_max, y_min, y_max), lanes_m)
+        for lane in lanes:
+            if lane >= len(fixed):
+                for nearest in np.argsort(np.hypot(*(fixed - places[lane]).T))[:2]:
+                    links[lane].add(int(nearest))
+                    links[int(nearest)].add(lane)
+        fixed = np.array(places)
     for point in points_m:
-        distances = np.hypot(*(grid - np.asarray(point)).T)
+        distances = np.hypot(*(fixed - np.asarray(point)).T)
         nearest = int(np.argmin(distances))
         if distances[nearest] <= 1e-9:     # a grid place: that place, as given
             places[nearest] = (float(point[0]), float(point[1]))
@@ -135,6 +138,47 @@ def build_roadmap(points_m: list[tuple[float, float]], *, pitch_m: float = PITCH
     conflicts = tuple(frozenset(near) for near in close)
     return Roadmap(places_m, tuple(tuple(sorted(link)) for link in links), segments,
                    conflicts, clearance_m)
+
+
+def _add_grid(places: list[tuple[float, float]], links: list[set[int]],
+              bounds: tuple[float, float, float, float], pitch: float) -> list[int]:
+    """Add a square grid of ``pitch`` within ``bounds`` anchored on the micro field, each place
+    linked to its four neighbours; a place already there is used as it is. Returns the grid's
+    place indices."""
+    x_min, x_max, y_min, y_max = bounds
+    xs = _grid_axis(x_min, x_max, MICRO_FIELD_CENTER_M[0], pitch)
+    ys = _grid_axis(y_min, y_max, MICRO_FIELD_CENTER_M[1], pitch)
+    existing = np.array(places).reshape(-1, 2)
+    indices = []
+    for x, y in np.round(np.array([(x, y) for x in xs for y in ys]), 12):
+        distances = np.hypot(*(existing - (x, y)).T)
+        if len(distances) and distances.min() <= 1e-9:
+            indices.append(int(np.argmin(distances)))
+            continue
+        places.append((float(x), float(y)))
+        links.append(set())
+        indices.append(len(places) - 1)
+    columns = len(ys)
+    for index in range(len(indices)):
+        row, column = divmod(index, columns)
+        for neighbour in ([index + 1] if column + 1 < columns else []) + (
+                [index + columns] if row + 1 < len(xs) else []):
+            links[indices[index]].add(indices[neighbour])
+            links[indices[neighbour]].add(indices[index])
+    return indices
+
+
+def distances_to(roadmap: Roadmap, goal: int) -> dict[int, int]:
+    """Steps from each place to ``goal`` along the roadmap's links."""
+    distances = {goal: 0}
+    queue = deque([goal])
+    while queue:
+        place = queue.popleft()
+        for near in roadmap.neighbours[place]:
+            if near not in distances:
+                distances[near] = distances[place] + 1
+                queue.append(near)
+    return distances
 
 
 def point_segment_distance(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:

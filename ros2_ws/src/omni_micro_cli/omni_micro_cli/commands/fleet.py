@@ -172,7 +172,7 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's
     options) through the node graph, print the table (and ``as_json``, the JSON), write the
     twin's bag and the routes' plot."""
-    from omni_micro_control.fleet_plan import PlanningError, plan_fleet
+    from omni_micro_control.fleet_plan import PlannerGaveUpError, PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
     from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
 
@@ -186,6 +186,8 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
         plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
     except (PlanningError, RoadmapError) as error:
         raise UsageError(str(error)) from None
+    except PlannerGaveUpError as error:     # not the tasks' fault: say how to try again
+        raise RunFailed(f'{error} (seed {seed}: another --seed may plan these tasks)') from None
     planned_s = time.perf_counter() - started
     if record is not None:
         from omni_micro_tools.bags import check_bag_output
