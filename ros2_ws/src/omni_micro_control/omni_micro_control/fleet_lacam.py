@@ -10,11 +10,12 @@ by some constraint and configurations are never expanded twice, the search is co
 roadmap: it finds a plan whenever one exists and says so when none does.
 
 A step here is the fleet planner's synchronous step: each robot stays or moves to a linked
-place, and no two robots' segments (a stay is one) come within the clearance, so a robot never
-enters a place another is leaving. The generator keeps every robot not yet given its move free
-to stay, so it never fails unconstrained. A robot's goals come in order: its goal index moves
-on when it stands at the goal (after the goal its ``after`` names has been done, a step
-earlier), and the search ends when every robot has done its last and stands on it.
+place. A robot may enter a place another leaves in the same step, the other moving first:
+each step carries its moves' turns, and run turn by turn no move comes within the clearance of
+a robot standing still (:mod:`omni_micro_control.fleet_pibt`). A robot's goals come in order:
+its goal index moves on when it stands at the goal (one that waits for another's: when it has
+just come onto it, that goal done a step earlier), and the search ends when every robot has
+done its last and stands on it (a robot without goals, back at its start).
 """
 
 from __future__ import annotations
@@ -81,11 +82,11 @@ class SearchLimitError(SearchEndedError):
 
 
 def lacam(roadmap: Roadmap, starts: list[int], tasks: Sequence[Sequence[_Task]], *,
-          seed: int = 0, max_nodes: int = 200_000
-          ) -> list[tuple[tuple[int, ...], dict[int, int]]]:
+          seed: int = 0, max_nodes: int = 200_000) -> list[_Node]:
     """The configurations from the starts to every robot on its last goal (roadmap places; a
-    robot without goals back at its start), each with the turns of the moves that led to it
-    (robot -> its turn: a robot entering a place another leaves moves after it).
+    robot without goals back at its start), each with the goals done there and the turns of
+    the moves that led to it (robot -> its turn: a robot entering a place another leaves moves
+    after it).
 
     Raises
     ------
@@ -111,7 +112,7 @@ def lacam(roadmap: Roadmap, starts: list[int], tasks: Sequence[Sequence[_Task]],
                                    'configurations', search.unfinished(closest[1]))
         node = open_nodes[-1]
         if search.finished(node):
-            return _configurations(node)
+            return _lineage(node)
         if not node.tree:
             open_nodes.pop()
             continue
@@ -144,12 +145,12 @@ def lacam(roadmap: Roadmap, starts: list[int], tasks: Sequence[Sequence[_Task]],
                       search.unfinished(closest[1]))
 
 
-def _configurations(node: _Node | None) -> list[tuple[tuple[int, ...], dict[int, int]]]:
-    configs = []
+def _lineage(node: _Node | None) -> list[_Node]:
+    nodes = []
     while node is not None:
-        configs.append((node.config, node.ranks))
+        nodes.append(node)
         node = node.parent
-    return configs[::-1]
+    return nodes[::-1]
 
 
 def lacam_paths(roadmap: Roadmap, starts: list[int], tasks: Sequence[Sequence[_Task]], *,
@@ -158,20 +159,16 @@ def lacam_paths(roadmap: Roadmap, starts: list[int], tasks: Sequence[Sequence[_T
     """:func:`lacam`'s plan as the fleet planner's: each robot's place at each step, the step
     it reaches each goal (there since its last move, or, for a goal that waits for another's,
     since it came onto it) and its turn among each step's moves (step -> turn)."""
-    configs = lacam(roadmap, starts, tasks, seed=seed, max_nodes=max_nodes)
-    search = _Search(roadmap, starts, tasks, seed)
-    paths = [[config[robot] for config, _ in configs] for robot in range(len(starts))]
+    nodes = lacam(roadmap, starts, tasks, seed=seed, max_nodes=max_nodes)
+    paths = [[node.config[robot] for node in nodes] for robot in range(len(starts))]
     ranks: list[dict[int, int]] = [{} for _ in starts]
-    for step, (_, turns) in enumerate(configs[1:]):
-        for robot, turn in turns.items():
+    for step, node in enumerate(nodes[1:]):
+        for robot, turn in node.ranks.items():
             ranks[robot][step] = turn
     arrivals: list[list[int]] = [[] for _ in starts]
-    done = search.advance(configs[0][0], tuple(0 for _ in starts), None)
-    for step in range(len(configs)):
-        if step:
-            done = search.advance(configs[step][0], done, configs[step - 1][0])
+    for step, node in enumerate(nodes):
         for robot in range(len(starts)):
-            while len(arrivals[robot]) < done[robot]:
+            while len(arrivals[robot]) < node.done[robot]:
                 index, arrived = len(arrivals[robot]), step
                 floor = arrivals[robot][-1] if arrivals[robot] else 0
                 if tasks[robot][index].after is None:

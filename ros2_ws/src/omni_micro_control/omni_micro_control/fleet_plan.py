@@ -125,12 +125,12 @@ def plan_fleet(starts_m: list[tuple[float, float]], tasks: list[list[Task]], *, 
         if promoted is None or promoted == order:
             promoted = _respecting_waits(rng.sample(order, len(order)), tasks)
         order = promoted or order
-    return _plan_by_lacam(starts_m, tasks, seed, clearance_m)
+    return _plan_by_lacam(starts_m, tasks, points, seed, clearance_m)
 
 
-def _plan_by_lacam(starts_m: list[tuple[float, float]], tasks: list[list[Task]], seed: int,
-                   clearance_m: float) -> FleetPlan:
-    points = list(starts_m) + [task.goal_m for robot in tasks for task in robot]
+def _plan_by_lacam(starts_m: list[tuple[float, float]], tasks: list[list[Task]],
+                   points: list[tuple[float, float]], seed: int, clearance_m: float
+                   ) -> FleetPlan:
     roadmap = build_roadmap(points, clearance_m=clearance_m, lanes_m=LANES_M)
     try:
         paths, arrivals, ranks = lacam_paths(roadmap, [roadmap.place_of(s) for s in starts_m],
