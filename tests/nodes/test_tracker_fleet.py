@@ -94,7 +94,6 @@ def test_a_moving_robot_gets_no_capture_until_still_and_the_others_go_on(context
     ({'robots': ['robot_10']}, "'robot_10' is not a robot with a code of its own"),
     ({'robots': ['arm_1']}, "'arm_1' is not a robot with a code of its own"),
     ({'robots': ['robot_1', 'robot_1']}, "'robot_1' is not a robot with a code of its own"),
-    ({'robots': ['robot_1'], 'captures_in_motion': True}, 'captures_in_motion: not with robots'),
 ])
 def test_robots_the_tracker_cannot_tell_are_refused_naming_them(context, values, named):
     with pytest.raises(CameraConfigError, match=named):

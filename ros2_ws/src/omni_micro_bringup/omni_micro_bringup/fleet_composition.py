@@ -83,31 +83,28 @@ def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[s
             for mode in modes]
 
 
-def check_vision(modes: list[str], vision: str) -> None:
-    """Raises UsageError if ``vision`` cannot serve the robots' controller ``modes``: the
-    shared tracker gives no captures in motion (a servo's), nor does a vision not known."""
+def check_vision(vision: str) -> None:
+    """Raises UsageError if ``vision`` is not one known."""
     if vision not in ('model', 'images'):
         raise UsageError(f"vision must be 'model' or 'images', got {vision!r}")
-    servos = [k for k, mode in enumerate(modes) if mode == SERVO_MODE]
-    if vision == 'images' and servos:
-        raise UsageError(f'--vision images: the tracker every robot shares gives no captures in '
-                         f'motion, which the servo needs (robots {servos}); give those robots '
-                         f'--controller paper or model')
 
 
 def shared_cameras(count: int, seed: int, params: list[Path],
-                   capture_readers: list[str], recorded: bool = False) -> list[NodeSpec]:
+                   capture_readers: list[str], recorded: bool = False,
+                   in_motion: bool = False) -> list[NodeSpec]:
     """The camera pair a fleet shares: camera_node rendering every robot with its
     code, its frames read reliably by tracker_node, which names each robot and publishes its
-    captures under its namespace to the robot's ``capture_readers`` (node names); with
-    ``recorded``, the recorder reads the frames too, and the first waits for it as well."""
+    captures under its namespace to the robot's ``capture_readers`` (node names), and with
+    ``in_motion`` its captures in motion (a servo's); with ``recorded``, the recorder reads the
+    frames too, and the first waits for it as well."""
     robots = [robot_name(k) for k in range(count)]
     camera: dict[str, object] = {'seed': int(seed), 'robots': robots,
                                  'image_readers': [TRACKER_NODE[1],
                                                    *((RECORDER_NODE,) if recorded else ())]}
     tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
                                   'covariance_readers': [f'{robot}/{name}' for robot in robots
-                                                         for name in capture_readers]}
+                                                         for name in capture_readers],
+                                  **({'captures_in_motion': True} if in_motion else {})}
     # The tracker takes part in each robot's lockstep as that robot's (it gates its captures).
     return [NodeSpec(*CAMERA_NODE, params=tuple(params), overrides=camera),
             NodeSpec(*TRACKER_NODE, params=tuple(params), overrides=tracker,
@@ -127,27 +124,21 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     ``markers`` its markers_node too, the robot in its colour and labelled), with ``record``
     (the bag, its storage) the recorder of every robot's topics, and with ``view`` (host, port)
     the live view of every robot's. ``controllers``: robot k's controller mode (``paper``, the
-    default, leaves it to the params files); a servo's vision_node publishes the captures in
-    motion it reads. ``vision``: ``model``, each robot its vision_node; ``images``, one
-    camera_node rendering every robot with its code and one tracker_node naming them, in place
-    of the vision_nodes (the cameras a fleet shares); ``vision_overrides`` (the camera
-    faults) set on every robot's vision_node; ``record_images``: the recorder keeps the shared
-    cameras' images too. ``composed``: dynamics and every
-    robot's nodes in one process (the container), each node with the same arguments as on its
-    own; the recorder and the view stay processes of their own, as a single robot's.
-
-    Raises
-    ------
-    UsageError
-        A servo robot with ``vision`` images: the tracker gives captures in motion of one
-        robot only.
+    default, leaves it to the params files); a servo's vision_node (or the shared tracker)
+    publishes the captures in motion it reads. ``vision``: ``model``, each robot its
+    vision_node; ``images``, one camera_node rendering every robot with its code and one
+    tracker_node naming them, in place of the vision_nodes (the cameras a fleet shares);
+    ``vision_overrides`` (the camera faults) set on every robot's vision_node;
+    ``record_images``: the recorder keeps the shared cameras' images too. ``composed``: dynamics
+    and every robot's nodes in one process (the container), each node with the same arguments
+    as on its own; the recorder and the view stay processes of their own, as a single robot's.
     """
     shipped = (graph_params_file(), *params_files)
     count = len(starts_m)
     modes = controller_modes(controllers or ['paper'] * count, params_files)
     servos = tuple(k for k in range(count) if modes[k] == SERVO_MODE)
     images = vision == 'images'
-    check_vision(modes, vision)
+    check_vision(vision)
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     names = [robot_name(k) for k in range(count)]
     streamed = rendered_cameras(params_files, {}) if images and record_images else ()
@@ -163,7 +154,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     specs = [NodeSpec('omni_micro_sim', 'dynamics_node', params=shipped, overrides=dynamics)]
     if images:
         specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes],
-                                recorded=bool(streamed) and recorder is not None)
+                                recorded=bool(streamed) and recorder is not None,
+                                in_motion=bool(servos))
     for k in range(count):
         robot = robot_name(k)
         remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
@@ -183,7 +175,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                        'dynamics_node',
                                        *((f'{robot}/markers_node',) if markers else ()),
                                        *((RECORDER_NODE,) if recorder else ())],
-                                   **(servo_timing_of(params_files) if servo else {})},
+                                   **(servo_timing_of(params_files, CAMERA_NODE[1] if images
+                                                      else 'vision_node') if servo else {})},
                'markers_node': {
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),

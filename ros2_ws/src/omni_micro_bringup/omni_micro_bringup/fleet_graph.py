@@ -233,14 +233,13 @@ class FleetDispatch:
         self.respawnable: list[str] = []
 
     def check(self) -> None:
-        self.check_options(self.options, self.modes)
+        self.check_options(self.options)
 
     @staticmethod
-    def check_options(options: GraphOptions, modes: list[str]) -> None:
-        """Raises UsageError if the vision cannot serve the robots' controller ``modes``, for
-        ``respawn`` with ``composed``, camera faults without vision_nodes, or images to record
-        without a bag or images."""
-        check_vision(modes, options.vision)
+    def check_options(options: GraphOptions) -> None:
+        """Raises UsageError for a vision not known, for ``respawn`` with ``composed``, camera
+        faults without vision_nodes, or images to record without a bag or images."""
+        check_vision(options.vision)
         check_respawn(options)
         check_camera_faults(options.vision_overrides, options.vision)
         check_record_images(options.record_images, options.record, options.vision,

@@ -35,7 +35,8 @@ that none of them misses the first captures.
 Several robots under one camera pair (a fleet, ``robots``: their namespaces, robot_k
 carrying fiducial code k): each frame's robots are named by their codes
 (:mod:`omni_micro_vision.code_reading`) and each named robot's captures published under its
-namespace, ``/robot_k/camera/<name>/pose`` and ``pose_with_covariance``
+namespace, ``/robot_k/camera/<name>/pose`` and ``pose_with_covariance``, and with
+``captures_in_motion`` each moving robot's ``/robot_k/camera/<name>/pose_in_motion``
 (:mod:`omni_micro_vision.fleet_tracking`); a robot a frame cannot name gives no capture and is
 said in ``tracker_status`` (why, and where) and, once per reason, in the log.
 """
@@ -53,7 +54,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import stamp_ns
+from omni_micro_common.conventions import join_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.lockstep_reporting import LockstepReporter
@@ -64,7 +65,11 @@ from omni_micro_common.reader_matching import (
     when_capture_readers_matched,
     when_readers_matched,
 )
-from omni_micro_common.topic_names import CAPTURE_COVARIANCE_TOPICS, CAPTURE_TOPICS
+from omni_micro_common.topic_names import (
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
+)
 from omni_micro_vision.camera import checked_cameras
 from omni_micro_vision.capture_messages import capture_pose, with_uncertainty
 from omni_micro_vision.code_reading import Sighting
@@ -105,9 +110,6 @@ class TrackerNode(Node):
         checked_cameras(cameras)
         self.captures_in_motion = bool(self.declare_parameter('captures_in_motion', False).value)
         self.robots = robot_codes(node_list_parameter(self, 'robots'))
-        if self.robots and self.captures_in_motion:
-            raise CameraConfigError('captures_in_motion: not with robots (a fleet\'s '
-                                    'captures are of still robots only)')
         # Best effort by default, which meets a reliable and a best-effort driver alike
         # (REP-2003); the lockstep graph asks reliable of its own camera_node.
         self.reliability = self.declare_parameter('image_reliability', 'best_effort').value
@@ -161,9 +163,10 @@ class TrackerNode(Node):
         # which have been handled (omni_micro_common.lockstep).
         self.motion_arbiter: CameraArbiter[HeldInMotion] = CameraArbiter(
             sorted(fields, key=fields.__getitem__))
-        self.fleet = FleetCaptures(
+        self.fleet: FleetCaptures[HeldInMotion] | None = FleetCaptures(
             sorted(fields, key=fields.__getitem__), list(self.robots.values()),
-            self.still_frames, {r.name: r.stillness.tolerance_m for r in self.readers}) \
+            self.still_frames, {r.name: r.stillness.tolerance_m for r in self.readers},
+            self._robot_in_motion if self.captures_in_motion else None) \
             if self.robots else None
         # Each robot's captures, per camera: (bare, with covariance) under its namespace.
         self.robot_publishers = {
@@ -174,6 +177,12 @@ class TrackerNode(Node):
                                       f'/{robot}{CAPTURE_COVARIANCE_TOPICS[reader.name]}',
                                       CAPTURE_QOS))
             for robot, code in self.robots.items() for reader in self.readers}
+        self.robot_in_motion_publishers = {
+            (code, reader.name): self.create_publisher(
+                PoseWithCovarianceStamped, f'/{robot}{CAPTURE_IN_MOTION_TOPICS[reader.name]}',
+                CAPTURE_QOS)
+            for robot, code in self.robots.items() for reader in self.readers
+            if self.captures_in_motion}
 
         def read_images() -> None:
             for image_topic, info_topic, reader in inputs:
@@ -217,22 +226,36 @@ class TrackerNode(Node):
                 name, None, ParameterDescriptor(dynamic_typing=True)).value
         return self.declare_parameter(name, default).value
 
+    def _robot_in_motion(self, camera: str, stamp: int, pose: tuple[float, float, float],
+                         last: tuple[int, float, float]) -> HeldInMotion | None:
+        """A fleet robot's capture in motion, as one robot's (CameraReader.in_motion)."""
+        reader = next(r for r in self.readers if r.name == camera)
+        return reader.in_motion(join_stamp(*divmod(stamp, 1_000_000_000)), pose,
+                                (join_stamp(*divmod(last[0], 1_000_000_000)), *last[1:]))
+
     def on_fleet_frame(self, reader: CameraReader, stamp: int,
                        sightings: list[Sighting]) -> None:
-        """A frame of several robots: each named robot's due captures published under its
-        namespace, the robots the frame could not name said, then the report."""
+        """A frame of several robots: each named robot's due captures (and captures in motion)
+        published under its namespace, the robots the frame could not name said, then the
+        report."""
         assert self.fleet is not None
         reader.handled_ns = max(reader.handled_ns, stamp)
-        due, unnamed = self.fleet.on_frame(reader.name, stamp, sightings)
-        for capture in due:
+        frame = self.fleet.on_frame(reader.name, stamp, sightings)
+        for capture in frame.captures:
             self._publish_robot_capture(capture)
-        reader.say_sightings(sightings, unnamed)
+        moving: dict[int, list[int]] = {}
+        for robot, (owner, message) in frame.in_motion:
+            self.robot_in_motion_publishers[robot, owner.name].publish(message)
+            moving.setdefault(robot, []).append(stamp_ns(message.header.stamp))
+        reader.say_sightings(sightings, frame.unnamed)
         handled_ns = min(r.handled_ns for r in self.readers)
         for code, lockstep in self.robot_lockstep.items():
-            own = [capture.stamp_ns for capture in due if capture.robot == code]
+            own = [capture.stamp_ns for capture in frame.captures if capture.robot == code]
+            in_motion = moving.get(code)
             lockstep.report(Ack(lockstep.name, None,
                                 captures_ns=(own[0], own[-1]) if own else None,
-                                frame_handled_ns=handled_ns))
+                                frame_handled_ns=handled_ns,
+                                motion_ns=(in_motion[0], in_motion[-1]) if in_motion else None))
 
     def _publish_robot_capture(self, capture: RobotCapture) -> None:
         reader = next(r for r in self.readers if r.name == capture.camera)

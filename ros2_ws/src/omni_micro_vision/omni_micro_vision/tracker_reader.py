@@ -58,7 +58,7 @@ class TrackerHost(Protocol):
     captures_in_motion: bool
     reliability: str
     robots: dict[str, int]
-    fleet: FleetCaptures | None
+    fleet: FleetCaptures[Any] | None
 
     def create_publisher(self, msg_type: Any, topic: str, qos: Any) -> Any: ...
 
@@ -107,7 +107,7 @@ class CameraReader:
                                                 TRACKER_STATUS_TOPICS[self.name], latched(1))
         self.in_motion_pub = node.create_publisher(
             PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[self.name],
-            CAPTURE_QOS) if node.captures_in_motion else None
+            CAPTURE_QOS) if node.captures_in_motion and not node.robots else None
         self._said: str | None = None
         self._said_level = DiagnosticStatus.OK
         # Several robots: the sensor's full scale over the frames so far, the reasons logged.
@@ -282,20 +282,21 @@ class CameraReader:
             self._say(DiagnosticStatus.OK, 'moving')
             moving = None
             if self.in_motion_pub is not None and last is not None:
-                moving = self._in_motion(msg, (x, y, phi), last)
+                moving = self.in_motion(join_stamp(msg.header.stamp.sec,
+                                                   msg.header.stamp.nanosec), (x, y, phi), last)
             return True, None, moving
         self._say(DiagnosticStatus.OK, 'still: capturing')
         capture = capture_pose(msg.header.stamp.sec, msg.header.stamp.nanosec,
                                self.node.frame_id, x, y, phi)
         return True, (self, with_uncertainty(capture, self.camera.uncertainty(phi)), capture), None
 
-    def _in_motion(self, msg: ImageLike, pose: tuple[float, float, float],
-                   last: tuple[float, float, float]) -> HeldInMotion | None:
-        """The frame of the moving robot as a capture at its exposure's middle, its spread grown
-        by the blur at the speed since the last frame; none past the speed the tracker follows
-        (motion_capture.trackable)."""
+    def in_motion(self, stamp_s: float, pose: tuple[float, float, float],
+                  last: tuple[float, float, float]) -> HeldInMotion | None:
+        """The frame stamped ``stamp_s`` of the moving robot (``last``: where and when this
+        camera saw it before, (stamp_s, x, y)) as a capture at its exposure's middle, its spread
+        grown by the blur at the speed since the last frame; none past the speed the tracker
+        follows (motion_capture.trackable)."""
         x, y, phi = pose
-        stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         elapsed = stamp_s - last[0]
         if elapsed <= 0.0:
             return None

@@ -179,7 +179,7 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     if graph is not None:
         from omni_micro_bringup.fleet_graph import FleetDispatch
 
-        FleetDispatch.check_options(graph, fleet.controllers)   # refused before the planning
+        FleetDispatch.check_options(graph)   # refused before the planning
     started = time.perf_counter()
     try:
         check_tolerances(fleet.tasks)
