@@ -142,6 +142,20 @@ def positive_int(text: str) -> int:
     return value
 
 
+def whole_numbers_in(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
+    """A parser for comma-separated whole numbers in [low, high], e.g. ``10,16,42``: each
+    once, in the order given."""
+    one = whole_number_in(low, high)
+
+    def parse(text: str) -> tuple[int, ...]:
+        values = tuple(one(part.strip()) for part in text.split(','))
+        if len(set(values)) != len(values):
+            raise argparse.ArgumentTypeError(f'expected each number once, got {text!r}')
+        return values
+
+    return parse
+
+
 def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:
     """A parser for ``count`` comma-separated finite numbers, e.g. ``0,3,2``."""
 

@@ -4,13 +4,17 @@ robots, and robots crossing each other's goals, seed after seed."""
 from __future__ import annotations
 
 import io
+import math
 import random
 import time
 from typing import Any
 
-# Four robots on a cross, each sent to the opposite end: every path crosses every other's goal.
-CROSSING_STARTS_M = [(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)]
-CROSSING_GOALS_M = [(0.1, 0.0), (0.0, 0.0), (0.05, -0.05), (0.05, 0.05)]
+# The crossing: robots on a circle, each sent to the opposite point, so that every path crosses
+# the middle (four robots make a cross of the platform, 100 mm end to end; sixteen stand 19.5 mm
+# apart around it).
+CROSSING_CENTRE_M = (0.05, 0.0)
+CROSSING_RADIUS_M = 0.05
+CROSSING_ROBOTS = range(2, 25, 2)   # even counts whose neighbours stand 12 mm apart or more
 # How the figure names each controller mode.
 CONTROLLER_NAMES = {'paper': "on the paper's rule", 'model': 'in the model mode',
                     'servo': 'in the servo mode'}
@@ -18,9 +22,31 @@ COLUMNS = ('robots', 'controller', 'seed', 'outcome', 'goals', 'sim_time_s', 'go
            'closest_gap_mm', 'farthest_off_leg_mm', 'wall_s')
 
 
+def crossing_places(robots: int) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    """The crossing's starts and goals: opposite pairs of the circle, the first pair from its
+    west to its east end, each next pair turned 360 / ``robots`` degrees clockwise."""
+    if robots not in CROSSING_ROBOTS:
+        raise ValueError(f'a crossing of {robots} robots: expected an even count from '
+                         f'{CROSSING_ROBOTS.start} to {CROSSING_ROBOTS.stop - 1}')
+    starts, goals = [], []
+    for pair in range(robots // 2):
+        angle = math.pi - 2.0 * math.pi * pair / robots
+        for start, goal in ((angle, angle + math.pi), (angle + math.pi, angle)):
+            # Rounded to the nanometre (a cosine of 90 degrees is 6e-17, not 0).
+            starts.append(_on_circle(start))
+            goals.append(_on_circle(goal))
+    return starts, goals
+
+
+def _on_circle(angle_rad: float) -> tuple[float, float]:
+    x, y = (centre + CROSSING_RADIUS_M * f(angle_rad)
+            for centre, f in zip(CROSSING_CENTRE_M, (math.cos, math.sin), strict=True))
+    return round(x, 9) + 0.0, round(y, 9) + 0.0   # + 0.0: never -0.0
+
+
 def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
             controller: str = 'paper') -> dict[str, Any]:
-    """One fleet twin run: its row."""
+    """One fleet twin run: its row (``crossing``: ``robots`` of the crossing, one goal each)."""
     from omni_micro_control.fleet_files import drawn_offsets, fleet_from, robot_parameters
     from omni_micro_control.fleet_plan import Task, plan_fleet
     from omni_micro_studies.fleet_twin import run_fleet
@@ -28,8 +54,8 @@ def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
     started = time.perf_counter()
     if crossing:
         rng = random.Random(f'robots {seed}')
-        starts = CROSSING_STARTS_M
-        tasks = [[Task(goal)] for goal in CROSSING_GOALS_M]
+        starts, goals = crossing_places(robots)
+        tasks = [[Task(goal)] for goal in goals]
         parameters = [robot_parameters(drawn_offsets(rng)) for _ in starts]
     else:
         fleet = fleet_from(str(robots), None, goals_per_robot, seed)
@@ -45,7 +71,8 @@ def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
 
 
 def crossing_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    return {'runs': len(rows), 'done': sum(r['outcome'] == 'done' for r in rows),
+    return {'runs': len(rows), 'robots': rows[0]['robots'],
+            'done': sum(r['outcome'] == 'done' for r in rows),
             'contacts': sum(r['outcome'] == 'contact' for r in rows),
             'closest_gap_mm': min(r['closest_gap_mm'] for r in rows),
             'farthest_off_leg_mm': max(r['farthest_off_leg_mm'] for r in rows),
@@ -70,8 +97,8 @@ def throughput_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 def summary_lines(summary: dict[str, Any], crossing: bool) -> list[str]:
     if crossing:
-        return [f'{summary["runs"]} crossing runs of 4 robots ({summary["controller"]} '
-                f'controllers): {summary["done"]} done, '
+        return [f'{summary["runs"]} crossing runs of {summary["robots"]} robots '
+                f'({summary["controller"]} controllers): {summary["done"]} done, '
                 f'{summary["contacts"]} contacts; closest centres {summary["closest_gap_mm"]:.2f}'
                 f' mm (9 mm discs); farthest off a leg {summary["farthest_off_leg_mm"]:.3f} mm; '
                 f'{summary["sim_time_s_mean"]:.1f} s simulated on average']

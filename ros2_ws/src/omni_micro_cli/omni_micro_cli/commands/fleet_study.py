@@ -16,9 +16,11 @@ from omni_micro_cli.arguments import (
     check_dask_arguments,
     seed_number,
     whole_number_in,
+    whole_numbers_in,
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
 from omni_micro_control.feedback import MODES
+from omni_micro_control.fleet_files import MAX_ROBOTS
 from omni_micro_studies import fleet_throughput as throughput
 
 
@@ -26,24 +28,31 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'fleet-study',
         description='Measure the fleet in the fleet twin. Throughput: 1..--robots-max '
-                    'robots, --draws task sets each (each robot to the micro field, then to '
-                    'a place of its own, --goals-per-robot goals), goals reached per simulated '
-                    'minute against N, with the figure. --crossing RUNS instead: RUNS seeded '
-                    'runs of 4 robots sent across the platform through each other\'s goals, '
-                    'wheel offsets drawn per seed; contacts counted. Writes runs.csv, '
-                    'summary.json and throughput.png (crossing: the first two) into --out, all '
-                    'or nothing.')
+                    'robots (or the --robot-counts given), --draws task sets each (each robot '
+                    'to the micro field, then to a place of its own, --goals-per-robot goals), '
+                    'goals reached per simulated minute against N, with the figure. --crossing '
+                    'RUNS instead: RUNS seeded runs of --crossing-robots robots on a circle, '
+                    'each sent to the opposite point through the others\' paths, wheel '
+                    'offsets drawn per seed; contacts counted. Writes runs.csv, summary.json '
+                    'and throughput.png (crossing: the first two) into --out, all or nothing.')
     parser.add_argument('--out', type=output_folder, required=True, metavar='DIR',
                         help='folder for the results (created if need be; files of the same '
                              'names in it are replaced)')
-    parser.add_argument('--robots-max', type=whole_number_in(1, 16), default=8, metavar='N',
-                        help='sweep 1..N robots (default 8)')
+    counts = parser.add_mutually_exclusive_group()
+    counts.add_argument('--robots-max', type=whole_number_in(1, MAX_ROBOTS), default=8,
+                        metavar='N', help='sweep 1..N robots (default 8)')
+    counts.add_argument('--robot-counts', type=whole_numbers_in(1, MAX_ROBOTS),
+                        metavar='N,N,...', help='these robot counts only, e.g. 10,16,24,32,42')
     parser.add_argument('--draws', type=whole_number_in(1, 1000), default=3, metavar='K',
                         help='task sets per robot count (default 3)')
     parser.add_argument('--goals-per-robot', type=whole_number_in(1, 20), default=2,
                         metavar='K', help='goals per robot (default 2)')
     parser.add_argument('--crossing', type=whole_number_in(1, 100000), metavar='RUNS',
-                        help='instead of the sweep: RUNS crossing runs of 4 robots')
+                        help='instead of the sweep: RUNS crossing runs')
+    parser.add_argument('--crossing-robots', type=crossing_count, default=4, metavar='N',
+                        help='robots in each crossing run: an even count from '
+                             f'{throughput.CROSSING_ROBOTS.start} to '
+                             f'{throughput.CROSSING_ROBOTS.stop - 1} (default 4)')
     parser.add_argument('--controller', choices=MODES, default='paper',
                         help="every robot's controller: paper (section 4.1's rule, the "
                              'default), model or servo (docs/control.md)')
@@ -52,13 +61,23 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run)
 
 
+def crossing_count(text: str) -> int:
+    count = whole_number_in(throughput.CROSSING_ROBOTS.start,
+                            throughput.CROSSING_ROBOTS.stop - 1)(text)
+    if count % 2:
+        raise argparse.ArgumentTypeError(f'expected an even count (robots in opposite pairs), '
+                                         f'got {text!r}')
+    return count
+
+
 def run(args: argparse.Namespace) -> int:
     from omni_micro_studies.execute import map_on_dask, runs_go_to
 
     check_dask_arguments(args)
     crossing = args.crossing is not None
-    jobs = ([(4, args.seed + k) for k in range(args.crossing)] if crossing else
-            [(n, args.seed + k) for n in range(1, args.robots_max + 1) for k in range(args.draws)])
+    counts = args.robot_counts or range(1, args.robots_max + 1)
+    jobs = ([(args.crossing_robots, args.seed + k) for k in range(args.crossing)] if crossing
+            else [(n, args.seed + k) for n in counts for k in range(args.draws)])
     echo_to_stderr(f'{len(jobs)} fleet runs on {runs_go_to(args.workers, args.scheduler)}')
     started = time.perf_counter()
 
