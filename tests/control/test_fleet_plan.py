@@ -20,6 +20,7 @@ from omni_micro_control.fleet_plan import (
     FleetPlan,
     PlanningError,
     Task,
+    _plan_by_lacam,
     plan_fleet,
 )
 from omni_micro_control.fleet_roadmap import (
@@ -252,3 +253,44 @@ def test_waits_between_goals_hold_in_a_lacam_plan():
         first = next(leg for leg in plan.legs[0] if 0 in leg.tasks)
         second = next(leg for leg in plan.legs[1] if 0 in leg.tasks)
         assert ends[1][second.index] > ends[0][first.index]
+
+
+@st.composite
+def waiting_fleets(draw):
+    """2-5 robots of one or two goals each on the lattice, any goal waiting for a goal of a
+    robot listed before (so no cycle)."""
+    count = draw(st.integers(2, 5))
+    starts = spread(draw, count)
+    places = spread(draw, 2 * count)
+    tasks: list[list[Task]] = []
+    earlier: list[tuple[int, int]] = []
+    for robot in range(count):
+        goals = draw(st.integers(1, 2))
+        tasks.append([Task(places[2 * robot + index],
+                           after=draw(st.sampled_from([None, *earlier])) if earlier else None)
+                      for index in range(goals)])
+        earlier += [(robot, index) for index in range(goals)]
+    return starts, tasks, draw(st.integers(0, 1000))
+
+
+@settings(max_examples=40, deadline=None)
+@given(waiting_fleets())
+def test_lacam_keeps_the_clearance_and_every_wait_whatever_each_leg_takes(fleet):
+    """LaCAM's plan (the planner's second way, taken here first) of tasks that wait for others:
+    whatever each leg takes, no two centres closer than the clearance, nobody waiting in a cycle
+    (execute asserts it), every robot on its last goal, and each goal reached after the one it
+    waits for."""
+    starts, tasks, seed = fleet
+    points = list(starts) + [task.goal_m for robot in tasks for task in robot]
+    plan = _plan_by_lacam(starts, tasks, points, seed, CLEARANCE_M)
+    assert_carried_out(plan, tasks, seeds=range(seed, seed + 3))
+    reached_by = {(robot, task): leg.index for robot, legs in enumerate(plan.legs)
+                  for leg in legs for task in leg.tasks}
+    for durations in range(seed, seed + 3):
+        _, ends = execute(plan, random.Random(durations))
+        for robot, goals in enumerate(tasks):
+            for index, task in enumerate(goals):
+                if task.after is not None and {(robot, index), task.after} <= set(reached_by):
+                    other, goal = task.after
+                    assert (ends[robot][reached_by[robot, index]]
+                            > ends[other][reached_by[other, goal]])
