@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import re
 import subprocess
 import sys
@@ -112,11 +113,14 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     assert sweep.returncode == 0, sweep.stderr
     summary = json.loads((tmp_path / 'sweep' / 'summary.json').read_text())
     assert [e['robots'] for e in summary['per_robot_count']] == [1, 2]
+    # One robot has nobody to come close to: null, not a number (nor JSON's forbidden Infinity).
+    assert summary['per_robot_count'][0]['closest_gap_mm'] is None
+    assert summary['per_robot_count'][1]['closest_gap_mm'] > 9.0
     assert all(e['done'] == 1 for e in summary['per_robot_count'])
     assert summary['contacts'] == 0
     rows = (tmp_path / 'sweep' / 'runs.csv').read_text().splitlines()
     assert rows[0].startswith('robots,controller,seed,outcome,goals') and len(rows) == 3
-    assert rows[1].startswith('1,paper,0,done,1,')
+    assert rows[1].startswith('1,paper,0,done,1,') and ',,' in rows[1]
     assert (tmp_path / 'sweep' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
     # Said as each run ends, in whatever order the cluster's workers finish them.
     assert re.search(r'\[[12]/2\] 2 robots, seed 0: done', sweep.stderr), sweep.stderr
@@ -132,6 +136,37 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     refused = omni_micro('fleet-study', '--out', str(tmp_path / 'a_file'), '--crossing', '2')
     assert refused.returncode == 2 and 'exists and is a file' in refused.stderr
     assert refused.stderr.count('\n') == 1
+
+
+def test_the_crossing_puts_robots_in_opposite_pairs_on_one_circle():
+    """Four make the cross of the platform (100 mm end to end); up to 24 stand 12 mm apart or
+    more, each sent through the centre to the opposite point."""
+    from omni_micro_studies.fleet_throughput import CROSSING_CENTRE_M, crossing_places
+
+    assert crossing_places(4) == ([(0.0, 0.0), (0.1, 0.0), (0.05, 0.05), (0.05, -0.05)],
+                                  [(0.1, 0.0), (0.0, 0.0), (0.05, -0.05), (0.05, 0.05)])
+    for count in (2, 8, 16, 24):
+        starts, goals = crossing_places(count)
+        assert len(set(starts)) == count and sorted(goals) == sorted(starts)
+        assert min(math.dist(a, b) for a, b in itertools.combinations(starts, 2)) >= 0.012
+        for start, goal in zip(starts, goals, strict=True):
+            middle = ((start[0] + goal[0]) / 2, (start[1] + goal[1]) / 2)
+            assert math.dist(middle, CROSSING_CENTRE_M) < 1e-9
+    with pytest.raises(ValueError, match='a crossing of 5 robots: expected an even count'):
+        crossing_places(5)
+
+
+@pytest.mark.parametrize(('arguments', 'said'), [
+    (['--crossing', '1', '--crossing-robots', '7'], "--crossing-robots: expected an even count"),
+    (['--crossing', '1', '--crossing-robots', '26'], 'expected a whole number in [2, 24]'),
+    (['--robot-counts', '4,4'], "--robot-counts: expected each number once, got '4,4'"),
+    (['--robot-counts', '8,43'], "expected a whole number in [1, 42], got '43'"),
+    (['--robot-counts', '8', '--robots-max', '3'], 'not allowed with argument'),
+])
+def test_study_sizes_it_cannot_run_are_refused_in_one_line(tmp_path, arguments, said):
+    refused = omni_micro('fleet-study', '--out', str(tmp_path / 'out'), *arguments)
+    assert refused.returncode == 2 and said in refused.stderr, refused.stderr
+    assert refused.stderr.count('\n') == 1 and not (tmp_path / 'out').exists()
 
 
 def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_path):

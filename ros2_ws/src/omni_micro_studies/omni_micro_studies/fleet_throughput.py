@@ -65,7 +65,9 @@ def one_run(robots: int, seed: int, goals_per_robot: int, crossing: bool,
     return {'robots': robots, 'controller': controller, 'seed': seed, 'outcome': result.outcome,
             'goals': result.tasks_done, 'sim_time_s': round(result.sim_time_s, 3),
             'goals_per_minute': round(result.goals_per_minute, 4),
-            'closest_gap_mm': round(result.closest_gap_m * 1e3, 4),
+            # One robot alone has no closest other: None (JSON's null, an empty CSV cell).
+            'closest_gap_mm': round(result.closest_gap_m * 1e3, 4)
+            if math.isfinite(result.closest_gap_m) else None,
             'farthest_off_leg_mm': round(max(r.off_leg_m for r in result.robots) * 1e3, 4),
             'wall_s': round(time.perf_counter() - started, 2)}
 
@@ -89,7 +91,9 @@ def throughput_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
                           'done': sum(r['outcome'] == 'done' for r in mine),
                           'goals_per_minute_mean': sum(rates) / len(rates),
                           'goals_per_minute_min': min(rates), 'goals_per_minute_max': max(rates),
-                          'closest_gap_mm': min(r['closest_gap_mm'] for r in mine)})
+                          'closest_gap_mm': min((r['closest_gap_mm'] for r in mine
+                                                 if r['closest_gap_mm'] is not None),
+                                                default=None)})
     return {'per_robot_count': per_count, 'runs': len(rows),
             'contacts': sum(r['outcome'] == 'contact' for r in rows),
             'farthest_off_leg_mm': max(r['farthest_off_leg_mm'] for r in rows)}
@@ -108,7 +112,8 @@ def summary_lines(summary: dict[str, Any], crossing: bool) -> list[str]:
         lines.append(f'{entry["robots"]:>6} {entry["runs"]:>5} {entry["done"]:>5} '
                      f'{entry["goals_per_minute_mean"]:>10.2f} '
                      f'{entry["goals_per_minute_min"]:>6.2f}..{entry["goals_per_minute_max"]:<6.2f}'
-                     f' {entry["closest_gap_mm"]:>10.2f}')
+                     + (f' {entry["closest_gap_mm"]:>10.2f}' if entry['closest_gap_mm']
+                        is not None else f' {"-":>10}'))
     lines.append(f'{summary["contacts"]} contacts in {summary["runs"]} runs '
                  f'({summary["controller"]} controllers); farthest off a leg '
                  f'{summary["farthest_off_leg_mm"]:.3f} mm')

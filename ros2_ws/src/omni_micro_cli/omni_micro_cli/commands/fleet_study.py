@@ -82,10 +82,12 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
 
     def progress(done: int, row: dict[str, Any]) -> None:
+        closest = row['closest_gap_mm']
         echo_to_stderr(f'  [{done}/{len(jobs)}] {row["robots"]} robots, seed '
                        f'{row["seed"]}: {row["outcome"]}, {row["goals"]} goals in '
-                       f'{row["sim_time_s"]:.0f} s, closest {row["closest_gap_mm"]:.2f}'
-                       f' mm ({time.perf_counter() - started:.0f} s)')
+                       f'{row["sim_time_s"]:.0f} s'
+                       + (f', closest {closest:.2f} mm' if closest is not None else '')
+                       + f' ({time.perf_counter() - started:.0f} s)')
 
     rows: list[dict[str, Any]] = map_on_dask(
         throughput.one_run,
