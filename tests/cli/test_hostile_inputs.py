@@ -214,10 +214,6 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
      '--record-images, --force, --composed, --no-markers, --view, --respawn, the camera '
      'faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot'),
-    (['run', '--robots', '2', '--vision', 'images', '--controller', 'servo'],
-     'omni-micro run: error: --vision images: the tracker every robot shares gives no captures '
-     'in motion, which the servo needs (robots [0, 1]); give those robots --controller paper '
-     'or model'),
     (['fleet', '--vision', 'images'], "omni-micro fleet: error: --vision images is a node "
                                       "graph's: give it with --graph"),
     (['fleet', '--composed'], "omni-micro fleet: error: --composed is a node graph's: give it "
