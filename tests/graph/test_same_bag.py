@@ -17,7 +17,7 @@ from typing import NamedTuple
 import pytest
 from bag_compare import bag_digest, stored_messages
 from conftest import SHARED_SEED, Probe
-from thread_stall import stall_main_thread
+from thread_stall import ready_to_stall, stall_with
 
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import RunFailed
@@ -157,13 +157,21 @@ def test_a_recorder_stalled_for_seconds_loses_nothing(reference, tmp_path):
     samples a writer keeps: once, beside a busy process, a bag lost 320 ticks of /odom and every
     micro capture.)"""
     stalls: list[subprocess.Popen[str]] = []
+    # Started ahead: a helper started as the clock starts, on a busy machine, once stalled the
+    # recorder only after this 1.6 s run had ended.
+    helper = ready_to_stall(6.0)
 
     def stall_the_recorder(graph: Graph) -> None:
         recorder = graph.process('bag_recorder').process
         assert recorder is not None
-        stalls.append(stall_main_thread(recorder.pid, 6.0))
+        stalls.append(stall_with(helper, recorder.pid))
 
-    bag, result = record(tmp_path, composed=True, on_running=stall_the_recorder)
+    try:
+        bag, result = record(tmp_path, composed=True, on_running=stall_the_recorder)
+    finally:
+        if helper.poll() is None and not stalls:
+            helper.kill()
+            helper.wait()
     assert [stall.wait(timeout=30.0) for stall in stalls] == [0]
     assert bag_digest(bag) == bag_digest(reference.bag)
     assert result.wall_time_s > 6.0   # the robot waited for it (0.6 s without it, measured)

@@ -8,8 +8,10 @@ one thread (ptrace PTRACE_SEIZE and PTRACE_INTERRUPT, Linux) and lets it go afte
 tracer that is not the node's parent, so the orchestrator's waits never see the trace stop, and
 the kernel lets the thread go should the helper die first.
 
-Run as a script it is the helper: ``python thread_stall.py PID SECONDS``; it prints ``stalled``
-once the thread has stopped.
+Run as a script it is the helper: ``python thread_stall.py SECONDS``, then the pid on its
+standard input; it prints ``stalled`` once the thread has stopped. Started ahead
+(:func:`ready_to_stall`), it stalls a node within a write of the moment asked, not an
+interpreter's start later (on a busy machine, longer than a short run lasts).
 """
 
 from __future__ import annotations
@@ -26,12 +28,18 @@ PTRACE_INTERRUPT = 0x4207
 WAIT_ALL = 0x40000000    # __WALL: the stop of a thread that is not a child
 
 
-def stall_main_thread(pid: int, seconds: float) -> subprocess.Popen[str]:
-    """Stop ``pid``'s main thread for ``seconds`` (returns once it is stopped); wait on the
-    returned helper to know it has been let go (exit code 0)."""
-    helper = subprocess.Popen([sys.executable, __file__, str(pid), str(seconds)],
-                              stdout=subprocess.PIPE, text=True)
-    assert helper.stdout is not None
+def ready_to_stall(seconds: float) -> subprocess.Popen[str]:
+    """The helper, started and waiting for the pid of the process to stall for ``seconds``."""
+    return subprocess.Popen([sys.executable, __file__, str(seconds)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+
+
+def stall_with(helper: subprocess.Popen[str], pid: int) -> subprocess.Popen[str]:
+    """Stop ``pid``'s main thread through a helper of :func:`ready_to_stall` (returns once it
+    is stopped); wait on the returned helper to know it has been let go (exit code 0)."""
+    assert helper.stdin is not None and helper.stdout is not None
+    helper.stdin.write(f'{pid}\n')
+    helper.stdin.flush()
     said = helper.stdout.readline().strip()
     if said != 'stalled':
         helper.wait()
@@ -62,7 +70,7 @@ def _stall(thread_id: int, seconds: float) -> None:
 
 if __name__ == '__main__':
     try:
-        _stall(int(sys.argv[1]), float(sys.argv[2]))
+        _stall(int(sys.stdin.readline()), float(sys.argv[1]))
     except OSError as failure:
         print(failure, flush=True)
         sys.exit(1)
