@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fleet_runs import assert_same_run_and_bag, run_fleet_files
 
 from omni_micro_tools.bag_reading import read_bag
 
@@ -41,15 +42,8 @@ CAMERAS = ('macro', 'micro')
 
 
 def servos_on_images(omni_micro, folder: Path, *extra: str) -> dict:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / 'robots.yaml').write_text(ROBOTS)
-    (folder / 'tasks.yaml').write_text(TASKS)
-    done = omni_micro('run', '--robots', str(folder / 'robots.yaml'), '--tasks',
-                      str(folder / 'tasks.yaml'), '--vision', 'images', '--seed', '2',
-                      '--no-markers', '--log-dir', str(folder / 'logs'),
-                      '--record', str(folder / 'bag'), '--json', *extra)
-    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return run_fleet_files(omni_micro, folder, ROBOTS, TASKS, '--vision', 'images', '--seed',
+                           '2', '--no-markers', *extra)
 
 
 @pytest.fixture(scope='module')
@@ -110,10 +104,5 @@ def test_every_capture_in_motion_is_of_its_own_robot(on_images):
 
 def test_the_same_run_and_bag_composed_at_twice_real_time(on_images, omni_micro, tmp_path):
     """The same JSON but its wall times, and the same bag file, byte for byte."""
-    fastest = json.loads((on_images / 'summary.json').read_text())
     paced = servos_on_images(omni_micro, tmp_path, '--rtf', '2', '--composed')
-    for summary in (fastest, paced):
-        del summary['wall_s'], summary['planning_s'], summary['running_wall_s']
-    assert paced == fastest
-    (recorded,) = (on_images / 'bag').glob('*.mcap')
-    assert (tmp_path / 'bag' / recorded.name).read_bytes() == recorded.read_bytes()
+    assert_same_run_and_bag(on_images, tmp_path, paced)
