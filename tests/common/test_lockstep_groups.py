@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import Ack, LockstepGate
@@ -147,3 +149,58 @@ def test_two_robots_goals_ending_at_the_same_stamp_are_each_held_for_their_own_r
                                     'end of a goal at 600000000 ns')
     groups.on_ack(Ack('robot_1/omni_micro_orchestration', None, outcome_handled_ns=600 * MS))
     assert groups.reachable_ns() == 600 * MS + LEAD
+
+
+ROBOTS = ['robot_0', 'robot_1']
+NODES = [f'{robot}/{node}' for robot in ROBOTS for node in ('vision_node', 'controller_node')]
+# Few stamps, on the grid: commands awaited and received, captures handled, often coincide.
+TICKS_MS = st.sampled_from([0, 20, 40])
+EVENTS = st.one_of(
+    st.builds(lambda node, ms: ('ack', Ack(node, ms * MS)), st.sampled_from(NODES),
+              TICKS_MS),
+    st.builds(lambda node, ms, first: ('ack', Ack(node, ms * MS,
+                                                  captures_ns=(first * MS, first * MS))),
+              st.sampled_from(NODES[0::2]), TICKS_MS, TICKS_MS),
+    st.builds(lambda node, ms, handled: ('ack', Ack(node, ms * MS,
+                                                    capture_handled_ns=handled * MS)),
+              st.sampled_from(NODES[1::2]), TICKS_MS, TICKS_MS),
+    st.builds(lambda node, ms, command: ('ack', Ack(node, ms * MS, command_ns=command * MS)),
+              st.sampled_from(NODES[1::2]), TICKS_MS, TICKS_MS),
+    st.builds(lambda robot, command: ('command', (robot, command * MS)),
+              st.sampled_from(ROBOTS), TICKS_MS),
+    st.builds(lambda ms: ('reset', ms * MS), TICKS_MS))
+
+
+def replayed_least(events: list[tuple[str, object]]) -> int | float:
+    """The least of the answers of gates built afresh, one per robot, from ``events``."""
+    gates = {robot: LockstepGate([node for node in NODES if node.startswith(f'{robot}/')],
+                                 PERIOD, LEAD) for robot in ROBOTS}
+    for kind, value in events:
+        if kind == 'ack':
+            gates[value.node.split('/')[0]].on_ack(value)
+        elif kind == 'command':
+            gates[value[0]].on_command(value[1])
+        elif kind == 'reset':
+            for gate in gates.values():
+                gate.reset(value)
+    return min(gate.reachable_ns() for gate in gates.values())
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(EVENTS, st.booleans()), max_size=40))
+def test_the_least_of_the_gates_is_kept_right_whatever_the_reports(events_and_asks):
+    """Each gate keeps its answer until its reports change, and the groups the least of them
+    from the gates that changed: asked at any point of any reports, commands and resets, they
+    answer as gates built afresh from the same events."""
+    groups = LockstepGroups(ROBOTS, NODES, PERIOD, LEAD)
+    events = [event for event, _ in events_and_asks]
+    for done, ((kind, value), ask) in enumerate(events_and_asks, start=1):
+        if kind == 'ack':
+            groups.on_ack(value)
+        elif kind == 'command':
+            groups.on_command(*value)
+        else:
+            groups.reset(value)
+        if ask:
+            assert groups.reachable_ns() == replayed_least(events[:done])
+    assert groups.reachable_ns() == replayed_least(events)

@@ -198,6 +198,9 @@ class LockstepGate:
         self._handled_outcomes: dict[str, set[int]] = {}   # all kept: one per goal
         self._coordinators: set[str] = set()
         self._recorded: dict[str, int] = {}   # each recorder's recorded_ns
+        # reachable_ns() of the reports so far: the dynamics asks after every report of every
+        # robot's nodes, and a fleet's gates mostly have nothing new (None: work it out again).
+        self._reachable: int | float | None = None
         self.reset(0)
 
     @property
@@ -211,6 +214,7 @@ class LockstepGate:
     def reset(self, now_ns: int) -> None:
         """Every node counts as caught up at ``now_ns`` (start, or resuming after a pause in
         which a node may have been replaced: a new process knows nothing of the old one's)."""
+        self._reachable = None
         self._processed = dict.fromkeys(
             (node for node in self.nodes if node not in self._reads_no_odometry), now_ns)
         self._capture_handled.clear()
@@ -230,6 +234,7 @@ class LockstepGate:
     def on_ack(self, ack: Ack) -> None:
         if ack.node not in self.nodes:
             return
+        self._reachable = None
         if ack.processed_ns is not None:
             self._processed[ack.node] = ack.processed_ns
         else:
@@ -282,6 +287,7 @@ class LockstepGate:
 
     def on_command(self, stamp_ns: int) -> None:
         """A command stamped ``stamp_ns`` reached the robot."""
+        self._reachable = None
         self._received_commands.append(stamp_ns)
 
     def waiting_for(self) -> str | None:
@@ -327,6 +333,11 @@ class LockstepGate:
 
     def reachable_ns(self) -> int | float:
         """The latest grid time the robot may reach now (``inf`` when nobody takes part)."""
+        if self._reachable is None:
+            self._reachable = self._work_out_reachable_ns()
+        return self._reachable
+
+    def _work_out_reachable_ns(self) -> int | float:
         if not self.nodes:
             return math.inf
         if any(ns not in self._received_commands for ns in self._awaited_commands.values()):

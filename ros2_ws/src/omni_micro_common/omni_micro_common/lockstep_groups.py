@@ -50,6 +50,15 @@ class LockstepGroups:
             [name for name in self.nodes if name.startswith(f'{robot}/')] + shared,
             period_ns, max_lead_ns) for robot in self.robots}
         self.period_ns = period_ns
+        # Each node's reports go to the gates it takes part in only (a shared node's to all).
+        self._gates_of = {node: [gate for gate in self.gates.values() if node in gate.nodes]
+                          for node in self.nodes}
+        self._enabled_gates = [gate for gate in self.gates.values() if gate.enabled]
+        # The least of the gates' reachable_ns, kept up to date from the gates that changed:
+        # asked after every report, it would otherwise cost each report all N gates.
+        self._allowed: dict[LockstepGate, int | float] = {}
+        self._changed: set[LockstepGate] = set(self._enabled_gates)
+        self._least: int | float = math.inf
 
     @property
     def enabled(self) -> bool:
@@ -58,19 +67,34 @@ class LockstepGroups:
     def reset(self, now_ns: int) -> None:
         for gate in self.gates.values():
             gate.reset(now_ns)
+        self._changed.update(self._enabled_gates)
 
     def on_ack(self, ack: Ack) -> None:
-        for gate in self.gates.values():
-            gate.on_ack(ack)   # each gate ignores the nodes that are not its own
+        gates = self._gates_of.get(ack.node, ())
+        for gate in gates:
+            gate.on_ack(ack)
+        self._changed.update(gates)
 
     def on_command(self, robot: str, stamp_ns: int) -> None:
         """A command stamped ``stamp_ns`` reached ``robot``."""
-        self.gates[robot].on_command(stamp_ns)
+        gate = self.gates[robot]
+        gate.on_command(stamp_ns)
+        if gate.enabled:
+            self._changed.add(gate)
 
     def reachable_ns(self) -> int | float:
         """The latest grid time every robot may reach now: the least of the gates'."""
-        gates = [gate for gate in self.gates.values() if gate.enabled]
-        return min((gate.reachable_ns() for gate in gates), default=math.inf)
+        if not self._changed:
+            return self._least
+        least, work_out_all = self._least, not self._allowed
+        for gate in self._changed:
+            before, now = self._allowed.get(gate), gate.reachable_ns()
+            self._allowed[gate] = now
+            work_out_all = work_out_all or (before == self._least and now > before)
+            least = min(least, now)
+        self._changed.clear()
+        self._least = min(self._allowed.values(), default=math.inf) if work_out_all else least
+        return self._least
 
     def waiting_for(self) -> str | None:
         """What holds time back: the gate that allows least, and what it waits for."""
