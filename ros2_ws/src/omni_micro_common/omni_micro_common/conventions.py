@@ -16,6 +16,9 @@ from typing import Any
 STEERING_JOINT = 'steering_joint'
 WHEEL_JOINTS = ('wheel_1_joint', 'wheel_2_joint', 'wheel_3_joint')
 JOINT_NAMES = (STEERING_JOINT, *WHEEL_JOINTS)
+# The robot's frames (REP-105), prefixed by its namespace in a fleet (robot_1/odom).
+ODOM_FRAME = 'odom'
+BASE_FRAME = 'base_link'
 
 
 def split_stamp(seconds: float) -> tuple[int, int]:

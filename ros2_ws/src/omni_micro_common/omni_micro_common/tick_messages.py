@@ -16,7 +16,14 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from omni_micro_common.cdr import MessageTemplate
-from omni_micro_common.conventions import JOINT_NAMES, STEERING_JOINT, WHEEL_JOINTS
+from omni_micro_common.conventions import (
+    BASE_FRAME,
+    JOINT_NAMES,
+    ODOM_FRAME,
+    STEERING_JOINT,
+    WHEEL_JOINTS,
+)
+from omni_micro_common.topic_names import namespaced_frame
 
 SLIP_NAMES = [f'wheel_{k}_{part}' for k in (1, 2, 3) for part in ('longitudinal', 'transverse')]
 STAMP = {'header.stamp.sec': 'int32', 'header.stamp.nanosec': 'uint32'}
@@ -40,18 +47,31 @@ class TickTemplates:
     slip: MessageTemplate
 
 
-def odometry_template(odom_frame: str = 'odom', base_frame: str = 'base_link') -> MessageTemplate:
+def odometry_template(odom_frame: str = ODOM_FRAME,
+                      base_frame: str = BASE_FRAME) -> MessageTemplate:
     odometry = Odometry()
     odometry.header.frame_id = odom_frame
     odometry.child_frame_id = base_frame
     return MessageTemplate(odometry, ODOMETRY_FIELDS)
 
 
-def joint_state_template(base_frame: str = 'base_link') -> MessageTemplate:
+def joint_state_template(base_frame: str = BASE_FRAME) -> MessageTemplate:
     joints = JointState(name=list(JOINT_NAMES), position=[0.0] * len(JOINT_NAMES),
                         velocity=[0.0] * len(JOINT_NAMES))
     joints.header.frame_id = base_frame
     return MessageTemplate(joints, JOINT_STATE_FIELDS)
+
+
+def robot_odometry_template(namespace: str) -> MessageTemplate:
+    """The odometry of the robot in ``namespace`` on the default frames (``robot_1/odom``):
+    a reader built for another robot's frames still reads it, deserialized in full, slower."""
+    return odometry_template(namespaced_frame(namespace, ODOM_FRAME),
+                             namespaced_frame(namespace, BASE_FRAME))
+
+
+def robot_joint_state_template(namespace: str) -> MessageTemplate:
+    """The joint states of the robot in ``namespace`` (frame ``robot_1/base_link``)."""
+    return joint_state_template(namespaced_frame(namespace, BASE_FRAME))
 
 
 @dataclass(frozen=True)

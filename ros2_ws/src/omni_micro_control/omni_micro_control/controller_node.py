@@ -52,7 +52,7 @@ from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, STATUS_QOS
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
-from omni_micro_common.tick_messages import joint_state_template, read_wheel_state
+from omni_micro_common.tick_messages import read_wheel_state, robot_joint_state_template
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
@@ -122,7 +122,7 @@ class ControllerNode(Node):
                                                       STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
-        self._joint_state = joint_state_template()
+        self._joint_state = robot_joint_state_template(self.get_namespace().strip('/'))
         readers = node_list_parameter(self, 'trajectory_readers')
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0

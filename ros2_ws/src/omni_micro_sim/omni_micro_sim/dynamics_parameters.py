@@ -12,6 +12,7 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.node import Node
 
+from omni_micro_common.conventions import BASE_FRAME, ODOM_FRAME
 from omni_micro_common.lockstep import DEFAULT_MAX_LEAD_S
 from omni_micro_common.reader_matching import node_list_parameter
 from omni_micro_sim import paper
@@ -88,8 +89,8 @@ def declare_dynamics_parameters(node: Node) -> DynamicsParameters:
             raise ParameterError(f'{name} must be a whole number of ticks >= 1, got '
                                  f'{value!r}')
     initial = node.declare_parameter('initial_pose', [0.0, 0.0, 0.0], READ_ONLY).value
-    odom_frame = node.declare_parameter('odom_frame', 'odom', READ_ONLY).value
-    base_frame = node.declare_parameter('base_frame', 'base_link', READ_ONLY).value
+    odom_frame = node.declare_parameter('odom_frame', ODOM_FRAME, READ_ONLY).value
+    base_frame = node.declare_parameter('base_frame', BASE_FRAME, READ_ONLY).value
     real_time_factor = checked_rtf(node.declare_parameter('real_time_factor', 1.0).value)
     stamp_origin = node.declare_parameter('stamp_origin', 'zero', READ_ONLY).value
     if stamp_origin not in STAMP_ORIGINS:

@@ -44,7 +44,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import DATA_QOS, IMAGE_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
-from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.tick_messages import robot_odometry_template
 from omni_micro_common.topic_names import CAPTURE_TOPICS, ODOM_TOPIC, namespaced_topic
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import CaptureRule, checked_cameras
@@ -105,6 +105,8 @@ class CameraNode(Node):
         self.sources: list[tuple[str, int | None]] = (
             [(namespaced_topic(name, ODOM_TOPIC), code) for name, code in codes.items()]
             or [(ODOM_TOPIC, None)])
+        self._odometry = [robot_odometry_template(name) for name in codes] or [
+            robot_odometry_template('')]
         self.schedule = ExposureSchedule(self.rate_hz, [code for _, code in self.sources])
         self._latest_ns: list[int | None] = [None] * len(self.sources)   # each robot's sample
         self.lockstep = LockstepReporter(self)
@@ -116,7 +118,6 @@ class CameraNode(Node):
 
     def _subscribe(self) -> None:
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
-        self._odometry = odometry_template()
         for robot, (topic, _) in enumerate(self.sources):
             self.create_subscription(Odometry, topic,
                                      functools.partial(self._on_odometry, robot=robot),
@@ -124,7 +125,7 @@ class CameraNode(Node):
                                      event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
     def _on_odometry(self, data: bytes, robot: int = 0) -> None:
-        sec, nanosec, x, y, qz, qw, forward, lateral, omega = self._odometry.decode(data)
+        sec, nanosec, x, y, qz, qw, forward, lateral, omega = self._odometry[robot].decode(data)
         now_s = join_stamp(int(sec), int(nanosec))
         phi = quaternion_to_yaw(qz, qw)
         # The twist is in the robot's frame (REP-103); the renderer wants the platform's.

@@ -58,7 +58,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS
 from omni_micro_common.reader_matching import node_list_parameter, when_readers_matched
-from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.tick_messages import robot_odometry_template
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
@@ -170,7 +170,7 @@ class MarkersNode(Node):
         # one it holds time at the lead, where no throttled sample comes to make another.
         self.create_timer(WATCHER_REPORT_PERIOD_S, self._report,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self._odometry = odometry_template()
+        self._odometry = robot_odometry_template(self.get_namespace().strip('/'))
         self._capture_source = self.declare_parameter('capture_uncertainty', 'covariance').value
         if self._capture_source not in CAPTURE_UNCERTAINTY_SOURCES:
             raise CameraConfigError(f'capture_uncertainty must be one of '

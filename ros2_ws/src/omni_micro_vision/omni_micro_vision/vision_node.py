@@ -46,7 +46,7 @@ from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
 from omni_micro_common.reader_matching import when_capture_readers_matched
-from omni_micro_common.tick_messages import odometry_template
+from omni_micro_common.tick_messages import robot_odometry_template
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
@@ -121,7 +121,7 @@ class VisionNode(Node):
                                                       CAMERA_STATUS_QOS))
         self.lockstep = LockstepReporter(self)
         # Raw, read in place: an Odometry's conversion to Python cost more than the cameras.
-        self._odometry = odometry_template()
+        self._odometry = robot_odometry_template(self.get_namespace().strip('/'))
         self._status: tuple[int, str] | None = None
         # The nodes that must not miss a capture, by the topics they read (empty when started
         # alone): /odom is read, and the robot's clock (which waits for that reader) starts, only
