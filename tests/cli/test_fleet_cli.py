@@ -15,6 +15,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from omni_micro_cli.arguments import composition_of
+from omni_micro_cli.cli import build_parser
+
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -167,6 +170,20 @@ def test_study_sizes_it_cannot_run_are_refused_in_one_line(tmp_path, arguments, 
     refused = omni_micro('fleet-study', '--out', str(tmp_path / 'out'), *arguments)
     assert refused.returncode == 2 and said in refused.stderr, refused.stderr
     assert refused.stderr.count('\n') == 1 and not (tmp_path / 'out').exists()
+
+
+@pytest.mark.parametrize('verb', [['fleet', '--graph', '--robots', '3'], ['run']])
+def test_composed_takes_a_count_of_containers_or_leaves_it_to_the_graph(verb):
+    """``--composed`` alone: the graph chooses (None); ``--composed 3``: three; 0 or a word is
+    refused in one line, before anything starts."""
+    parser = build_parser()
+    for given, containers in (([], None), (['--composed'], None), (['--composed', '3'], 3)):
+        args = parser.parse_args([*verb, *given])
+        assert composition_of(args) == {'composed': bool(given), 'containers': containers}
+    for count in ('0', 'two'):
+        refused = omni_micro(*verb, '--composed', count)
+        assert refused.returncode == 2 and '--composed: expected a whole number' in \
+            refused.stderr and refused.stderr.count('\n') == 1, refused.stderr
 
 
 def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_path):

@@ -60,8 +60,8 @@ def fleet_through_graph(omni_micro, folder: Path, *extra: str) -> dict:
     summary = fleet_run(omni_micro, folder, '--graph', '--log-dir', str(folder / 'logs'),
                         '--record', str(folder / 'bag'), '--markers', *extra)
     (logs,) = (folder / 'logs').iterdir()
-    if '--composed' in extra:   # the dynamics and every robot's nodes in one process
-        processes = ['bag_recorder.log', 'loop_container.log']
+    if '--composed' in extra:   # the dynamics in one container, every robot's nodes in another
+        processes = ['bag_recorder.log', 'loop_container.log', 'loop_container_1.log']
     else:   # one dynamics process for all, each robot's two nodes in their namespace
         processes = ['bag_recorder.log', 'dynamics_node.log',
                      *(f'robot_{k}.{node}.log' for k in range(3)
@@ -163,8 +163,9 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
 
 def test_the_same_fleet_run_composed_at_twice_real_time_with_both_cores_busy_and_watched_live(
         as_fast_as_it_goes, omni_micro, tmp_path, busy_machine):
-    """Against the run at full speed in separate processes: composed in one process, paced at
-    twice real time beside two busy processes, and watched live, the same run and bag. Two
+    """Against the run at full speed in separate processes: composed in two containers (the
+    dynamics in one, the robots' nodes in the other), paced at twice real time beside two busy
+    processes, and watched live, the same run and bag. Two
     robots' goals ended at the same stamp once, and the coordinator's word for one released the
     other's before its next goal was taken (robot 0 started 0.17 s later at full speed): each
     robot has its own coordinator in the lockstep since. The Foxglove client (--view) changes
@@ -187,7 +188,7 @@ def test_the_same_fleet_run_composed_at_twice_real_time_with_both_cores_busy_and
     watcher.start()
     with busy_machine():
         paced = fleet_through_graph(omni_micro, tmp_path / 'rtf2', '--rtf', '2', '--composed',
-                                    '--view', '--view-port', str(port))
+                                    '2', '--view', '--view-port', str(port))
     watcher.join(timeout=60)
     assert_the_same_run_and_bag(as_fast_as_it_goes, paced, tmp_path / 'rtf2')
     for k in range(3):

@@ -14,7 +14,7 @@ import pytest
 from omni_micro_bringup.composition import MARKERS_NODE, GraphOptions, all_specs
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import capture_readers, node_overrides
-from omni_micro_bringup.node_spec import LOOP_CONTAINER, NodeSpec
+from omni_micro_bringup.node_spec import LOOP_CONTAINER, NodeSpec, composed
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
 from omni_micro_common.node_runtime import NodeComponent
 
@@ -97,6 +97,41 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
                                     vision='images'))
     assert [spec.name for spec in images[0].hosts] == [
         'dynamics_node', 'camera_node', 'tracker_node', 'controller_node']
+
+
+def robot_nodes(count: int) -> list[NodeSpec]:
+    return [NodeSpec('omni_micro_vision' if node == 'vision_node' else 'omni_micro_control',
+                     node, namespace=f'robot_{k}')
+            for k in range(count) for node in ('vision_node', 'controller_node')]
+
+
+def test_composed_in_several_containers_the_dynamics_has_one_and_each_robot_stays_whole(
+        monkeypatch):
+    """The simulation's nodes in the first container; the robots' in contiguous blocks over
+    the others, a robot's two nodes always together; the same nodes, each once, whatever the
+    count; never a container with nothing to host."""
+    dynamics = NodeSpec('omni_micro_sim', 'dynamics_node')
+    specs = [dynamics, *robot_nodes(5)]
+    three = composed(specs, 3)
+    assert [spec.name for spec in three] == [LOOP_CONTAINER, f'{LOOP_CONTAINER}_1',
+                                             f'{LOOP_CONTAINER}_2']
+    assert [[hosted.name for hosted in spec.hosts] for spec in three] == [
+        ['dynamics_node'],
+        ['robot_0.vision_node', 'robot_0.controller_node', 'robot_1.vision_node',
+         'robot_1.controller_node'],
+        ['robot_2.vision_node', 'robot_2.controller_node', 'robot_3.vision_node',
+         'robot_3.controller_node', 'robot_4.vision_node', 'robot_4.controller_node']]
+    assert [len(spec.hosts) for spec in composed(specs, 9)] == [1, 2, 2, 2, 2, 2]
+    assert [hosted for spec in composed(specs, 4) for hosted in spec.hosts] == specs
+    assert [spec.hosts for spec in composed(specs, 1)] == [tuple(specs)]
+    # Not said: one per core for two robots or more, one for a single robot's nodes.
+    monkeypatch.setattr(os, 'sched_getaffinity', lambda pid: {0, 1})
+    assert len(composed(specs)) == 2
+    assert len(composed([dynamics, *robot_nodes(1)])) == 1
+    single = all_specs(GraphOptions(goal_m=(0.1, 0.0), composed=True, markers=False))
+    assert [spec.name for spec in single] == [LOOP_CONTAINER]
+    with pytest.raises(UsageError, match='expected 1 container or more, got 0'):
+        composed(specs, 0)
 
 
 def test_the_clock_waits_for_the_readers_of_whoever_reports_draws_or_keeps_the_run():

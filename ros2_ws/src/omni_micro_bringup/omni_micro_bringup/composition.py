@@ -199,8 +199,10 @@ class GraphOptions:
     # vision_node publishes captures of the moving robot too (and the recorder keeps them); the
     # servo mode reads them, so with it they are on whatever this says (publishes_in_motion).
     captures_in_motion: bool = False
-    # The loop's nodes in one process and one executor (omni_micro_common's container).
+    # The loop's nodes in processes of omni_micro_common's container, each with one executor:
+    # ``containers`` of them (node_spec.composed says which nodes each hosts; None: it chooses).
     composed: bool = False
+    containers: int | None = None
     # A real camera driver (its images to tracker_node) or a real robot (its driver reads
     # /wheel_trajectory and publishes /joint_states) instead of the simulated one: then every
     # node runs on the wall clock, free, at real time.
@@ -328,7 +330,7 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
                          'in motion, and this graph has neither')
     check_respawn(options)
-    specs = [composed(loop)] if options.composed else list(loop)
+    specs = composed(loop, options.containers) if options.composed else list(loop)
     if options.markers:
         specs.append(MARKERS_NODE)
     if options.record is not None:

@@ -115,7 +115,8 @@ def shared_cameras(count: int, seed: int, params: list[Path],
 def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameters], seed: int,
                 real_time_factor: float, params_files: tuple[Path, ...],
                 folder: Path, record: tuple[Path, str] | None = None,
-                composed: bool = False, markers: bool = False,
+                composed: bool = False, containers: int | None = None,
+                markers: bool = False,
                 view: tuple[str, int] | None = None,
                 controllers: list[str] | None = None, vision: str = 'model',
                 vision_overrides: dict[str, object] | None = None,
@@ -130,8 +131,10 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     tracker_node naming them, in place of the vision_nodes (the cameras a fleet shares);
     ``vision_overrides`` (the camera faults) set on every robot's vision_node;
     ``record_images``: the recorder keeps the shared cameras' images too. ``composed``: dynamics
-    and every robot's nodes in one process (the container), each node with the same arguments
-    as on its own; the recorder and the view stay processes of their own, as a single robot's.
+    and every robot's nodes in ``containers`` processes (omni_micro_common's container: one hosts
+    them all, more share them as :func:`~omni_micro_bringup.node_spec.composed` says), each node
+    with the same arguments as on its own; the recorder and the view stay processes of their own,
+    as a single robot's.
     """
     shipped = (graph_params_file(), *params_files)
     count = len(starts_m)
@@ -196,7 +199,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         'lockstep_nodes': lockstep_nodes([*specs, *listeners],
                                          [coordinator_name(k) for k in range(count)]),
         'awaited_readers': awaited_readers([*specs, *listeners], names, ODOM_THROTTLE_TOPIC)})
-    return [*([composed_loop(specs)] if composed else specs), *listeners]
+    return [*(composed_loop(specs, containers) if composed else specs), *listeners]
 
 
 def coordinator_name(robot: int) -> str:

@@ -250,7 +250,8 @@ class FleetDispatch:
         specs = fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
                            options.real_time_factor, options.params_files, log_dir,
                            record=None if record is None else (record, options.storage),
-                           composed=options.composed, markers=options.markers,
+                           composed=options.composed, containers=options.containers,
+                           markers=options.markers,
                            view=options.view, controllers=self.modes, vision=options.vision,
                            vision_overrides=options.vision_overrides,
                            record_images=options.record_images)

@@ -4,6 +4,7 @@ overrides; and its command line, the same for a single robot's node and a fleet'
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,8 +18,13 @@ LOCKSTEP_NODES = ('vision_node', 'camera_node', 'tracker_node', 'controller_node
                   'markers_node')
 # Nodes restarted when they crash, with --respawn (a robot's own: the others' deaths end the run).
 RESPAWNABLE_NODES = ('vision_node', 'controller_node')
-# The process that hosts the loop's nodes with --composed (its log is <name>.log).
+# The process that hosts the loop's nodes with --composed (its log is <name>.log); with several,
+# the others are loop_container_1, loop_container_2, ...
 LOOP_CONTAINER = 'loop_container'
+# The simulation's own nodes: with several containers, the first hosts them and the others the
+# robots' nodes. Their work grows with every robot's every step, about as much as all the robots'
+# nodes together (dynamics_node: each robot's tick, and each node's lockstep report, read).
+SIMULATION_NODES = ('dynamics_node', 'camera_node')
 
 
 @dataclass(frozen=True)
@@ -44,13 +50,15 @@ class NodeSpec:
     # The names it reports under on /lockstep when not its own: the tracker a fleet's
     # robots share reports once per robot, as that robot's (``robot_1/tracker_node``).
     reports_as: tuple[str, ...] = ()
+    # Which of the loop's containers this one is (0: the first, or the only one).
+    container: int = 0
 
     @property
     def name(self) -> str:
         """The process's name (its log is <name>.log): ``robot_1.controller_node`` in a
         robot's namespace."""
         if self.hosts:
-            return LOOP_CONTAINER
+            return f'{LOOP_CONTAINER}_{self.container}' if self.container else LOOP_CONTAINER
         return f'{self.namespace}.{self.executable}' if self.namespace else self.executable
 
     @property
@@ -73,19 +81,45 @@ class NodeSpec:
         return self.reports_as or (qualified_node_name(self.namespace, self.executable),)
 
 
-def composed(specs: list[NodeSpec]) -> NodeSpec:
-    """One process, omni_micro_common's container, hosting the nodes of ``specs``.
+def composed(specs: list[NodeSpec], containers: int | None = None) -> list[NodeSpec]:
+    """The nodes of ``specs`` in ``containers`` processes of omni_micro_common's container.
+
+    One hosts them all. With more, the first hosts the simulation's nodes
+    (:data:`SIMULATION_NODES`) and the others the rest, namespace by namespace (a robot's nodes
+    stay together), in contiguous blocks of as equal a count as may be; never more containers
+    than there are blocks to fill them. None: one per core this process may use when there are
+    two blocks or more (robots, or a fleet's shared tracker), else one. Measured on 2 cores
+    (docs/fleet.md): the split pays from two robots on (1.05-1.4x) and costs one robot about
+    10 %, its two nodes' work too little to pay for the messages between processes.
 
     Raises
     ------
     UsageError
-        A node given as a command (a stand-in driver): the container hosts installed nodes.
+        A node given as a command (a stand-in driver): the container hosts installed nodes; or
+        fewer than one container.
     """
     commands = [spec.name for spec in specs if spec.command is not None]
     if commands:
         raise UsageError(f'--composed hosts installed nodes only, not the command of '
                          f'{", ".join(commands)}: run them as separate processes')
-    return NodeSpec('omni_micro_common', 'container', hosts=tuple(specs))
+    if containers is not None and containers < 1:
+        raise UsageError(f'--composed: expected 1 container or more, got {containers}')
+    simulation = [spec for spec in specs if spec.executable in SIMULATION_NODES]
+    namespaces: dict[str, list[NodeSpec]] = {}
+    for spec in specs:
+        if spec.executable not in SIMULATION_NODES:
+            namespaces.setdefault(spec.namespace, []).append(spec)
+    blocks = list(namespaces.values())
+    if containers is None:
+        containers = len(os.sched_getaffinity(0)) if len(blocks) >= 2 else 1
+    if containers == 1 or not simulation or not blocks:
+        return [NodeSpec('omni_micro_common', 'container', hosts=tuple(specs))]
+    shares = min(containers - 1, len(blocks))
+    groups = [simulation] + [
+        [spec for block in blocks[len(blocks) * k // shares:len(blocks) * (k + 1) // shares]
+         for spec in block] for k in range(shares)]
+    return [NodeSpec('omni_micro_common', 'container', hosts=tuple(group), container=number)
+            for number, group in enumerate(groups)]
 
 
 def process_argv(spec: NodeSpec) -> list[str]:

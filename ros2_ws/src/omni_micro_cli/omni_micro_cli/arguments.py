@@ -156,6 +156,25 @@ def whole_numbers_in(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
     return parse
 
 
+# --composed without a count: the layout the graph chooses (omni_micro_bringup.node_spec). Not a
+# string: argparse would pass a string through positive_int, and 0 is no count a user may give.
+CHOSEN_LAYOUT = 0
+
+
+def add_composed_argument(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """``--composed [CONTAINERS]``: the loop's nodes in CONTAINERS processes (as many as the
+    graph chooses if not said)."""
+    parser.add_argument('--composed', nargs='?', const=CHOSEN_LAYOUT, type=positive_int,
+                        metavar='CONTAINERS', help=help_text)
+
+
+def composition_of(args: argparse.Namespace) -> dict[str, object]:
+    """GraphOptions' ``composed`` and ``containers`` of ``--composed [CONTAINERS]``."""
+    containers = getattr(args, 'composed', None)
+    return {'composed': containers is not None,
+            'containers': None if containers in (None, CHOSEN_LAYOUT) else containers}
+
+
 def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:
     """A parser for ``count`` comma-separated finite numbers, e.g. ``0,3,2``."""
 

@@ -10,8 +10,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.arguments import (
+    add_composed_argument,
     add_fault_arguments,
     add_view_arguments,
+    composition_of,
     fault_overrides,
     positive_int,
     real_time_factor,
@@ -78,9 +80,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='with --graph: a markers_node per robot draws it on '
                              '/robot_k/markers (RViz 2, Foxglove), in its colour, labelled')
     add_view_arguments(parser, flag=True)
-    parser.add_argument('--composed', action='store_true',
-                        help='with --graph: dynamics_node and every robot\'s nodes in one '
-                             'process (omni_micro_common\'s container); the run is the same')
+    add_composed_argument(
+        parser, 'with --graph: dynamics_node and every robot\'s nodes in CONTAINERS processes of '
+                'omni_micro_common\'s container (default: one per core; 1: all in one; with 2 or '
+                'more, dynamics_node in the first and the robots shared over the others; '
+                'docs/fleet.md, "The graph at scale"); the run is the same')
     parser.add_argument('--respawn', action='store_true',
                         help='with --graph: restart a robot\'s crashed vision_node or '
                              'controller_node, hold the clock meanwhile and give it its leg '
@@ -154,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
 
         graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                              timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
-                             composed=args.composed, markers=args.markers,
+                             **composition_of(args), markers=args.markers,
                              view=view_from_args(args), vision=args.vision,
                              respawn=args.respawn, vision_overrides=faults,
                              record_images=args.record_images)

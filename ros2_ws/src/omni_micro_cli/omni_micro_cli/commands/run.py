@@ -18,12 +18,14 @@ from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
+    add_composed_argument,
     add_fault_arguments,
     add_steering_argument,
     add_storage_arguments,
     add_timing_arguments,
     add_view_arguments,
     check_timing,
+    composition_of,
     domain_id,
     fault_overrides,
     float_list,
@@ -78,12 +80,13 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--no-markers', dest='markers', action='store_false',
                         help='do not start markers_node (the /markers it draws for RViz 2 and '
                              'Foxglove; the run is the same with or without it)')
-    parser.add_argument('--composed', action='store_true',
-                        help="run the loop's nodes (dynamics, the cameras' stand-in, the "
-                             'controller) in one process and one executor: faster at --rtf '
-                             'max (1.1-1.6x here), the same run and bag (docs/time.md, "Graph '
-                             'speed"); separate processes stay the default, so that a real '
-                             'camera or robot can replace one')
+    add_composed_argument(
+        parser, "run the loop's nodes (dynamics, the cameras' stand-in, the controller) in "
+                'CONTAINERS processes of one executor each (default: one per core; 1: all in '
+                'one; with 2 or more, dynamics and the cameras in the first, the robots shared '
+                'over the others): faster at --rtf max, the same run and bag (docs/time.md, '
+                '"Graph speed"); separate processes stay the default, so that a real camera or '
+                'robot can replace one')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
 
@@ -216,7 +219,7 @@ def fleet_run(args: argparse.Namespace) -> int:
     fleet = fleet_of(args)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
-                         composed=args.composed, respawn=args.respawn,
+                         **composition_of(args), respawn=args.respawn,
                          vision_overrides=fault_overrides(args),
                          record_images=args.record_images, markers=args.markers,
                          view=view_from_args(args), vision=args.vision)
@@ -272,7 +275,7 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         # markers_node draws the robot from its odometry, which a real robot
                         # has not.
                         markers=args.markers and getattr(args, 'robot', 'simulated') != 'external',
-                        view=view_from_args(args), composed=args.composed,
+                        view=view_from_args(args), **composition_of(args),
                         camera=getattr(args, 'camera', 'simulated'),
                         robot=getattr(args, 'robot', 'simulated'),
                         image_topics=dict(getattr(args, 'image_topic', [])), domain_id=domain)
