@@ -3,8 +3,8 @@ goals, each its own controller (the model mode, the servo, the paper's rule), on
 for all, each robot's vision_node and controller_node under /robot_k: every goal reached within
 its tolerance, no two discs ever touching, the run the fleet twin runs, and the same run, goal
 for goal and micrometre for micrometre, as fast as the lockstep allows and at twice real time
-with both cores kept busy and composed in one process, recorded into the same bag byte for byte
-(docs/fleet.md, "Through the node graph")."""
+with both cores kept busy and composed (the dynamics in one container, the robots' nodes in
+another), recorded into the same bag byte for byte (docs/fleet.md, "Through the node graph")."""
 
 from __future__ import annotations
 
@@ -270,3 +270,17 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
     assert [(goal.pose.position.x, goal.pose.position.y, goal.header.stamp.sec,
              goal.header.stamp.nanosec) for goal in taken + recorded] == [
         (0.01, 0.02, 1, 500_000_000)] * 2
+
+
+def test_a_fleet_run_stops_at_its_simulated_time_on_the_clock_as_the_twin_does(omni_micro,
+                                                                              tmp_path):
+    """--max-sim-time is looked at on the robots' clock, as the twin looks at it each step, not
+    only when a goal ends: drawn goals that take 25 s stop just past 8 s (exit 1, tasks left,
+    the JSON says when)."""
+    stopped = omni_micro('fleet', '--graph', '--robots', '3', '--seed', '1',
+                         '--goals-per-robot', '1', '--max-sim-time', '8', '--json',
+                         '--log-dir', str(tmp_path / 'logs'))
+    assert stopped.returncode == 1, stopped.stderr[-2000:]
+    assert 'tasks left after 8 s of simulated time' in stopped.stderr
+    summary = json.loads(stopped.stdout.strip().splitlines()[-1])
+    assert summary['outcome'] == 'timeout' and 8.0 < summary['sim_time_s'] < 8.5

@@ -311,8 +311,11 @@ class FleetDispatch:
                 outcome = 'timeout'
                 reason = f'tasks left after {options.timeout_s:g} s of wall time'
                 break
-            if now_s > self.fleet.max_sim_time_s:
-                outcome = 'timeout'
+            # On the clock, as the twin looks at it each step (not only as goals end: a robot
+            # may drive for long with nothing ending).
+            clock_s = max(now_s, monitor.simulated_time_s() or 0.0)
+            if clock_s > self.fleet.max_sim_time_s:
+                outcome, now_s = 'timeout', clock_s
                 reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
                 break
             if seen == len(monitor.fleet_statuses):
