@@ -4,6 +4,7 @@ time no further than the slowest robot allows, a node outside every namespace in
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 from hypothesis import given, settings
@@ -171,7 +172,7 @@ EVENTS = st.one_of(
     st.builds(lambda ms: ('reset', ms * MS), TICKS_MS))
 
 
-def replayed_least(events: list[tuple[str, object]]) -> int | float:
+def replayed_least(events: list[tuple[str, Any]]) -> int | float:
     """The least of the answers of gates built afresh, one per robot, from ``events``."""
     gates = {robot: LockstepGate([node for node in NODES if node.startswith(f'{robot}/')],
                                  PERIOD, LEAD) for robot in ROBOTS}

@@ -9,7 +9,7 @@ import math
 import socket
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypedDict
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import MAX_SEED
@@ -168,11 +168,18 @@ def add_composed_argument(parser: argparse.ArgumentParser, help_text: str) -> No
                         metavar='CONTAINERS', help=help_text)
 
 
-def composition_of(args: argparse.Namespace) -> dict[str, object]:
+class Composition(TypedDict):
+    """GraphOptions' fields that ``--composed`` sets."""
+
+    composed: bool
+    containers: int | None
+
+
+def composition_of(args: argparse.Namespace) -> Composition:
     """GraphOptions' ``composed`` and ``containers`` of ``--composed [CONTAINERS]``."""
     containers = getattr(args, 'composed', None)
-    return {'composed': containers is not None,
-            'containers': None if containers in (None, CHOSEN_LAYOUT) else containers}
+    return Composition(composed=containers is not None,
+                       containers=None if containers in (None, CHOSEN_LAYOUT) else containers)
 
 
 def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:

@@ -76,6 +76,8 @@ COMMANDS: dict[str, Command] = {
                               'same run)'),
     'bench-graph': Command('bench_graph', 'real-time factor the node graph reaches on Fig. 11, '
                                           'idle and busy'),
+    'bench-fleet': Command('bench_fleet', 'robot-seconds per wall second the node graph runs '
+                                          'against the fleet\'s size, separate and composed'),
     'bench-images': Command('bench_images', 'cost of the rendered cameras and the tracker, per '
                                             'frame and in the loop'),
     'bench-startup': Command('bench_startup', 'start-up time of the command line against the '

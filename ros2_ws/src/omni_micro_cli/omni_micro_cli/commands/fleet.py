@@ -74,8 +74,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--vision', choices=('model', 'images'), default='model',
                         help='with --graph: model, each robot its vision_node (default); '
                              'images, one camera_node renders every robot with its code and '
-                             'one tracker_node names each (the fleet\'s shared cameras; '
-                             'paper and model controllers)')
+                             'one tracker_node names each (the fleet\'s shared cameras; a '
+                             'servo\'s captures in motion too)')
     parser.add_argument('--markers', action='store_true',
                         help='with --graph: a markers_node per robot draws it on '
                              '/robot_k/markers (RViz 2, Foxglove), in its colour, labelled')
