@@ -126,7 +126,7 @@ def test_the_study_sweeps_robot_counts_and_counts_crossings(tmp_path):
     assert rows[1].startswith('1,paper,0,done,1,') and ',,' in rows[1]
     assert (tmp_path / 'sweep' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
     # Said as each run ends, in whatever order the cluster's workers finish them.
-    assert re.search(r'\[[12]/2\] 2 robots, seed 0: done', sweep.stderr), sweep.stderr
+    assert re.search(r'\[[12]/2\] 2 robots, paper, seed 0: done', sweep.stderr), sweep.stderr
     crossing = omni_micro('fleet-study', '--out', str(tmp_path / 'crossing'), '--crossing', '2',
                           '--workers', '1', '--seed', '5', '--controller', 'servo')
     assert crossing.returncode == 0, crossing.stderr
@@ -165,11 +165,41 @@ def test_the_crossing_puts_robots_in_opposite_pairs_on_one_circle():
     (['--robot-counts', '4,4'], "--robot-counts: expected each number once, got '4,4'"),
     (['--robot-counts', '8,43'], "expected a whole number in [1, 42], got '43'"),
     (['--robot-counts', '8', '--robots-max', '3'], 'not allowed with argument'),
+    (['--controller', 'paper,fast'], "expected controller modes among paper, model, servo, got "
+                                     "'fast'"),
+    (['--controller', 'servo,model,servo'], "expected each controller once, got "
+                                            "'servo,model,servo'"),
 ])
 def test_study_sizes_it_cannot_run_are_refused_in_one_line(tmp_path, arguments, said):
     refused = omni_micro('fleet-study', '--out', str(tmp_path / 'out'), *arguments)
     assert refused.returncode == 2 and said in refused.stderr, refused.stderr
     assert refused.stderr.count('\n') == 1 and not (tmp_path / 'out').exists()
+
+
+def test_the_study_compares_controllers_on_the_same_task_sets(tmp_path):
+    """Several controllers: each runs the same task sets (same robot counts, same seeds), each
+    has its summary and its line of the table, and one figure holds them all."""
+    compared = omni_micro('fleet-study', '--out', str(tmp_path / 'out'), '--robots-max', '2',
+                          '--draws', '1', '--goals-per-robot', '1', '--workers', '2',
+                          '--controller', 'model,servo')
+    assert compared.returncode == 0, compared.stderr
+    summary = json.loads((tmp_path / 'out' / 'summary.json').read_text())
+    assert [s['controller'] for s in summary['controllers']] == ['model', 'servo']
+    assert summary['contacts'] == 0
+    for each in summary['controllers']:
+        assert [e['robots'] for e in each['per_robot_count']] == [1, 2]
+        assert all(e['done'] == 1 for e in each['per_robot_count'])
+    rows = (tmp_path / 'out' / 'runs.csv').read_text().splitlines()[1:]
+    assert sorted(row.split(',')[:3] for row in rows) == [
+        [robots, mode, '0'] for robots in ('1', '2') for mode in ('model', 'servo')]
+    # The servo corrects on the way: more goals per minute than the model mode on the same
+    # tasks (docs/fleet.md's table), so the two lines are not one summary written twice.
+    model, servo = ([e['goals_per_minute_mean'] for e in each['per_robot_count']]
+                    for each in summary['controllers'])
+    assert all(fast > slow for fast, slow in zip(servo, model, strict=True))
+    assert 'every robot in the model mode:' in compared.stdout
+    assert 'every robot in the servo mode:' in compared.stdout
+    assert (tmp_path / 'out' / 'throughput.png').read_bytes()[:4] == b'\x89PNG'
 
 
 @pytest.mark.parametrize('verb', [['fleet', '--graph', '--robots', '3'], ['run']])

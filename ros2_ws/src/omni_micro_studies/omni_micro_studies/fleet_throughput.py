@@ -120,25 +120,36 @@ def summary_lines(summary: dict[str, Any], crossing: bool) -> list[str]:
     return lines
 
 
-def throughput_figure(summary: dict[str, Any]) -> bytes:
+def throughput_figure(summaries: list[dict[str, Any]]) -> bytes:
+    """Goals per simulated minute against N: a line per controller's summary, each point the
+    mean over its task sets and its bar their min..max."""
     import matplotlib
 
     matplotlib.use('Agg')
     from matplotlib import pyplot as plt
 
-    entries = summary['per_robot_count']
-    counts = [e['robots'] for e in entries]
-    means = [e['goals_per_minute_mean'] for e in entries]
     figure, axes = plt.subplots(figsize=(6, 4))
-    axes.errorbar(counts, means, yerr=[[m - e['goals_per_minute_min'] for m, e in
-                                        zip(means, entries, strict=True)],
-                                       [e['goals_per_minute_max'] - m for m, e in
-                                        zip(means, entries, strict=True)]],
-                  marker='o', capsize=3)
+    for index, summary in enumerate(summaries):
+        entries = summary['per_robot_count']
+        # Side by side when several: the bars of one robot count would hide each other.
+        shift = (index - (len(summaries) - 1) / 2) * 0.25 if len(summaries) > 1 else 0.0
+        counts = [e['robots'] + shift for e in entries]
+        means = [e['goals_per_minute_mean'] for e in entries]
+        axes.errorbar(counts, means, yerr=[[m - e['goals_per_minute_min'] for m, e in
+                                            zip(means, entries, strict=True)],
+                                           [e['goals_per_minute_max'] - m for m, e in
+                                            zip(means, entries, strict=True)]],
+                      marker='o', capsize=3, label=CONTROLLER_NAMES[summary['controller']])
     axes.set_xlabel('robots on the platform')
     axes.set_ylabel('goals reached per simulated minute')
-    mode = CONTROLLER_NAMES[summary['controller']]
-    axes.set_title(f'Fleet throughput, every robot {mode}\n(min..max over task sets)')
+    if len(summaries) == 1:
+        mode = CONTROLLER_NAMES[summaries[0]['controller']]
+        axes.set_title(f'Fleet throughput, every robot {mode}\n(min..max over task sets)')
+    else:
+        draws = max(e['runs'] for summary in summaries for e in summary['per_robot_count'])
+        axes.set_title(f'Fleet throughput, every robot on one controller\n(mean and min..max '
+                       f'over {draws} task sets, the same for each)')
+        axes.legend(title='every robot', fontsize='small')
     axes.set_ylim(bottom=0.0)
     axes.grid(alpha=0.3)
     buffer = io.BytesIO()

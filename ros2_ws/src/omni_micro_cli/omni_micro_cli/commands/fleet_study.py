@@ -53,9 +53,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='robots in each crossing run: an even count from '
                              f'{throughput.CROSSING_ROBOTS.start} to '
                              f'{throughput.CROSSING_ROBOTS.stop - 1} (default 4)')
-    parser.add_argument('--controller', choices=MODES, default='paper',
+    parser.add_argument('--controller', type=controller_modes, default=('paper',),
+                        metavar='MODE[,MODE...]',
                         help="every robot's controller: paper (section 4.1's rule, the "
-                             'default), model or servo (docs/control.md)')
+                             'default), model or servo (docs/control.md); several, e.g. '
+                             'paper,model,servo: the same task sets for each, a line each in '
+                             'the figure and a summary each')
     parser.add_argument('--seed', type=seed_number, default=0, help='first seed (default 0)')
     add_dask_arguments(parser)
     parser.set_defaults(handler=run)
@@ -70,20 +73,32 @@ def crossing_count(text: str) -> int:
     return count
 
 
+def controller_modes(text: str) -> tuple[str, ...]:
+    modes = tuple(part.strip() for part in text.split(','))
+    unknown = [mode for mode in modes if mode not in MODES]
+    if unknown:
+        raise argparse.ArgumentTypeError(f'expected controller modes among {", ".join(MODES)}, '
+                                         f'got {unknown[0]!r}')
+    if len(set(modes)) != len(modes):
+        raise argparse.ArgumentTypeError(f'expected each controller once, got {text!r}')
+    return modes
+
+
 def run(args: argparse.Namespace) -> int:
     from omni_micro_studies.execute import map_on_dask, runs_go_to
 
     check_dask_arguments(args)
     crossing = args.crossing is not None
     counts = args.robot_counts or range(1, args.robots_max + 1)
-    jobs = ([(args.crossing_robots, args.seed + k) for k in range(args.crossing)] if crossing
+    sets = ([(args.crossing_robots, args.seed + k) for k in range(args.crossing)] if crossing
             else [(n, args.seed + k) for n in counts for k in range(args.draws)])
+    jobs = [(n, seed, mode) for mode in args.controller for n, seed in sets]
     echo_to_stderr(f'{len(jobs)} fleet runs on {runs_go_to(args.workers, args.scheduler)}')
     started = time.perf_counter()
 
     def progress(done: int, row: dict[str, Any]) -> None:
         closest = row['closest_gap_mm']
-        echo_to_stderr(f'  [{done}/{len(jobs)}] {row["robots"]} robots, seed '
+        echo_to_stderr(f'  [{done}/{len(jobs)}] {row["robots"]} robots, {row["controller"]}, seed '
                        f'{row["seed"]}: {row["outcome"]}, {row["goals"]} goals in '
                        f'{row["sim_time_s"]:.0f} s'
                        + (f', closest {closest:.2f} mm' if closest is not None else '')
@@ -91,21 +106,28 @@ def run(args: argparse.Namespace) -> int:
 
     rows: list[dict[str, Any]] = map_on_dask(
         throughput.one_run,
-        [(n, seed, args.goals_per_robot, crossing, args.controller) for n, seed in jobs],
+        [(n, seed, args.goals_per_robot, crossing, mode) for n, seed, mode in jobs],
         workers=args.workers, scheduler=args.scheduler,
         scheduler_timeout_s=args.scheduler_timeout, on_result=progress)
     table = io.StringIO()
     writer = csv.DictWriter(table, fieldnames=throughput.COLUMNS)
     writer.writeheader()
     writer.writerows(rows)
-    summary = {'controller': args.controller,
-               **(throughput.crossing_summary(rows) if crossing
-                  else throughput.throughput_summary(rows))}
+    summaries = [{'controller': mode,
+                  **(throughput.crossing_summary if crossing else throughput.throughput_summary)(
+                      [row for row in rows if row['controller'] == mode])}
+                 for mode in args.controller]
+    # One controller: its summary alone, as it has always been written; several: each's.
+    written = summaries[0] if len(summaries) == 1 else {
+        'controllers': summaries, 'contacts': sum(s['contacts'] for s in summaries)}
     with staged_directory(Path(args.out)) as out:
         (out / 'runs.csv').write_text(table.getvalue())
-        (out / 'summary.json').write_text(json.dumps(summary, indent=1))
+        (out / 'summary.json').write_text(json.dumps(written, indent=1))
         if not crossing:
-            (out / 'throughput.png').write_bytes(throughput.throughput_figure(summary))
-    for line in throughput.summary_lines(summary, crossing):
-        print(line)
-    return 0 if summary['contacts'] == 0 else 1
+            (out / 'throughput.png').write_bytes(throughput.throughput_figure(summaries))
+    for summary in summaries:
+        if len(summaries) > 1:
+            print(f'every robot {throughput.CONTROLLER_NAMES[summary["controller"]]}:')
+        for line in throughput.summary_lines(summary, crossing):
+            print(line)
+    return 0 if all(summary['contacts'] == 0 for summary in summaries) else 1
