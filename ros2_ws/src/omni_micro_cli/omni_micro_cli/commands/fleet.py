@@ -82,9 +82,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_view_arguments(parser, flag=True)
     add_composed_argument(
         parser, 'with --graph: dynamics_node and every robot\'s nodes in CONTAINERS processes of '
-                'omni_micro_common\'s container (default: one per core; 1: all in one; with 2 or '
-                'more, dynamics_node in the first and the robots shared over the others; '
-                'docs/fleet.md, "The graph at scale"); the run is the same')
+                'omni_micro_common\'s container (if not given: one per core, or one for a '
+                'single robot; with 2 or more, dynamics_node in the first and the robots shared '
+                'over the others; docs/fleet.md, "The graph at scale"); the run is the same')
     parser.add_argument('--respawn', action='store_true',
                         help='with --graph: restart a robot\'s crashed vision_node or '
                              'controller_node, hold the clock meanwhile and give it its leg '

@@ -82,11 +82,11 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
                              'Foxglove; the run is the same with or without it)')
     add_composed_argument(
         parser, "run the loop's nodes (dynamics, the cameras' stand-in, the controller) in "
-                'CONTAINERS processes of one executor each (default: one per core; 1: all in '
-                'one; with 2 or more, dynamics and the cameras in the first, the robots shared '
-                'over the others): faster at --rtf max, the same run and bag (docs/time.md, '
-                '"Graph speed"); separate processes stay the default, so that a real camera or '
-                'robot can replace one')
+                'CONTAINERS processes of one executor each (if not given: one for a single '
+                'robot, one per core for several; with 2 or more, dynamics and the cameras in '
+                'the first, the robots shared over the others): faster at --rtf max, the same '
+                'run and bag (docs/graph.md, "The loop in one process"); separate processes '
+                'stay the default, so that a real camera or robot can replace one')
     add_storage_arguments(parser)
     add_view_arguments(parser, flag=True)
 
