@@ -21,5 +21,6 @@ mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the pro
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
 robots, :mod:`fleet_composition` (one dynamics for all, each robot's nodes in its namespace) and
-:mod:`fleet_graph` (their legs handed out, the orchestration as each robot's coordinator).
+:mod:`fleet_graph` (their run: legs handed out as the plan says) with
+:mod:`fleet_orchestrator` (the orchestration's node, each robot's coordinator).
 """

@@ -13,7 +13,6 @@ it follows (the later of the ends a leg waits for), which the controller counts 
 
 from __future__ import annotations
 
-import functools
 import itertools
 import json
 import math
@@ -21,194 +20,36 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
-
 from omni_micro_bringup.composition import (
     GraphOptions,
     check_camera_faults,
     check_record_images,
     check_respawn,
 )
-from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
     check_vision,
     controller_modes,
-    coordinator_name,
     fleet_specs,
 )
+from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
-    SERVICE_RESEND_S,
-    Orchestrator,
 )
-from omni_micro_bringup.respawns import FleetRespawns
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
-    join_stamp,
-    quaternion_to_yaw,
-    split_stamp,
 )
-from omni_micro_common.lockstep import Ack
-from omni_micro_common.lockstep_reporting import LockstepReporter
-from omni_micro_common.qos import DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
-    CONTACT_TOPIC,
-    CONTROLLER_STATUS_TOPIC,
-    GOAL_TOPIC,
     JOINT_STATES_TOPIC,
-    ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
-    robot_name,
     robot_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
-
-# How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
-REPORT_REPEAT_S = 0.1
-
-
-class FleetMonitor(Orchestrator):
-    """The orchestration's node with every robot's goals, statuses and odometry, and its part
-    in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
-
-    def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
-                 recording: bool = False, markers: bool = False,
-                 respawnable: list[str] | None = None) -> None:
-        super().__init__(domain_id, echo=echo, markers=markers)
-        self.respawns: FleetRespawns = FleetRespawns(self, respawnable or [])
-        self.count = count
-        self.recording = recording   # the recorder must have every goal, as each controller
-        self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
-        self.robots = [RobotLog() for _ in range(count)]
-        self.goal_publishers = [self.node.create_publisher(
-            PoseStamped, robot_topic(k, GOAL_TOPIC), 10) for k in range(count)]
-        self.tolerance_clients = [self.node.create_client(
-            SetParameters, f'/{robot_name(k)}/controller_node/set_parameters')
-            for k in range(count)]
-        for k in range(count):
-            self.node.create_subscription(
-                DiagnosticStatus, robot_topic(k, CONTROLLER_STATUS_TOPIC),
-                functools.partial(self._on_robot_status, k), STATUS_QOS)
-            self.node.create_subscription(
-                Odometry, robot_topic(k, ODOM_THROTTLE_TOPIC),
-                functools.partial(self._on_robot_odometry, k), DATA_QOS)
-        # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
-        # and each end is held until that robot's is handled.
-        self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
-        self._handled = [-1] * count
-        self.contacts: list[dict[str, str]] = []   # dynamics_node's: two chassis touching
-        self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
-                                      STATUS_QOS)
-        self._reported_at = 0.0
-        self.goals_given: dict[str, int] = {}   # per robot's goal topic
-
-    def _on_contact(self, msg: DiagnosticStatus) -> None:
-        self.contacts.append({item.key: item.value for item in msg.values})
-
-    def _on_robot_status(self, robot: int, msg: DiagnosticStatus) -> None:
-        values = {item.key: item.value for item in msg.values}
-        values['message'] = msg.message
-        self.fleet_statuses.append((robot, values))
-
-    def _on_robot_odometry(self, robot: int, msg: Odometry) -> None:
-        pose = msg.pose.pose
-        self.robots[robot].route.append((
-            join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec), pose.position.x,
-            pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
-
-    def simulated_time_s(self) -> float | None:
-        """How far the robots' time has gone, by the latest odometry of any robot."""
-        stamps = [log.route[-1][0] for log in self.robots if log.route]
-        return max(stamps) if stamps else None
-
-    def report_handled(self, robot: int, outcome_ns: int) -> None:
-        self._handled[robot] = outcome_ns
-        self.reporters[robot].report(Ack(coordinator_name(robot), None,
-                                         outcome_handled_ns=outcome_ns))
-
-    def repeat_reports(self) -> None:
-        """Every robot's last report again, every REPORT_REPEAT_S of wall time: a report sent
-        before the robot's reader matched this writer is lost, and time would stand at the lead
-        (as markers_node's once did)."""
-        if time.monotonic() - self._reported_at < REPORT_REPEAT_S:
-            return
-        self._reported_at = time.monotonic()
-        for robot, handled in enumerate(self._handled):
-            self.report_handled(robot, handled)
-
-    def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
-        """Set the robot's controller to the order's tolerance, then hand it the goal stamped
-        with the end it follows (``order.stamp_s``), and wait until it has taken it."""
-        deadline = time.monotonic() + timeout_s
-        client = self.tolerance_clients[order.robot]
-        request = SetParameters.Request(parameters=[Parameter(
-            name='tolerance_m', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
-                                                     double_value=float(order.tolerance_m)))])
-        while True:
-            graph.check_alive()
-            # Asked again after SERVICE_RESEND_S, as dynamics_node's clock is. A goal, unlike
-            # this, is sent once, to readers already matched (reliable), each waited for by
-            # name: sent again, the controller takes the second for a new goal and ends the
-            # first as replaced.
-            future = client.call_async(request)
-            self.executor.spin_until_future_complete(future, timeout_sec=SERVICE_RESEND_S)
-            if future.done() and future.result() is not None:
-                break
-            client.remove_pending_request(future)
-            if time.monotonic() > deadline:
-                raise RunFailed(f'{robot_name(order.robot)}\'s controller_node did not take its '
-                                f'tolerance within {timeout_s:g} s')
-        result = future.result()
-        if not result.results[0].successful:
-            raise UsageError(f'{robot_name(order.robot)}\'s controller_node refused tolerance_m '
-                             f'{order.tolerance_m!r}: {result.results[0].reason}')
-        publisher = self.goal_publishers[order.robot]
-        self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
-                                   self.recording, deadline, timeout_s)
-        goal = PoseStamped()
-        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(order.stamp_s)
-        goal.header.frame_id = 'platform'
-        goal.pose.position.x, goal.pose.position.y = map(float, order.goal_m)
-        goal.pose.orientation.w = 1.0
-        seen = len(self.fleet_statuses)
-        # Unlike a single robot's goal, it does not wait for its acknowledgments: they come with
-        # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
-        # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
-        publisher.publish(goal)
-        topic = robot_topic(order.robot, GOAL_TOPIC)
-        self.goals_given[topic] = self.goals_given.get(topic, 0) + 1
-        while True:
-            for robot, status in self.fleet_statuses[seen:]:
-                if robot != order.robot:
-                    continue
-                if status['message'] == 'goal rejected':
-                    raise UsageError(f'{robot_name(robot)}\'s controller_node rejected the goal '
-                                     f'{order.goal_m}: {status.get("reason")}')
-                if status['message'] in ('settling', 'moving'):
-                    return   # 'moving': captures that came before the goal moved it at once
-            graph.check_alive()
-            if time.monotonic() > deadline:
-                raise RunFailed(f'{robot_name(order.robot)}\'s controller_node did not take its '
-                                f'goal within {timeout_s:g} s')
-            self.spin_for(0.02)
-
-    def wait_for_routes_past(self, graph: Supervisor, stamp_s: float, timeout_s: float) -> None:
-        deadline = time.monotonic() + timeout_s
-        while any(not log.route or log.route[-1][0] < stamp_s for log in self.robots):
-            graph.check_alive()
-            if time.monotonic() > deadline:
-                raise RunFailed(f'no odometry of every robot at or after t={stamp_s:.3f} s')
-            self.spin_for(0.05)
 
 
 def ready_topics(count: int) -> list[tuple[str, ...]]:

@@ -220,7 +220,7 @@ class Respawns:
 class FleetRespawnsHost(RespawnsHost, Protocol):
     """What bringing a fleet robot's node back needs besides: every robot's statuses
     and the coordinator's way of handing a robot its leg
-    (:class:`omni_micro_bringup.fleet_graph.FleetMonitor`)."""
+    (:class:`omni_micro_bringup.fleet_orchestrator.FleetMonitor`)."""
 
     fleet_statuses: list[tuple[int, dict[str, str]]]
 
