@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from omni_micro_cli.arguments import composition_of
 from omni_micro_cli.cli import build_parser
+from omni_micro_cli.graph_arguments import composition_of
 
 pytestmark = pytest.mark.slow
 

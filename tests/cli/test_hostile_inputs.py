@@ -319,8 +319,8 @@ def test_a_second_sigterm_does_not_interrupt_the_first_ones_clean_up():
 
 
 def test_a_view_address_beyond_loopback_says_who_can_connect():
-    from omni_micro_cli.arguments import check_view_host
     from omni_micro_cli.errors import UsageError
+    from omni_micro_cli.graph_arguments import check_view_host
 
     assert check_view_host('127.0.0.1') is None
     assert 'any machine that can reach this one' in str(check_view_host('0.0.0.0'))

@@ -17,17 +17,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from omni_micro_bringup.composition import GraphOptions
-from omni_micro_cli.arguments import (
-    add_steering_argument,
+from omni_micro_cli.arguments import add_steering_argument, seed_number, steering_overrides
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.graph_arguments import (
     add_storage_arguments,
     add_timing_arguments,
     add_view_arguments,
     check_timing,
-    seed_number,
-    steering_overrides,
     view_from_args,
 )
-from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
 from omni_micro_sim import paper
 

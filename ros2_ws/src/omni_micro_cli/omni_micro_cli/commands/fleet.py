@@ -9,19 +9,16 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from omni_micro_cli.arguments import (
+from omni_micro_cli.arguments import positive_int, real_time_factor, seed_number, whole_number_in
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.graph_arguments import (
     add_composed_argument,
     add_fault_arguments,
     add_view_arguments,
     composition_of,
     fault_overrides,
-    positive_int,
-    real_time_factor,
-    seed_number,
     view_from_args,
-    whole_number_in,
 )
-from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import (
     atomic_bytes,
     echo_to_stderr,

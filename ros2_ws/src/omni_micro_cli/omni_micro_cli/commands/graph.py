@@ -15,8 +15,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from omni_micro_cli.arguments import add_view_arguments, view_from_args
 from omni_micro_cli.errors import UsageError
+from omni_micro_cli.graph_arguments import add_view_arguments, view_from_args
 from omni_micro_cli.outputs import atomic_bytes, output_file, print_json
 
 if TYPE_CHECKING:

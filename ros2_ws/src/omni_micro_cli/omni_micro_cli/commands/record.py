@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import argparse
 
-from omni_micro_cli.arguments import add_storage_arguments, domain_id
+from omni_micro_cli.arguments import domain_id
+from omni_micro_cli.graph_arguments import add_storage_arguments
 from omni_micro_cli.outputs import output_folder
 from omni_micro_tools.topics import GRAPH_TOPICS, RECORDABLE_TOPICS
 

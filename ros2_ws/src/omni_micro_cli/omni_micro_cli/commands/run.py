@@ -18,24 +18,26 @@ from omni_micro_bringup.graph import GraphResult, run_graph
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
+    add_steering_argument,
+    domain_id,
+    float_list,
+    positive_float,
+    seed_number,
+    steering_overrides,
+)
+from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
+from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.graph_arguments import (
     add_composed_argument,
     add_fault_arguments,
-    add_steering_argument,
     add_storage_arguments,
     add_timing_arguments,
     add_view_arguments,
     check_timing,
     composition_of,
-    domain_id,
     fault_overrides,
-    float_list,
-    positive_float,
-    seed_number,
-    steering_overrides,
     view_from_args,
 )
-from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
-from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.feedback import MODES

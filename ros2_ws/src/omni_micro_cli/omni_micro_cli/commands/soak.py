@@ -15,15 +15,17 @@ from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import run_graph
 from omni_micro_cli.arguments import (
     add_steering_argument,
-    add_timing_arguments,
-    add_view_arguments,
-    check_timing,
     seed_number,
     steering_overrides,
-    view_from_args,
     whole_number_in,
 )
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.graph_arguments import (
+    add_timing_arguments,
+    add_view_arguments,
+    check_timing,
+    view_from_args,
+)
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG

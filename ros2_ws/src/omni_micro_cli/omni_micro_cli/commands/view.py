@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from omni_micro_cli.arguments import add_view_arguments, check_view_host, domain_id
+from omni_micro_cli.arguments import domain_id
+from omni_micro_cli.graph_arguments import add_view_arguments, check_view_host
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
