@@ -42,9 +42,16 @@ def check_timing(args: argparse.Namespace) -> None:
             '--rtf max needs the lockstep: with --free-running the nodes could not keep up '
             'with an unbounded clock; give a number')
 
-# --composed without a count: the layout the graph chooses (omni_micro_bringup.node_spec). Not a
-# string: argparse would pass a string through positive_int, and 0 is no count a user may give.
-CHOSEN_LAYOUT = 0
+class _ChosenLayout:
+    """``--composed`` given without a count: the layout the graph chooses
+    (omni_micro_bringup.node_spec.composed). Not a string, which argparse would pass through
+    positive_int; true, as every option given is to the checks that refuse one."""
+
+    def __repr__(self) -> str:
+        return 'chosen'
+
+
+CHOSEN_LAYOUT = _ChosenLayout()
 
 
 def add_composed_argument(parser: argparse.ArgumentParser, help_text: str) -> None:
@@ -65,7 +72,7 @@ def composition_of(args: argparse.Namespace) -> Composition:
     """GraphOptions' ``composed`` and ``containers`` of ``--composed [CONTAINERS]``."""
     containers = getattr(args, 'composed', None)
     return Composition(composed=containers is not None,
-                       containers=None if containers in (None, CHOSEN_LAYOUT) else containers)
+                       containers=containers if isinstance(containers, int) else None)
 
 # -- the live view (run --view, demo, soak, graph, view) ----------------------------------------
 DEFAULT_HOST = '127.0.0.1'
