@@ -83,8 +83,8 @@ def test_a_warm_node_is_given_what_a_started_one_is(probe_env, tmp_path, monkeyp
 @pytest.mark.parametrize('spec', [
     NodeSpec('omni_micro_vision', 'vision_node', {'seed': 3}, namespace='robot_1',
              remaps=('__ns:=/robot_1',)),
-    composed([NodeSpec('omni_micro_sim', 'dynamics_node', {'paused': True}),
-              NodeSpec('omni_micro_control', 'controller_node')])],
+    *composed([NodeSpec('omni_micro_sim', 'dynamics_node', {'paused': True}),
+               NodeSpec('omni_micro_control', 'controller_node')])],
     ids=['a node', 'the container'])
 def test_a_warm_node_is_found_by_pgrep_f_as_ros2_run_would_start_it(spec, probe_env):
     """A node's own command line (the container's with each hosted node's module and ROS
