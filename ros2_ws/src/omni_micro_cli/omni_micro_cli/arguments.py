@@ -7,10 +7,12 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from omni_micro_cli.errors import UsageError
 from omni_micro_common.conventions import MAX_SEED
+
+T = TypeVar('T')
 
 
 def finite_float(text: str) -> float:
@@ -118,18 +120,23 @@ def positive_int(text: str) -> int:
     return value
 
 
-def whole_numbers_in(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
-    """A parser for comma-separated whole numbers in [low, high], e.g. ``10,16,42``: each
-    once, in the order given."""
-    one = whole_number_in(low, high)
+def each_once(one: Callable[[str], T], what: str) -> Callable[[str], tuple[T, ...]]:
+    """A parser for comma-separated values, each read by ``one`` and given once, in the order
+    given (``what`` names one of them in the refusal)."""
 
-    def parse(text: str) -> tuple[int, ...]:
+    def parse(text: str) -> tuple[T, ...]:
         values = tuple(one(part.strip()) for part in text.split(','))
         if len(set(values)) != len(values):
-            raise argparse.ArgumentTypeError(f'expected each number once, got {text!r}')
+            raise argparse.ArgumentTypeError(f'expected each {what} once, got {text!r}')
         return values
 
     return parse
+
+
+def whole_numbers_in(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
+    """A parser for comma-separated whole numbers in [low, high], e.g. ``10,16,42``: each
+    once, in the order given."""
+    return each_once(whole_number_in(low, high), 'number')
 
 
 def float_list(count: int, what: str) -> Callable[[str], tuple[float, ...]]:

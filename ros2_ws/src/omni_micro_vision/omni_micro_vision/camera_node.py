@@ -102,11 +102,10 @@ class CameraNode(Node):
             raise CameraConfigError(f'robots: only with scene robot (a calibration target is '
                                     f'one), got scene {scene!r}')
         # Each robot's odometry topic and code; one robot's /odom, uncoded, without robots.
-        self.sources: list[tuple[str, int | None]] = (
-            [(namespaced_topic(name, ODOM_TOPIC), code) for name, code in codes.items()]
-            or [(ODOM_TOPIC, None)])
-        self._odometry = [robot_odometry_template(name) for name in codes] or [
-            robot_odometry_template('')]
+        names = list(codes) or ['']
+        self.sources: list[tuple[str, int | None]] = [
+            (namespaced_topic(name, ODOM_TOPIC), codes.get(name)) for name in names]
+        self._odometry = [robot_odometry_template(name) for name in names]
         self.schedule = ExposureSchedule(self.rate_hz, [code for _, code in self.sources])
         self._latest_ns: list[int | None] = [None] * len(self.sources)   # each robot's sample
         self.lockstep = LockstepReporter(self)

@@ -14,6 +14,7 @@ from typing import Any
 from omni_micro_cli.arguments import (
     add_dask_arguments,
     check_dask_arguments,
+    each_once,
     seed_number,
     whole_number_in,
     whole_numbers_in,
@@ -53,7 +54,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help='robots in each crossing run: an even count from '
                              f'{throughput.CROSSING_ROBOTS.start} to '
                              f'{throughput.CROSSING_ROBOTS.stop - 1} (default 4)')
-    parser.add_argument('--controller', type=controller_modes, default=('paper',),
+    parser.add_argument('--controller', type=each_once(controller_mode, 'controller'),
+                        default=('paper',),
                         metavar='MODE[,MODE...]',
                         help="every robot's controller: paper (section 4.1's rule, the "
                              'default), model or servo (docs/control.md); several, e.g. '
@@ -73,15 +75,11 @@ def crossing_count(text: str) -> int:
     return count
 
 
-def controller_modes(text: str) -> tuple[str, ...]:
-    modes = tuple(part.strip() for part in text.split(','))
-    unknown = [mode for mode in modes if mode not in MODES]
-    if unknown:
+def controller_mode(text: str) -> str:
+    if text not in MODES:
         raise argparse.ArgumentTypeError(f'expected controller modes among {", ".join(MODES)}, '
-                                         f'got {unknown[0]!r}')
-    if len(set(modes)) != len(modes):
-        raise argparse.ArgumentTypeError(f'expected each controller once, got {text!r}')
-    return modes
+                                         f'got {text!r}')
+    return text
 
 
 def run(args: argparse.Namespace) -> int:
