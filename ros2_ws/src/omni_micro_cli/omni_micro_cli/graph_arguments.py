@@ -1,6 +1,7 @@
 """The options of a node graph's run that several commands share: its timing (``--rtf``,
-``--free-running``), ``--composed``, the live view's, the bag storage's and the simulated
-camera's faults."""
+``--free-running``), ``--composed``, the live view's, the bag storage's, the simulated
+camera's faults, and the bench's (``--camera``, ``--robot``, ``--image-topic``,
+``--domain-id``)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ import socket
 import sys
 from typing import TypedDict
 
+from omni_micro_bringup.composition import SOURCES
 from omni_micro_cli.arguments import (
+    domain_id,
     non_negative_float,
     port_number,
     positive_int,
@@ -183,3 +186,33 @@ def fault_overrides(args: argparse.Namespace) -> dict[str, object]:
     if overrides:
         overrides['faults.camera'] = args.fault_camera
     return overrides
+
+
+def image_topic(text: str) -> tuple[str, str]:
+    """``CAMERA=TOPIC``: which tracker camera reads a driver's image topic."""
+    camera, _, topic = text.partition('=')
+    if camera not in ('macro', 'micro') or not topic.startswith('/'):
+        raise argparse.ArgumentTypeError(f'expected CAMERA=TOPIC with CAMERA macro or micro and '
+                                         f'an absolute topic (micro=/camera/image_raw), got '
+                                         f'{text!r}')
+    return camera, topic
+
+
+def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
+    bench = parser.add_argument_group('the bench: a real camera or robot in the loop '
+                                      '(docs/images.md, "The bench")')
+    bench.add_argument('--camera', choices=SOURCES, default='simulated',
+                       help="external: no camera_node; tracker_node reads a camera driver's "
+                            'images (its params, or --image-topic) running in --domain-id')
+    bench.add_argument('--robot', choices=SOURCES, default='simulated',
+                       help="external: no dynamics_node; the robot's driver reads "
+                            '/wheel_trajectory and publishes /joint_states (steering_joint, '
+                            'wheel_1_joint .. wheel_3_joint)')
+    bench.add_argument('--image-topic', type=image_topic, action='append', default=[],
+                       metavar='CAMERA=TOPIC',
+                       help="with --camera external: a driver's image topic for that tracker "
+                            'camera, its CameraInfo on camera_info beside it (again for the '
+                            'other camera); the tracker then reads only these')
+    bench.add_argument('--domain-id', type=domain_id, metavar='N',
+                       help='the ROS_DOMAIN_ID the drivers are in (default: ROS_DOMAIN_ID; '
+                            'without external parts, a private free one)')

@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 from omni_micro_bringup.composition import (
-    SOURCES,
     VISION_MODES,
     GraphOptions,
     check_camera_faults,
@@ -19,7 +18,6 @@ from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (
     add_steering_argument,
-    domain_id,
     float_list,
     positive_float,
     seed_number,
@@ -28,6 +26,7 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph_arguments import (
+    add_bench_arguments,
     add_composed_argument,
     add_fault_arguments,
     add_storage_arguments,
@@ -102,36 +101,6 @@ def open_loop_seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f'expected at most {MAX_OPEN_LOOP_S:g} s (a minute at '
                                          f'cruise speed runs off any platform), got {text!r}')
     return value
-
-
-def image_topic(text: str) -> tuple[str, str]:
-    """``CAMERA=TOPIC``: which tracker camera reads a driver's image topic."""
-    camera, _, topic = text.partition('=')
-    if camera not in ('macro', 'micro') or not topic.startswith('/'):
-        raise argparse.ArgumentTypeError(f'expected CAMERA=TOPIC with CAMERA macro or micro and '
-                                         f'an absolute topic (micro=/camera/image_raw), got '
-                                         f'{text!r}')
-    return camera, topic
-
-
-def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
-    bench = parser.add_argument_group('the bench: a real camera or robot in the loop '
-                                      '(docs/images.md, "The bench")')
-    bench.add_argument('--camera', choices=SOURCES, default='simulated',
-                       help="external: no camera_node; tracker_node reads a camera driver's "
-                            'images (its params, or --image-topic) running in --domain-id')
-    bench.add_argument('--robot', choices=SOURCES, default='simulated',
-                       help="external: no dynamics_node; the robot's driver reads "
-                            '/wheel_trajectory and publishes /joint_states (steering_joint, '
-                            'wheel_1_joint .. wheel_3_joint)')
-    bench.add_argument('--image-topic', type=image_topic, action='append', default=[],
-                       metavar='CAMERA=TOPIC',
-                       help="with --camera external: a driver's image topic for that tracker "
-                            'camera, its CameraInfo on camera_info beside it (again for the '
-                            'other camera); the tracker then reads only these')
-    bench.add_argument('--domain-id', type=domain_id, metavar='N',
-                       help='the ROS_DOMAIN_ID the drivers are in (default: ROS_DOMAIN_ID; '
-                            'without external parts, a private free one)')
 
 
 def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
