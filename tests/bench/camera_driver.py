@@ -10,15 +10,19 @@ R and P from its intrinsic calibration. It knows nothing of the robot or the con
 
 What it sees is drawn by omni-micro's renderer and optics (the world, not the driver): the
 robot where /bench_truth/odom says it is (the stand-in robot's true pose), or a chessboard
-lying on the platform. The grey frame becomes the sensor's encoding here, from the
+lying on the platform; or, as the wide camera over a micro-factory, several robots each with
+the code printed on it (robot_k carries code k), each where its own stand-in driver's
+/robot_k/bench_truth/odom says. The grey frame becomes the sensor's encoding here, from the
 encoding's definition (a Bayer pattern keeps one colour per pixel), under a warm light.
 
     python camera_driver.py NAMESPACE ENCODING SCENE [CLOCK_OFFSET_S [FIRST_FRAME_AFTER_S]]
-    (SCENE: robot or chessboard; CLOCK_OFFSET_S: how far this machine's clock is off;
-    FIRST_FRAME_AFTER_S: its device opens that long after the node, which streams nothing
-    until then, as a driver waiting for its camera does)
+    (SCENE: robot, chessboard, or robots=robot_0,robot_1 (the wide camera; robot_1@moving:
+    that robot is no longer seen once it moves, as under a gripper's shadow); CLOCK_OFFSET_S:
+    how far this machine's clock is off; FIRST_FRAME_AFTER_S: its device opens that long after
+    the node, which streams nothing until then, as a driver waiting for its camera does)
 """
 
+import functools
 import math
 import sys
 import time
@@ -35,7 +39,7 @@ from sensor_msgs.msg import CameraInfo, Image
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import CameraModel
 from omni_micro_vision.optics import CameraOptics
-from omni_micro_vision.rendering import Sensor, expose, render
+from omni_micro_vision.rendering import InView, Sensor, expose, render, render_robots
 from omni_micro_vision.targets import Chessboard, render_target
 
 # The camera: 1280 x 1024 pixels of 1.72 um on the platform, over the micro work platform,
@@ -43,6 +47,11 @@ from omni_micro_vision.targets import Chessboard, render_target
 CAMERA = CameraModel('bench', (0.1, 0.0), (1280 * 1.72e-6, 1024 * 1.72e-6), (1280, 1024))
 OPTICS = CameraOptics(CAMERA, yaw_rad=0.5, mirrored=True, working_distance_m=0.006,
                       distortion=(-0.3, 0.1))
+# The wide camera over several robots: 1280 x 1024 pixels of 117 um, square over the platform's
+# left part, turned 0.02 rad, its lens bending the corners by 0.5 %.
+WIDE_CAMERA = CameraModel('bench', (0.05, 0.0), (0.15, 0.12), (1280, 1024))
+WIDE_OPTICS = CameraOptics(WIDE_CAMERA, yaw_rad=0.02, mirrored=False, working_distance_m=0.3,
+                           distortion=(-0.05, 0.0))
 FRAME_RATE_HZ = 15.0
 # The line it prints for each frame it publishes, with the frame's stamp in nanoseconds.
 SENT_FRAME = 'sent frame stamped'
@@ -75,11 +84,24 @@ class StandInCamera(Node):
         self.truth: RobotState | None = None
         self.truth_stamp_ns = 0
         self.drawn_ns = -1     # the true pose's time the latest frame shows
-        self.create_subscription(Odometry, '/bench_truth/odom', self.on_truth, 10)
         self.sensor = Sensor()
         self.target = (render_target(CAMERA, TARGET, OPTICS.yaw_rad)
                        if scene == 'chessboard' else None)
-        OPTICS.prepare()
+        # robots=robot_0,robot_1: each robot's latest true state and its stamp, by its code.
+        names = scene.partition('=')[2].split(',') if scene.startswith('robots=') else []
+        self.robots: dict[int, tuple[RobotState, int]] = {}
+        self.hidden_once_moving = {int(name.split('@')[0].rpartition('_')[2])
+                                   for name in names if name.endswith('@moving')}
+        names = [name.split('@')[0] for name in names]
+        self.optics = WIDE_OPTICS if names else OPTICS
+        for name in names:
+            self.create_subscription(Odometry, f'/{name}/bench_truth/odom', functools.partial(
+                self.on_robot_truth, int(name.rpartition('_')[2])), 10)
+        self.codes = len(names)
+        self.hidden: set[int] = set()
+        if not names:
+            self.create_subscription(Odometry, '/bench_truth/odom', self.on_truth, 10)
+        self.optics.prepare()
         self.frame = 0
         self.create_timer(1.0 / FRAME_RATE_HZ, self.on_frame)
 
@@ -89,6 +111,15 @@ class StandInCamera(Node):
         self.truth = RobotState(pose.position.x, pose.position.y, phi, twist.linear.x,
                                 twist.linear.y, twist.angular.z)
         self.truth_stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+    def on_robot_truth(self, code: int, msg: Odometry) -> None:
+        self.on_truth(msg)
+        assert self.truth is not None
+        self.robots[code] = (self.truth, self.truth_stamp_ns)
+        if code in self.hidden_once_moving and math.hypot(self.truth.vx_m_s,
+                                                          self.truth.vy_m_s) > 0:
+            self.hidden_once_moving.discard(code)
+            self.hidden.add(code)
 
     def on_frame(self) -> None:
         if time.monotonic() < self.device_open_at:
@@ -102,20 +133,31 @@ class StandInCamera(Node):
         if self.target is not None:
             taken_ns = self.get_clock().now().nanoseconds
             ideal = expose(self.target, self.sensor, rng)
-        elif self.truth is not None and self.truth_stamp_ns != self.drawn_ns:
+        elif self.codes and len(self.robots) == self.codes:
+            # Every robot at its latest true state, the frame stamped with the earliest of
+            # their times (the drivers' 50 Hz ticks: 20 ms apart at most).
+            taken_ns = min(stamp for _, stamp in self.robots.values())
+            if taken_ns == self.drawn_ns:
+                return
+            self.drawn_ns = taken_ns
+            ideal = render_robots(WIDE_CAMERA, self.sensor,
+                                  [InView(state, code) for code, (state, _) in
+                                   sorted(self.robots.items()) if code not in self.hidden],
+                                  rng, WIDE_OPTICS.yaw_rad)
+        elif self.truth is not None and self.truth_stamp_ns != self.drawn_ns and not self.codes:
             taken_ns = self.drawn_ns = self.truth_stamp_ns
             ideal = render(CAMERA, self.sensor, self.truth, rng, OPTICS.yaw_rad)
         else:
             return    # no pose yet, or none since the last frame: no frame to take
         self.frame += 1
         stamp = rclpy.time.Time(nanoseconds=taken_ns + self.clock_offset_ns).to_msg()
-        samples = to_encoding(OPTICS.view(ideal), self.encoding)
+        samples = to_encoding(self.optics.view(ideal), self.encoding)
         image = Image(height=samples.shape[0], width=samples.shape[1], encoding=self.encoding,
                       is_bigendian=0, step=samples.strides[0])
         image.header.stamp = stamp
         image.header.frame_id = 'bench_optical_frame'
         image.data = samples.tobytes()
-        lens = OPTICS.lens
+        lens = self.optics.lens
         fx, _, cx, _, fy, cy = lens.camera_matrix[:6]
         info = CameraInfo(height=image.height, width=image.width, distortion_model='plumb_bob',
                           d=list(lens.distortion), k=list(lens.camera_matrix),

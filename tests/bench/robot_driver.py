@@ -7,11 +7,14 @@ sensor_msgs/JointState for its joints at its control rate (joint_state_broadcast
 reliable, depth 10, stamped with the system clock's now). Its joints are the ones omni-micro
 documents: ``steering_joint`` and ``wheel_1_joint`` .. ``wheel_3_joint``.
 
+Its topics are relative, as a ros2_control driver's: in its namespace (``__ns:=/robot_1``, as a
+lab starts one driver per robot) they are ``/robot_1/joint_states`` and so on.
+
 Its "hardware" is the slip core run on the wall clock at real time (omni_micro_sim's plain
 modules: the physics stands for the robot, not for its driver). It also publishes the pose it
-really has on /bench_truth/odom, which a real robot cannot: the stand-in camera renders it.
+really has on ``bench_truth/odom``, which a real robot cannot: the stand-in camera renders it.
 
-    python robot_driver.py [x_m y_m phi_rad [FIRST_STATE_AFTER_S]]
+    python robot_driver.py [x_m y_m phi_rad [FIRST_STATE_AFTER_S [NAMESPACE]]]
     (FIRST_STATE_AFTER_S: its hardware comes up that long after the node, which publishes
     nothing until then, as a driver waiting for its controller board does)
 """
@@ -41,9 +44,9 @@ class StandInRobot(Node):
     def __init__(self, pose: tuple[float, float, float], first_state_after_s: float = 0.0) -> None:
         super().__init__('standin_robot_driver')
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self.states = self.create_publisher(JointState, '/joint_states', qos)
-        self.truth = self.create_publisher(Odometry, '/bench_truth/odom', qos)
-        self.create_subscription(JointTrajectory, '/wheel_trajectory', self.on_trajectory, qos)
+        self.states = self.create_publisher(JointState, 'joint_states', qos)
+        self.truth = self.create_publisher(Odometry, 'bench_truth/odom', qos)
+        self.create_subscription(JointTrajectory, 'wheel_trajectory', self.on_trajectory, qos)
         self.robot = GridSimulator(paper.FIG11_OPEN_LOOP.robot(),
                                    period_s=1.0 / CONTROL_RATE_HZ,
                                    state=RobotState(*pose))
@@ -105,7 +108,8 @@ class StandInRobot(Node):
 def main() -> None:
     x, y, phi = (float(v) for v in sys.argv[1:4]) if len(sys.argv) >= 4 else (0.0, 0.0, 0.0)
     first_state_after_s = float(sys.argv[4]) if len(sys.argv) >= 5 else 0.0
-    rclpy.init()
+    namespace = sys.argv[5] if len(sys.argv) >= 6 else '/'
+    rclpy.init(args=['--ros-args', '-r', f'__ns:={namespace}'])
     node = StandInRobot((x, y, phi), first_state_after_s)
     try:
         rclpy.spin(node)

@@ -208,12 +208,14 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
      "omni-micro run: error: --open-loop: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
      '--record-images, --force, --composed, --no-markers, --view, --respawn, the camera '
-     'faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot'),
+     "faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot, --params and the "
+     "bench's options"),
     (['run', '--robots', '3', '--tolerance-um', '5'],
      "omni-micro run: error: --tolerance-um: a single robot's run only; with --robots give "
      '--tasks, --controller, --vision, --seed, --rtf, --timeout, --log-dir, --record, '
      '--record-images, --force, --composed, --no-markers, --view, --respawn, the camera '
-     'faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot'),
+     "faults, --json, --quiet, --goals-per-robot, --max-sim-time, --plot, --params and the "
+     "bench's options"),
     (['fleet', '--vision', 'images'], "omni-micro fleet: error: --vision images is a node "
                                       "graph's: give it with --graph"),
     (['fleet', '--composed'], "omni-micro fleet: error: --composed is a node graph's: give it "
@@ -243,6 +245,25 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
      'omni-micro run: error: --tasks: for several robots; give --robots N|FILE'),
     (['fleet', '--rtf', '2'], 'omni-micro fleet: error: --rtf paces the node graph: give it with '
                               '--graph'),
+    (['run', '--robots', '2', '--camera', 'external'],
+     'omni-micro run: error: several robots on the bench take both --camera external and '
+     '--robot external (got --camera external --robot simulated): a real camera cannot see '
+     'simulated robots, nor a simulated one real ones'),
+    (['run', '--robots', '2', '--camera', 'external', '--robot', 'external', '--composed'],
+     'omni-micro run: error: --composed: not with real robots (no simulated robot to hold, '
+     'draw or fault); leave them out'),
+    (['run', '--goal-mm', '1,0', '--stop-gap-mm', '12'],
+     'omni-micro run: error: --stop-gap-mm: for several robots; give --robots N|FILE'),
+    (['run', '--robots', '2', '--camera', 'external', '--robot', 'external', '--stop-gap-mm',
+      '5'],
+     "omni-micro run: error: argument --stop-gap-mm: expected at least 9 mm (two robots' discs "
+     "touch there), got '5' (omni-micro run --help lists the arguments)"),
+    (['fleet', '--camera', 'external', '--robot', 'external'],
+     "omni-micro fleet: error: --params and the bench (--camera, --robot external) are a node "
+     "graph's: give them with --graph"),
+    (['fleet', '--graph', '--camera', 'external', '--robot', 'external', '--rtf', '2'],
+     'omni-micro fleet: error: with an external camera or robot the graph runs at real time: '
+     '--rtf must be 1, got 2'),
     (['run', '--goal-mm', '1,0', '--seed', '100000000000000000000000'],
      "omni-micro run: error: argument --seed: expected a whole number in [0, "
      "9223372036854775807] (a seed: a ROS integer parameter), got '100000000000000000000000' "

@@ -1,5 +1,6 @@
 """When a run on the bench may hand out its goal: once the controller has the real robot's state
-and the tracker has a frame of every real camera.
+and the tracker has a frame of every real camera; with several robots, once every robot's
+controller has its driver's state and the cameras have named every robot.
 
 Seeing a driver's publisher is not enough. Discovery runs each way at its own pace, so the
 controller's reader may match the robot's driver, and the tracker's the camera's, a second or
@@ -21,9 +22,14 @@ from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import CAPTURE_AGE_KEY, FRAME_AGE_KEY, FRAME_RATE_KEY
 from omni_micro_common.errors import LockstepError
 from omni_micro_common.lockstep import ACK_TOPIC
+from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.lockstep_reporting import decode_ack_bytes
 from omni_micro_common.qos import LOCKSTEP_QOS, latched
-from omni_micro_common.topic_names import JOINT_STATES_TOPIC, TRACKER_STATUS_TOPICS
+from omni_micro_common.topic_names import (
+    JOINT_STATES_TOPIC,
+    TRACKER_STATUS_TOPICS,
+    namespaced_topic,
+)
 
 # What is still missing is named after this long (the drivers may take longer to start: the
 # run waits on, up to its bound).
@@ -90,31 +96,89 @@ def wait_for_bench(monitor: BenchWatcher, graph: Supervisor, robot: bool,
             [f"tracker_node's first {camera} {what} ({topic})"
              for camera, topic in cameras.items() if camera not in said]
 
-    started = time.monotonic()
-    noticed = False
     try:
-        if missing() and echo:
-            echo(f'[orchestration] waiting for {" and ".join(missing())} before the goal')
-        while missing():
-            graph.check_alive()
-            waited = time.monotonic() - started
-            hint = _hint(not has_robot_state, monitor.domain_id)
-            if waited > timeout_s:
-                raise RunFailed(f'no {" and no ".join(missing())} within {timeout_s:g} s: '
-                                f'{hint}; logs in {graph.log_dir}')
-            if waited > BENCH_NOTICE_S and not noticed and echo:
-                noticed = True
-                echo(f'[orchestration] still no {" and no ".join(missing())} after '
-                     f'{BENCH_NOTICE_S:g} s: {hint}')
-            monitor.spin_for(0.05)
+        took = wait_until_present(monitor, graph, missing, lambda: not has_robot_state,
+                                  timeout_s)
     finally:
         for subscription in subscriptions:
             node.destroy_subscription(subscription)
     if echo:
-        echo('[orchestration] the bench is ready after '
-             f'{time.monotonic() - started:.2f} s'
+        echo(f'[orchestration] the bench is ready after {took:.2f} s'
              + ''.join(f'; {camera}: {said[camera]}' for camera in cameras))
     return said
+
+
+def wait_for_fleet_bench(monitor: BenchWatcher, graph: Supervisor, robots: list[str],
+                         named: Callable[[], set[int]], timeout_s: float) -> None:
+    """Until every robot's controller has had a wheel state of its driver and the cameras have
+    named every robot (``named``: the robots whose captures have come), saying which are still
+    missing after BENCH_NOTICE_S.
+
+    Raises
+    ------
+    RunFailed
+        Naming every robot still missing after ``timeout_s``, and where to look.
+    """
+    node, echo = monitor.node, monitor.echo
+    with_state: set[int] = set()
+    reporters = {qualified_node_name(robot, CONTROLLER): k for k, robot in enumerate(robots)}
+
+    def on_report(data: bytes) -> None:
+        try:
+            ack = decode_ack_bytes(data)
+        except LockstepError:
+            return   # not ours to judge: the nodes of the graph report well-formed
+        if ack is not None and ack.node in reporters and (ack.processed_ns or 0) > 0:
+            with_state.add(reporters[ack.node])
+
+    def missing() -> list[str]:
+        return ([f"{robots[k]}'s first {namespaced_topic(robots[k], JOINT_STATES_TOPIC)}"
+                 for k in range(len(robots)) if k not in with_state]
+                + [f'a frame naming {robots[k]} (its code)' for k in range(len(robots))
+                   if k not in named()])
+
+    subscription = node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report,
+                                            LOCKSTEP_QOS, raw=True)
+    try:
+        took = wait_until_present(monitor, graph, missing,
+                                  lambda: len(with_state) < len(robots), timeout_s)
+    finally:
+        node.destroy_subscription(subscription)
+    if echo:
+        echo(f'[orchestration] the bench is ready after {took:.2f} s: every robot\'s driver '
+             f'publishes, the cameras name {", ".join(robots)}')
+
+
+def wait_until_present(monitor: BenchWatcher, graph: Supervisor,
+                       missing: Callable[[], list[str]], robot_missing: Callable[[], bool],
+                       timeout_s: float) -> float:
+    """Until nothing is ``missing``: said when waiting starts and, with a hint (a robot's
+    driver, while ``robot_missing``; else the camera's), after BENCH_NOTICE_S; returns how long
+    it took.
+
+    Raises
+    ------
+    RunFailed
+        Naming what is still missing after ``timeout_s``.
+    """
+    echo = monitor.echo
+    started = time.monotonic()
+    noticed = False
+    if missing() and echo:
+        echo(f'[orchestration] waiting for {" and ".join(missing())} before the goal')
+    while missing():
+        graph.check_alive()
+        waited = time.monotonic() - started
+        hint = _hint(robot_missing(), monitor.domain_id)
+        if waited > timeout_s:
+            raise RunFailed(f'no {" and no ".join(missing())} within {timeout_s:g} s: '
+                            f'{hint}; logs in {graph.log_dir}')
+        if waited > BENCH_NOTICE_S and not noticed and echo:
+            noticed = True
+            echo(f'[orchestration] still no {" and no ".join(missing())} after '
+                 f'{BENCH_NOTICE_S:g} s: {hint}')
+        monitor.spin_for(0.05)
+    return time.monotonic() - started
 
 
 def _ages_said(values: dict[str, str]) -> str:

@@ -28,6 +28,7 @@ from omni_micro_common.topic_names import (
     WHEEL_SLIP_TOPIC,
     namespaced_topic,
 )
+from omni_micro_control.fleet_guard import STOP_GAP_M, UNNAMED_S
 from omni_micro_control.fleet_plan import FleetPlan
 from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import RobotParameters
@@ -160,6 +161,10 @@ class FleetRun:
     max_sim_time_s: float = 1800.0
     # Called as each leg that ends tasks ends: (tasks done, tasks in all, simulated time).
     on_progress: Callable[[int, int, float], None] | None = None
+    # Real robots on the bench (omni_micro_control.fleet_guard): every robot stopped once two
+    # would come closer than ``stop_gap_m``, or one driving goes ``unnamed_s`` unnamed.
+    stop_gap_m: float = STOP_GAP_M
+    unnamed_s: float = UNNAMED_S
 
 
 @dataclass

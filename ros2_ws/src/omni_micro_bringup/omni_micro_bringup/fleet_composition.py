@@ -161,8 +161,6 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                 in_motion=bool(servos))
     for k in range(count):
         robot = robot_name(k)
-        remaps = (f'__ns:=/{robot}', *(f'{topic}:={robot_topic(k, topic)}'
-                                       for topic in ROBOT_TOPICS))
         params = tuple(namespaced_params(list(shipped), robot, folder))
         servo = k in servos
         own: dict[str, dict[str, object]] = {'vision_node': {
@@ -187,8 +185,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                    # Its first array waits for the recorder's reader, which must not miss it.
                    'markers_readers': [RECORDER_NODE] if recorder else []}}
         for package, node in nodes:
-            specs.append(NodeSpec(package, node, own[node], namespace=robot, remaps=remaps,
-                                  params=params))
+            specs.append(robot_node(k, package, node, own[node], params))
     listeners = [replace(spec, params=shipped) for spec in (
         *(() if recorder is None else (recorder,)),
         *(() if view is None else (viewer_spec(*view, markers, names),)))]
@@ -200,6 +197,17 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                          [coordinator_name(k) for k in range(count)]),
         'awaited_readers': awaited_readers([*specs, *listeners], names, ODOM_THROTTLE_TOPIC)})
     return [*(composed_loop(specs, containers) if composed else specs), *listeners]
+
+
+def robot_node(robot: int, package: str, executable: str, overrides: dict[str, object],
+               params: tuple[Path, ...], shared: tuple[str, ...] = ()) -> NodeSpec:
+    """Robot ``robot``'s node of the single robot's ``executable``, in its namespace, its own
+    topics remapped there (ROBOT_TOPICS, but those ``shared``: a shared node's)."""
+    return NodeSpec(package, executable, overrides, namespace=robot_name(robot),
+                    remaps=(f'__ns:=/{robot_name(robot)}',
+                            *(f'{topic}:={robot_topic(robot, topic)}' for topic in ROBOT_TOPICS
+                              if topic not in shared)),
+                    params=params)
 
 
 def coordinator_name(robot: int) -> str:

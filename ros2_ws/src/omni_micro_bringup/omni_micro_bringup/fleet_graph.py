@@ -18,13 +18,22 @@ import json
 import math
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from omni_micro_bringup.composition import (
     GraphOptions,
+    bench_cameras,
     check_camera_faults,
     check_record_images,
     check_respawn,
+)
+from omni_micro_bringup.fleet_bench import (
+    BenchGuard,
+    bench_publications,
+    bench_ready_topics,
+    bench_specs,
+    check_bench,
 )
 from omni_micro_bringup.fleet_composition import (
     check_vision,
@@ -46,6 +55,7 @@ from omni_micro_common.topic_names import (
     JOINT_STATES_TOPIC,
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    robot_name,
     robot_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
@@ -72,6 +82,9 @@ class FleetDispatch:
         self.modes = controller_modes(self.fleet.controllers, options.params_files)
         self.monitor: FleetMonitor | None = None
         self.respawnable: list[str] = []
+        # Real robots and their camera (options.external): no lockstep, the wall clock, and
+        # the guard in place of dynamics_node's contacts.
+        self.bench: BenchGuard | None = None
 
     def check(self) -> None:
         self.check_options(self.options)
@@ -79,7 +92,10 @@ class FleetDispatch:
     @staticmethod
     def check_options(options: GraphOptions) -> None:
         """Raises UsageError for a vision not known, for ``respawn`` with ``composed``, camera
-        faults without vision_nodes, or images to record without a bag or images."""
+        faults without vision_nodes, or images to record without a bag or images; on the bench
+        (``options.external``) for what real robots cannot do."""
+        if options.external:
+            check_bench(options)
         check_vision(options.vision)
         check_respawn(options)
         check_camera_faults(options.vision_overrides, options.vision)
@@ -88,6 +104,8 @@ class FleetDispatch:
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         options, record = self.options, self.options.record
+        if options.external:
+            return bench_specs(options, self.count, self.modes, log_dir)
         specs = fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
                            options.real_time_factor, options.params_files, log_dir,
                            record=None if record is None else (record, options.storage),
@@ -105,6 +123,10 @@ class FleetDispatch:
                                     recording=self.options.record is not None,
                                     markers=self.options.markers,
                                     respawnable=self.respawnable)
+        if self.options.external:
+            self.bench = BenchGuard(self.monitor.node, self.monitor.robots,
+                                    sorted(bench_cameras(self.options)), self.fleet.stop_gap_m,
+                                    self.fleet.unnamed_s)
         return self.monitor
 
     def drive(self, graph: Supervisor, on_running: Callable[[], None],
@@ -113,7 +135,7 @@ class FleetDispatch:
         touching, the time up) and the bag's tail."""
         from omni_micro_tools.topics import BAG_TAIL_S
 
-        monitor, plan, options = self.monitor, self.fleet.plan, self.options
+        monitor, plan, options, bench = self.monitor, self.fleet.plan, self.options, self.bench
         assert monitor is not None
         graph = RestartsNoted(graph)
         logs = monitor.robots
@@ -121,26 +143,40 @@ class FleetDispatch:
         total = sum(len(tasks) for tasks in plan.tasks)
         for log, tasks in zip(logs, plan.done_at_start, strict=True):
             log.tasks_done_s += [0.0] * len(tasks)
-        monitor.wait_until_ready(graph, timeout_s=60.0, subscriptions=ready_topics(self.count),
-                                 recording=options.record is not None)
-        for k in range(self.count):
-            monitor.report_handled(k, -1)   # the coordinator takes part from here
+        if bench is None:
+            monitor.wait_until_ready(graph, timeout_s=60.0,
+                                     subscriptions=ready_topics(self.count),
+                                     recording=options.record is not None)
+            for k in range(self.count):
+                monitor.report_handled(k, -1)   # the coordinator takes part from here
+        else:
+            self.wait_for_bench(graph)
+        # The robots' time 0: the wall clock's now on the bench (the stamps are its), else 0.
+        origin_s = bench.origin_s if bench else 0.0
         dispatcher = LegDispatcher(plan, self.modes)
         started: dict[int, float] = {}
         driving: dict[int, GoalOrder] = {}   # each robot's leg under way
 
         def give(order: GoalOrder) -> None:
-            started.setdefault(order.robot, order.stamp_s)
+            order = replace(order, stamp_s=max(order.stamp_s, origin_s))
+            started.setdefault(order.robot, order.stamp_s - origin_s)
             driving[order.robot] = order
             monitor.give(graph, order)
+            if bench:
+                bench.guard.driving(order.robot, time.monotonic())
 
         for order in dispatcher.startable():
             give(order)
-        monitor.set_paused(graph, False)
+        if bench is None:
+            monitor.set_paused(graph, False)
         on_running()
         wall_start = time.monotonic()
         seen = 0
         while not dispatcher.finished:
+            stop = bench.check() if bench else None
+            if stop is not None:
+                outcome, reason = 'stopped', f'every robot stopped: {stop.reason}'
+                break
             if monitor.contacts:
                 contact = monitor.contacts[0]
                 a, b = contact['robots'].split(',')
@@ -154,7 +190,8 @@ class FleetDispatch:
                 break
             # On the clock, as the twin looks at it each step (not only as goals end: a robot
             # may drive for long with nothing ending).
-            clock_s = max(now_s, monitor.simulated_time_s() or 0.0)
+            clock_s = max(now_s, (time.time() - origin_s) if bench else
+                          monitor.simulated_time_s() or 0.0)
             if clock_s > self.fleet.max_sim_time_s:
                 outcome, now_s = 'timeout', clock_s
                 reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
@@ -169,7 +206,8 @@ class FleetDispatch:
                     continue
                 monitor.respawns.watch_new_cameras(graph, driving)
                 monitor.check_recorder()
-                monitor.repeat_reports()
+                if bench is None:
+                    monitor.repeat_reports()
                 monitor.spin_for(0.02)
                 continue
             robot, status = monitor.fleet_statuses[seen]
@@ -181,10 +219,10 @@ class FleetDispatch:
                                                   float(status['estimate.xi3']))
             if status['message'] not in OUTCOME_NAMES:
                 continue
-            at_s = float(status[STATUS_TIME_KEY])
+            at_s = float(status[STATUS_TIME_KEY]) - origin_s
             if status.get('reason') == REPLACED_REASON:
                 # Not an end that gives a goal: said handled, so that time goes on.
-                monitor.report_handled(robot, round(at_s * 1e9))
+                self.handled(robot, at_s)
                 continue
             now_s = max(now_s, at_s)
             if status['message'] != 'reached':
@@ -192,8 +230,10 @@ class FleetDispatch:
                 logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
                 reason = f'robot {robot} {logs[robot].outcome}'
                 break
-            following, ended = dispatcher.reached(robot, at_s)
+            following, ended = dispatcher.reached(robot, at_s + origin_s)
             driving.pop(robot, None)
+            if bench:
+                bench.guard.driving(robot, time.monotonic(), driving=False)
             if following is not None:
                 give(following)
             else:
@@ -205,11 +245,18 @@ class FleetDispatch:
                                            at_s)
                 for order in dispatcher.startable():
                     give(order)   # from the later of the ends it follows
-            monitor.report_handled(robot, round(at_s * 1e9))
+            self.handled(robot, at_s)
         wall_time = time.monotonic() - wall_start
         if outcome == 'done':
             reason = f'every task done in {now_s:.2f} s'
-            monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
+            if bench is None:
+                monitor.wait_for_routes_past(graph, now_s, timeout_s=30.0)
+        if bench is not None:
+            # The robots' controllers go at once (each stops its robot as it goes): stopped,
+            # none may start a move again; the recorder goes after them, with the stops.
+            return GraphResult(outcome, reason, now_s, wall_time, graph.log_dir, domain_id,
+                               robots=logs, closest_gap_m=bench.guard.closest_gap_m,
+                               closest_pair=bench.guard.closest_pair)
         if options.record is not None:
             # The bag ends BAG_TAIL_S after the last end: all of it received before the stop
             # (and the markers' arrays up to there drawn: they lag the odometry).
@@ -219,6 +266,29 @@ class FleetDispatch:
         gap, pair = closest_approach(logs)
         return GraphResult(outcome, reason, now_s, wall_time, graph.log_dir, domain_id,
                            robots=logs, closest_gap_m=gap, closest_pair=pair)
+
+    def handled(self, robot: int, at_s: float) -> None:
+        """An end handled: said in the robot's lockstep gate (nothing real is in lockstep)."""
+        if self.bench is None and self.monitor is not None:
+            self.monitor.report_handled(robot, round(at_s * 1e9))
+
+    def wait_for_bench(self, graph: Supervisor) -> None:
+        """Until every robot's driver and the camera driver publish, the graph's nodes read,
+        every controller has its robot's state and the cameras have named every robot; then
+        the robots' time starts (the wall clock's now)."""
+        from omni_micro_bringup.bench_start import wait_for_fleet_bench
+        from omni_micro_bringup.goal_sequence import BENCH_READY_S
+
+        monitor, bench, cameras = self.monitor, self.bench, bench_cameras(self.options)
+        assert monitor is not None and bench is not None
+        monitor.wait_until_ready(graph, timeout_s=BENCH_READY_S,
+                                 subscriptions=bench_ready_topics(self.count, sorted(cameras)),
+                                 publications=bench_publications(self.count,
+                                                                 list(cameras.values())),
+                                 recording=self.options.record is not None, clock=False)
+        wait_for_fleet_bench(monitor, graph, [robot_name(k) for k in range(self.count)],
+                             lambda: bench.named, BENCH_READY_S)
+        bench.origin_s = time.time()
 
     def goals_published(self) -> dict[str, int]:
         return dict(self.monitor.goals_given) if self.monitor else {}

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import math
+import os
 import socket
 import sys
 from typing import TypedDict
@@ -17,11 +18,13 @@ from omni_micro_cli.arguments import (
     domain_id,
     non_negative_float,
     port_number,
+    positive_float,
     positive_int,
     probability,
     real_time_factor,
 )
 from omni_micro_cli.errors import UsageError
+from omni_micro_control.fleet_guard import CONTACT_GAP_M, STOP_GAP_M, UNNAMED_S
 from omni_micro_tools.topics import STORAGE_NAMES
 
 
@@ -216,3 +219,67 @@ def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
     bench.add_argument('--domain-id', type=domain_id, metavar='N',
                        help='the ROS_DOMAIN_ID the drivers are in (default: ROS_DOMAIN_ID; '
                             'without external parts, a private free one)')
+    bench.add_argument('--stop-gap-mm', type=stop_gap_mm, default=STOP_GAP_M * 1e3,
+                       metavar='MM',
+                       help='with several robots on the bench: stop every robot once two '
+                            'centres would come this close within 0.2 s (default '
+                            f'{STOP_GAP_M * 1e3:g}; the discs touch at 9)')
+    bench.add_argument('--stop-unnamed-s', type=positive_float, default=UNNAMED_S,
+                       metavar='S',
+                       help='with several robots on the bench: stop every robot once one '
+                            f'driving a leg goes unnamed by the cameras this long (default '
+                            f'{UNNAMED_S:g})')
+
+
+def stop_gap_mm(text: str) -> float:
+    """The guard's stop gap, no less than where two robots' discs touch."""
+    value = positive_float(text)
+    if value < CONTACT_GAP_M * 1e3:
+        raise argparse.ArgumentTypeError(f'expected at least {CONTACT_GAP_M * 1e3:g} mm (two '
+                                         f'robots\' discs touch there), got {text!r}')
+    return value
+
+
+# The bench's options that only several robots take (the guard's).
+GUARD_OPTIONS = ('stop_gap_mm', 'stop_unnamed_s')
+
+
+def bench_of(args: argparse.Namespace, default_rtf: float = 1.0) -> Bench:
+    """The bench's part of a graph's options: which parts are real, the driver's image topics,
+    the drivers' domain (needed with a real part: ``--domain-id`` or ROS_DOMAIN_ID). A real
+    part runs at real time: ``--rtf`` left at its ``default_rtf``, or 1.
+
+    Raises
+    ------
+    UsageError
+        --image-topic without a real camera, --rtf other than 1 or camera faults with a real
+        part, or a real part with no domain to find it in.
+    """
+    external = 'external' in (args.camera, args.robot)
+    if args.image_topic and args.camera != 'external':
+        raise UsageError('--image-topic names an external camera\'s topics: it needs --camera '
+                         'external')
+    if external and args.rtf not in (1.0, default_rtf):
+        raise UsageError(f'with an external camera or robot the graph runs at real time: '
+                         f'--rtf must be 1, got {args.rtf:g}')
+    if external and fault_overrides(args):
+        raise UsageError('fault injection is the simulated camera\'s: not with --camera '
+                         'external or --robot external')
+    domain = args.domain_id
+    if external and domain is None:
+        from_environment = os.environ.get('ROS_DOMAIN_ID', '')
+        if not from_environment.isdigit():
+            raise UsageError('with an external camera or robot, say which ROS_DOMAIN_ID its '
+                             'driver is in: --domain-id N (or set ROS_DOMAIN_ID)')
+        domain = int(from_environment)
+    return Bench(camera=args.camera, robot=args.robot, image_topics=dict(args.image_topic),
+                 domain_id=domain)
+
+
+class Bench(TypedDict):
+    """What :func:`bench_of` gives: GraphOptions' bench fields."""
+
+    camera: str
+    robot: str
+    image_topics: dict[str, str]
+    domain_id: int | None

@@ -34,6 +34,9 @@ CAPTURE_IN_MOTION_TOPICS = {'macro': '/camera/macro/pose_in_motion',
 CONTROLLER_STATUS_TOPIC = '/controller/status'
 # dynamics_node's, with several robots: two chassis touching, both named.
 CONTACT_TOPIC = '/robot_contacts'
+# The orchestration's, with several real robots on the bench: every robot stopped, and why (two
+# too close, or one driving unnamed by the cameras), the robots named.
+FLEET_GUARD_TOPIC = '/fleet_guard'
 # tracker_node's, per camera: what its latest frame gave (or why it was refused), and, for frames
 # stamped on the wall clock (a driver's), how old they are when they arrive.
 TRACKER_STATUS_TOPICS = {'macro': '/camera/macro/tracker_status',
@@ -43,7 +46,7 @@ RECORDER_STATUS_TOPIC = '/bag_recorder/status'
 # What markers_node draws.
 MARKERS_TOPIC = '/markers'
 # Every topic that is a robot's own, remapped into its namespace in a fleet; /clock,
-# /lockstep and /robot_contacts stay the graph's.
+# /lockstep, /robot_contacts and /fleet_guard stay the graph's.
 ROBOT_TOPICS = (ODOM_TOPIC, JOINT_STATES_TOPIC, WHEEL_SLIP_TOPIC, ODOM_THROTTLE_TOPIC,
                 JOINT_STATES_THROTTLE_TOPIC, WHEEL_TRAJECTORY_TOPIC, GOAL_TOPIC,
                 CONTROLLER_STATUS_TOPIC, CAMERA_STATUS_TOPIC, *CAPTURE_TOPICS.values(),

@@ -13,7 +13,8 @@ in :mod:`servo_config`, driven goal after goal by :mod:`servo_session`), and
 platform, :mod:`fleet_plan` (paths that keep them apart: prioritized planning, else
 :mod:`fleet_lacam` over :mod:`fleet_pibt`'s steps) on the :mod:`fleet_roadmap` of the
 platform, :mod:`fleet_dependencies` (the paths as legs, and who waits for whom),
-:mod:`fleet_legs` (which goal each robot is given next, as goals are reached) and
+:mod:`fleet_legs` (which goal each robot is given next, as goals are reached),
+:mod:`fleet_guard` (real robots on the bench stopped before two touch or one drives unseen) and
 :mod:`fleet_files` (a fleet's robots and tasks, from files or drawn from a seed). Its node:
 :mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
 and :mod:`controller_messages` (the trajectories and statuses it publishes).

@@ -16,6 +16,7 @@ from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
     CLOCK_TOPIC,
     CONTROLLER_STATUS_TOPIC,
+    FLEET_GUARD_TOPIC,
     GOAL_TOPIC,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
@@ -92,7 +93,10 @@ IMAGE_TOPICS: dict[str, TopicSpec] = {
 IN_MOTION_TOPICS: dict[str, TopicSpec] = {
     topic: TopicSpec('geometry_msgs/msg/PoseWithCovarianceStamped', 100)
     for topic in CAPTURE_IN_MOTION_TOPICS.values()}
-RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS}
+# The orchestration's, with several real robots on the bench: why it stopped them all.
+GUARD_TOPICS: dict[str, TopicSpec] = {
+    FLEET_GUARD_TOPIC: TopicSpec('diagnostic_msgs/msg/DiagnosticStatus', 10, latched=True)}
+RECORDABLE_TOPICS = {**GRAPH_TOPICS, **IMAGE_TOPICS, **IN_MOTION_TOPICS, **GUARD_TOPICS}
 
 
 def robot_and_topic(topic: str) -> tuple[str, str]:
@@ -145,7 +149,8 @@ TOPIC_ORDER: tuple[str, ...] = (
     *(topic for camera in ('macro', 'micro')
       for topic in (f'/camera/{camera}/pose_with_covariance', f'/camera/{camera}/pose')),
     *CAPTURE_IN_MOTION_TOPICS.values(),
-    CAMERA_STATUS_TOPIC, CONTROLLER_STATUS_TOPIC, WHEEL_TRAJECTORY_TOPIC, MARKERS_TOPIC)
+    CAMERA_STATUS_TOPIC, CONTROLLER_STATUS_TOPIC, WHEEL_TRAJECTORY_TOPIC, MARKERS_TOPIC,
+    FLEET_GUARD_TOPIC)
 assert set(TOPIC_ORDER) == set(RECORDABLE_TOPICS)
 # A run's bag ends this long (simulated time) after its last outcome: the stop command and the
 # samples of the robot coming to rest (a ramp down from cruise speed takes 0.17 s, from the tick

@@ -12,9 +12,11 @@ from typing import TYPE_CHECKING, Any
 from omni_micro_cli.arguments import positive_int, real_time_factor, seed_number, whole_number_in
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph_arguments import (
+    add_bench_arguments,
     add_composed_argument,
     add_fault_arguments,
     add_view_arguments,
+    bench_of,
     composition_of,
     fault_overrides,
     view_from_args,
@@ -29,6 +31,7 @@ from omni_micro_cli.outputs import (
 from omni_micro_common.topic_names import robot_name
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_files import MAX_ROBOTS, Fleet, fleet_from
+from omni_micro_control.fleet_guard import STOP_GAP_M, UNNAMED_S
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 if TYPE_CHECKING:   # the graph's modules load only for a run through it
@@ -104,6 +107,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--json', action='store_true',
                         help='standard output: one JSON object (per robot and for the whole) '
                              'alone; the table and progress go to stderr')
+    parser.add_argument('--params', type=Path, action='append', default=[], metavar='FILE',
+                        help='with --graph: a ROS 2 params file after the package\'s (again '
+                             'for more; e.g. the bench camera\'s calibration)')
+    add_bench_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -148,19 +155,31 @@ def run(args: argparse.Namespace) -> int:
                          '--graph')
     if not args.graph and args.vision != 'model':
         raise UsageError(f'--vision {args.vision} is a node graph\'s: give it with --graph')
+    bench = bench_of(args, default_rtf=math.inf)
+    external = 'external' in (args.camera, args.robot)
+    if not args.graph and (external or args.params):
+        raise UsageError('--params and the bench (--camera, --robot external) are a node '
+                         'graph\'s: give them with --graph')
     fleet = fleet_of(args)
     graph = None
     if args.graph:
         from omni_micro_bringup.composition import GraphOptions
+        from omni_micro_bringup.params_files import check_params_file
 
-        graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
+        for path in args.params:
+            check_params_file(path)
+        graph = GraphOptions(seed=args.seed, real_time_factor=1.0 if external else args.rtf,
+                             log_dir=args.log_dir,
                              timeout_s=WALL_TIMEOUT_S, record=args.record, force=args.force,
                              **composition_of(args), markers=args.markers,
                              view=view_from_args(args), vision=args.vision,
                              respawn=args.respawn, vision_overrides=faults,
-                             record_images=args.record_images)
+                             record_images=args.record_images,
+                             params_files=tuple(args.params), **bench,
+                             echo=echo_to_stderr if external else None)
     return run_and_report(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
-                         record=args.record, plot=args.plot, as_json=args.json, force=args.force)
+                         record=args.record, plot=args.plot, as_json=args.json, force=args.force,
+                         stop_gap_m=args.stop_gap_mm * 1e-3, unnamed_s=args.stop_unnamed_s)
 
 
 # How long a run through the graph may take on the wall clock (run --robots: its --timeout).
@@ -169,10 +188,12 @@ WALL_TIMEOUT_S = 3600.0
 
 def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_sim_time_s: float,
                   record: Path | None, plot: Path | None, as_json: bool,
-                  force: bool = False) -> int:
+                  force: bool = False, stop_gap_m: float = STOP_GAP_M,
+                  unnamed_s: float = UNNAMED_S) -> int:
     """Plan ``fleet``'s tasks, run them in the fleet twin or (``graph``: the graph's
     options) through the node graph, print the table (and ``as_json``, the JSON), write the
-    twin's bag and the routes' plot."""
+    twin's bag and the routes' plot. On the bench (real robots), ``stop_gap_m`` and
+    ``unnamed_s`` are the guard's."""
     from omni_micro_control.fleet_plan import PlannerGaveUpError, PlanningError, plan_fleet
     from omni_micro_control.fleet_roadmap import RoadmapError
     from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
@@ -210,11 +231,14 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
         from omni_micro_studies.fleet_routes import told_as_the_twin
 
         ran = run_graph(replace(graph, fleet=FleetRun(
-            plan, fleet.robots, fleet.controllers, max_sim_time_s, on_progress=progress)))
+            plan, fleet.robots, fleet.controllers, max_sim_time_s, on_progress=progress,
+            stop_gap_m=stop_gap_m, unnamed_s=unnamed_s)))
         running_wall_s = ran.wall_time_s
         echo_to_stderr(f'graph: logs in {ran.log_dir} (ROS_DOMAIN_ID {ran.domain_id}); '
-                       f'{ran.sim_time_s:.2f} s simulated in {running_wall_s:.1f} s of wall '
-                       'time from the clock\'s start to the last goal')
+                       + (f'{ran.sim_time_s:.2f} s on the wall clock from the first goal to the '
+                          'last end (real robots)' if graph.external else
+                          f'{ran.sim_time_s:.2f} s simulated in {running_wall_s:.1f} s of wall '
+                          'time from the clock\'s start to the last goal'))
         result = told_as_the_twin(plan, ran)
     else:
         result = run_fleet(plan, robots=fleet.robots, seed=seed, controllers=fleet.controllers,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -26,12 +25,14 @@ from omni_micro_cli.arguments import (
 from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph_arguments import (
+    GUARD_OPTIONS,
     add_bench_arguments,
     add_composed_argument,
     add_fault_arguments,
     add_storage_arguments,
     add_timing_arguments,
     add_view_arguments,
+    bench_of,
     check_timing,
     composition_of,
     fault_overrides,
@@ -172,7 +173,8 @@ _DEFAULTS: dict[str, object] = {}
 FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log_dir', 'record',
                  'composed', 'markers', 'view', 'view_port', 'view_host', 'json', 'quiet', 'help',
                  'vision', 'force', 'respawn', 'record_images', 'drop_captures', 'late_captures',
-                 'freeze_camera_at', 'fault_camera', *FLEET_TASK_OPTIONS)
+                 'freeze_camera_at', 'fault_camera', 'camera', 'robot', 'image_topic',
+                 'domain_id', 'params', *GUARD_OPTIONS, *FLEET_TASK_OPTIONS)
 
 
 def fleet_run(args: argparse.Namespace) -> int:
@@ -186,17 +188,27 @@ def fleet_run(args: argparse.Namespace) -> int:
                          'give --tasks, --controller, --vision, --seed, --rtf, --timeout, '
                          '--log-dir, --record, --record-images, --force, --composed, '
                          '--no-markers, --view, --respawn, the camera faults, --json, '
-                         '--quiet, --goals-per-robot, --max-sim-time, --plot')
+                         '--quiet, --goals-per-robot, --max-sim-time, --plot, --params and '
+                         'the bench\'s options')
     fleet = fleet_of(args)
+    bench = bench_of(args)
+    external = 'external' in (args.camera, args.robot)
+    for path in args.params:
+        check_params_file(path)
     graph = GraphOptions(seed=args.seed, real_time_factor=args.rtf, log_dir=args.log_dir,
                          timeout_s=args.timeout, record=args.record, force=args.force,
                          **composition_of(args), respawn=args.respawn,
                          vision_overrides=fault_overrides(args),
-                         record_images=args.record_images, markers=args.markers,
-                         view=view_from_args(args), vision=args.vision)
+                         record_images=args.record_images,
+                         # Real robots have no odometry to draw.
+                         markers=args.markers and not external,
+                         view=view_from_args(args), vision=args.vision,
+                         params_files=tuple(args.params), **bench,
+                         echo=echo_to_stderr if external and not args.quiet else None)
     return run_and_report(fleet, args.seed, graph, max_sim_time_s=float(args.max_sim_time),
                          record=args.record, plot=args.plot, as_json=args.json,
-                         force=args.force)
+                         force=args.force, stop_gap_m=args.stop_gap_mm * 1e-3,
+                         unnamed_s=args.stop_unnamed_s)
 
 
 def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
@@ -211,24 +223,8 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
         raise UsageError(str(error)) from None
     faults = fault_overrides(args)
     check_camera_faults(faults, args.vision)
-    external = 'external' in (args.camera, args.robot)
-    if args.image_topic and args.camera != 'external':
-        raise UsageError('--image-topic names an external camera\'s topics: it needs --camera '
-                         'external')
-    if external and args.rtf != 1.0:
-        raise UsageError(f'with an external camera or robot the graph runs at real time: '
-                         f'--rtf must be 1, got {args.rtf:g}')
-    if external and faults:
-        raise UsageError('fault injection is the simulated camera\'s: not with --camera '
-                         'external or --robot external')
+    bench = bench_of(args)
     check_record_images(args.record_images, args.record, args.vision, args.camera)
-    domain = getattr(args, 'domain_id', None)
-    if external and domain is None:
-        from_environment = os.environ.get('ROS_DOMAIN_ID', '')
-        if not from_environment.isdigit():
-            raise UsageError('with an external camera or robot, say which ROS_DOMAIN_ID its '
-                             'driver is in: --domain-id N (or set ROS_DOMAIN_ID)')
-        domain = int(from_environment)
     return GraphOptions(goal_m=goal_m, seed=args.seed, real_time_factor=args.rtf,
                         lockstep=not args.free_running,
                         open_loop_s=open_loop_s, params_files=params_files,
@@ -245,11 +241,8 @@ def options_from_args(args: argparse.Namespace, goal_m: tuple[float, float],
                         respawn=getattr(args, 'respawn', False),
                         # markers_node draws the robot from its odometry, which a real robot
                         # has not.
-                        markers=args.markers and getattr(args, 'robot', 'simulated') != 'external',
-                        view=view_from_args(args), **composition_of(args),
-                        camera=getattr(args, 'camera', 'simulated'),
-                        robot=getattr(args, 'robot', 'simulated'),
-                        image_topics=dict(getattr(args, 'image_topic', [])), domain_id=domain)
+                        markers=args.markers and args.robot != 'external',
+                        view=view_from_args(args), **composition_of(args), **bench)
 
 
 def preset_under_params(args: argparse.Namespace, node: str,
@@ -279,7 +272,7 @@ def summary_line(result: GraphResult, external: bool = False) -> str:
 def run(args: argparse.Namespace) -> int:
     if args.robots is not None:
         return fleet_run(args)
-    several = [f'--{dest.replace("_", "-")}' for dest in FLEET_TASK_OPTIONS
+    several = [f'--{dest.replace("_", "-")}' for dest in (*FLEET_TASK_OPTIONS, *GUARD_OPTIONS)
                if getattr(args, dest) != _DEFAULTS[dest]]
     if several:
         raise UsageError(f'{", ".join(several)}: for several robots; give --robots N|FILE')

@@ -1,0 +1,189 @@
+"""Several real robots on one bench (``run --robots FILE --camera external --robot external``):
+what the graph starts, and how the orchestration keeps the robots apart.
+
+No dynamics_node and no camera_node: each robot's driver publishes ``/robot_k/joint_states`` and
+reads ``/robot_k/wheel_trajectory`` on the wall clock, and a camera driver shows every robot
+with the code printed on it. The graph starts one tracker_node that names each robot in the
+driver's frames (its captures in motion on for every robot: the guard follows them moving),
+each robot's controller_node under ``/robot_k``, and the recorder on the wall clock. Nothing
+runs in lockstep.
+
+The orchestration (:mod:`omni_micro_bringup.fleet_graph`) hands out the planner's legs as in
+simulation, each goal stamped with the wall-clock time of the end it follows (the single robot's
+bench timing, per robot), once every robot's first state and a frame naming every robot have
+come. No dynamics_node can see two real robots touch: :class:`BenchGuard` follows every robot's
+captures and stops them all (an empty trajectory to each: ramp the wheels down now) when the
+plain :class:`~omni_micro_control.fleet_guard.FleetGuard` says so, and says why on /fleet_guard.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from pathlib import Path
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from trajectory_msgs.msg import JointTrajectory
+
+from omni_micro_bringup.composition import (
+    RECORDER_NODE,
+    GraphOptions,
+    bench_cameras,
+    recorded_topics,
+    recorder_spec,
+)
+from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.fleet_composition import namespaced_params, robot_node
+from omni_micro_bringup.graph_result import RobotLog
+from omni_micro_bringup.node_spec import NodeSpec
+from omni_micro_bringup.params_files import graph_params_file
+from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
+from omni_micro_common.qos import CAPTURE_QOS, latched
+from omni_micro_common.topic_names import (
+    CAMERA_STATUS_TOPIC,
+    CAPTURE_COVARIANCE_TOPICS,
+    CAPTURE_IN_MOTION_TOPICS,
+    CAPTURE_TOPICS,
+    CLOCK_TOPIC,
+    FLEET_GUARD_TOPIC,
+    JOINT_STATES_TOPIC,
+    ODOM_TOPIC,
+    TRACKER_STATUS_TOPICS,
+    WHEEL_SLIP_TOPIC,
+    WHEEL_TRAJECTORY_TOPIC,
+    camera_info_beside,
+    robot_name,
+    robot_topic,
+)
+from omni_micro_control.controller_messages import stop_trajectory
+from omni_micro_control.fleet_guard import FleetGuard, GuardStop
+
+
+def check_bench(options: GraphOptions) -> None:
+    """Raises UsageError for a fleet's bench that cannot be: only one of the camera and the
+    robots real, or what needs a simulated robot (--composed, --respawn, markers, the view,
+    camera faults)."""
+    if options.camera != options.robot:
+        raise UsageError('several robots on the bench take both --camera external and --robot '
+                         f'external (got --camera {options.camera} --robot {options.robot}): a '
+                         'real camera cannot see simulated robots, nor a simulated one real ones')
+    refused = [name for name, given in (
+        ('--composed', options.composed), ('--respawn', options.respawn),
+        ('--markers', options.markers), ('--view', options.view is not None),
+        ('camera faults', bool(options.vision_overrides))) if given]
+    if refused:
+        raise UsageError(f'{", ".join(refused)}: not with real robots (no simulated robot to '
+                         'hold, draw or fault); leave them out')
+
+
+def bench_specs(options: GraphOptions, count: int, modes: list[str],
+                folder: Path) -> list[NodeSpec]:
+    """The processes of a fleet's bench: the tracker naming every robot in the drivers'
+    frames, each robot's controller_node under its namespace (reading the shared tracker's
+    statuses: how old the driver's frames come), and with ``options.record`` the recorder on
+    the wall clock."""
+    shipped = (graph_params_file(), *options.params_files)
+    names = [robot_name(k) for k in range(count)]
+    cameras = bench_cameras(options)
+    tracker = {'robots': names, 'captures_in_motion': True,
+               'covariance_readers': [f'{robot}/controller_node' for robot in names],
+               'cameras': sorted(cameras),
+               **{key: value for camera, topic in cameras.items()
+                  for key, value in ((f'{camera}.image_topic', topic),
+                                     (f'{camera}.info_topic', camera_info_beside(topic)))}}
+    recorder = None
+    if options.record is not None:
+        # What a real robot's bench publishes: no clock, odometry, slip or markers; captures of
+        # the tracked cameras only, every robot's in motion (the guard's) and the guard's stops.
+        untracked = tuple(topic for name in CAPTURE_TOPICS if name not in cameras
+                          for topic in (CAPTURE_TOPICS[name], CAPTURE_COVARIANCE_TOPICS[name]))
+        topics = recorded_topics(names, markers=False, without=(
+            CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC, CAMERA_STATUS_TOPIC, *untracked),
+            in_motion=names, cameras=sorted(cameras))
+        spec = recorder_spec(options.record, options.storage, [*topics, FLEET_GUARD_TOPIC],
+                             whole=options.record_whole)
+        recorder = NodeSpec(spec.package, spec.executable, params=shipped, overrides={
+            **spec.overrides, 'lockstep_ticks': False, 'log_clock': 'wall',
+            **({'driver_images': sorted(cameras.values())} if options.record_images else {})},
+            lockstep=True)
+    specs = [NodeSpec('omni_micro_vision', 'tracker_node', params=shipped, overrides=tracker)]
+    for k in range(count):
+        specs.append(robot_node(k, 'omni_micro_control', 'controller_node', {
+            'goal_time': 'stamp', 'mode': modes[k],
+            # The drivers' readers are not the graph's to name: only the recorder's.
+            'trajectory_readers': [RECORDER_NODE] if recorder else []},
+            tuple(namespaced_params(list(shipped), names[k], folder)),
+            shared=tuple(TRACKER_STATUS_TOPICS.values())))
+    return [*specs, *((recorder,) if recorder else ())]
+
+
+def bench_ready_topics(count: int, cameras: list[str]) -> list[tuple[str, ...]]:
+    """What must be read before the first goal: each robot's trajectories (its driver), its
+    wheels and captures (its controller)."""
+    return [(robot_topic(k, topic),) for k in range(count)
+            for topic in (WHEEL_TRAJECTORY_TOPIC, JOINT_STATES_TOPIC,
+                          *(CAPTURE_COVARIANCE_TOPICS[camera] for camera in cameras))]
+
+
+def bench_publications(count: int, image_topics: list[str]) -> dict[str, str]:
+    """What the drivers must publish, each with whose it is."""
+    return {**{robot_topic(k, JOINT_STATES_TOPIC): f"{robot_name(k)}'s driver"
+               for k in range(count)},
+            **{topic: 'the camera driver' for topic in image_topics}}
+
+
+class BenchGuard:
+    """Every robot's captures (still and in motion) on the orchestration's node: into its
+    route (seconds after ``origin_s``) and the guard; stops every robot when the guard says."""
+
+    def __init__(self, node: Any, logs: list[RobotLog], cameras: list[str],
+                 stop_gap_m: float, unnamed_s: float) -> None:
+        self.node = node
+        self.logs = logs
+        self.guard = FleetGuard(len(logs), stop_gap_m=stop_gap_m, unnamed_s=unnamed_s)
+        self.origin_s = 0.0
+        self.named: set[int] = set()
+        self.stopped: GuardStop | None = None
+        self.stops = [node.create_publisher(JointTrajectory,
+                                            robot_topic(k, WHEEL_TRAJECTORY_TOPIC), 10)
+                      for k in range(len(logs))]
+        self.status = node.create_publisher(DiagnosticStatus, FLEET_GUARD_TOPIC, latched(10))
+        for k in range(len(logs)):
+            for camera in cameras:
+                for topic in (CAPTURE_COVARIANCE_TOPICS[camera],
+                              CAPTURE_IN_MOTION_TOPICS[camera]):
+                    node.create_subscription(PoseWithCovarianceStamped, robot_topic(k, topic),
+                                             functools.partial(self._on_capture, k),
+                                             CAPTURE_QOS)
+
+    def _on_capture(self, robot: int, msg: PoseWithCovarianceStamped) -> None:
+        stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
+        pose = msg.pose.pose
+        self.named.add(robot)
+        self.guard.saw(robot, stamp_s, pose.position.x, pose.position.y, time.monotonic())
+        if self.origin_s:   # the run's route, from its start
+            self.logs[robot].route.append((
+                stamp_s - self.origin_s, pose.position.x, pose.position.y,
+                quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
+
+    def check(self) -> GuardStop | None:
+        """Whether every robot must stop now; if so, stopped."""
+        stop = self.guard.check(time.monotonic())
+        if stop is not None:
+            self.halt(stop)
+        return stop
+
+    def halt(self, stop: GuardStop) -> None:
+        """An empty trajectory to every robot (its wheels ramp down now), then why, named."""
+        now_ns = time.time_ns()
+        for publisher in self.stops:
+            publisher.publish(stop_trajectory(now_ns))
+        self.stopped = stop
+        self.status.publish(DiagnosticStatus(
+            level=DiagnosticStatus.ERROR, name='fleet guard', message=stop.reason,
+            values=[KeyValue(key='kind', value=stop.kind),
+                    KeyValue(key='robots', value=','.join(robot_name(k) for k in stop.robots)),
+                    KeyValue(key='stopped', value=','.join(robot_name(k)
+                                                           for k in range(len(self.logs))))]))

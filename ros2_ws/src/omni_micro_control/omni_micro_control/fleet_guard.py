@@ -1,0 +1,148 @@
+"""The guard of several real robots on one bench: no dynamics_node sees a contact between real
+robots, so the run watches where the cameras name each one and stops them all when two come
+closer than the clearance allows, or when a robot driving a leg goes unnamed too long.
+
+Two robots are too close when, at their latest captures and closing as their last two captures
+say, their centres would come within ``stop_gap_m`` in the next ``horizon_s``: the time a stop
+takes to act (a frame, the tracker, the command) and the wheels' ramp down. A robot is
+unnamed while no capture of it (still or in motion) has arrived; one that drives a leg and stays
+unnamed longer than ``unnamed_s`` is driving blind. Times of arrival are the caller's clock (any
+monotonic one), positions in the platform frame, stamps the camera's.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+from omni_micro_common.topic_names import robot_name
+
+# Two robots' 9 mm discs touch when their centres are this close.
+CONTACT_GAP_M = 9.0e-3
+# Stopped once two centres would come this close: 1 mm above contact. The planner keeps them
+# 12 mm apart (fleet_roadmap.CLEARANCE_M); planned runs came 11.37 mm close at the least.
+STOP_GAP_M = 10.0e-3
+# How far ahead the closing is projected: about 0.1 s for a stop to act (a 15 Hz frame, the
+# tracker, the command) and half of the wheels' 0.17 s ramp down (8.7 rad/s at 50 rad/s^2).
+HORIZON_S = 0.2
+# A robot driving a leg stopped after this long unnamed (15 frames of a 15 Hz camera).
+UNNAMED_S = 1.0
+# Two captures further apart than this give no velocity (the robot was not followed between).
+VELOCITY_SPAN_S = 0.5
+
+
+@dataclass(frozen=True)
+class GuardStop:
+    """Why every robot is stopped: ``robots`` (indices) too close or unnamed, said in
+    ``reason``."""
+
+    kind: str        # 'proximity' or 'unnamed'
+    robots: tuple[int, ...]
+    reason: str
+
+
+@dataclass
+class _Seen:
+    stamp_s: float
+    x_m: float
+    y_m: float
+    arrived_s: float
+    vx_m_s: float = 0.0
+    vy_m_s: float = 0.0
+
+
+@dataclass
+class FleetGuard:
+    """Every robot's latest capture and whether it drives a leg; :meth:`check` says whether
+    all must stop."""
+
+    count: int
+    stop_gap_m: float = STOP_GAP_M
+    horizon_s: float = HORIZON_S
+    unnamed_s: float = UNNAMED_S
+    closest_gap_m: float = math.inf      # the closest two centres were seen, and who
+    closest_pair: tuple[int, int] | None = None
+    _seen: dict[int, _Seen] = field(default_factory=dict)
+    _driving_since: dict[int, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ('stop_gap_m', 'horizon_s', 'unnamed_s'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f'{name} must be a positive number, got {value!r}')
+        if self.stop_gap_m < CONTACT_GAP_M:
+            raise ValueError(f'stop_gap_m must be at least the contact gap '
+                             f'{CONTACT_GAP_M * 1e3:g} mm, got {self.stop_gap_m * 1e3:g} mm')
+
+    def saw(self, robot: int, stamp_s: float, x_m: float, y_m: float, arrived_s: float) -> None:
+        """A capture of ``robot`` (still or in motion) stamped ``stamp_s``, arrived at
+        ``arrived_s``; an older one than the latest is only a sign of life."""
+        last = self._seen.get(robot)
+        if last is not None and stamp_s <= last.stamp_s:
+            last.arrived_s = max(last.arrived_s, arrived_s)
+            return
+        seen = _Seen(stamp_s, x_m, y_m, arrived_s)
+        if last is not None and stamp_s - last.stamp_s <= VELOCITY_SPAN_S:
+            span = stamp_s - last.stamp_s
+            seen.vx_m_s, seen.vy_m_s = (x_m - last.x_m) / span, (y_m - last.y_m) / span
+        self._seen[robot] = seen
+        for other, at in self._seen.items():
+            if other != robot:
+                gap = math.dist((x_m, y_m), _position_at(at, stamp_s))
+                if gap < self.closest_gap_m:
+                    self.closest_gap_m, self.closest_pair = gap, (min(robot, other),
+                                                                  max(robot, other))
+
+    def driving(self, robot: int, now_s: float, driving: bool = True) -> None:
+        """``robot`` has a leg under way from ``now_s`` (or, ``driving`` False, none)."""
+        if driving:
+            self._driving_since.setdefault(robot, now_s)
+        else:
+            self._driving_since.pop(robot, None)
+
+    def check(self, now_s: float) -> GuardStop | None:
+        """Whether every robot must stop now (``now_s`` on the arrivals' clock)."""
+        for robot, since in sorted(self._driving_since.items()):
+            seen = self._seen.get(robot)
+            named_s = max(since, seen.arrived_s) if seen else since
+            if now_s - named_s > self.unnamed_s:
+                last = (f'last named at ({seen.x_m * 1e3:.1f}, {seen.y_m * 1e3:.1f}) mm'
+                        if seen else 'never named')
+                return GuardStop('unnamed', (robot,), (
+                    f'{robot_name(robot)} drove unnamed by the cameras for '
+                    f'{now_s - named_s:.2f} s (over {self.unnamed_s:g} s; {last})'))
+        for a, b in itertools.combinations(sorted(self._seen), 2):
+            gap, closing = self.projected_gap(a, b)
+            if gap < self.stop_gap_m:
+                now_gap = math.dist(*(_position_at(self._seen[r], self._later(a, b))[:2]
+                                      for r in (a, b)))
+                return GuardStop('proximity', (a, b), (
+                    f'{robot_name(a)} and {robot_name(b)} {now_gap * 1e3:.2f} mm apart, '
+                    f'closing at {closing * 1e3:.1f} mm/s: under {self.stop_gap_m * 1e3:g} mm '
+                    f'within {self.horizon_s:g} s (9 mm discs)'))
+        return None
+
+    def projected_gap(self, a: int, b: int) -> tuple[float, float]:
+        """The closest robots ``a`` and ``b`` come within the horizon from their latest
+        captures (both taken to the later's stamp), and how fast they close now."""
+        at = self._later(a, b)
+        pa, pb = _position_at(self._seen[a], at), _position_at(self._seen[b], at)
+        px, py = pa[0] - pb[0], pa[1] - pb[1]
+        vx = self._seen[a].vx_m_s - self._seen[b].vx_m_s
+        vy = self._seen[a].vy_m_s - self._seen[b].vy_m_s
+        distance = math.hypot(px, py)
+        closing = -(px * vx + py * vy) / distance if distance > 0 else 0.0
+        speed2 = vx * vx + vy * vy
+        t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), self.horizon_s)
+        return math.hypot(px + vx * t, py + vy * t), closing
+
+    def _later(self, a: int, b: int) -> float:
+        return max(self._seen[a].stamp_s, self._seen[b].stamp_s)
+
+
+def _position_at(seen: _Seen, stamp_s: float) -> tuple[float, float]:
+    """Where the robot was at ``stamp_s``, on from its latest capture at its velocity (for no
+    longer than a velocity is known to hold)."""
+    ahead = min(max(stamp_s - seen.stamp_s, 0.0), VELOCITY_SPAN_S)
+    return seen.x_m + seen.vx_m_s * ahead, seen.y_m + seen.vy_m_s * ahead

@@ -1,0 +1,154 @@
+"""The guard of several real robots on the bench (omni_micro_control.fleet_guard): robots seen
+at a camera's 15 Hz, stopped before two centres come under the stop gap, and a robot driving
+unnamed stopped after the bound; planned passes at the clearance never stopped."""
+
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from omni_micro_control.fleet_guard import (
+    CONTACT_GAP_M,
+    HORIZON_S,
+    STOP_GAP_M,
+    UNNAMED_S,
+    FleetGuard,
+)
+
+FRAME_S = 1.0 / 15.0
+CRUISE_M_S = 14e-3     # the paper's robot: 100 mm in about 7 s
+
+
+def drive(guard, paths, frames, latency_s=0.0):
+    """Feed ``paths`` (robot -> t -> (x, y)) at the camera's rate; the first stop and when."""
+    for frame in range(frames):
+        t = frame * FRAME_S
+        for robot, path in paths.items():
+            guard.saw(robot, t, *path(t), arrived_s=t + latency_s)
+        stop = guard.check(t + latency_s)
+        if stop is not None:
+            return stop, t
+    return None, None
+
+
+def test_two_still_robots_at_the_clearance_are_left_alone():
+    guard = FleetGuard(2)
+    stop, _ = drive(guard, {0: lambda t: (0.0, 0.0), 1: lambda t: (0.012, 0.0)}, 60)
+    assert stop is None
+    assert guard.closest_gap_m == pytest.approx(0.012) and guard.closest_pair == (0, 1)
+
+
+def test_a_robot_driven_at_a_still_one_is_stopped_with_room_for_the_stop():
+    guard = FleetGuard(2)
+    stop, at = drive(guard, {0: lambda t: (0.0, 0.0), 1: lambda t: (0.030 - CRUISE_M_S * t, 0.0)},
+                     60)
+    assert stop is not None and stop.kind == 'proximity' and stop.robots == (0, 1)
+    gap = 0.030 - CRUISE_M_S * at
+    # At the first frame whose projection over the horizon crosses the stop gap: no sooner
+    # than needed, and the robot has the rest of the horizon to stop in.
+    reach = STOP_GAP_M + CRUISE_M_S * HORIZON_S
+    assert reach - CRUISE_M_S * FRAME_S <= gap < reach
+    assert 'robot_0 and robot_1' in stop.reason and 'closing at 14.0 mm/s' in stop.reason
+
+
+def test_two_robots_head_on_are_stopped_sooner():
+    guard = FleetGuard(2)
+    stop, at = drive(guard, {0: lambda t: (CRUISE_M_S * t, 0.0),
+                             1: lambda t: (0.040 - CRUISE_M_S * t, 0.0)}, 60)
+    assert stop is not None and stop.kind == 'proximity'
+    reach = STOP_GAP_M + 2 * CRUISE_M_S * HORIZON_S
+    assert reach - 2 * CRUISE_M_S * FRAME_S <= 0.040 - 2 * CRUISE_M_S * at < reach
+
+
+def test_planned_passes_on_lanes_at_the_clearance_are_never_stopped():
+    """Two robots passing each other at cruise on lanes 12 mm apart (the planner's pitch), and
+    one parked 12 mm beyond another's goal that it ramps down to."""
+    guard = FleetGuard(2)
+    stop, _ = drive(guard, {0: lambda t: (CRUISE_M_S * t, 0.0),
+                            1: lambda t: (0.060 - CRUISE_M_S * t, 0.012)}, 90)
+    assert stop is None and guard.closest_gap_m == pytest.approx(0.012, abs=1e-3)
+
+    def ramping(t):   # at cruise, then down to rest at its goal x = 0 in 0.17 s
+        ramp = 0.174
+        stop_at = 1.5
+        if t < stop_at - ramp:
+            return (-CRUISE_M_S * (stop_at - ramp / 2 - t), 0.0)
+        left = max(stop_at - t, 0.0)
+        return (-CRUISE_M_S * left * left / (2 * ramp), 0.0)
+
+    guard = FleetGuard(2)
+    stop, _ = drive(guard, {0: ramping, 1: lambda t: (0.012, 0.0)}, 60)
+    assert stop is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(speed=st.floats(1e-3, 30e-3), miss=st.floats(0.0, 20e-3),
+       angle=st.floats(0.0, 2 * math.pi), phase=st.floats(0.0, FRAME_S))
+def test_no_pass_under_the_stop_gap_goes_unstopped(speed, miss, angle, phase):
+    """Whatever their closing speed (up to two robots at twice cruise) and how wide they would
+    pass, two robots seen at 15 Hz are stopped before their centres come under the stop gap,
+    however the frames fall."""
+    direction = (math.cos(angle), math.sin(angle))
+    normal = (-direction[1], direction[0])
+
+    def mover(t):
+        along = -0.05 + speed * (t + phase)
+        return (along * direction[0] + miss * normal[0], along * direction[1] + miss * normal[1])
+
+    guard = FleetGuard(2)
+    frames = int((0.1 / speed) / FRAME_S) + 2
+    stop, at = drive(guard, {0: lambda t: (0.0, 0.0), 1: mover}, frames)
+    closest_after = min(math.hypot(*mover(at + k * 1e-3)) for k in range(200)) \
+        if stop else miss
+    if miss < STOP_GAP_M:
+        assert stop is not None
+    if stop is None:
+        assert miss >= STOP_GAP_M
+    else:
+        # Stopped while the gap was still above the stop gap.
+        assert math.hypot(*mover(at)) >= STOP_GAP_M
+        assert closest_after > CONTACT_GAP_M or math.hypot(*mover(at)) >= STOP_GAP_M
+
+
+def test_a_robot_driving_unnamed_is_stopped_after_the_bound_and_one_parked_is_not():
+    guard = FleetGuard(3)
+    for frame in range(10):
+        t = frame * FRAME_S
+        for robot in range(3):
+            guard.saw(robot, t, 0.02 * robot, 0.0, arrived_s=t)
+    last = 9 * FRAME_S
+    guard.driving(1, now_s=0.0)
+    # Robot 2 parked and unseen is no one's concern; robot 1 driving is, after the bound.
+    assert guard.check(last + UNNAMED_S - 0.01) is None
+    stop = guard.check(last + UNNAMED_S + 0.01)
+    assert stop is not None and stop.kind == 'unnamed' and stop.robots == (1,)
+    assert stop.reason.startswith('robot_1 drove unnamed by the cameras for 1.01 s')
+    assert 'last named at (20.0, 0.0) mm' in stop.reason
+    guard.driving(1, now_s=0.0, driving=False)
+    assert guard.check(last + 10.0) is None
+
+
+def test_a_robot_given_a_leg_before_any_capture_is_stopped_as_never_named():
+    guard = FleetGuard(2)
+    guard.driving(0, now_s=5.0)
+    assert guard.check(5.0 + UNNAMED_S) is None
+    stop = guard.check(5.0 + UNNAMED_S + 0.5)
+    assert stop is not None and 'never named' in stop.reason
+
+
+def test_a_late_capture_does_not_move_a_robot_back():
+    guard = FleetGuard(2)
+    guard.saw(0, 1.0, 0.0, 0.0, arrived_s=1.0)
+    guard.saw(1, 1.0, 0.05, 0.0, arrived_s=1.0)
+    guard.saw(1, 0.5, 0.0101, 0.0, arrived_s=1.1)    # older than its latest: a sign of life
+    assert guard.check(1.1) is None and guard.closest_gap_m == pytest.approx(0.05)
+
+
+@pytest.mark.parametrize(('name', 'value', 'said'), [
+    ('stop_gap_m', 0.005, 'at least the contact gap 9 mm'),
+    ('horizon_s', -1.0, 'horizon_s must be a positive number, got -1.0'),
+    ('unnamed_s', math.nan, 'unnamed_s must be a positive number, got nan')])
+def test_bad_settings_are_refused_naming_them(name, value, said):
+    with pytest.raises(ValueError, match=said):
+        FleetGuard(2, **{name: value})
