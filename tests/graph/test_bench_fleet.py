@@ -4,8 +4,8 @@ in, on the wall clock), and one wide camera driver showing both with the codes p
 `run --robots FILE --camera external --robot external` drives both to their goals whichever
 driver comes up first, and stops both, naming them, when two are driven at each other.
 
-``OMNI_MICRO_BENCH_REPEATS=20 ./scripts/test tests/graph/test_bench_fleet.py -k order`` runs
-each start order that many times in a row (docs/fleet.md quotes the count)."""
+``OMNI_MICRO_BENCH_REPEATS=20 ./scripts/test tests/graph/test_bench_fleet.py`` runs each start
+order, and the pair driven at each other, that many times (docs/fleet.md quotes the counts)."""
 
 import dataclasses
 import json
@@ -169,8 +169,9 @@ def closest_mm(truth: list[list[Odometry]]) -> float:
     return closest
 
 
+@pytest.mark.parametrize('repeat', range(REPEATS))
 def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_named(
-        bench, domain_id, tmp_path, probe, omni_micro):
+        bench, domain_id, tmp_path, probe, repeat):
     """Robot 0 is sent toward robot 1 (a goal 15 mm short of it) while robot 1, parked, is
     jogged by hand straight at robot 0: no planner keeps them apart. The guard stops both,
     names them, and the bench log keeps it; neither moves again."""
