@@ -26,7 +26,7 @@ def drive(guard, paths, frames, latency_s=0.0):
         t = frame * FRAME_S
         for robot, path in paths.items():
             guard.saw(robot, t, *path(t), arrived_s=t + latency_s)
-        stop = guard.check(t + latency_s)
+        stop = guard.check(t + latency_s, stamps_now_s=t + latency_s)
         if stop is not None:
             return stop, t
     return None, None
@@ -50,6 +50,22 @@ def test_a_robot_driven_at_a_still_one_is_stopped_with_room_for_the_stop():
     reach = STOP_GAP_M + CRUISE_M_S * HORIZON_S
     assert reach - CRUISE_M_S * FRAME_S <= gap < reach
     assert 'robot_0 and robot_1' in stop.reason and 'closing at 14.0 mm/s' in stop.reason
+    assert 'within 0.20 s (9 mm discs; seen 0.00 s ago)' in stop.reason
+
+
+@pytest.mark.parametrize('latency_s', [0.1, 0.25, 0.4])
+def test_captures_that_arrive_late_stop_the_robots_sooner_by_their_age(latency_s):
+    """On a busy machine a capture arrives old: the robots have closed further than it says,
+    and the stop is sent that much sooner, so the robots have the same room to stop in."""
+    guard = FleetGuard(2)
+    speed = 2 * CRUISE_M_S
+    stop, at = drive(guard, {0: lambda t: (speed * t, 0.0), 1: lambda t: (0.050, 0.0)}, 60,
+                     latency_s=latency_s)
+    assert stop is not None
+    gap_when_sent = 0.050 - speed * (at + latency_s)
+    reach = STOP_GAP_M + speed * HORIZON_S
+    assert reach - speed * FRAME_S <= gap_when_sent < reach
+    assert f'seen {latency_s:.2f} s ago' in stop.reason
 
 
 def test_two_robots_head_on_are_stopped_sooner():

@@ -45,13 +45,16 @@ def wide_calibration(tmp_path: Path) -> Path:
 
 
 def fleet_files(tmp_path: Path, goals_mm=GOALS_MM) -> tuple[Path, Path]:
+    """The robots at STARTS_MM; ``goals_mm``: each robot's goal, or its goals (a list)."""
     robots = tmp_path / 'robots.yaml'
     robots.write_text('robots:\n' + ''.join(
         f'  - start_mm: [{x}, {y}]\n    wheel_offsets_deg: [0, 0, 0]\n' for x, y in STARTS_MM))
     tasks = tmp_path / 'tasks.yaml'
+    goals = [robot if isinstance(robot, list) else [robot] for robot in goals_mm]
     tasks.write_text('tasks:\n' + ''.join(
-        f'  robot_{k}:\n    - goal_mm: [{x}, {y}]\n      tolerance_um: {TOLERANCE_UM}\n'
-        for k, (x, y) in enumerate(goals_mm) if (x, y) != STARTS_MM[k]))
+        f'  robot_{k}:\n' + ''.join(f'    - goal_mm: [{x}, {y}]\n      tolerance_um: '
+                                     f'{TOLERANCE_UM}\n' for x, y in own)
+        for k, own in enumerate(goals) if own != [STARTS_MM[k]]))
     return robots, tasks
 
 
@@ -172,9 +175,9 @@ def closest_mm(truth: list[list[Odometry]]) -> float:
 @pytest.mark.parametrize('repeat', range(REPEATS))
 def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_named(
         bench, domain_id, tmp_path, probe, repeat):
-    """Robot 0 is sent toward robot 1 (a goal 15 mm short of it) while robot 1, parked, is
-    jogged by hand straight at robot 0: no planner keeps them apart. The guard stops both,
-    names them, and the bench log keeps it; neither moves again."""
+    """Robot 0 is sent toward robot 1 (a goal 15 mm short of it, then back) while robot 1,
+    parked, is jogged by hand straight at robot 0: no planner keeps them apart. The guard stops
+    both, names them, and the bench log keeps it; neither moves again."""
     from geometry_msgs.msg import PoseStamped
 
     truth = truths(probe)
@@ -182,7 +185,7 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     probe.node.create_subscription(PoseStamped, '/robot_0/goal_pose', goals.append, 10)
     bag = tmp_path / 'bench_log'
     run = bench_run(domain_id, tmp_path, '--record', str(bag),
-                    goals_mm=((20.0, 15.0), STARTS_MM[1]))
+                    goals_mm=([(20.0, 15.0), STARTS_MM[0]], STARTS_MM[1]))
     start_camera(bench)
     start_robot(bench, 0)
     start_robot(bench, 1)
@@ -194,7 +197,7 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     last = err.strip().splitlines()[-1]
     assert last.startswith('omni-micro run: failed: stopped: every robot stopped: robot_0 and '
                            'robot_1 '), err
-    assert 'closing at' in last and 'under 10 mm within 0.2 s' in last
+    assert 'closing at' in last and 'under 10 mm within ' in last
     probe.spin_for(1.0)
     # Never closer than the stop gap's margin allows, and at rest: no move after the stop.
     closest = closest_mm(truth)

@@ -25,6 +25,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from rclpy.duration import Duration
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_bringup.composition import (
@@ -59,6 +60,9 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.controller_messages import stop_trajectory
 from omni_micro_control.fleet_guard import FleetGuard, GuardStop
+
+# How often the guard looks (a 15 Hz camera's frames come every 67 ms).
+GUARD_PERIOD_S = 0.02
 
 
 def check_bench(options: GraphOptions) -> None:
@@ -102,8 +106,10 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
         topics = recorded_topics(names, markers=False, without=(
             CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC, CAMERA_STATUS_TOPIC, *untracked),
             in_motion=names, cameras=sorted(cameras))
+        # Whole: the log keeps what came after the last goal's end too (a guard's stop, the
+        # robots coming to rest).
         spec = recorder_spec(options.record, options.storage, [*topics, FLEET_GUARD_TOPIC],
-                             whole=options.record_whole)
+                             whole=True)
         recorder = NodeSpec(spec.package, spec.executable, params=shipped, overrides={
             **spec.overrides, 'lockstep_ticks': False, 'log_clock': 'wall',
             **({'driver_images': sorted(cameras.values())} if options.record_images else {})},
@@ -136,7 +142,9 @@ def bench_publications(count: int, image_topics: list[str]) -> dict[str, str]:
 
 class BenchGuard:
     """Every robot's captures (still and in motion) on the orchestration's node: into its
-    route (seconds after ``origin_s``) and the guard; stops every robot when the guard says."""
+    route (seconds after ``origin_s``) and the guard, which a timer of that node asks every
+    GUARD_PERIOD_S whatever the orchestration is waiting for (a goal being taken, a service);
+    once it says stop, every robot is held stopped until the graph is down."""
 
     def __init__(self, node: Any, logs: list[RobotLog], cameras: list[str],
                  stop_gap_m: float, unnamed_s: float) -> None:
@@ -150,6 +158,7 @@ class BenchGuard:
                                             robot_topic(k, WHEEL_TRAJECTORY_TOPIC), 10)
                       for k in range(len(logs))]
         self.status = node.create_publisher(DiagnosticStatus, FLEET_GUARD_TOPIC, latched(10))
+        self.timer = node.create_timer(GUARD_PERIOD_S, self._on_tick)
         for k in range(len(logs)):
             for camera in cameras:
                 for topic in (CAPTURE_COVARIANCE_TOPICS[camera],
@@ -168,18 +177,32 @@ class BenchGuard:
                 stamp_s - self.origin_s, pose.position.x, pose.position.y,
                 quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
 
-    def check(self) -> GuardStop | None:
-        """Whether every robot must stop now; if so, stopped."""
-        stop = self.guard.check(time.monotonic())
+    def _on_tick(self) -> None:
+        if self.stopped is not None:
+            # Held: a goal handed out as the stop came would start a move.
+            self.stop_every_robot()
+            return
+        stop = self.guard.check(time.monotonic(), stamps_now_s=time.time())
         if stop is not None:
             self.halt(stop)
-        return stop
 
-    def halt(self, stop: GuardStop) -> None:
-        """An empty trajectory to every robot (its wheels ramp down now), then why, named."""
+    def stop_every_robot(self) -> None:
+        """An empty trajectory to every robot: its wheels ramp down now."""
         now_ns = time.time_ns()
         for publisher in self.stops:
             publisher.publish(stop_trajectory(now_ns))
+
+    def hand_over(self, timeout_s: float = 2.0) -> None:
+        """Until every reader (the drivers, the recorder) has acknowledged the stops and why:
+        a writer gone before then takes what it had not delivered with it."""
+        deadline = time.monotonic() + timeout_s
+        for publisher in (*self.stops, self.status):
+            publisher.wait_for_all_acked(Duration(
+                nanoseconds=max(round((deadline - time.monotonic()) * 1e9), 0)))
+
+    def halt(self, stop: GuardStop) -> None:
+        """Every robot stopped, then why, named."""
+        self.stop_every_robot()
         self.stopped = stop
         self.status.publish(DiagnosticStatus(
             level=DiagnosticStatus.ERROR, name='fleet guard', message=stop.reason,

@@ -173,9 +173,9 @@ class FleetDispatch:
         wall_start = time.monotonic()
         seen = 0
         while not dispatcher.finished:
-            stop = bench.check() if bench else None
-            if stop is not None:
-                outcome, reason = 'stopped', f'every robot stopped: {stop.reason}'
+            if bench is not None and bench.stopped is not None:
+                outcome, reason = 'stopped', f'every robot stopped: {bench.stopped.reason}'
+                bench.hand_over()
                 break
             if monitor.contacts:
                 contact = monitor.contacts[0]

@@ -2,12 +2,14 @@
 robots, so the run watches where the cameras name each one and stops them all when two come
 closer than the clearance allows, or when a robot driving a leg goes unnamed too long.
 
-Two robots are too close when, at their latest captures and closing as their last two captures
-say, their centres would come within ``stop_gap_m`` in the next ``horizon_s``: the time a stop
-takes to act (a frame, the tracker, the command) and the wheels' ramp down. A robot is
-unnamed while no capture of it (still or in motion) has arrived; one that drives a leg and stays
-unnamed longer than ``unnamed_s`` is driving blind. Times of arrival are the caller's clock (any
-monotonic one), positions in the platform frame, stamps the camera's.
+Two robots are too close when, from their latest captures and closing as their last two
+captures say, their centres would come within ``stop_gap_m`` before a stop sent now has taken
+hold: the captures' age (a frame waits for the tracker, the tracker for the machine: on a busy
+one a capture arrives a quarter of a second old) and ``horizon_s`` beyond it (the command on
+its way and the wheels' ramp down). A robot is unnamed while no capture of it (still or in
+motion) has arrived; one that drives a leg and stays unnamed longer than ``unnamed_s`` is
+driving blind. Times of arrival are the caller's clock (any monotonic one), positions in the
+platform frame, stamps the camera's.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ CONTACT_GAP_M = 9.0e-3
 # Stopped once two centres would come this close: 1 mm above contact. The planner keeps them
 # 12 mm apart (fleet_roadmap.CLEARANCE_M); planned runs came 11.37 mm close at the least.
 STOP_GAP_M = 10.0e-3
-# How far ahead the closing is projected: about 0.1 s for a stop to act (a 15 Hz frame, the
-# tracker, the command) and half of the wheels' 0.17 s ramp down (8.7 rad/s at 50 rad/s^2).
+# How far beyond now the closing is projected: the command on its way, and the wheels' 0.17 s
+# ramp down (8.7 rad/s at 50 rad/s^2).
 HORIZON_S = 0.2
 # A robot driving a leg stopped after this long unnamed (15 frames of a 15 Hz camera).
 UNNAMED_S = 1.0
@@ -101,8 +103,10 @@ class FleetGuard:
         else:
             self._driving_since.pop(robot, None)
 
-    def check(self, now_s: float) -> GuardStop | None:
-        """Whether every robot must stop now (``now_s`` on the arrivals' clock)."""
+    def check(self, now_s: float, stamps_now_s: float | None = None) -> GuardStop | None:
+        """Whether every robot must stop now (``now_s`` on the arrivals' clock;
+        ``stamps_now_s``, now on the stamps' clock, for the captures' age: without it they are
+        taken as fresh)."""
         for robot, since in sorted(self._driving_since.items()):
             seen = self._seen.get(robot)
             named_s = max(since, seen.arrived_s) if seen else since
@@ -113,18 +117,20 @@ class FleetGuard:
                     f'{robot_name(robot)} drove unnamed by the cameras for '
                     f'{now_s - named_s:.2f} s (over {self.unnamed_s:g} s; {last})'))
         for a, b in itertools.combinations(sorted(self._seen), 2):
-            gap, closing = self.projected_gap(a, b)
+            age = 0.0 if stamps_now_s is None else min(
+                max(stamps_now_s - self._later(a, b), 0.0), VELOCITY_SPAN_S)
+            gap, closing = self.projected_gap(a, b, age + self.horizon_s)
             if gap < self.stop_gap_m:
                 now_gap = math.dist(*(_position_at(self._seen[r], self._later(a, b))[:2]
                                       for r in (a, b)))
                 return GuardStop('proximity', (a, b), (
                     f'{robot_name(a)} and {robot_name(b)} {now_gap * 1e3:.2f} mm apart, '
                     f'closing at {closing * 1e3:.1f} mm/s: under {self.stop_gap_m * 1e3:g} mm '
-                    f'within {self.horizon_s:g} s (9 mm discs)'))
+                    f'within {age + self.horizon_s:.2f} s (9 mm discs; seen {age:.2f} s ago)'))
         return None
 
-    def projected_gap(self, a: int, b: int) -> tuple[float, float]:
-        """The closest robots ``a`` and ``b`` come within the horizon from their latest
+    def projected_gap(self, a: int, b: int, ahead_s: float) -> tuple[float, float]:
+        """The closest robots ``a`` and ``b`` come within ``ahead_s`` from their latest
         captures (both taken to the later's stamp), and how fast they close now."""
         at = self._later(a, b)
         pa, pb = _position_at(self._seen[a], at), _position_at(self._seen[b], at)
@@ -134,7 +140,7 @@ class FleetGuard:
         distance = math.hypot(px, py)
         closing = -(px * vx + py * vy) / distance if distance > 0 else 0.0
         speed2 = vx * vx + vy * vy
-        t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), self.horizon_s)
+        t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), ahead_s)
         return math.hypot(px + vx * t, py + vy * t), closing
 
     def _later(self, a: int, b: int) -> float:
