@@ -168,3 +168,11 @@ def test_a_late_capture_does_not_move_a_robot_back():
 def test_bad_settings_are_refused_naming_them(name, value, said):
     with pytest.raises(ValueError, match=said):
         FleetGuard(2, **{name: value})
+
+
+def test_a_robot_seen_away_from_its_planned_start_is_said_with_both_places():
+    guard = FleetGuard(3)
+    guard.saw(0, 1.0, 0.0201, 0.0, arrived_s=1.0)      # 0.1 mm off: where it was put
+    guard.saw(1, 1.0, 0.0220, 0.030, arrived_s=1.0)    # 2 mm off: another place
+    assert guard.misplaced([(0.020, 0.0), (0.020, 0.030), (0.050, 0.0)]) == [
+        'robot_1 stands at (22.00, 30.00) mm, 2.00 mm from its start (20, 30) mm']

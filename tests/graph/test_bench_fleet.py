@@ -230,6 +230,30 @@ def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tm
         assert math.hypot(twist.x, twist.y) < 1e-6
 
 
+def test_a_robot_not_where_the_robots_file_says_is_refused_before_any_goal(
+        bench, domain_id, tmp_path, probe):
+    """Robot 1 stands 3 mm from its start in the robots file: the plan would be wrong, so no
+    goal is handed out, and the line says where it is."""
+    from geometry_msgs.msg import PoseStamped
+
+    goals: list[PoseStamped] = []
+    for k in range(2):
+        probe.node.create_subscription(PoseStamped, f'/robot_{k}/goal_pose', goals.append, 10)
+    run = bench_run(domain_id, tmp_path)
+    start_camera(bench)
+    start_robot(bench, 0)
+    x, y = STARTS_MM[1]
+    bench('robot_driver.py', str(x * 1e-3), str((y + 3.0) * 1e-3), '0.0', '0', '/robot_1')
+    _out, err = finished(run, 90)
+    assert run.returncode == 2, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith('omni-micro run: error: robot_1 stands at (20.0'), err
+    assert "from its start (20, 30) mm in the robots file: the plan starts from the file's " \
+        "places; give each robot's start_mm where it stands" in last
+    probe.spin_for(0.5)
+    assert not goals
+
+
 def check_the_stop_in_the_bench_log(bag: Path) -> None:
     """The bag keeps each robot's wheels and commands, the stop sent to each, and why."""
     from omni_micro_tools.bag_reading import read_bag

@@ -40,6 +40,7 @@ from omni_micro_bringup.fleet_composition import (
     controller_modes,
     fleet_specs,
 )
+from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_spec import NodeSpec
@@ -288,6 +289,10 @@ class FleetDispatch:
                                  recording=self.options.record is not None, clock=False)
         wait_for_fleet_bench(monitor, graph, [robot_name(k) for k in range(self.count)],
                              lambda: bench.named, BENCH_READY_S)
+        misplaced = bench.guard.misplaced(self.fleet.plan.starts_m)
+        if misplaced:
+            raise UsageError(f'{"; ".join(misplaced)} in the robots file: the plan starts from '
+                             'the file\'s places; give each robot\'s start_mm where it stands')
         bench.origin_s = time.time()
 
     def goals_published(self) -> dict[str, int]:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from omni_micro_common.topic_names import robot_name
@@ -30,6 +31,9 @@ STOP_GAP_M = 10.0e-3
 HORIZON_S = 0.2
 # A robot driving a leg stopped after this long unnamed (15 frames of a 15 Hz camera).
 UNNAMED_S = 1.0
+# A robot seen this far from the start its plan has is somewhere else: the planner kept the
+# others 12 mm from where it is not (3 mm more than the discs need, shared by two robots).
+START_WITHIN_M = 1.5e-3
 # Two captures further apart than this give no velocity (the robot was not followed between).
 VELOCITY_SPAN_S = 0.5
 
@@ -95,6 +99,20 @@ class FleetGuard:
                 if gap < self.closest_gap_m:
                     self.closest_gap_m, self.closest_pair = gap, (min(robot, other),
                                                                   max(robot, other))
+
+    def misplaced(self, starts_m: Sequence[tuple[float, float]],
+                  within_m: float = START_WITHIN_M) -> list[str]:
+        """Each robot the cameras see farther than ``within_m`` from its start in ``starts_m``
+        (where the plan has it), said with both places."""
+        said = []
+        for robot, start in enumerate(starts_m):
+            seen = self._seen.get(robot)
+            if seen is not None and math.dist((seen.x_m, seen.y_m), start) > within_m:
+                said.append(f'{robot_name(robot)} stands at ({seen.x_m * 1e3:.2f}, '
+                            f'{seen.y_m * 1e3:.2f}) mm, '
+                            f'{math.dist((seen.x_m, seen.y_m), start) * 1e3:.2f} mm from its '
+                            f'start ({start[0] * 1e3:g}, {start[1] * 1e3:g}) mm')
+        return said
 
     def driving(self, robot: int, now_s: float, driving: bool = True) -> None:
         """``robot`` has a leg under way from ``now_s`` (or, ``driving`` False, none)."""
