@@ -28,6 +28,7 @@ from omni_micro_bringup.composition import (
     check_record_images,
     check_respawn,
 )
+from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_bench import (
     BenchGuard,
     bench_publications,
@@ -40,7 +41,6 @@ from omni_micro_bringup.fleet_composition import (
     controller_modes,
     fleet_specs,
 )
-from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_spec import NodeSpec
