@@ -9,6 +9,11 @@ a controller reports the end of a goal, simulated time stands still until the co
 handed out what that end allows and reported it handled, and every goal is stamped with the end
 it follows (the later of the ends a leg waits for), which the controller counts from
 (``goal_time: stamp``). The same plan and seed so give the same run at any speed and load.
+
+With real robots (``options.external``: :mod:`omni_micro_bringup.fleet_bench`) nothing is in
+lockstep: the robots' time is the wall clock from the first goal, each goal stamped with the
+wall-clock end it follows, and the bench's guard, not dynamics_node, ends a run whose robots
+would touch.
 """
 
 from __future__ import annotations
