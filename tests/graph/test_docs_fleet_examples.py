@@ -2,7 +2,8 @@
 them (``run --robots robots.yaml --tasks tasks.yaml --rtf 2 --json``), as fast as the lockstep
 allows: the run is the same at any --rtf (test_fleet_graph.py shows it byte for byte). The
 page's line on rendered images is taken up to the graph in tests/cli/test_docs_examples.py
-(a run of two robots on images: test_fleet_images.py)."""
+(a run of two robots on images: test_fleet_images.py); its line on the bench needs drivers:
+test_fleet_bench_loop.py runs the same options against stand-ins."""
 
 from __future__ import annotations
 
@@ -14,8 +15,10 @@ import pytest
 from conftest import ROOT
 from docs_examples import DOCS, documented_command_lines, documented_file
 
+# The bench's line needs drivers: test_fleet_bench_loop.py runs it against stand-ins.
 GRAPH_LINES = [argv for argv in documented_command_lines((DOCS / 'fleet.md').read_text())
-               if argv[0] == 'run' and 'tasks.yaml' in argv and '--vision' not in argv]
+               if argv[0] == 'run' and 'tasks.yaml' in argv and '--vision' not in argv
+               and '--camera' not in argv]
 
 
 def test_the_page_runs_its_files_through_the_graph():

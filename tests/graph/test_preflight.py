@@ -17,9 +17,20 @@ from omni_micro_common.conventions import JOINT_NAMES
 BENCH = Path(__file__).resolve().parents[1] / 'bench'
 
 
-def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tmp_path):
+def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tmp_path, probe):
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import CameraInfo, JointState
+
     camera = bench('camera_driver.py', '/bench/camera', 'bayer_rggb8', 'chessboard')
     bench('robot_driver.py', '0.1', '0.0', '0.0')
+    # Against live drivers, as a lab runs it: on a busy machine a driver takes seconds to come
+    # up (the suite once gave the preflight's 4 s no frame at all).
+    infos: list[CameraInfo] = []
+    states: list[JointState] = []
+    probe.node.create_subscription(CameraInfo, '/bench/camera/camera_info', infos.append,
+                                   qos_profile_sensor_data)
+    probe.node.create_subscription(JointState, '/joint_states', states.append, 10)
+    probe.spin_until(lambda: bool(infos and states), 60.0, "the stand-ins' first messages")
     params = tmp_path / 'tracker.yaml'
     # The stand-in's own sensor (camera_driver.py: OPTICS), as a lab's params file says it.
     params.write_text(yaml.safe_dump({'tracker_node': {'ros__parameters': {

@@ -4,7 +4,7 @@ in, on the wall clock), and one wide camera driver showing both with the codes p
 `run --robots FILE --camera external --robot external` drives both to their goals whichever
 driver comes up first, and stops both, naming them, when two are driven at each other.
 
-``OMNI_MICRO_BENCH_REPEATS=20 ./scripts/test tests/graph/test_bench_fleet.py`` runs each start
+``OMNI_MICRO_BENCH_REPEATS=20 ./scripts/test tests/graph/test_fleet_bench_loop.py`` runs each start
 order, and the pair driven at each other, that many times (docs/fleet.md quotes the counts)."""
 
 import dataclasses
