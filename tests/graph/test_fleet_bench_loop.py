@@ -58,15 +58,15 @@ def fleet_files(tmp_path: Path, goals_mm=GOALS_MM) -> tuple[Path, Path]:
     return robots, tasks
 
 
-def bench_run(domain_id: int, tmp_path: Path, *extra: str,
-              goals_mm=GOALS_MM) -> subprocess.Popen:
+def bench_run(domain_id: int, tmp_path: Path, *extra: str, goals_mm=GOALS_MM,
+              door: tuple[str, ...] = ('run', '--timeout', '120')) -> subprocess.Popen:
+    """The run on the bench through ``door`` (``run``, or ``fleet --graph``: the same run)."""
     robots, tasks = fleet_files(tmp_path, goals_mm)
     return subprocess.Popen(
-        [str(ROOT / 'scripts' / 'omni-micro'), 'run', '--robots', str(robots), '--tasks',
+        [str(ROOT / 'scripts' / 'omni-micro'), *door, '--robots', str(robots), '--tasks',
          str(tasks), '--camera', 'external', '--robot', 'external', '--domain-id',
          str(domain_id), '--params', str(wide_calibration(tmp_path)), '--image-topic',
-         'macro=/bench/camera/image_raw', '--log-dir', str(tmp_path / 'runs'), '--timeout',
-         '120', '--json', *extra],
+         'macro=/bench/camera/image_raw', '--log-dir', str(tmp_path / 'runs'), '--json', *extra],
         env=node_environment(domain_id, tmp_path), stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True)
 
@@ -233,13 +233,14 @@ def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tm
 def test_a_robot_not_where_the_robots_file_says_is_refused_before_any_goal(
         bench, domain_id, tmp_path, probe):
     """Robot 1 stands 3 mm from its start in the robots file: the plan would be wrong, so no
-    goal is handed out, and the line says where it is."""
+    goal is handed out, and the line says where it is (through fleet --graph, the other door
+    to the same run)."""
     from geometry_msgs.msg import PoseStamped
 
     goals: list[PoseStamped] = []
     for k in range(2):
         probe.node.create_subscription(PoseStamped, f'/robot_{k}/goal_pose', goals.append, 10)
-    run = bench_run(domain_id, tmp_path)
+    run = bench_run(domain_id, tmp_path, door=('fleet', '--graph'))
     start_camera(bench)
     start_robot(bench, 0)
     x, y = STARTS_MM[1]
@@ -247,7 +248,7 @@ def test_a_robot_not_where_the_robots_file_says_is_refused_before_any_goal(
     _out, err = finished(run, 90)
     assert run.returncode == 2, err
     last = err.strip().splitlines()[-1]
-    assert last.startswith('omni-micro run: error: robot_1 stands at (20.0'), err
+    assert last.startswith('omni-micro fleet: error: robot_1 stands at (20.0'), err
     assert "from its start (20, 30) mm in the robots file: the plan starts from the file's " \
         "places; give each robot's start_mm where it stands" in last
     probe.spin_for(0.5)
