@@ -191,20 +191,12 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     start_robot(bench, 1)
     probe.spin_until(lambda: bool(goals), 90.0, "robot_0's goal")
     jog(probe, 1, -math.pi / 2, 2.0)
-    out, err = finished(run, 90)
-    assert run.returncode == 1, err
-    assert json.loads(out)['outcome'] == 'stopped'
-    last = err.strip().splitlines()[-1]
-    assert last.startswith('omni-micro run: failed: stopped: every robot stopped: robot_0 and '
-                           'robot_1 '), err
+    last = stopped(run, 'robot_0 and robot_1 ')
     assert 'closing at' in last and 'under 10 mm within ' in last
-    probe.spin_for(1.0)
-    # Never closer than the stop gap's margin allows, and at rest: no move after the stop.
+    # At rest a second on (no move after the stop), and never closer than the discs allow.
+    assert_at_rest(probe, truth)
     closest = closest_mm(truth)
     assert closest > 9.0, f'the discs touched: centres {closest:.2f} mm apart'
-    for k in range(2):
-        twist = truth[k][-1].twist.twist.linear
-        assert math.hypot(twist.x, twist.y) < 1e-6
     print(f'stopped: {last}; the closest the centres came: {closest:.2f} mm')
     check_the_stop_in_the_bench_log(bag)
 
@@ -217,13 +209,23 @@ def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tm
     start_camera(bench, robots='robot_0,robot_1@moving')
     start_robot(bench, 0)
     start_robot(bench, 1)
+    last = stopped(run, 'robot_1 drove unnamed by the cameras for 1.0')
+    assert 'last named at (20.0, 30.0) mm' in last
+    assert_at_rest(probe, truth)
+
+
+def stopped(run: subprocess.Popen, why: str) -> str:
+    """The run's last line, once it has ended stopped by the guard for ``why`` (its start)."""
     out, err = finished(run, 90)
     assert run.returncode == 1, err
     assert json.loads(out)['outcome'] == 'stopped'
     last = err.strip().splitlines()[-1]
-    assert last.startswith('omni-micro run: failed: stopped: every robot stopped: robot_1 drove '
-                           'unnamed by the cameras for 1.0'), err
-    assert 'last named at (20.0, 30.0) mm' in last
+    assert last.startswith(f'omni-micro run: failed: stopped: every robot stopped: {why}'), err
+    return last
+
+
+def assert_at_rest(probe, truth: list[list[Odometry]]) -> None:
+    """Both stand-in robots still a second on: no move after the stop."""
     probe.spin_for(1.0)
     for k in range(2):
         twist = truth[k][-1].twist.twist.linear

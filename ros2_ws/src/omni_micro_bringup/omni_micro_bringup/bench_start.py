@@ -63,17 +63,8 @@ def wait_for_bench(monitor: BenchWatcher, graph: Supervisor, robot: bool,
         Naming what is still missing after ``timeout_s``, and where to look.
     """
     node, echo = monitor.node, monitor.echo
-    has_robot_state = not robot
     said: dict[str, str] = {}
-
-    def on_report(data: bytes) -> None:
-        nonlocal has_robot_state
-        try:
-            ack = decode_ack_bytes(data)
-        except LockstepError:
-            return   # not ours to judge: the nodes of the graph report well-formed
-        if ack is not None and ack.node == CONTROLLER and (ack.processed_ns or 0) > 0:
-            has_robot_state = True
+    with_state: set[int] = set()
 
     def tracker_status_of(camera: str) -> Callable[[DiagnosticStatus], None]:
         def on_status(msg: DiagnosticStatus) -> None:
@@ -82,22 +73,24 @@ def wait_for_bench(monitor: BenchWatcher, graph: Supervisor, robot: bool,
                 said[camera] = msg.message + _ages_said(values)
         return on_status
 
-    subscriptions = [node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report,
-                                              LOCKSTEP_QOS, raw=True)] if robot else []
+    subscriptions = [state_reports(node, {CONTROLLER: 0}, with_state)] if robot else []
     subscriptions += [node.create_subscription(DiagnosticStatus, TRACKER_STATUS_TOPICS[camera],
                                                tracker_status_of(camera), latched(1))
                       for camera in cameras]
 
     what = "frames' age" if ages else 'frame'
 
+    def has_robot_state() -> bool:
+        return not robot or bool(with_state)
+
     def missing() -> list[str]:
-        return ([] if has_robot_state else
+        return ([] if has_robot_state() else
                 [f"the robot's first {JOINT_STATES_TOPIC} at {CONTROLLER}"]) + \
             [f"tracker_node's first {camera} {what} ({topic})"
              for camera, topic in cameras.items() if camera not in said]
 
     try:
-        took = wait_until_present(monitor, graph, missing, lambda: not has_robot_state,
+        took = wait_until_present(monitor, graph, missing, lambda: not has_robot_state(),
                                   timeout_s)
     finally:
         for subscription in subscriptions:
@@ -121,15 +114,6 @@ def wait_for_fleet_bench(monitor: BenchWatcher, graph: Supervisor, robots: list[
     """
     node, echo = monitor.node, monitor.echo
     with_state: set[int] = set()
-    reporters = {qualified_node_name(robot, CONTROLLER): k for k, robot in enumerate(robots)}
-
-    def on_report(data: bytes) -> None:
-        try:
-            ack = decode_ack_bytes(data)
-        except LockstepError:
-            return   # not ours to judge: the nodes of the graph report well-formed
-        if ack is not None and ack.node in reporters and (ack.processed_ns or 0) > 0:
-            with_state.add(reporters[ack.node])
 
     def missing() -> list[str]:
         return ([f"{robots[k]}'s first {namespaced_topic(robots[k], JOINT_STATES_TOPIC)}"
@@ -137,8 +121,8 @@ def wait_for_fleet_bench(monitor: BenchWatcher, graph: Supervisor, robots: list[
                 + [f'a frame naming {robots[k]} (its code)' for k in range(len(robots))
                    if k not in named()])
 
-    subscription = node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report,
-                                            LOCKSTEP_QOS, raw=True)
+    subscription = state_reports(node, {qualified_node_name(robot, CONTROLLER): k
+                                        for k, robot in enumerate(robots)}, with_state)
     try:
         took = wait_until_present(monitor, graph, missing,
                                   lambda: len(with_state) < len(robots), timeout_s)
@@ -147,6 +131,21 @@ def wait_for_fleet_bench(monitor: BenchWatcher, graph: Supervisor, robots: list[
     if echo:
         echo(f'[orchestration] the bench is ready after {took:.2f} s: every robot\'s driver '
              f'publishes, the cameras name {", ".join(robots)}')
+
+
+def state_reports(node: Any, controllers: dict[str, int], with_state: set[int]) -> Any:
+    """A subscription to /lockstep that adds to ``with_state`` each robot whose controller
+    (``controllers``: its name on /lockstep -> the robot) has reported a wheel state handled."""
+    def on_report(data: bytes) -> None:
+        try:
+            ack = decode_ack_bytes(data)
+        except LockstepError:
+            return   # not ours to judge: the nodes of the graph report well-formed
+        if ack is not None and ack.node in controllers and (ack.processed_ns or 0) > 0:
+            with_state.add(controllers[ack.node])
+
+    return node.create_subscription(DiagnosticStatus, ACK_TOPIC, on_report, LOCKSTEP_QOS,
+                                    raw=True)
 
 
 def wait_until_present(monitor: BenchWatcher, graph: Supervisor,

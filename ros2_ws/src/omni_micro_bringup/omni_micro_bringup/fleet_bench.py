@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -110,10 +111,9 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
         # robots coming to rest).
         spec = recorder_spec(options.record, options.storage, [*topics, FLEET_GUARD_TOPIC],
                              whole=True)
-        recorder = NodeSpec(spec.package, spec.executable, params=shipped, overrides={
+        recorder = replace(spec, params=shipped, overrides={
             **spec.overrides, 'lockstep_ticks': False, 'log_clock': 'wall',
-            **({'driver_images': sorted(cameras.values())} if options.record_images else {})},
-            lockstep=True)
+            **({'driver_images': sorted(cameras.values())} if options.record_images else {})})
     specs = [NodeSpec('omni_micro_vision', 'tracker_node', params=shipped, overrides=tracker)]
     for k in range(count):
         specs.append(robot_node(k, 'omni_micro_control', 'controller_node', {
@@ -152,7 +152,6 @@ class BenchGuard:
         self.logs = logs
         self.guard = FleetGuard(len(logs), stop_gap_m=stop_gap_m, unnamed_s=unnamed_s)
         self.origin_s = 0.0
-        self.named: set[int] = set()
         self.stopped: GuardStop | None = None
         self.stops = [node.create_publisher(JointTrajectory,
                                             robot_topic(k, WHEEL_TRAJECTORY_TOPIC), 10)
@@ -170,7 +169,6 @@ class BenchGuard:
     def _on_capture(self, robot: int, msg: PoseWithCovarianceStamped) -> None:
         stamp_s = join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
         pose = msg.pose.pose
-        self.named.add(robot)
         self.guard.saw(robot, stamp_s, pose.position.x, pose.position.y, time.monotonic())
         if self.origin_s:   # the run's route, from its start
             self.logs[robot].route.append((

@@ -293,7 +293,7 @@ class FleetDispatch:
                                                                  list(cameras.values())),
                                  recording=self.options.record is not None, clock=False)
         wait_for_fleet_bench(monitor, graph, [robot_name(k) for k in range(self.count)],
-                             lambda: bench.named, BENCH_READY_S)
+                             lambda: bench.guard.named, BENCH_READY_S)
         misplaced = bench.guard.misplaced(self.fleet.plan.starts_m)
         if misplaced:
             raise UsageError(f'{"; ".join(misplaced)} in the robots file: the plan starts from '

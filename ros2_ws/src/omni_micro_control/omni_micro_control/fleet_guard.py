@@ -100,6 +100,11 @@ class FleetGuard:
                     self.closest_gap_m, self.closest_pair = gap, (min(robot, other),
                                                                   max(robot, other))
 
+    @property
+    def named(self) -> set[int]:
+        """The robots some capture has named."""
+        return set(self._seen)
+
     def misplaced(self, starts_m: Sequence[tuple[float, float]],
                   within_m: float = START_WITHIN_M) -> list[str]:
         """Each robot the cameras see farther than ``within_m`` from its start in ``starts_m``
