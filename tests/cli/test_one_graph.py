@@ -13,11 +13,13 @@ from omni_micro_bringup import graph
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_composition import fleet_specs
+from omni_micro_bringup.fleet_graph import first_tick_past
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
 from omni_micro_cli.cli import main
 from omni_micro_sim.parameters import RobotParameters
+from omni_micro_sim.stepper import GridSimulator
 
 
 def asked_of_the_graph(monkeypatch, argv: list[str]) -> GraphOptions:
@@ -154,3 +156,14 @@ def test_a_single_robot_s_run_without_its_goal_is_refused_before_anything_starts
     with pytest.raises(UsageError, match='needs its goal'):
         graph.run_graph(GraphOptions(log_dir=tmp_path / 'runs'))
     assert not (tmp_path / 'runs').exists()
+
+
+@pytest.mark.parametrize('period_s', [0.02, 0.1, 0.03])
+@pytest.mark.parametrize('limit_s', [0.0, 0.3, 8.0, 29.0, 600.0])
+def test_a_fleet_graph_ends_its_time_at_the_tick_the_twin_stops_at(limit_s, period_s):
+    """The twin steps its grid until a tick's time is past the limit (0.3 s is past 3 ticks
+    of 0.1 s in floats): the graph ends its run at that tick, not a tick either side."""
+    grid = GridSimulator(RobotParameters(), period_s=period_s)
+    while grid.time_s <= limit_s:
+        grid.advance()
+    assert first_tick_past(limit_s, period_s) == grid.time_s

@@ -48,6 +48,7 @@ from omni_micro_bringup.fleet_composition import (
 )
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
+from omni_micro_bringup.node_overrides import grid_period_s
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
@@ -66,6 +67,18 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
+
+# Stamps are whole nanoseconds: a tick's time as a float and as its stamp agree within one.
+STAMP_RESOLUTION_S = 1e-9
+
+
+def first_tick_past(limit_s: float, period_s: float) -> float:
+    """The robots' time at which the twin stops for ``limit_s`` (its ``max_sim_time_s``): the
+    first tick of its grid past it, as its stepper computes a tick's time."""
+    tick = max(0, math.floor(limit_s / period_s) - 1)
+    while tick * period_s <= limit_s:
+        tick += 1
+    return tick * period_s
 
 
 def ready_topics(count: int) -> list[tuple[str, ...]]:
@@ -159,6 +172,17 @@ class FleetDispatch:
             self.wait_for_bench(graph)
         # The robots' time 0: the wall clock's now on the bench (the stamps are its), else 0.
         origin_s = bench.origin_s if bench else 0.0
+        # Simulated, the run ends where the twin's does: at the first tick past the limit, once
+        # the robots' time is far enough past it that everything up to it is in (each capture
+        # is handled within a controller's command lead, each end before time goes on) and the
+        # bag's tail already run. What is stamped past it counts for nothing.
+        limit_s = None if bench else first_tick_past(
+            self.fleet.max_sim_time_s, grid_period_s(options.params_files,
+                                                     options.dynamics_overrides))
+        settled_s = BAG_TAIL_S + RUN_ON_PAST_BAG_END_S
+
+        def past_limit(at_s: float) -> bool:
+            return limit_s is not None and at_s > limit_s + STAMP_RESOLUTION_S
         dispatcher = LegDispatcher(plan, self.modes)
         started: dict[int, float] = {}
         driving: dict[int, GoalOrder] = {}   # each robot's leg under way
@@ -183,8 +207,10 @@ class FleetDispatch:
                 outcome, reason = 'stopped', f'every robot stopped: {bench.stopped.reason}'
                 bench.hand_over()
                 break
-            if monitor.contacts:
-                contact = monitor.contacts[0]
+            contacts = [contact for contact in monitor.contacts
+                        if not past_limit(float(contact['time_s']))]
+            if contacts:
+                contact = contacts[0]
                 a, b = contact['robots'].split(',')
                 outcome = 'contact'
                 reason = (f'{a} and {b} touched at {float(contact["time_s"]):.2f} s: centres '
@@ -196,13 +222,18 @@ class FleetDispatch:
                 break
             # On the clock, as the twin looks at it each step (not only as goals end: a robot
             # may drive for long with nothing ending).
-            clock_s = max(now_s, (time.time() - origin_s) if bench else
-                          monitor.simulated_time_s() or 0.0)
-            if clock_s > self.fleet.max_sim_time_s:
-                outcome, now_s = 'timeout', clock_s
+            if bench is not None and time.time() - origin_s > self.fleet.max_sim_time_s:
+                outcome, now_s = 'timeout', max(now_s, time.time() - origin_s)
                 reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
                 break
             if seen == len(monitor.fleet_statuses):
+                if limit_s is not None and \
+                        (monitor.simulated_time_s() or 0.0) >= limit_s + settled_s:
+                    outcome, now_s = 'timeout', limit_s
+                    reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
+                    for log in logs:
+                        log.route = [sample for sample in log.route if not past_limit(sample[0])]
+                    break
                 graph.check_alive()
                 if graph.restarted:
                     # Brought back once every status read so far is handled: a leg that
@@ -218,6 +249,12 @@ class FleetDispatch:
                 continue
             robot, status = monitor.fleet_statuses[seen]
             seen += 1
+            at_s = float(status[STATUS_TIME_KEY]) - origin_s
+            if past_limit(at_s):
+                # The twin stops before it: an end is only said handled, so that time goes on.
+                if status['message'] in OUTCOME_NAMES:
+                    self.handled(robot, at_s)
+                continue
             if status['message'] == 'moving':
                 logs[robot].moves += 1
             if 'estimate.xi2' in status:
@@ -225,7 +262,6 @@ class FleetDispatch:
                                                   float(status['estimate.xi3']))
             if status['message'] not in OUTCOME_NAMES:
                 continue
-            at_s = float(status[STATUS_TIME_KEY]) - origin_s
             if status.get('reason') == REPLACED_REASON:
                 # Not an end that gives a goal: said handled, so that time goes on.
                 self.handled(robot, at_s)

@@ -154,10 +154,9 @@ def servo_timing_of(params_files: tuple[Path, ...], camera: str = 'vision_node',
     """:func:`servo_timing` of a simulated robot seen by ``camera`` (vision_node, or
     camera_node's rendered images), its nodes' parameters from ``params_files`` and the
     overrides."""
-    dynamics = node_parameters('dynamics_node', params_files, dynamics_overrides or {})
     vision = node_parameters(camera, params_files, vision_overrides or {})
     try:
-        period = _number(dynamics.get('publish_period_s', DEFAULT_PERIOD_S))
+        period = _grid_period_s(params_files, dynamics_overrides)
         if camera == 'vision_node':
             timings = [CameraTiming(**{name: _number(vision[f'{camera_name}.motion.{name}'])
                                        for name in CameraTiming.__dataclass_fields__
@@ -173,6 +172,22 @@ def servo_timing_of(params_files: tuple[Path, ...], camera: str = 'vision_node',
         return {}   # the node given the bad value refuses it, naming it
     return {'servo.capture_age_s': capture_age_bound_s(timings, period),
             'servo.command_period_s': period}
+
+
+def grid_period_s(params_files: tuple[Path, ...],
+                  dynamics_overrides: dict[str, object] | None = None) -> float:
+    """The simulated robots' grid period, dynamics_node's ``publish_period_s`` as the params
+    and overrides give it (the default if it is no number: the node refuses it, naming it)."""
+    try:
+        return _grid_period_s(params_files, dynamics_overrides)
+    except TypeError:
+        return DEFAULT_PERIOD_S
+
+
+def _grid_period_s(params_files: tuple[Path, ...],
+                   dynamics_overrides: dict[str, object] | None) -> float:
+    dynamics = node_parameters('dynamics_node', params_files, dynamics_overrides or {})
+    return _number(dynamics.get('publish_period_s', DEFAULT_PERIOD_S))
 
 
 def _number(value: object) -> float:
