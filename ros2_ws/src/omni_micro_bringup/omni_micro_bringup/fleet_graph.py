@@ -243,8 +243,6 @@ class FleetDispatch:
                     continue
                 monitor.respawns.watch_new_cameras(graph, driving)
                 monitor.check_recorder()
-                if bench is None:
-                    monitor.repeat_reports()
                 monitor.spin_for(0.02)
                 continue
             robot, status = monitor.fleet_statuses[seen]

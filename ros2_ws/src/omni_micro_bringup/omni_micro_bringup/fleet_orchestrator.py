@@ -46,9 +46,6 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.fleet_legs import GoalOrder
 
-# How often the coordinator says again what it has handled (FleetMonitor.repeat_reports).
-REPORT_REPEAT_S = 0.1
-
 
 class FleetMonitor(Orchestrator):
     """The orchestration's node with every robot's goals, statuses and odometry, and its part
@@ -78,11 +75,9 @@ class FleetMonitor(Orchestrator):
         # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
         # and each end is held until that robot's is handled.
         self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
-        self._handled = [-1] * count
         self.contacts: list[dict[str, str]] = []   # dynamics_node's: two chassis touching
         self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
                                       STATUS_QOS)
-        self._reported_at = 0.0
         self.goals_given: dict[str, int] = {}   # per robot's goal topic
 
     def _on_contact(self, msg: DiagnosticStatus) -> None:
@@ -105,19 +100,8 @@ class FleetMonitor(Orchestrator):
         return max(stamps) if stamps else None
 
     def report_handled(self, robot: int, outcome_ns: int) -> None:
-        self._handled[robot] = outcome_ns
         self.reporters[robot].report(Ack(coordinator_name(robot), None,
                                          outcome_handled_ns=outcome_ns))
-
-    def repeat_reports(self) -> None:
-        """Every robot's last report again, every REPORT_REPEAT_S of wall time: a report sent
-        before the robot's reader matched this writer is lost, and time would stand at the lead
-        (as markers_node's once did)."""
-        if time.monotonic() - self._reported_at < REPORT_REPEAT_S:
-            return
-        self._reported_at = time.monotonic()
-        for robot, handled in enumerate(self._handled):
-            self.report_handled(robot, handled)
 
     def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
         """Set the robot's controller to the order's tolerance, then hand it the goal stamped
