@@ -110,3 +110,52 @@ def test_a_report_round_trips_and_a_broken_one_is_named():
     assert decode_ack_bytes(diagnostic_status_bytes(0, 'x', 'ready', '', [])) is None
     with pytest.raises(LockstepError, match='does not parse'):
         decode_ack_bytes(data[:13])
+
+
+def test_a_nodes_last_lockstep_report_is_said_again_only_while_no_other_comes(context,
+                                                                            monkeypatch):
+    """A report lost to a reader not yet matched would leave the robot's time standing: the
+    last is sent again after REPORT_REPEAT_S of wall time without another (on the node's own
+    steady timer), and not while reports keep coming."""
+    import time
+    from types import SimpleNamespace
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from omni_micro_common import lockstep_reporting
+    from omni_micro_common.lockstep import Ack
+    from omni_micro_common.lockstep_reporting import REPORT_REPEAT_S, LockstepReporter
+
+    node = Node('controller_node', namespace='robot_1', context=context)
+    reporter = LockstepReporter(node)
+    assert reporter.name == 'robot_1/controller_node'
+    sent: list[bytes] = []
+    monkeypatch.setattr(reporter._publisher, 'publish', sent.append)   # what goes out, in order
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        # The timer says it again, unprompted, once nothing else came.
+        reporter.report(Ack(reporter.name, 20_000_000))
+        deadline = time.monotonic() + 10.0
+        while len(sent) < 2 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert sent[:2] == [sent[0]] * 2
+        # When, on a clock of the test's: only after REPORT_REPEAT_S without another report.
+        now = [100.0]
+        monkeypatch.setattr(lockstep_reporting, 'time', SimpleNamespace(monotonic=lambda: now[0]))
+        sent.clear()
+        for at_s, report_ns in ((0.0, 40_000_000), (0.05, None), (0.09, 60_000_000),
+                                (0.15, None), (0.2, None), (0.27, None)):
+            now[0] = 100.0 + at_s
+            if report_ns is None:
+                reporter._repeat()
+            else:
+                reporter.report(Ack(reporter.name, report_ns))
+        said = [lockstep_reporting.decode_ack_bytes(data) for data in sent]
+        assert [ack.processed_ns if ack else None for ack in said] == [
+            40_000_000, 60_000_000, 60_000_000]   # the last, said again at 0.2 s only
+        assert REPORT_REPEAT_S == 0.1
+    finally:
+        executor.shutdown()
+        node.destroy_node()
