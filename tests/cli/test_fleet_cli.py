@@ -78,7 +78,7 @@ def test_a_fleet_from_files_reaches_every_goal_in_order_and_is_drawn(tmp_path):
     ('robots:\n  - start_mm: [0, 0]\n  - start_mm: [5, 0]\n', None,
      'robots 0 and 1 start 5.00 mm apart'),
     ('robots:\n  - start_mm: [0, 0]\n    controller: pid\n', None,
-     "robots[0].controller must be one of paper, model, servo, got 'pid'"),
+     "robots[0].controller must be one of paper, model, servo, open-loop, got 'pid'"),
     ('2 --goals-per-robot 3', 'tasks:\n  robot_0:\n    - goal_mm: [10, 0]\n',
      '--goals-per-robot is how many goals to draw: not with --tasks'),
 ])

@@ -268,6 +268,9 @@ def test_a_path_the_system_refuses_is_one_line_and_exit_2(argv, named, tmp_path,
      "omni-micro run: error: argument --seed: expected a whole number in [0, "
      "9223372036854775807] (a seed: a ROS integer parameter), got '100000000000000000000000' "
      '(omni-micro run --help lists the arguments)'),
+    (['run', '--goal-mm', '1,0', '--open-loop', '7', '--controller', 'open-loop'],
+     'omni-micro run: error: --open-loop S makes one move of S seconds and --controller '
+     'open-loop one of the time to the goal: leave one of them out'),
     (['run', '--goal-mm', '1,0', '--open-loop', '1e9'],
      "omni-micro run: error: argument --open-loop: expected at most 60 s (a minute at cruise "
      "speed runs off any platform), got '1e9' (omni-micro run --help lists the arguments)"),

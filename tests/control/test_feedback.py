@@ -108,6 +108,22 @@ def test_open_loop_makes_one_move_then_completes():
         Outcome.COMPLETED
 
 
+def test_open_loop_to_the_goal_makes_the_nominal_robots_one_move_whatever_the_distance():
+    """Each goal, as a fleet's open-loop robot gets its legs' ends: one move aimed from the
+    capture, for the time the nominal robot takes over the distance (section 4.1's rule cuts
+    it into timer1 periods), then completed wherever the robot stands, without feedback."""
+    for goal_m in ((0.1, 0.0), (0.03, -0.04)):
+        controller = VisionFeedbackController(FeedbackConfig(open_loop_to_goal=True))
+        controller.set_goal(goal_m, stopped_at_s=0.0)
+        move = a_move(controller.on_capture(Observation(0.2, 0.0, 0.0, math.pi / 2)))
+        assert move.duration_s == pytest.approx(math.hypot(*goal_m) / controller.config.speed_m_s)
+        assert move.steering_rad == pytest.approx(math.atan2(goal_m[1], goal_m[0]) - math.pi / 2)
+        controller.on_wheels_stopped(move.start_s + move.duration_s)
+        far_off = Observation(move.start_s + move.duration_s + 0.2, goal_m[0] - 0.002,
+                              goal_m[1], 0.0)
+        assert an_end(controller.on_capture(far_off)).outcome is Outcome.COMPLETED
+
+
 def test_non_finite_capture_is_ignored():
     controller = settled_controller()
     assert controller.on_capture(Observation(0.2, math.nan, 0.0, 0.0)) is None
@@ -241,6 +257,11 @@ def test_captures_per_stop_zero_means_the_modes_own(mode, expected):
     # Unbounded, 1e9 s ran the robot off the platform for 1,276 s before the run timed out.
     ({'open_loop_duration_s': 1e9}, 'open_loop_duration_s must be at most 60 s (at cruise '
                                     'speed 861 mm, past any platform), got 1000000000.0'),
+    ({'open_loop_to_goal': 'yes'}, "open_loop_to_goal must be true or false, and false with an "
+                                   "open_loop_duration_s, got 'yes'"),
+    ({'open_loop_to_goal': True, 'open_loop_duration_s': 7.0},
+     'open_loop_to_goal must be true or false, and false with an open_loop_duration_s, got '
+     'True'),
 ])
 def test_bad_mode_settings_are_refused_naming_the_value(changes, message):
     with pytest.raises(ControllerConfigError, match=re.escape(message)):

@@ -292,3 +292,40 @@ def test_a_fleet_run_stops_at_its_simulated_time_on_the_clock_as_the_twin_does(o
         == pytest.approx(8.02, abs=1e-9)
     assert [(robot['reached_at_s'], robot['moves']) for robot in graph['robots']] == \
         [(robot['reached_at_s'], robot['moves']) for robot in twin['robots']]
+
+
+OPEN_LOOP_ROBOTS = ('robots:\n  - start_mm: [0, 0]\n    controller: open-loop\n'
+                    '  - start_mm: [0, 40]\n')
+OPEN_LOOP_TASKS = ('tasks:\n  robot_0:\n    - goal_mm: [60, 0]\n    - goal_mm: [60, 30]\n'
+                   '  robot_1:\n    - goal_mm: [60, 60]\n')
+
+
+def test_an_open_loop_robot_beside_a_closed_loop_one_runs_through_the_graph_as_in_the_twin(
+        omni_micro, tmp_path):
+    """A robot of a fleet driven open loop (one move per leg, its end 'completed') through the
+    graph: the same goals at the same simulated times, the same drift, as the twin's; and one
+    robot driven so alone, through ``run``, completes."""
+    (tmp_path / 'robots.yaml').write_text(OPEN_LOOP_ROBOTS)
+    (tmp_path / 'tasks.yaml').write_text(OPEN_LOOP_TASKS)
+    runs = [omni_micro('fleet', *graph, '--robots', str(tmp_path / 'robots.yaml'), '--tasks',
+                       str(tmp_path / 'tasks.yaml'), '--seed', '1', '--json', '--log-dir',
+                       str(tmp_path / 'logs')) for graph in (('--graph',), ())]
+    summaries = []
+    for done in runs:
+        assert done.returncode == 0, done.stderr[-2000:]
+        summaries.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    graph, twin = summaries
+    assert graph['sim_time_s'] == pytest.approx(twin['sim_time_s'], abs=1e-9)
+    for in_graph, in_twin in zip(graph['robots'], twin['robots'], strict=True):
+        assert (in_graph['controller'], in_graph['reached_at_s'], in_graph['moves']) == \
+            (in_twin['controller'], in_twin['reached_at_s'], in_twin['moves'])
+        assert in_graph['deviation_um'] == pytest.approx(in_twin['deviation_um'], abs=1e-3)
+    open_loop = graph['robots'][0]
+    assert open_loop['moves'] == open_loop['legs']   # one move per leg, no correction
+    alone = omni_micro('run', '--goal-mm', '30,0', '--controller', 'open-loop', '--rtf', 'max',
+                       '--json', '--log-dir', str(tmp_path / 'logs'))
+    assert alone.returncode == 0, alone.stderr[-2000:]
+    summary = json.loads(alone.stdout.strip().splitlines()[-1])
+    # One move, 0.44 mm off after 30 mm (the default robot's offsets), no correction after.
+    assert summary['outcome'] == 'completed' and summary['periods'] == 1
+    assert summary['deviation_mm'] > 0.1

@@ -330,6 +330,9 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
     if options.open_loop_s is not None and servo_mode(options):
         raise UsageError('--open-loop makes one move without feedback and the servo mode corrects '
                          'every move: leave one of them out')
+    if options.open_loop_s is not None and options.controller_overrides.get('open_loop_to_goal'):
+        raise UsageError('--open-loop S makes one move of S seconds and --controller open-loop '
+                         'one of the time to the goal: leave one of them out')
     if publishes_in_motion(options) and not any(spec.executable in ('vision_node', 'tracker_node')
                                               for spec in loop):
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '

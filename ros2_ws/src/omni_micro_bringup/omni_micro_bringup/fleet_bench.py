@@ -60,6 +60,7 @@ from omni_micro_common.topic_names import (
     robot_topic,
 )
 from omni_micro_control.controller_messages import stop_trajectory
+from omni_micro_control.fleet_files import controller_settings
 from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 
 # How often the guard looks (a 15 Hz camera's frames come every 67 ms).
@@ -117,7 +118,7 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
     specs = [NodeSpec('omni_micro_vision', 'tracker_node', params=shipped, overrides=tracker)]
     for k in range(count):
         specs.append(robot_node(k, 'omni_micro_control', 'controller_node', {
-            'goal_time': 'stamp', 'mode': modes[k],
+            'goal_time': 'stamp', **controller_settings(modes[k]),
             # The drivers' readers are not the graph's to name: only the recorder's.
             'trajectory_readers': [RECORDER_NODE] if recorder else []},
             tuple(namespaced_params(list(shipped), names[k], folder)),

@@ -48,6 +48,7 @@ from omni_micro_common.topic_names import (
     robot_name,
     robot_topic,
 )
+from omni_micro_control.fleet_files import controller_settings
 from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_vision.scene import FLEET_COLOURS
@@ -170,7 +171,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                           if name != 'vision_node'],
                    **({'captures_in_motion': True} if servo else {}),
                    **(vision_overrides or {})},
-               'controller_node': {'goal_time': 'stamp', 'mode': modes[k],
+               'controller_node': {'goal_time': 'stamp', **controller_settings(modes[k]),
                                    # Its first move waits for the readers that must have it.
                                    'trajectory_readers': [
                                        'dynamics_node',

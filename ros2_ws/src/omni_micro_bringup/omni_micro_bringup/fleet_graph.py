@@ -66,7 +66,7 @@ from omni_micro_common.topic_names import (
     robot_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
-from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
+from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
 
 # Stamps are whole nanoseconds: a tick's time as a float and as its stamp agree within one.
 STAMP_RESOLUTION_S = 1e-9
@@ -265,7 +265,7 @@ class FleetDispatch:
                 self.handled(robot, at_s)
                 continue
             now_s = max(now_s, at_s)
-            if status['message'] != 'reached':
+            if status['message'] not in {end.value for end in LEG_ENDS}:
                 outcome = 'lost'
                 logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
                 reason = f'robot {robot} {logs[robot].outcome}'

@@ -115,9 +115,11 @@ def _declare_servo_config(node: Node, shared: FeedbackConfig) -> ServoConfig | N
             for name, field in FilterConfig.__dataclass_fields__.items()}
     if shared.mode != SERVO_MODE:
         return None
-    if shared.open_loop_duration_s > 0.0:
-        raise ControllerConfigError(f'open_loop_duration_s must be 0 in the servo mode (it '
-                                    f'corrects every move), got {shared.open_loop_duration_s!r}')
+    if shared.open_loop_duration_s > 0.0 or shared.open_loop_to_goal:
+        raise ControllerConfigError(f'open_loop_duration_s must be 0 and open_loop_to_goal '
+                                    f'false in the servo mode (it corrects every move), got '
+                                    f'{shared.open_loop_duration_s!r} and '
+                                    f'{shared.open_loop_to_goal!r}')
     return ServoConfig(**own, **{name: getattr(shared, name) for name in SHARED_WITH_SERVO},
                        filter=FilterConfig(**kept))
 

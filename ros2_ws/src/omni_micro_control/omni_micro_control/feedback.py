@@ -98,6 +98,7 @@ class FeedbackConfig:
     max_periods: int = 100
     command_lead_s: float = 0.05          # a move starts this long after its capture's stamp
     open_loop_duration_s: float = 0.0     # > 0: one move of this long, no feedback
+    open_loop_to_goal: bool = False       # one move of the nominal time to the goal, no feedback
     capture_timeout_s: float = 1.0        # wait this long for a capture before trying again
     max_capture_tries: int = 3
     # The robot's and its motors' own (omni_micro_sim.parameters), defined there once.
@@ -123,6 +124,11 @@ class FeedbackConfig:
                 f'open_loop_duration_s must be at most {MAX_OPEN_LOOP_S:g} s (at cruise speed '
                 f'{MAX_OPEN_LOOP_S * self.speed_m_s * 1e3:.0f} mm, past any platform), got '
                 f'{self.open_loop_duration_s!r}')
+        if not isinstance(self.open_loop_to_goal, bool) or \
+                (self.open_loop_to_goal and self.open_loop_duration_s > 0.0):
+            raise ControllerConfigError(f'open_loop_to_goal must be true or false, and false '
+                                        f'with an open_loop_duration_s, got '
+                                        f'{self.open_loop_to_goal!r}')
         if self.captures_per_stop == 0:
             object.__setattr__(self, 'captures_per_stop',
                                1 if self.mode == 'paper' else MODEL_CAPTURES_PER_STOP)
@@ -311,13 +317,14 @@ class VisionFeedbackController:
         camera = f'{observation.camera or "camera"}'
         if observation.count > 1:
             camera += f' ({observation.count} captures)'
-        if config.open_loop_duration_s > 0.0:
+        if config.open_loop_duration_s > 0.0 or config.open_loop_to_goal:
             if self.periods >= 1:
                 return self._finish(Outcome.COMPLETED, 'open-loop move done')
             steering = wrap_angle(math.atan2(self.goal_m[1] - observation.y_m,
                                              self.goal_m[0] - observation.x_m)
                                   - observation.phi_rad)
-            plan = MovePlan(steering, config.open_loop_duration_s, 'open-loop')
+            plan = MovePlan(steering, config.open_loop_duration_s
+                            or remaining / config.speed_m_s, 'open-loop')
         else:
             seen = observation.radius_95_m
             if remaining + seen <= config.tolerance_m:

@@ -7,7 +7,8 @@ Robots file::
     robots:
       - start_mm: [0, 0]
         wheel_offsets_deg: [0, 3, 2]      # optional: drawn from the seed (within +-3 deg)
-        controller: servo                 # optional: paper, model or servo (default: --controller)
+        controller: servo                 # optional: paper, model, servo or open-loop
+                                          # (default: --controller)
       - start_mm: [100, 0]
 
 Tasks file (robots by index; goals in order; ``after``: not before that robot's goal)::
@@ -39,6 +40,21 @@ from omni_micro_control.errors import FleetFileError
 from omni_micro_control.feedback import MODES
 from omni_micro_control.fleet_plan import Task
 from omni_micro_sim.parameters import RobotParameters
+
+# What drives a robot of a fleet: a controller mode, or open loop (each goal of its legs one
+# move toward it, for the time the nominal robot takes, with no feedback after: where it drifts
+# to is where the next leg starts from).
+OPEN_LOOP = 'open-loop'
+ROBOT_CONTROLLERS = (*MODES, OPEN_LOOP)
+
+
+def controller_settings(controller: str) -> dict[str, object]:
+    """The controller's parameters (FeedbackConfig's) that make it drive as ``controller``
+    (ROBOT_CONTROLLERS) says: open loop is the paper's rule's first move, and no other."""
+    if controller == OPEN_LOOP:
+        return {'mode': 'paper', 'open_loop_to_goal': True}
+    return {'mode': controller}
+
 
 # Wheel offsets drawn per robot when a file does not give them: as large as the paper's Fig. 8
 # robot's (0, 3, 2 deg).
@@ -129,9 +145,9 @@ def robots_from(spec: str, seed: int, controller: str = 'paper') -> tuple[
         offsets.append(_offsets(f'{where}.wheel_offsets_deg', entry['wheel_offsets_deg'])
                        if 'wheel_offsets_deg' in entry else drawn_offsets(rng))
         own = entry.get('controller', controller)
-        if own not in MODES:
-            raise FleetFileError(f'{where}.controller must be one of {", ".join(MODES)}, got '
-                             f'{own!r}')
+        if own not in ROBOT_CONTROLLERS:
+            raise FleetFileError(f'{where}.controller must be one of '
+                                 f'{", ".join(ROBOT_CONTROLLERS)}, got {own!r}')
         controllers.append(own)
     return starts, offsets, controllers
 

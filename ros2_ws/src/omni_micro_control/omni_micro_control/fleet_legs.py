@@ -13,6 +13,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from omni_micro_control.feedback import Outcome
+from omni_micro_control.fleet_files import OPEN_LOOP
 from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, FleetPlan, Leg
 
 # A long leg is driven through points at most this far apart, by the robot's controller: a wheel
@@ -21,8 +23,12 @@ from omni_micro_control.fleet_plan import WAYPOINT_TOLERANCE_M, FleetPlan, Leg
 # 1.61 mm (8 robots, offsets up to 3 deg); 24 mm apart, 0.44 mm (20 crossing runs). The model
 # mode shoots one arc to each point, through offsets it has not learnt yet on the first legs:
 # 24 mm apart it strayed 2.02 mm, 12 mm 1.30 mm, 10 mm 0.43 mm. The servo corrects while it
-# rolls: 24 mm apart, 0.49 mm.
-SUB_GOAL_SPACING_M = {'paper': 24e-3, 'model': 10e-3, 'servo': 24e-3}
+# rolls: 24 mm apart, 0.49 mm. Open loop drives each leg in one move: points on the way would
+# each be aimed at from where the camera sees it, which is feedback.
+SUB_GOAL_SPACING_M = {'paper': 24e-3, 'model': 10e-3, 'servo': 24e-3, OPEN_LOOP: math.inf}
+# The ends of a goal after which a robot goes on to its next: reached, or its open-loop move
+# done (wherever that left it). Any other end is the robot's fault and ends the run.
+LEG_ENDS = (Outcome.REACHED, Outcome.COMPLETED)
 
 
 @dataclass(frozen=True)

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_control.feedback import FeedbackConfig, Finished, Outcome, VisionFeedbackController
-from omni_micro_control.fleet_legs import GoalOrder, LegDispatcher
+from omni_micro_control.feedback import FeedbackConfig, Finished, VisionFeedbackController
+from omni_micro_control.fleet_files import controller_settings
+from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan, PlanningError, Task
 from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M, point_segment_distance
 from omni_micro_control.model_based import learnt_offsets, planner_for
@@ -98,7 +99,7 @@ class _Robot:
             self.loop = ServoLoop(self.grid, still, MovingCamera(rig, timings, seed), session,
                                   limits)
         else:
-            config = FeedbackConfig(mode=mode)
+            config = FeedbackConfig(**controller_settings(mode))  # type: ignore[arg-type]
             self.loop = StopAndGoLoop(self.grid, still, VisionFeedbackController(
                 config, planner_for(config, None, limits, None)), limits)
         self.driving = False
@@ -136,7 +137,7 @@ class _Robot:
         coordinator hands out the next goal stamped so)."""
         self.driving = False
         at_s = self.loop.ended_at_s
-        if finished.outcome is Outcome.REACHED:
+        if finished.outcome in LEG_ENDS:
             following, leg = self.legs.reached(self.index, at_s)
             if following is not None:
                 self.aim(following)
@@ -217,7 +218,7 @@ def run_fleet(plan: FleetPlan, *, robots: list[RobotParameters], seed: int = 0,
             break
         finishes = [(robot, robot.step()) for robot in fleet]
         lost = [(robot, finished) for robot, finished in finishes
-                if finished is not None and finished.outcome is not Outcome.REACHED]
+                if finished is not None and finished.outcome not in LEG_ENDS]
         now_s = fleet[0].grid.time_s
         ended_s = max(robot.loop.ended_at_s for robot in fleet)
         if on_progress is not None and sum(len(r.run.tasks_done_s) for r in fleet) > done:

@@ -29,8 +29,7 @@ from omni_micro_cli.outputs import (
     print_json,
 )
 from omni_micro_common.topic_names import robot_name
-from omni_micro_control.feedback import MODES
-from omni_micro_control.fleet_files import MAX_ROBOTS, Fleet, fleet_from
+from omni_micro_control.fleet_files import MAX_ROBOTS, ROBOT_CONTROLLERS, Fleet, fleet_from
 from omni_micro_control.fleet_guard import STOP_GAP_M, UNNAMED_S
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
@@ -58,11 +57,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              'YAML file of robots (start_mm, wheel_offsets_deg, controller; '
                              'docs/fleet.md)')
     add_fleet_task_arguments(parser)
-    parser.add_argument('--controller', choices=MODES, default='paper',
+    parser.add_argument('--controller', choices=ROBOT_CONTROLLERS, default='paper',
                         help="every robot's controller (a robots file may give a robot its "
                              "own): paper, section 4.1's rule (default); model, plans through "
                              'the slip model and learns the robot leg after leg; servo, rolls '
-                             'corrected from captures in motion (docs/control.md)')
+                             'corrected from captures in motion; open-loop, one move toward '
+                             'each point of its legs, no feedback (docs/fleet.md)')
     parser.add_argument('--seed', type=seed_number, default=0,
                         help='seed of the drawn offsets, tasks and capture noise (default 0)')
     parser.add_argument('--graph', action='store_true',

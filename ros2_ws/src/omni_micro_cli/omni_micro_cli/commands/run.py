@@ -40,7 +40,7 @@ from omni_micro_cli.graph_arguments import (
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
-from omni_micro_control.feedback import MODES
+from omni_micro_control.fleet_files import OPEN_LOOP, ROBOT_CONTROLLERS, controller_settings
 
 
 def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,11 +105,13 @@ def open_loop_seconds(text: str) -> float:
 
 
 def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--controller', choices=MODES, default='paper',
+    parser.add_argument('--controller', choices=ROBOT_CONTROLLERS, default='paper',
                         help="paper: section 4.1's rule (default); model: plan each move "
                              "through the slip model and identify the robot's offsets as it "
                              'goes; servo: keep the robot rolling, corrected from captures in '
-                             'motion, and stop once at the end (docs/control.md)')
+                             'motion, and stop once at the end; open-loop: one move toward '
+                             'each goal for the time the nominal robot takes, no feedback '
+                             '(docs/control.md)')
     parser.add_argument('--tolerance-um', type=positive_float, metavar='UM',
                         help="reached when a capture's distance to the goal plus its 95 %% "
                              f'uncertainty is within this (default {GOAL_TOLERANCE_M * 1e6:g}, '
@@ -119,7 +121,7 @@ def add_controller_arguments(parser: argparse.ArgumentParser) -> None:
 def controller_overrides(args: argparse.Namespace) -> dict[str, object]:
     overrides: dict[str, object] = {}
     if getattr(args, 'controller', 'paper') != 'paper':
-        overrides['mode'] = args.controller
+        overrides.update(controller_settings(args.controller))
     if getattr(args, 'tolerance_um', None) is not None:
         overrides['tolerance_m'] = args.tolerance_um * 1e-6
     return overrides
@@ -284,7 +286,7 @@ def run(args: argparse.Namespace) -> int:
     print(summary_line(result, options.external), file=sys.stderr)
     if args.json:
         print_json(result.as_json())
-    succeeded = 'completed' if args.open_loop else 'reached'
+    succeeded = 'completed' if args.open_loop or args.controller == OPEN_LOOP else 'reached'
     if result.outcome != succeeded:
         raise RunFailed(f'controller_node reported {result.outcome}: {result.reason}')
     return 0
