@@ -17,7 +17,7 @@ CROSSING_RADIUS_M = 0.05
 CROSSING_ROBOTS = range(2, 25, 2)   # even counts whose neighbours stand 12 mm apart or more
 # How the figure names each controller mode.
 CONTROLLER_NAMES = {'paper': "on the paper's rule", 'model': 'in the model mode',
-                    'servo': 'in the servo mode'}
+                    'servo': 'in the servo mode', 'open-loop': 'driven open loop'}
 COLUMNS = ('robots', 'controller', 'seed', 'outcome', 'goals', 'sim_time_s', 'goals_per_minute',
            'closest_gap_mm', 'farthest_off_leg_mm', 'wall_s')
 

@@ -20,7 +20,7 @@ from omni_micro_cli.arguments import (
     whole_numbers_in,
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
-from omni_micro_control.feedback import MODES
+from omni_micro_control.fleet_files import ROBOT_CONTROLLERS
 from omni_micro_control.fleet_files import MAX_ROBOTS
 from omni_micro_studies import fleet_throughput as throughput
 
@@ -58,7 +58,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         default=('paper',),
                         metavar='MODE[,MODE...]',
                         help="every robot's controller: paper (section 4.1's rule, the "
-                             'default), model or servo (docs/control.md); several, e.g. '
+                             'default), model, servo (docs/control.md) or open-loop '
+                             '(docs/fleet.md); several, e.g. '
                              'paper,model,servo: the same task sets for each, a line each in '
                              'the figure and a summary each')
     parser.add_argument('--seed', type=seed_number, default=0, help='first seed (default 0)')
@@ -76,8 +77,9 @@ def crossing_count(text: str) -> int:
 
 
 def controller_mode(text: str) -> str:
-    if text not in MODES:
-        raise argparse.ArgumentTypeError(f'expected controller modes among {", ".join(MODES)}, '
+    if text not in ROBOT_CONTROLLERS:
+        raise argparse.ArgumentTypeError(f'expected controller modes among '
+                                         f'{", ".join(ROBOT_CONTROLLERS)}, '
                                          f'got {text!r}')
     return text
 
