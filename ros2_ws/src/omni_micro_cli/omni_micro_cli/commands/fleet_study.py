@@ -20,8 +20,7 @@ from omni_micro_cli.arguments import (
     whole_numbers_in,
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, staged_directory
-from omni_micro_control.fleet_files import ROBOT_CONTROLLERS
-from omni_micro_control.fleet_files import MAX_ROBOTS
+from omni_micro_control.fleet_files import MAX_ROBOTS, ROBOT_CONTROLLERS
 from omni_micro_studies import fleet_throughput as throughput
 
 
