@@ -196,7 +196,7 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     # At rest a second on (no move after the stop), and never closer than the discs allow.
     assert_at_rest(probe, truth)
     closest = closest_mm(truth)
-    assert closest > 9.0, f'the discs touched: centres {closest:.2f} mm apart'
+    assert closest > 9.0, f'the discs touched: centres {closest:.2f} mm apart; {last}'
     print(f'stopped: {last}; the closest the centres came: {closest:.2f} mm')
     check_the_stop_in_the_bench_log(bag)
 

@@ -68,6 +68,11 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
 
+# After the guard's stop: every controller's goal is met within this (the platform's size), so
+# that it decides no more moves; the stops go on this long after the last has it.
+STOPPED_TOLERANCE_M = 0.2
+HOLD_AFTER_STOP_S = 0.5
+
 # Stamps are whole nanoseconds: a tick's time as a float and as its stamp agree within one.
 STAMP_RESOLUTION_S = 1e-9
 
@@ -205,6 +210,13 @@ class FleetDispatch:
         while not dispatcher.finished:
             if bench is not None and bench.stopped is not None:
                 outcome, reason = 'stopped', f'every robot stopped: {bench.stopped.reason}'
+                # A controller does not know of the stop and would go on deciding moves until
+                # the graph is down (one moved a robot 6.7 mm on after a stop): each is told its
+                # goal is met wherever it stands, while the guard's timer, spun meanwhile, keeps
+                # sending stops past any move decided before.
+                for robot in range(self.count):
+                    monitor.set_tolerance(graph, robot, STOPPED_TOLERANCE_M, timeout_s=5.0)
+                monitor.spin_for(HOLD_AFTER_STOP_S)
                 bench.hand_over()
                 break
             contacts = [contact for contact in monitor.contacts

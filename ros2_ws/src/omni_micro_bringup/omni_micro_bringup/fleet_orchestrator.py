@@ -103,14 +103,14 @@ class FleetMonitor(Orchestrator):
         self.reporters[robot].report(Ack(coordinator_name(robot), None,
                                          outcome_handled_ns=outcome_ns))
 
-    def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
-        """Set the robot's controller to the order's tolerance, then hand it the goal stamped
-        with the end it follows (``order.stamp_s``), and wait until it has taken it."""
+    def set_tolerance(self, graph: Supervisor, robot: int, tolerance_m: float,
+                      timeout_s: float = 30.0) -> None:
+        """Set robot ``robot``'s controller to ``tolerance_m`` and wait until it has it."""
         deadline = time.monotonic() + timeout_s
-        client = self.tolerance_clients[order.robot]
+        client = self.tolerance_clients[robot]
         request = SetParameters.Request(parameters=[Parameter(
             name='tolerance_m', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
-                                                     double_value=float(order.tolerance_m)))])
+                                                     double_value=float(tolerance_m)))])
         while True:
             graph.check_alive()
             # Asked again after SERVICE_RESEND_S, as dynamics_node's clock is. A goal, unlike
@@ -123,12 +123,18 @@ class FleetMonitor(Orchestrator):
                 break
             client.remove_pending_request(future)
             if time.monotonic() > deadline:
-                raise RunFailed(f'{robot_name(order.robot)}\'s controller_node did not take its '
+                raise RunFailed(f'{robot_name(robot)}\'s controller_node did not take its '
                                 f'tolerance within {timeout_s:g} s')
         result = future.result()
         if not result.results[0].successful:
-            raise UsageError(f'{robot_name(order.robot)}\'s controller_node refused tolerance_m '
-                             f'{order.tolerance_m!r}: {result.results[0].reason}')
+            raise UsageError(f'{robot_name(robot)}\'s controller_node refused tolerance_m '
+                             f'{tolerance_m!r}: {result.results[0].reason}')
+
+    def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
+        """Set the robot's controller to the order's tolerance, then hand it the goal stamped
+        with the end it follows (``order.stamp_s``), and wait until it has taken it."""
+        deadline = time.monotonic() + timeout_s
+        self.set_tolerance(graph, order.robot, order.tolerance_m, timeout_s)
         publisher = self.goal_publishers[order.robot]
         self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
                                    self.recording, deadline, timeout_s)
