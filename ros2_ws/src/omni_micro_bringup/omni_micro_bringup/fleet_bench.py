@@ -65,6 +65,10 @@ from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 
 # How often the guard looks (a 15 Hz camera's frames come every 67 ms).
 GUARD_PERIOD_S = 0.02
+# After the guard's stop: every controller's goal is met within this (the platform's size), so
+# that it decides no more moves; the stops go on this long after the last has it.
+STOPPED_TOLERANCE_M = 0.2
+HOLD_AFTER_STOP_S = 0.5
 
 
 def check_bench(options: GraphOptions) -> None:

@@ -35,6 +35,8 @@ from omni_micro_bringup.composition import (
 )
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_bench import (
+    HOLD_AFTER_STOP_S,
+    STOPPED_TOLERANCE_M,
     BenchGuard,
     bench_publications,
     bench_ready_topics,
@@ -67,11 +69,6 @@ from omni_micro_common.topic_names import (
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
-
-# After the guard's stop: every controller's goal is met within this (the platform's size), so
-# that it decides no more moves; the stops go on this long after the last has it.
-STOPPED_TOLERANCE_M = 0.2
-HOLD_AFTER_STOP_S = 0.5
 
 # Stamps are whole nanoseconds: a tick's time as a float and as its stamp agree within one.
 STAMP_RESOLUTION_S = 1e-9

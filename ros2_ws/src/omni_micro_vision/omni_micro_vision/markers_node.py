@@ -37,7 +37,6 @@ from typing import Any
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
@@ -84,8 +83,6 @@ DRAW_LAG_ARRAYS = 2
 # stream that has a publisher has passed its time, but no more than this many arrays more (a
 # publisher that went quiet must not stop the drawing for good).
 MAX_HELD_ARRAYS = 50
-# How often (wall time) the node repeats its lockstep report without a new event.
-WATCHER_REPORT_PERIOD_S = 0.1
 # Ties between events of one stamp, applied in this order whatever order they arrived in.
 EVENT_ORDER = {'goal': 0, 'move': 1, 'macro': 2, 'micro': 3}
 
@@ -165,11 +162,10 @@ class MarkersNode(Node):
         self.lockstep = LockstepReporter(self)
         self._capture_handled_ns = NOTHING_HANDLED_NS
         self._command_handled_ns = NOTHING_HANDLED_NS
-        # Said again every WATCHER_REPORT_PERIOD_S of wall time: a report sent before the
-        # dynamics' reader of /lockstep matched this writer is lost, and until the gate has
-        # one it holds time at the lead, where no throttled sample comes to make another.
-        self.create_timer(WATCHER_REPORT_PERIOD_S, self._report,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # Reported at once (nothing handled yet): until the gate has a report it holds time at
+        # the lead, where no throttled sample comes to make another; the reporter says it again
+        # while nothing new comes (a report sent before the dynamics' reader matched is lost).
+        self._report()
         self._odometry = robot_odometry_template(self.get_namespace().strip('/'))
         self._capture_source = self.declare_parameter('capture_uncertainty', 'covariance').value
         if self._capture_source not in CAPTURE_UNCERTAINTY_SOURCES:
