@@ -56,7 +56,6 @@ class CameraWatch:
     info_size: tuple[int, int] | None = None
     info_k_zero: bool = False
     offered: list[Offered] = field(default_factory=list)
-    info_offered: list[Offered] = field(default_factory=list)
     losses: FrameLosses = field(init=False)
     # Robots named in the last frame, and why the others were not (with --robots).
     named: dict[str, str] = field(default_factory=dict)

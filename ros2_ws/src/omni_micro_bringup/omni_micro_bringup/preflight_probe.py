@@ -69,7 +69,6 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
                 progress(elapsed)
         for camera in cameras:
             camera.offered = _offered(node, camera.image_topic)
-            camera.info_offered = _offered(node, camera.info_topic)
         for robot in robots:
             robot.offered = _offered(node, robot.topic)
     finally:

@@ -171,10 +171,6 @@ class SlipFilter:
         return float(self.mean[4]), float(self.mean[5])
 
     @property
-    def steering_bias_rad(self) -> float:
-        return float(self.mean[3])
-
-    @property
     def wheels_steering_rad(self) -> float:
         """Where the model has the wheels' steering now (a gear's play leaves them off the
         commanded angle)."""

@@ -63,7 +63,6 @@ class ClosedLoopResult:
     final_state: RobotState
     sim_time_s: float
     goal_m: tuple[float, float]
-    captures_used: list[Observation] = field(default_factory=list)
     route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # t, x, y
     moves: list[Move] = field(default_factory=list)
     planner: PaperRule | ModelBasedPlanner | None = None
@@ -138,7 +137,6 @@ class StopAndGoLoop:
         self.limits = limits
         self.watcher = MoveWatcher()
         self.moves: list[Move] = []
-        self.used: list[Observation] = []   # the captures each decision was taken on
         # When the last goal ended, as the node says it: the stamp of what decided it (a
         # capture's, the wheels' stop's, the camera's word), or the robot's time for a timeout.
         self.ended_at_s = 0.0
@@ -163,15 +161,12 @@ class StopAndGoLoop:
                               else self.controller.on_out_of_field(at_s), at_s))
         for decision, at_s in decisions:
             if isinstance(decision, Move):
-                self.used.append(decision.observation)
                 self.moves.append(decision)
                 profile = move_profile(decision.duration_s, self.limits)
                 self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
                 schedule_move(self.grid, decision.steering_rad, profile, decision.start_s,
                               stamp, self.limits)
             elif isinstance(decision, Finished):
-                if decision.observation is not None:
-                    self.used.append(decision.observation)
                 self.ended_at_s = at_s
                 return decision
         finished = self.controller.on_time(stamp)[1]
@@ -206,8 +201,8 @@ def run_closed_loop(goal_m: tuple[float, float], *, robot: RobotParameters,
     finished, route = _drive(loop, grid, max_sim_time_s)
     return ClosedLoopResult(finished.outcome, finished.reason, finished.periods,
                             grid.simulator.state, grid.time_s,
-                            (float(goal_m[0]), float(goal_m[1])), loop.used,
-                            route, loop.moves, planner)
+                            (float(goal_m[0]), float(goal_m[1])), route, loop.moves,
+                            planner)
 
 
 @dataclass
@@ -316,6 +311,6 @@ def run_servo(goal_m: tuple[float, float], *, robot: RobotParameters,
     learnt = servo.filter.offsets_rad if servo.filter is not None else (0.0, 0.0)
     return ServoResult(finished.outcome, finished.reason, finished.periods,
                        grid.simulator.state, grid.time_s, (float(goal_m[0]), float(goal_m[1])),
-                       [finished.observation] if finished.observation else [], route,
+                       route,
                        stops=servo.stops, replans=servo.replans,
                        captures_in_motion=session.captures_in_motion, offsets_rad=learnt)

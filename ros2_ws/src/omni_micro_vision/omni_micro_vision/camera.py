@@ -390,9 +390,3 @@ def camera_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
     dx, dy = x_m - camera.center_m[0], y_m - camera.center_m[1]
     return (camera.center_m[0] + cos * dx + sin * dy, camera.center_m[1] - sin * dx + cos * dy,
             phi_rad - yaw_rad)
-
-
-def platform_frame(camera: CameraModel, yaw_rad: float, x_m: float, y_m: float,
-                   phi_rad: float) -> tuple[float, float, float]:
-    """The inverse of :func:`camera_frame`."""
-    return camera_frame(camera, -yaw_rad, x_m, y_m, phi_rad)
