@@ -22,6 +22,7 @@ encoding's definition (a Bayer pattern keeps one colour per pixel), under a warm
     the node, which streams nothing until then, as a driver waiting for its camera does)
 """
 
+import collections
 import functools
 import math
 import sys
@@ -71,6 +72,24 @@ def to_encoding(grey: np.ndarray, encoding: str) -> np.ndarray:
     return mosaic
 
 
+def state_at(states: collections.deque[tuple[int, RobotState]], at_ns: int) -> RobotState:
+    """A robot's true state at ``at_ns``, between the two of its driver's ticks around it
+    (its oldest kept, if ``at_ns`` is before it)."""
+    before = states[0]
+    for after in states:
+        if after[0] >= at_ns:
+            if after[0] == at_ns or after is before:
+                return after[1]
+            share = (at_ns - before[0]) / (after[0] - before[0])
+            a, b = before[1], after[1]
+            turn = math.remainder(b.phi_rad - a.phi_rad, math.tau)
+            return RobotState(*(u + share * (v - u) for u, v in (
+                (a.x_m, b.x_m), (a.y_m, b.y_m), (a.phi_rad, a.phi_rad + turn),
+                (a.vx_m_s, b.vx_m_s), (a.vy_m_s, b.vy_m_s), (a.omega_rad_s, b.omega_rad_s))))
+        before = after
+    return states[-1][1]
+
+
 class StandInCamera(Node):
     def __init__(self, encoding: str, scene: str, clock_offset_s: float = 0.0,
                  first_frame_after_s: float = 0.0) -> None:
@@ -87,9 +106,10 @@ class StandInCamera(Node):
         self.sensor = Sensor()
         self.target = (render_target(CAMERA, TARGET, OPTICS.yaw_rad)
                        if scene == 'chessboard' else None)
-        # robots=robot_0,robot_1: each robot's latest true state and its stamp, by its code.
+        # robots=robot_0,robot_1: each robot's recent true states with their stamps (a second
+        # of its driver's 50 Hz ticks), by its code.
         names = scene.partition('=')[2].split(',') if scene.startswith('robots=') else []
-        self.robots: dict[int, tuple[RobotState, int]] = {}
+        self.robots: dict[int, collections.deque[tuple[int, RobotState]]] = {}
         self.hidden_once_moving = {int(name.split('@')[0].rpartition('_')[2])
                                    for name in names if name.endswith('@moving')}
         names = [name.split('@')[0] for name in names]
@@ -115,7 +135,8 @@ class StandInCamera(Node):
     def on_robot_truth(self, code: int, msg: Odometry) -> None:
         self.on_truth(msg)
         assert self.truth is not None
-        self.robots[code] = (self.truth, self.truth_stamp_ns)
+        self.robots.setdefault(code, collections.deque(maxlen=50)).append(
+            (self.truth_stamp_ns, self.truth))
         if code in self.hidden_once_moving and math.hypot(self.truth.vx_m_s,
                                                           self.truth.vy_m_s) > 0:
             self.hidden_once_moving.discard(code)
@@ -134,14 +155,16 @@ class StandInCamera(Node):
             taken_ns = self.get_clock().now().nanoseconds
             ideal = expose(self.target, self.sensor, rng)
         elif self.codes and len(self.robots) == self.codes:
-            # Every robot at its latest true state, the frame stamped with the earliest of
-            # their times (the drivers' 50 Hz ticks: 20 ms apart at most).
-            taken_ns = min(stamp for _, stamp in self.robots.values())
+            # A camera exposes every robot at one instant: the latest every driver's truth has
+            # reached, each robot drawn where it was then. (Each drawn at its own latest state,
+            # a driver whose truth came late put the frame's stamp back while the others were
+            # drawn on: two frames 2 ms apart by their stamps showed them 0.3 mm on.)
+            taken_ns = min(states[-1][0] for states in self.robots.values())
             if taken_ns == self.drawn_ns:
                 return
             self.drawn_ns = taken_ns
             ideal = render_robots(WIDE_CAMERA, self.sensor,
-                                  [InView(state, code) for code, (state, _) in
+                                  [InView(state_at(states, taken_ns), code) for code, states in
                                    sorted(self.robots.items()) if code not in self.hidden],
                                   rng, WIDE_OPTICS.yaw_rad)
         elif self.truth is not None and self.truth_stamp_ns != self.drawn_ns and not self.codes:
