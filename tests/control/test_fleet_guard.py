@@ -176,3 +176,30 @@ def test_a_robot_seen_away_from_its_planned_start_is_said_with_both_places():
     guard.saw(1, 1.0, 0.0220, 0.030, arrived_s=1.0)    # 2 mm off: another place
     assert guard.misplaced([(0.020, 0.0), (0.020, 0.030), (0.050, 0.0)]) == [
         'robot_1 stands at (22.00, 30.00) mm, 2.00 mm from its start (20, 30) mm']
+
+
+
+def test_frames_read_back_to_back_by_a_busy_driver_give_no_false_closing():
+    """A driver that stamps a frame when it reads it (usb_cam's default) on a busy machine
+    reads every other frame late, just before the next: two frames 2 ms apart by their stamps
+    with a frame's travel (0.93 mm at cruise) between them, 465 mm/s taken at its word. A robot
+    driven at cruise toward one parked 30 mm on, stopping 23 mm short, is left alone; one that
+    heads on into it is still stopped."""
+    def read_late(paths, frames):
+        guard = FleetGuard(2)
+        for frame in range(frames):
+            exposed = frame * FRAME_S
+            stamp = exposed + (FRAME_S - 0.002 if frame % 2 else 0.0)
+            for robot, path in paths.items():
+                guard.saw(robot, stamp, *path(exposed), arrived_s=stamp)
+            stop = guard.check(stamp, stamps_now_s=stamp)
+            if stop is not None:
+                return stop
+        return None
+
+    short = 0.5   # s of cruise: 7 mm
+    parked = {0: lambda t: (CRUISE_M_S * min(t, short), 0.0), 1: lambda t: (0.030, 0.0)}
+    assert read_late(parked, 30) is None
+    head_on = {0: lambda t: (CRUISE_M_S * t, 0.0), 1: lambda t: (0.030, 0.0)}
+    stop = read_late(head_on, 60)
+    assert stop is not None and stop.kind == 'proximity'

@@ -2,9 +2,9 @@
 robots, so the run watches where the cameras name each one and stops them all when two come
 closer than the clearance allows, or when a robot driving a leg goes unnamed too long.
 
-Two robots are too close when, from their latest captures and closing as their last two
-captures say, their centres would come within ``stop_gap_m`` before a stop sent now has taken
-hold: the captures' age (a frame waits for the tracker, the tracker for the machine: on a busy
+Two robots are too close when, from their latest captures and closing as their captures over
+the last 40 ms or more say, their centres would come within ``stop_gap_m`` before a stop sent
+now has taken hold: the captures' age (a frame waits for the tracker, the tracker for the machine: on a busy
 one a capture arrives a quarter of a second old) and ``horizon_s`` beyond it (the command on
 its way and the wheels' ramp down). A robot is unnamed while no capture of it (still or in
 motion) has arrived; one that drives a leg and stays unnamed longer than ``unnamed_s`` is
@@ -14,6 +14,7 @@ platform frame, stamps the camera's.
 
 from __future__ import annotations
 
+import collections
 import itertools
 import math
 from collections.abc import Sequence
@@ -36,6 +37,12 @@ UNNAMED_S = 1.0
 START_WITHIN_M = 1.5e-3
 # Two captures further apart than this give no velocity (the robot was not followed between).
 VELOCITY_SPAN_S = 0.5
+# A velocity is taken over at least this long (more than half a frame of a 15 Hz camera, a
+# frame's own span leaves at that rate as it was): a busy driver stamps frames when it reads
+# them, not when they were exposed (usb_cam's default), so two frames read back to back come
+# 2 ms apart by their stamps with a frame's travel between them. Longer, it lags a robot's
+# 0.17 s ramp down (a robot parked at the planner's 12 mm was taken for one closing).
+MIN_VELOCITY_SPAN_S = 0.04
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,9 @@ class FleetGuard:
     closest_gap_m: float = math.inf      # the closest two centres were seen, and who
     closest_pair: tuple[int, int] | None = None
     _seen: dict[int, _Seen] = field(default_factory=dict)
+    # Each robot's captures of the last VELOCITY_SPAN_S, as (stamp_s, x_m, y_m).
+    _recent: dict[int, collections.deque[tuple[float, float, float]]] = field(
+        default_factory=dict)
     _driving_since: dict[int, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -89,9 +99,17 @@ class FleetGuard:
             last.arrived_s = max(last.arrived_s, arrived_s)
             return
         seen = _Seen(stamp_s, x_m, y_m, arrived_s)
-        if last is not None and stamp_s - last.stamp_s <= VELOCITY_SPAN_S:
-            span = stamp_s - last.stamp_s
-            seen.vx_m_s, seen.vy_m_s = (x_m - last.x_m) / span, (y_m - last.y_m) / span
+        recent = self._recent.setdefault(robot, collections.deque())
+        while recent and stamp_s - recent[0][0] > VELOCITY_SPAN_S:
+            recent.popleft()
+        base = next((r for r in reversed(recent) if stamp_s - r[0] >= MIN_VELOCITY_SPAN_S),
+                    None)
+        if base is not None:
+            span = stamp_s - base[0]
+            seen.vx_m_s, seen.vy_m_s = (x_m - base[1]) / span, (y_m - base[2]) / span
+        elif last is not None and stamp_s - last.stamp_s <= VELOCITY_SPAN_S:
+            seen.vx_m_s, seen.vy_m_s = last.vx_m_s, last.vy_m_s   # too close to tell anew
+        recent.append((stamp_s, x_m, y_m))
         self._seen[robot] = seen
         for other, at in self._seen.items():
             if other != robot:
