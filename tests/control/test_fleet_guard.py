@@ -191,7 +191,8 @@ def test_frames_read_back_to_back_by_a_busy_driver_give_no_false_closing():
             exposed = frame * FRAME_S
             stamp = exposed + (FRAME_S - 0.002 if frame % 2 else 0.0)
             for robot, path in paths.items():
-                guard.saw(robot, stamp, *path(exposed), arrived_s=stamp)
+                x_m, y_m = path(exposed)
+                guard.saw(robot, stamp, x_m, y_m, arrived_s=stamp)
             stop = guard.check(stamp, stamps_now_s=stamp)
             if stop is not None:
                 return stop

@@ -4,12 +4,12 @@ closer than the clearance allows, or when a robot driving a leg goes unnamed too
 
 Two robots are too close when, from their latest captures and closing as their captures over
 the last 40 ms or more say, their centres would come within ``stop_gap_m`` before a stop sent
-now has taken hold: the captures' age (a frame waits for the tracker, the tracker for the machine: on a busy
-one a capture arrives a quarter of a second old) and ``horizon_s`` beyond it (the command on
-its way and the wheels' ramp down). A robot is unnamed while no capture of it (still or in
-motion) has arrived; one that drives a leg and stays unnamed longer than ``unnamed_s`` is
-driving blind. Times of arrival are the caller's clock (any monotonic one), positions in the
-platform frame, stamps the camera's.
+now has taken hold: the captures' age (a frame waits for the tracker, the tracker for the
+machine: on a busy one a capture arrives a quarter of a second old) and ``horizon_s`` beyond it
+(the command on its way and the wheels' ramp down). A robot is unnamed while no capture of it
+(still or in motion) has arrived; one that drives a leg and stays unnamed longer than
+``unnamed_s`` is driving blind. Times of arrival are the caller's clock (any monotonic one),
+positions in the platform frame, stamps the camera's.
 """
 
 from __future__ import annotations
