@@ -42,6 +42,8 @@ PERIOD_SEEN = 3
 PERIOD_JITTER = 1.25
 # CameraInfo stamps kept waiting for their frame (10 s at 30 Hz).
 PENDING_LIMIT = 300
+# Stamps of frames known sent, kept to reach back past the 300 CameraInfo stamps' span.
+SENT_KEPT = 600
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,8 @@ class FrameLosses:
     _gaps: deque[int] = field(default_factory=lambda: deque(maxlen=300))     # the latest gaps
     _last_ns: int | None = None
     _infos: deque[int] = field(default_factory=lambda: deque(maxlen=300))    # CameraInfo stamps
+    # The stamps of frames known sent, in order: a CameraInfo's or a frame's, whichever came.
+    _sent: list[int] = field(default_factory=list)
     # CameraInfo stamps whose frame has not come (yet), and frames whose CameraInfo has not.
     _pending: dict[int, None] = field(default_factory=dict)
     _early: deque[int] = field(default_factory=lambda: deque(maxlen=30))
@@ -124,12 +128,17 @@ class FrameLosses:
     def period_ns(self) -> float | None:
         """The driver's period by its stamps (None until enough have come).
 
-        With CameraInfo, the latest of its stamps over their span: one for every frame sent,
-        however irregularly. Else the commonest of the frames' shorter gaps (not the shortest: a
-        driver that stamps a late frame when it gets to it sends the next one soon after) gives
-        it roughly, and the latest gaps, each counted in whole periods of that, over seconds."""
+        With CameraInfo, the frames known sent over their span: one CameraInfo for every frame
+        sent, however irregularly, or its frame where that CameraInfo was lost (best effort:
+        one of 54 on a busy machine). Else the commonest of the frames' shorter gaps (not the
+        shortest: a driver that stamps a late frame when it gets to it sends the next one soon
+        after) gives it roughly, and the latest gaps, each counted in whole periods of that,
+        over seconds."""
         if len(self._infos) >= PERIOD_SEEN:
-            return (self._infos[-1] - self._infos[0]) / (len(self._infos) - 1)
+            first, last = self._infos[0], self._infos[-1]
+            sent = (bisect.bisect_right(self._sent, last)
+                    - bisect.bisect_left(self._sent, first))
+            return (last - first) / (sent - 1)
         if len(self._gaps) < PERIOD_AFTER:
             return None
         ordered = sorted(self._gaps)
@@ -151,14 +160,24 @@ class FrameLosses:
         if self._infos and stamp_ns <= self._infos[-1]:
             if stamp_ns < self._infos[-1]:
                 self._infos.clear()   # a driver that restarted its clock
+                self._sent.clear()
             return
         self._infos.append(stamp_ns)
+        self._known_sent(stamp_ns)
         if stamp_ns in self._early:
             self._early.remove(stamp_ns)
         else:
             self._pending[stamp_ns] = None
             if len(self._pending) > PENDING_LIMIT:   # frames that never come at all: bounded
                 del self._pending[next(iter(self._pending))]
+
+    def _known_sent(self, stamp_ns: int) -> None:
+        at = bisect.bisect_left(self._sent, stamp_ns)
+        if at < len(self._sent) and self._sent[at] == stamp_ns:
+            return
+        self._sent.insert(at, stamp_ns)
+        if len(self._sent) > SENT_KEPT:
+            del self._sent[0]
 
     def _missing_by_info(self, stamp_ns: int, first: bool) -> list[int]:
         """The frames sent before this one (their CameraInfo came) that never came; none
@@ -176,6 +195,7 @@ class FrameLosses:
         """A frame stamped ``stamp_ns`` arrived; the stretch of losses to say now, if one is
         due (``cause``: what :func:`likely_cause` says of the frames now, asked only then)."""
         last, self._last_ns = self._last_ns, stamp_ns
+        self._known_sent(stamp_ns)
         # Kept before any CameraInfo came too: the first frame can come before its own.
         lost_by_info = self._missing_by_info(stamp_ns, last is None)
         by_info = lost_by_info if self._infos else None
