@@ -37,11 +37,11 @@ UNNAMED_S = 1.0
 START_WITHIN_M = 1.5e-3
 # Two captures further apart than this give no velocity (the robot was not followed between).
 VELOCITY_SPAN_S = 0.5
-# A velocity is taken over at least this long (more than half a frame of a 15 Hz camera, a
-# frame's own span leaves at that rate as it was): a busy driver stamps frames when it reads
-# them, not when they were exposed (usb_cam's default), so two frames read back to back come
-# 2 ms apart by their stamps with a frame's travel between them. Longer, it lags a robot's
-# 0.17 s ramp down (a robot parked at the planner's 12 mm was taken for one closing).
+# A velocity is taken over at least this long (over half a frame at 15 Hz, so there each is
+# still taken from the frame before): a busy driver stamps frames when it reads them, not when
+# they were exposed (usb_cam's default), so two frames read back to back come 2 ms apart by
+# their stamps with a frame's travel between them. Longer, it lags a robot's 0.17 s ramp down
+# (a robot parked at the planner's 12 mm was taken for one closing).
 MIN_VELOCITY_SPAN_S = 0.04
 
 
