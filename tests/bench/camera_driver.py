@@ -103,12 +103,11 @@ class StandInCamera(Node):
         self.infos = self.create_publisher(CameraInfo, 'camera_info', qos_profile_sensor_data)
         self.truth: RobotState | None = None
         self.truth_stamp_ns = 0
-        self.drawn_ns = -1     # the true pose's time the latest frame shows
         self.sensor = Sensor()
         self.target = (render_target(CAMERA, TARGET, OPTICS.yaw_rad)
                        if scene == 'chessboard' else None)
-        # robots=robot_0,robot_1: each robot's recent true states with their stamps (two
-        # seconds of its driver's 50 Hz ticks), by its code.
+        # Each robot's recent true states with their stamps (two seconds of its driver's 50 Hz
+        # ticks), by its code (the robot scene's one robot as 0).
         names = scene.partition('=')[2].split(',') if scene.startswith('robots=') else []
         self.robots: dict[int, collections.deque[tuple[int, RobotState]]] = {}
         self.hidden_once_moving = {int(name.split('@')[0].rpartition('_')[2])
@@ -121,11 +120,12 @@ class StandInCamera(Node):
         self.codes = len(names)
         self.hidden: set[int] = set()
         if not names:
-            self.create_subscription(Odometry, '/bench_truth/odom', self.on_truth, 10)
+            self.create_subscription(Odometry, '/bench_truth/odom',
+                                     functools.partial(self.on_robot_truth, 0), 10)
         self.optics.prepare()
         self.frame = 0
-        # The frames the wide camera has exposed that the host has not taken yet: a device's
-        # buffers (usb_cam maps 4 by default).
+        # The frames exposed that the host has not taken yet: a device's buffers (usb_cam maps
+        # 4 by default).
         self.exposed: collections.deque[int] = collections.deque(maxlen=DEVICE_BUFFERS)
         self.create_timer(1.0 / FRAME_RATE_HZ, self.on_frame)
 
@@ -149,40 +149,35 @@ class StandInCamera(Node):
     def on_frame(self) -> None:
         if time.monotonic() < self.device_open_at:
             return
-        # When it was taken, by the system clock (on a machine whose clock may be off). The robot
-        # is drawn where it really was at a moment the stand-in knows: its latest true pose, and
-        # the frame stamped with that pose's time. (Drawn at the latest pose but stamped "now",
-        # a frame of a machine too busy to take every pose in time showed the robot where it had
-        # been: three such frames agree, and the tracker called a moving robot still there.)
-        rng = np.random.default_rng([7, self.frame])
+        # Stamped when taken, by the system clock (on a machine whose clock may be off).
         if self.target is not None:
-            taken_ns = self.get_clock().now().nanoseconds
-            ideal = expose(self.target, self.sensor, rng)
-        elif self.codes:
-            self.take_robots()
-            return
-        elif self.truth is not None and self.truth_stamp_ns != self.drawn_ns and not self.codes:
-            taken_ns = self.drawn_ns = self.truth_stamp_ns
-            ideal = render(CAMERA, self.sensor, self.truth, rng, OPTICS.yaw_rad)
+            self.send(self.get_clock().now().nanoseconds,
+                      expose(self.target, self.sensor, np.random.default_rng([7, self.frame])))
         else:
-            return    # no pose yet, or none since the last frame: no frame to take
-        self.send(taken_ns, ideal)
+            self.take_robots()
 
     def take_robots(self) -> None:
-        """The wide camera exposes at its own rate whatever the robots' drivers are doing, every
+        """The camera exposes at its own rate whatever the robots' drivers are doing, every
         robot at one instant; a frame waits in the device's buffers until the host can take it
         (here: until every robot's truth has reached its time), the oldest overwritten when all
         are full. (Frames taken only as the truths came held every frame while one stand-in
         driver was starved of the CPU: 2 Hz sent, and the guard stopped robots it could not
         see. Each robot drawn at its own latest truth under the earliest's stamp showed a robot
-        0.3 mm on between frames 2 ms apart by their stamps.)"""
+        0.3 mm on between frames 2 ms apart by their stamps. A robot drawn at its latest truth
+        but stamped when taken was shown where it had been: three such frames agreed, and the
+        tracker called a moving robot still there.)"""
         self.exposed.append(self.get_clock().now().nanoseconds)
-        if len(self.robots) < self.codes:
+        if len(self.robots) < max(self.codes, 1):
             return
         known_ns = min(states[-1][0] for states in self.robots.values())
         while self.exposed and self.exposed[0] <= known_ns:
             taken_ns = self.exposed.popleft()
             rng = np.random.default_rng([7, self.frame])
+            if not self.codes:
+                self.send(taken_ns, render(CAMERA, self.sensor,
+                                           state_at(self.robots[0], taken_ns), rng,
+                                           OPTICS.yaw_rad))
+                continue
             self.send(taken_ns, render_robots(
                 WIDE_CAMERA, self.sensor,
                 [InView(state_at(states, taken_ns), code) for code, states in
