@@ -101,8 +101,6 @@ class StandInCamera(Node):
         self.scene = scene
         self.images = self.create_publisher(Image, 'image_raw', qos_profile_sensor_data)
         self.infos = self.create_publisher(CameraInfo, 'camera_info', qos_profile_sensor_data)
-        self.truth: RobotState | None = None
-        self.truth_stamp_ns = 0
         self.sensor = Sensor()
         self.target = (render_target(CAMERA, TARGET, OPTICS.yaw_rad)
                        if scene == 'chessboard' else None)
@@ -129,20 +127,14 @@ class StandInCamera(Node):
         self.exposed: collections.deque[int] = collections.deque(maxlen=DEVICE_BUFFERS)
         self.create_timer(1.0 / FRAME_RATE_HZ, self.on_frame)
 
-    def on_truth(self, msg: Odometry) -> None:
+    def on_robot_truth(self, code: int, msg: Odometry) -> None:
         pose, twist = msg.pose.pose, msg.twist.twist
         phi = 2.0 * math.atan2(pose.orientation.z, pose.orientation.w)
-        self.truth = RobotState(pose.position.x, pose.position.y, phi, twist.linear.x,
-                                twist.linear.y, twist.angular.z)
-        self.truth_stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-    def on_robot_truth(self, code: int, msg: Odometry) -> None:
-        self.on_truth(msg)
-        assert self.truth is not None
+        truth = RobotState(pose.position.x, pose.position.y, phi, twist.linear.x,
+                           twist.linear.y, twist.angular.z)
         self.robots.setdefault(code, collections.deque(maxlen=100)).append(
-            (self.truth_stamp_ns, self.truth))
-        if code in self.hidden_once_moving and math.hypot(self.truth.vx_m_s,
-                                                          self.truth.vy_m_s) > 0:
+            (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec, truth))
+        if code in self.hidden_once_moving and math.hypot(truth.vx_m_s, truth.vy_m_s) > 0:
             self.hidden_once_moving.discard(code)
             self.hidden.add(code)
 

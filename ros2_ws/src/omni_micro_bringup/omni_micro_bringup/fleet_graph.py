@@ -182,6 +182,7 @@ class FleetDispatch:
             self.fleet.max_sim_time_s, grid_period_s(options.params_files,
                                                      options.dynamics_overrides))
         settled_s = BAG_TAIL_S + RUN_ON_PAST_BAG_END_S
+        tasks_left = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
 
         def past_limit(at_s: float) -> bool:
             return limit_s is not None and at_s > limit_s + STAMP_RESOLUTION_S
@@ -233,13 +234,13 @@ class FleetDispatch:
             # may drive for long with nothing ending).
             if bench is not None and time.time() - origin_s > self.fleet.max_sim_time_s:
                 outcome, now_s = 'timeout', max(now_s, time.time() - origin_s)
-                reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
+                reason = tasks_left
                 break
             if seen == len(monitor.fleet_statuses):
                 if limit_s is not None and \
                         (monitor.simulated_time_s() or 0.0) >= limit_s + settled_s:
                     outcome, now_s = 'timeout', limit_s
-                    reason = f'tasks left after {self.fleet.max_sim_time_s:g} s of simulated time'
+                    reason = tasks_left
                     for log in logs:
                         log.route = [sample for sample in log.route if not past_limit(sample[0])]
                     break

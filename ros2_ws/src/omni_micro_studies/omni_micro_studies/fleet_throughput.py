@@ -9,6 +9,8 @@ import random
 import time
 from typing import Any
 
+from omni_micro_control.fleet_files import OPEN_LOOP
+
 # The crossing: robots on a circle, each sent to the opposite point, so that every path crosses
 # the middle (four robots make a cross of the platform, 100 mm end to end; sixteen stand 19.5 mm
 # apart around it).
@@ -17,7 +19,7 @@ CROSSING_RADIUS_M = 0.05
 CROSSING_ROBOTS = range(2, 25, 2)   # even counts whose neighbours stand 12 mm apart or more
 # How the figure names each controller mode.
 CONTROLLER_NAMES = {'paper': "on the paper's rule", 'model': 'in the model mode',
-                    'servo': 'in the servo mode', 'open-loop': 'driven open loop'}
+                    'servo': 'in the servo mode', OPEN_LOOP: 'driven open loop'}
 COLUMNS = ('robots', 'controller', 'seed', 'outcome', 'goals', 'sim_time_s', 'goals_per_minute',
            'closest_gap_mm', 'farthest_off_leg_mm', 'wall_s')
 
