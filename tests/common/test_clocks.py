@@ -56,7 +56,7 @@ def test_the_controller_loses_a_goal_at_the_first_capture_from_another_clock(con
         capture.pose.pose.orientation.w = 1.0
         capture.pose.covariance[0] = capture.pose.covariance[7] = 1e-12
         capture.pose.covariance[35] = 1e-6
-        node._on_capture_with_covariance(capture, 'macro')
+        node.captures.on_capture_with_covariance(capture, 'macro')
         said = [(s.message, {v.key: v.value for v in s.values}) for s in statuses]
         assert said[-2][0] == 'clock mismatch'
         assert said[-1][0] == 'lost'

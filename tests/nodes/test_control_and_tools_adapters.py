@@ -252,11 +252,11 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
         still.header.stamp.sec, still.header.stamp.nanosec = 0, 200_000_000
         node._on_joint_state(serialize_message(still))
         uncertainty = CaptureUncertainty(0.1e-6, 0.1e-6, 1e-4)
-        node._on_capture_with_covariance(
+        node.captures.on_capture_with_covariance(
             with_uncertainty(capture_pose(0, 200_000_000, 'platform', 0.0, 0.0, 0.0),
                              uncertainty), camera='micro')
         assert [stamp_ns(t.header.stamp) for t in trajectories.messages] == [220_000_000]
-        node._on_capture_with_covariance(
+        node.captures.on_capture_with_covariance(
             with_uncertainty(capture_pose(0, 300_000_000, 'platform', 5e-5, 0.0, 0.0),
                              uncertainty), camera='micro', in_motion=True)
         # 0.3 s + 0.05 s (the age it counts on alone) + 0.02 s, on the 20 ms grid.
@@ -264,7 +264,7 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
         assert (acks[-1].capture_handled_ns, acks[-1].motion_handled_ns) == (200_000_000,
                                                                              300_000_000)
         # A broken capture in motion is as good as none, and still said handled.
-        node._on_capture_with_covariance(
+        node.captures.on_capture_with_covariance(
             with_uncertainty(capture_pose(0, 400_000_000, 'platform', math.nan, 0.0, 0.0),
                              uncertainty), camera='micro', in_motion=True)
         assert len(trajectories.messages) == 2 and acks[-1].motion_handled_ns == 400_000_000
@@ -293,7 +293,7 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
             "it starts its corrections 90.0 ms after a capture's stamp"]
         assert isinstance(node.controller, ServoSession)
         assert node.controller.config.capture_age_s == pytest.approx(0.09)
-        node._on_capture_with_covariance(
+        node.captures.on_capture_with_covariance(
             with_uncertainty(capture_pose(0, 500_000_000, 'platform', 8e-5, 0.0, 0.0),
                              uncertainty), camera='micro', in_motion=True)
         # 0.5 s + 0.09 s + 0.02 s, on the 20 ms grid.
@@ -334,7 +334,7 @@ def test_controller_node_counts_a_goal_from_its_arrival_or_its_stamp(context, sp
         settle = node.controller.config.settle_wait_s
         assert node.controller.deadline_s == pytest.approx(counts_from_s + settle)
         node.report(Finished(Outcome.REACHED, 'there', 1, None), at_s=7.25)
-        node._report_lockstep()
+        node.report_lockstep()
         ack = decode_ack_bytes(reports.messages[-1])
         assert ack is not None and ack.outcome_ns == 7_250_000_000
     finally:
@@ -359,7 +359,7 @@ def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context,
         Parameter('captures_per_stop', value=2)])
     try:
         statuses = spy(node.status_pub)   # from 'idle' on
-        node._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
+        node.publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         trajectories = spy(node.trajectory_pub)
         acks: list[Ack] = []
         monkeypatch.setattr(node.lockstep, 'report', acks.append)
@@ -369,7 +369,7 @@ def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context,
         node._on_joint_state(serialize_message(still))
         uncertainty = CaptureUncertainty(0.1e-6, 0.1e-6, 1e-4)
         for sec, nanosec in ((4, 980_000_000), (5, 0), (5, 20_000_000)):
-            node._on_capture_with_covariance(with_uncertainty(
+            node.captures.on_capture_with_covariance(with_uncertainty(
                 capture_pose(sec, nanosec, 'platform', 0.0, 0.0, 0.0), uncertainty),
                 camera='micro')
         assert trajectories.messages == []

@@ -16,6 +16,7 @@ platform, :mod:`fleet_dependencies` (the paths as legs, and who waits for whom),
 :mod:`fleet_legs` (which goal each robot is given next, as goals are reached),
 :mod:`fleet_guard` (real robots on the bench stopped before two touch or one drives unseen) and
 :mod:`fleet_files` (a fleet's robots and tasks, from files or drawn from a seed). Its node:
-:mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked)
-and :mod:`controller_messages` (the trajectories and statuses it publishes).
+:mod:`controller_node`, with :mod:`controller_parameters` (its parameters, declared and checked),
+:mod:`capture_intake` (what becomes of each capture it reads) and :mod:`controller_messages`
+(the trajectories and statuses it publishes).
 """

@@ -30,20 +30,16 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import Pose, PoseStamped, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
-from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.controller_status import status_message
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
-    CaptureUncertainty,
     join_stamp,
-    quaternion_to_yaw,
     stamp_ns,
 )
 from omni_micro_common.lockstep import Ack
@@ -64,6 +60,7 @@ from omni_micro_common.topic_names import (
     TRACKER_STATUS_TOPICS,
     WHEEL_TRAJECTORY_TOPIC,
 )
+from omni_micro_control.capture_intake import CaptureIntake
 from omni_micro_control.controller_messages import (
     STATUS_LEVELS,
     end_values,
@@ -81,7 +78,6 @@ from omni_micro_control.controller_parameters import declare_controller_paramete
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import Finished, Move, Outcome, Phase, VisionFeedbackController
 from omni_micro_control.move_watcher import MoveWatcher
-from omni_micro_control.observations import CapturesBeforeTheGoal, Observation, read_capture
 from omni_micro_control.platform import goal_error
 from omni_micro_control.servo_config import ServoCommand
 from omni_micro_control.servo_session import ServoSession
@@ -101,19 +97,15 @@ class ControllerNode(Node):
         self.frame_id = settings.frame_id
         self.platform_center, self.platform_size = settings.platform_center, settings.platform_size
         self.uncertainty_source = settings.uncertainty_source
-        self.fixed_uncertainty = settings.fixed_uncertainty
         self.controller = settings.controller()
         self.watcher = MoveWatcher()
         self.robot_time_s = 0.0
-        self._said_mismatch: str | None = None   # the last clock mismatch logged
         self._robot_time_ns = 0
-        self._capture_handled_ns = -1
-        # A servo reports the captures in motion it has handled; the others read none.
-        self._motion_handled_ns = -1 if isinstance(self.controller, ServoSession) else None
         self._command_ns: int | None = None
         self._outcome_ns: int | None = None   # the last goal's end, for a coordinator
         self.goals_at_stamp = settings.goal_time == 'stamp'
-        self.before_the_goal = CapturesBeforeTheGoal()
+        self.captures = CaptureIntake(self, self.frame_id, settings.fixed_uncertainty,
+                                      servo=isinstance(self.controller, ServoSession))
         self.publication_counter = PublicationCounter()
         count = self.publication_counter.wrap
         self.trajectory_pub = count(self.create_publisher(JointTrajectory, WHEEL_TRAJECTORY_TOPIC,
@@ -126,7 +118,7 @@ class ControllerNode(Node):
         readers = node_list_parameter(self, 'trajectory_readers')
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._timeout_checks = 0
-        self._publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
+        self.publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         # Listens once every trajectory_readers' reader is matched: a move sent before is lost.
         when_readers_matched(self, [(self.trajectory_pub, readers)], self._listen)
         self.get_logger().info(ready_line(settings.servo or settings.config,
@@ -143,12 +135,12 @@ class ControllerNode(Node):
             self.create_subscription(
                 PoseWithCovarianceStamped if covariance else PoseStamped,
                 (CAPTURE_COVARIANCE_TOPICS if covariance else CAPTURE_TOPICS)[name],
-                functools.partial(self._on_capture_with_covariance if covariance
-                                  else self._on_capture, camera=name), CAPTURE_QOS)
-            if self._motion_handled_ns is not None:
+                functools.partial(self.captures.on_capture_with_covariance if covariance
+                                  else self.captures.on_capture, camera=name), CAPTURE_QOS)
+            if self.captures.motion_handled_ns is not None:
                 self.create_subscription(
                     PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[name],
-                    functools.partial(self._on_capture_with_covariance, camera=name,
+                    functools.partial(self.captures.on_capture_with_covariance, camera=name,
                                       in_motion=True), CAPTURE_QOS)
                 self.create_subscription(
                     DiagnosticStatus, TRACKER_STATUS_TOPICS[name],
@@ -159,10 +151,7 @@ class ControllerNode(Node):
 
     def _on_goal(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in (self.frame_id, ''):
-            problem = f'goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}'
-            self.get_logger().warning(f'rejected {problem}; staying as it was')
-            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
-                                 reason=problem)
+            self._reject_goal(f'goal in frame {msg.header.frame_id!r}: expected {self.frame_id!r}')
             return
         self._accept_goal(msg.pose.position.x, msg.pose.position.y, stopped_at_s=(
             join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec) if self.goals_at_stamp
@@ -171,19 +160,24 @@ class ControllerNode(Node):
     def _accept_goal(self, x_m: float, y_m: float, stopped_at_s: float) -> None:
         problem = goal_error(float(x_m), float(y_m), self.platform_center, self.platform_size)
         if problem:
-            self.get_logger().warning(f'rejected goal: {problem}; staying idle')
-            self._publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
-                                 reason=problem)
+            self._reject_goal(problem)
             return
         replaced = self.controller.set_goal((float(x_m), float(y_m)), stopped_at_s)
         self.report(replaced, at_s=stopped_at_s)
         self.get_logger().info(f'goal ({x_m * 1e3:.4f}, {y_m * 1e3:.4f}) mm, still since '
                                f'{stopped_at_s:.3f} s')
-        held = self.before_the_goal.since(stopped_at_s)   # act first: on /lockstep by 'settling'
+        # Acted on first: on /lockstep by 'settling'.
+        held = self.captures.before_the_goal.since(stopped_at_s)
         for seen in held:
-            self._act(self.controller.on_capture(seen), at_s=seen.stamp_s)
+            self.act(self.controller.on_capture(seen), at_s=seen.stamp_s)
         if not held or self.controller.phase is not Phase.MOVING:   # else 'moving' said it
-            self._publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
+            self.publish_status(DiagnosticStatus.OK, 'settling', at_s=stopped_at_s)
+
+    def _reject_goal(self, problem: str) -> None:
+        """A goal refused leaves the one under way (or none) as it was."""
+        self.get_logger().warning(f'rejected {problem}; staying as it was')
+        self.publish_status(DiagnosticStatus.WARN, 'goal rejected', at_s=self.robot_time_s,
+                             reason=problem)
 
     def _on_joint_state(self, data: bytes) -> None:
         wheels = read_wheel_state(self._joint_state, data)
@@ -201,81 +195,22 @@ class ControllerNode(Node):
         if isinstance(self.controller, ServoSession):
             self.controller.on_wheel_state(stamp, wheels.speeds_rad_s)
         elif stopped:
-            self._act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
+            self.act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
         # The capture timeouts on the robot's own wheel states' time (no /clock subscription).
         check = int(self.robot_time_s // TIMEOUT_CHECK_S)
         if check > self._timeout_checks:
             self._timeout_checks = check
             self._on_timer()
-        self._report_lockstep()
+        self.report_lockstep()
 
-    def _on_capture(self, msg: PoseStamped, camera: str) -> None:
-        self._take(msg.header, msg.pose, self.fixed_uncertainty[camera], camera)
-
-    def _on_capture_with_covariance(self, msg: PoseWithCovarianceStamped, camera: str,
-                                    in_motion: bool = False) -> None:
-        try:
-            uncertainty = CaptureUncertainty.from_covariance(msg.pose.covariance)
-        except ValueError as error:
-            self.get_logger().warning(f'ignored {camera} capture: {error}',
-                                      throttle_duration_sec=5.0)
-            uncertainty = None
-        self._take(msg.header, msg.pose.pose, uncertainty, camera, in_motion)
-
-    def _take(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty | None,
-              camera: str, in_motion: bool = False) -> None:
-        """A capture (``in_motion``: of the rolling robot) handled, said so on /lockstep."""
-        seen = None if uncertainty is None else self._observation(header, pose, uncertainty,
-                                                                  camera)
-        controller = self.controller
-        if seen is not None and in_motion and isinstance(controller, ServoSession):
-            self._act(controller.on_capture_in_motion(seen), at_s=seen.stamp_s)
-        elif seen is not None and controller.phase in (Phase.IDLE, Phase.DONE):
-            self.before_the_goal.keep(seen)
-        elif seen is not None:
-            self._act(controller.on_capture(seen), at_s=seen.stamp_s)
-        if in_motion and self._motion_handled_ns is not None:
-            self._motion_handled_ns = max(self._motion_handled_ns, stamp_ns(header.stamp))
-        else:
-            self._capture_handled_ns = max(self._capture_handled_ns, stamp_ns(header.stamp))
-        self._report_lockstep()
-
-    def _report_lockstep(self) -> None:   # all received is handled, and its results published
+    def report_lockstep(self) -> None:   # all received is handled, and its results published
         self.lockstep.report(Ack(
-            self.get_name(), self._robot_time_ns, capture_handled_ns=self._capture_handled_ns,
+            self.get_name(), self._robot_time_ns, capture_handled_ns=self.captures.handled_ns,
             command_ns=self._command_ns,
             command_lead_ns=round(self.controller.config.command_lead_s * 1e9),
-            motion_handled_ns=self._motion_handled_ns, outcome_ns=self._outcome_ns))
+            motion_handled_ns=self.captures.motion_handled_ns, outcome_ns=self._outcome_ns))
 
-    def _observation(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
-                     camera: str) -> Observation | None:
-        """The capture as the controller reads it; None (said why) if it cannot be used."""
-        if self.watcher.latest_rotations is None:
-            # No wheel state yet (a respawned controller): the robot's time, and whether it
-            # moves, are unknown until the first; the next stop's captures decide.
-            self.get_logger().info(f'{camera} capture before the first wheel state: skipped',
-                                   throttle_duration_sec=5.0)
-            return None
-        stamp = join_stamp(header.stamp.sec, header.stamp.nanosec)
-        seen = read_capture(camera, header.frame_id, self.frame_id, stamp,
-                            (pose.position.x, pose.position.y,
-                             quaternion_to_yaw(pose.orientation.z, pose.orientation.w)),
-                            uncertainty)
-        if isinstance(seen, str):
-            self.get_logger().warning(seen, throttle_duration_sec=5.0)
-            return None
-        mismatch = clock_mismatch(f'a {camera} capture', stamp, 'the robot', self.robot_time_s)
-        if mismatch is not None:
-            if mismatch != self._said_mismatch:
-                self._said_mismatch = mismatch
-                self.get_logger().error(mismatch)
-                self._publish_status(DiagnosticStatus.ERROR, 'clock mismatch',
-                                     at_s=self.robot_time_s, reason=mismatch)
-            self._act(self.controller.on_foreign_capture(mismatch), at_s=self.robot_time_s)
-            return None
-        return seen
-
-    def _act(self, decision: Move | ServoCommand | Finished | None, at_s: float) -> None:
+    def act(self, decision: Move | ServoCommand | Finished | None, at_s: float) -> None:
         """``at_s``: the simulated time of its cause, which a finished goal's status carries."""
         if isinstance(decision, Move):
             self._command(decision)
@@ -285,7 +220,7 @@ class ControllerNode(Node):
             if decision.from_rest and isinstance(self.controller, ServoSession):
                 line, values = servo_move(self.controller, decision)
                 self.get_logger().info(line)
-                self._publish_status(DiagnosticStatus.OK, 'moving', at_s=at_s, **values)
+                self.publish_status(DiagnosticStatus.OK, 'moving', at_s=at_s, **values)
         elif isinstance(decision, Finished):
             self.report(decision, at_s)
 
@@ -296,8 +231,8 @@ class ControllerNode(Node):
         if msg.level != DiagnosticStatus.OK and 'outside' in msg.message:
             said = {item.key: item.value for item in msg.values}.get(STATUS_TIME_KEY)
             at_s = float(said) if said is not None else self.robot_time_s
-            self._act(self.controller.on_out_of_field(self.robot_time_s), at_s=at_s)
-            self._report_lockstep()
+            self.act(self.controller.on_out_of_field(self.robot_time_s), at_s=at_s)
+            self.report_lockstep()
 
     def _on_tracker_status(self, msg: DiagnosticStatus, camera: str) -> None:
         """How old a driver's captures in motion come: the servo's bound grows to it."""
@@ -322,7 +257,7 @@ class ControllerNode(Node):
             self.get_logger().warning(waiting_line(tries, self.controller.config))
         if finished is not None:
             self.report(finished, at_s=self.robot_time_s)
-            self._report_lockstep()
+            self.report_lockstep()
 
     def _command(self, move: Move) -> None:
         assert isinstance(self.controller, VisionFeedbackController)   # it made the move
@@ -341,7 +276,7 @@ class ControllerNode(Node):
             self.get_logger().warning(line)
         else:
             self.get_logger().info(line)
-        self._publish_status(DiagnosticStatus.OK, 'moving', at_s=move.observation.stamp_s,
+        self.publish_status(DiagnosticStatus.OK, 'moving', at_s=move.observation.stamp_s,
                              **values)
 
     def report(self, finished: Finished | None, at_s: float) -> None:
@@ -362,11 +297,11 @@ class ControllerNode(Node):
             self.get_logger().info(line)
         else:
             self.get_logger().warning(line)
-        self._publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, at_s=at_s,
+        self.publish_status(STATUS_LEVELS[finished.outcome], finished.outcome.value, at_s=at_s,
                              **values)
         self._outcome_ns = round(at_s * 1e9)
 
-    def _publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
+    def publish_status(self, level: int, message: str, at_s: float, **values: str) -> None:
         self.status_pub.publish(status_message(level, message, at_s, values))
 
     def stop_robot(self) -> None:
@@ -376,7 +311,7 @@ class ControllerNode(Node):
     def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
         self._command_ns = stamp_ns(msg.header.stamp)
-        self._report_lockstep()   # at once, before any status of it
+        self.report_lockstep()   # at once, before any status of it
 
 
 def _stop_on_shutdown(node: ControllerNode) -> None:

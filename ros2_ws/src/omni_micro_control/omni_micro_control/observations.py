@@ -7,6 +7,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from omni_micro_common.clocks import clock_mismatch
 from omni_micro_common.conventions import CaptureUncertainty
 
 
@@ -28,15 +29,29 @@ class Observation:
         return 0.0 if self.uncertainty is None else self.uncertainty.radius_95_m
 
 
+@dataclass(frozen=True)
+class Refused:
+    """A capture a controller cannot use: the line that says why, and whether it is on another
+    clock than the robot's (which ends a goal) rather than merely unreadable (which is skipped)."""
+
+    line: str
+    foreign_clock: bool = False
+
+
 def read_capture(camera: str, frame_id: str, expected_frame_id: str, stamp_s: float,
-                 pose: tuple[float, float, float],
-                 uncertainty: CaptureUncertainty) -> Observation | str:
-    """A capture (x, y, heading) as a controller reads it, or why it cannot (a line to log)."""
+                 pose: tuple[float, float, float], uncertainty: CaptureUncertainty,
+                 robot_time_s: float) -> Observation | Refused:
+    """A capture (x, y, heading) as a controller reads it, or why it cannot, the robot's clock
+    reading ``robot_time_s``."""
     if frame_id != expected_frame_id:
-        return f'ignored {camera} capture in frame {frame_id!r}: expected {expected_frame_id!r}'
+        return Refused(f'ignored {camera} capture in frame {frame_id!r}: expected '
+                       f'{expected_frame_id!r}')
     seen = Observation(stamp_s, *pose, camera, uncertainty)
     if not all(math.isfinite(v) for v in pose):
-        return f'ignored {camera} capture with a non-finite pose: {seen}'
+        return Refused(f'ignored {camera} capture with a non-finite pose: {seen}')
+    mismatch = clock_mismatch(f'a {camera} capture', stamp_s, 'the robot', robot_time_s)
+    if mismatch is not None:
+        return Refused(mismatch, foreign_clock=True)
     return seen
 
 
