@@ -258,7 +258,8 @@ def test_a_robot_not_where_the_robots_file_says_is_refused_before_any_goal(
 
 
 def check_the_stop_in_the_bench_log(bag: Path) -> None:
-    """The bag keeps each robot's wheels and commands, the stop sent to each, and why."""
+    """The bag keeps each robot's wheels and commands, the stop sent to each, why, and the
+    goal under way cancelled."""
     from omni_micro_tools.bag_reading import read_bag
 
     data = read_bag(bag)
@@ -272,3 +273,10 @@ def check_the_stop_in_the_bench_log(bag: Path) -> None:
     values = {item.key: item.value for item in said[0].values}
     assert values == {'kind': 'proximity', 'robots': 'robot_0,robot_1',
                       'stopped': 'robot_0,robot_1'}
+    # robot_0's controller, driving at robot_1 when the guard stopped both, is told: its goal
+    # ends cancelled, not reached where the robot was stopped.
+    statuses = [data.messages[f'/robot_{k}/controller/status'] for k in range(2)]
+    last = statuses[0][-1]
+    assert last.message == 'cancelled', [status.message for status in statuses[0]]
+    assert {v.key: v.value for v in last.values}['reason'] == 'cancelled on request'
+    assert [status.message for status in statuses[1]] == ['idle']   # parked, jogged by hand

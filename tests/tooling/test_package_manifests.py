@@ -24,8 +24,8 @@ ROSDEP_KEYS = {
 }
 # ROS packages import as themselves (rclpy, geometry_msgs, ...), as do the siblings.
 ROS_PACKAGES = {'rclpy', 'builtin_interfaces', 'diagnostic_msgs', 'geometry_msgs', 'nav_msgs',
-                'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'trajectory_msgs',
-                'visualization_msgs', *PACKAGES}
+                'rcl_interfaces', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs',
+                'trajectory_msgs', 'visualization_msgs', *PACKAGES}
 
 
 # A bringup package depends on the packages whose nodes it starts, imported or not (as

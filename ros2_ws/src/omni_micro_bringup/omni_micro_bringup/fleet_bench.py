@@ -27,6 +27,7 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.duration import Duration
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_bringup.composition import (
@@ -65,9 +66,7 @@ from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 
 # How often the guard looks (a 15 Hz camera's frames come every 67 ms).
 GUARD_PERIOD_S = 0.02
-# After the guard's stop: every controller's goal is met within this (the platform's size), so
-# that it decides no more moves; the stops go on this long after the last has it.
-STOPPED_TOLERANCE_M = 0.2
+# After the guard's stop: the stops go on this long after every controller has cancelled its goal.
 HOLD_AFTER_STOP_S = 0.5
 
 
@@ -162,6 +161,8 @@ class BenchGuard:
                                             robot_topic(k, WHEEL_TRAJECTORY_TOPIC), 10)
                       for k in range(len(logs))]
         self.status = node.create_publisher(DiagnosticStatus, FLEET_GUARD_TOPIC, latched(10))
+        self.cancels = [node.create_client(Trigger, f'/{robot_name(k)}/controller_node/cancel')
+                        for k in range(len(logs))]
         self.timer = node.create_timer(GUARD_PERIOD_S, self._on_tick)
         for k in range(len(logs)):
             for camera in cameras:

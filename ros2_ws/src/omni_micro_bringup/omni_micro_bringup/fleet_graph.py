@@ -26,6 +26,8 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
+from std_srvs.srv import Trigger
+
 from omni_micro_bringup.composition import (
     GraphOptions,
     bench_cameras,
@@ -36,7 +38,6 @@ from omni_micro_bringup.composition import (
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_bench import (
     HOLD_AFTER_STOP_S,
-    STOPPED_TOLERANCE_M,
     BenchGuard,
     bench_publications,
     bench_ready_topics,
@@ -208,12 +209,14 @@ class FleetDispatch:
         while not dispatcher.finished:
             if bench is not None and bench.stopped is not None:
                 outcome, reason = 'stopped', f'every robot stopped: {bench.stopped.reason}'
-                # A controller does not know of the stop and would go on deciding moves until
-                # the graph is down (one moved a robot 6.7 mm on after a stop): each is told its
-                # goal is met wherever it stands, while the guard's timer, spun meanwhile, keeps
-                # sending stops past any move decided before.
+                # A controller not told of the stop would go on deciding moves until the graph
+                # is down (one moved a robot 6.7 mm on after a stop): each cancels its goal,
+                # while the guard's timer, spun meanwhile, keeps sending stops past any move
+                # decided before.
                 for robot in range(self.count):
-                    monitor.set_tolerance(graph, robot, STOPPED_TOLERANCE_M, timeout_s=5.0)
+                    monitor.call(graph, bench.cancels[robot], Trigger.Request(),
+                                 f'{robot_name(robot)}\'s controller_node did not cancel its '
+                                 'goal', timeout_s=5.0)
                 monitor.spin_for(HOLD_AFTER_STOP_S)
                 bench.hand_over()
                 break

@@ -10,12 +10,14 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.client import Client
 
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.fleet_composition import (
@@ -106,11 +108,21 @@ class FleetMonitor(Orchestrator):
     def set_tolerance(self, graph: Supervisor, robot: int, tolerance_m: float,
                       timeout_s: float = 30.0) -> None:
         """Set robot ``robot``'s controller to ``tolerance_m`` and wait until it has it."""
-        deadline = time.monotonic() + timeout_s
-        client = self.tolerance_clients[robot]
         request = SetParameters.Request(parameters=[Parameter(
             name='tolerance_m', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
                                                      double_value=float(tolerance_m)))])
+        result = self.call(graph, self.tolerance_clients[robot], request,
+                           f'{robot_name(robot)}\'s controller_node did not take its tolerance',
+                           timeout_s)
+        if not result.results[0].successful:
+            raise UsageError(f'{robot_name(robot)}\'s controller_node refused tolerance_m '
+                             f'{tolerance_m!r}: {result.results[0].reason}')
+
+    def call(self, graph: Supervisor, client: Client, request: Any, unanswered: str,
+             timeout_s: float = 30.0) -> Any:
+        """``client``'s service's answer to ``request``; RunFailed saying ``unanswered`` if
+        none has come within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
         while True:
             graph.check_alive()
             # Asked again after SERVICE_RESEND_S, as dynamics_node's clock is. A goal, unlike
@@ -120,15 +132,10 @@ class FleetMonitor(Orchestrator):
             future = client.call_async(request)
             self.executor.spin_until_future_complete(future, timeout_sec=SERVICE_RESEND_S)
             if future.done() and future.result() is not None:
-                break
+                return future.result()
             client.remove_pending_request(future)
             if time.monotonic() > deadline:
-                raise RunFailed(f'{robot_name(robot)}\'s controller_node did not take its '
-                                f'tolerance within {timeout_s:g} s')
-        result = future.result()
-        if not result.results[0].successful:
-            raise UsageError(f'{robot_name(robot)}\'s controller_node refused tolerance_m '
-                             f'{tolerance_m!r}: {result.results[0].reason}')
+                raise RunFailed(f'{unanswered} within {timeout_s:g} s')
 
     def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
         """Set the robot's controller to the order's tolerance, then hand it the goal stamped

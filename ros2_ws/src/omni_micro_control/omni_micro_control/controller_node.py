@@ -13,6 +13,9 @@ Publishes:
   /controller/status   diagnostic_msgs/DiagnosticStatus: phase, periods and the outcome
                        (reached / gave_up / lost / completed / cancelled), latched
   /lockstep            its report after each input (omni_micro_common.lockstep)
+Serves:
+  ~/cancel             std_srvs/Trigger: the goal under way ends ``cancelled`` and the robot is
+                       told to stop (a fleet's guard stops every robot so on the bench)
 Time is the robot's, from the stamps of its wheel states (no /clock); the decisions are taken on
 capture stamps, see :mod:`omni_micro_control.feedback`; a goal counts from its arrival, or from its
 stamp (``goal_time: stamp``, as a fleet's coordinator hands them out). ``mode: model`` plans the
@@ -34,6 +37,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_common.controller_status import status_message
@@ -117,6 +121,7 @@ class ControllerNode(Node):
         self._joint_state = robot_joint_state_template(self.get_namespace().strip('/'))
         readers = node_list_parameter(self, 'trajectory_readers')
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_service(Trigger, '~/cancel', self._on_cancel)
         self._timeout_checks = 0
         self.publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         # Listens once every trajectory_readers' reader is matched: a move sent before is lost.
@@ -245,6 +250,21 @@ class ControllerNode(Node):
         """Section 4.1's parameters may be tuned while the node runs, checked first."""
         return reconfigure(self.controller, {p.name: p.value for p in params})
 
+    def _on_cancel(self, request: Trigger.Request,
+                   response: Trigger.Response) -> Trigger.Response:
+        response.success = True
+        response.message = self.cancel_goal('cancelled on request')
+        return response
+
+    def cancel_goal(self, reason: str) -> str:
+        """End the goal under way as cancelled (``reason``) and tell the robot to stop, whether
+        a goal was under way or not; says which."""
+        finished = self.controller.cancel(reason)
+        self.report(finished, at_s=self.robot_time_s)
+        self.stop_robot()
+        return 'cancelled; the robot told to stop' if finished is not None else \
+            'no goal under way; the robot told to stop'
+
     def _on_timer(self) -> None:
         """The capture timeouts (none in the servo mode: the run's timeout catches a silence)."""
         if isinstance(self.controller, ServoSession):
@@ -317,8 +337,7 @@ class ControllerNode(Node):
 def _stop_on_shutdown(node: ControllerNode) -> None:
     if not rclpy.ok():
         return   # the context is gone: nothing can be sent any more
-    node.report(node.controller.cancel('shutdown'), at_s=node.robot_time_s)
-    node.stop_robot()
+    node.cancel_goal('shutdown')
     time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
 
 
