@@ -23,7 +23,7 @@ from omni_micro_control.servo_config import ServoCommand
 from omni_micro_control.servo_session import ServoSession
 
 
-class ControllerOf(Protocol):
+class ServedNode(Protocol):
     """What the intake needs of the node it serves (controller_node)."""
 
     controller: VisionFeedbackController | ServoSession
@@ -40,7 +40,10 @@ class ControllerOf(Protocol):
 
 
 class CaptureIntake:
-    def __init__(self, node: ControllerOf, frame_id: str,
+    """controller_node's captures, still (``on_capture``, ``on_capture_with_covariance``) and in
+    motion (the servo's), each handled and said so on /lockstep."""
+
+    def __init__(self, node: ServedNode, frame_id: str,
                  fixed_uncertainty: dict[str, CaptureUncertainty], servo: bool) -> None:
         self.node = node
         self.frame_id = frame_id
