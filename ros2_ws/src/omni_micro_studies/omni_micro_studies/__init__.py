@@ -9,6 +9,7 @@ takes and reports), :mod:`spec` (a study file, checked and expanded), :mod:`runs
 through ``map_on_dask``), :mod:`report` (a study's summary and figure); its other scenarios,
 :mod:`controller_comparison` (the three controller modes on seeded cases) and
 :mod:`fleet_throughput` (a fleet's throughput against its size, and crossing runs);
-:mod:`errors`. The command line (``omni-micro study``, ``compare-controllers``, ``fleet``,
-``fleet-study``) calls them; Dask workers import them.
+:mod:`paper_figures` (plots in the style of the paper's figures, from arrays); :mod:`errors`. The
+command line (``omni-micro study``, ``compare-controllers``, ``fleet``, ``fleet-study``) calls
+them; Dask workers import them.
 """

@@ -43,7 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli import plots
+    from omni_micro_studies import paper_figures as plots
     from omni_micro_tools.bag_reading import bag_topics, check_readable_bag
     from omni_micro_tools.fleet_analysis import fleet_robots
     from omni_micro_tools.robot_analysis import summarize_run, summary_markdown

@@ -138,8 +138,8 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli import plots
     from omni_micro_cli.commands import figures
+    from omni_micro_studies import paper_figures as plots
 
     try:
         check_timing(args)

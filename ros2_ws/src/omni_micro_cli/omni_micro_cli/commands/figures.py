@@ -63,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float) -> dict[str, float]:
-    from omni_micro_cli import plots
     from omni_micro_sim import RobotParameters, simulate_open_loop, simulate_open_loop_batch
+    from omni_micro_studies import paper_figures as plots
 
     base = RobotParameters()
     numbers: dict[str, float] = {}
@@ -143,9 +143,9 @@ STEERING_RADII_M = (10e-6, 25e-6, 50e-6, 100e-6, 150e-6)
 def steering_figure(out: Path) -> dict[str, float]:
     """The chassis heading turned by steering-only moves of the realistic steering (no
     backlash, continuous steps), against the steering angle and the contact radius."""
-    from omni_micro_cli import plots
     from omni_micro_sim import RobotParameters, simulate_open_loop
     from omni_micro_sim.parameters import steering_preset
+    from omni_micro_studies import paper_figures as plots
 
     angles_deg = np.arange(15.0, 180.0 + 1e-9, 15.0)
     _progress(f'steering: {angles_deg.size * len(STEERING_RADII_M)} steering-only moves')
