@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from omni_micro_common.conventions import STATUS_TIME_KEY
+from omni_micro_common.conventions import STATUS_TIME_KEY, join_stamp
 from omni_micro_common.topic_names import (
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
@@ -40,10 +40,11 @@ def summarize_fleet(bag: Path, robots: list[int]) -> tuple[dict[str, Any], dict[
     rows, drawn = [], {}
     for k in robots:
         odometry = data.messages.get(robot_topic(k, ODOM_TOPIC), [])
-        route = np.array([(_seconds(m.header.stamp), m.pose.pose.position.x,
-                           m.pose.pose.position.y) for m in odometry]).reshape(-1, 3)
-        goals = [(_seconds(m.header.stamp), m.pose.position.x, m.pose.position.y)
-                 for m in data.messages.get(robot_topic(k, GOAL_TOPIC), [])]
+        route = np.array([(join_stamp(m.header.stamp.sec, m.header.stamp.nanosec),
+                           m.pose.pose.position.x, m.pose.pose.position.y)
+                          for m in odometry]).reshape(-1, 3)
+        goals = [(join_stamp(m.header.stamp.sec, m.header.stamp.nanosec), m.pose.position.x,
+                  m.pose.position.y) for m in data.messages.get(robot_topic(k, GOAL_TOPIC), [])]
         reached = reached_times(goals, data.messages.get(robot_topic(k, CONTROLLER_STATUS_TOPIC),
                                                          []))
         final = route[-1] if len(route) else np.full(3, math.nan)
@@ -61,10 +62,6 @@ def summarize_fleet(bag: Path, robots: list[int]) -> tuple[dict[str, Any], dict[
         drawn[robot_name(k)] = {'route_m': route[:, 1:],
                                 'goals_m': np.array([goal[1:] for goal in goals]).reshape(-1, 2)}
     return {'bag': str(bag), 'robots': rows}, drawn
-
-
-def _seconds(stamp: Any) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def reached_times(goals: list[tuple[float, float, float]], statuses: list[Any]

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from omni_micro_common.clocks import is_wall_clock
+from omni_micro_common.conventions import join_stamp
 from omni_micro_common.topic_names import (
     CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
@@ -23,7 +24,7 @@ from omni_micro_tools.errors import BagPathError
 
 
 def _stamp(msg) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    return join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec)
 
 
 def summarize_run(bag: Path) -> tuple[dict, dict[str, np.ndarray]]:
