@@ -62,14 +62,18 @@ LIGHT = {'r': 1.0, 'g': 0.9, 'b': 0.7}
 
 
 def to_encoding(grey: np.ndarray, encoding: str) -> np.ndarray:
-    channels = {name: np.round(grey * gain).astype(np.uint8) for name, gain in LIGHT.items()}
+    def channel(colour: str, window: np.ndarray) -> np.ndarray:
+        return np.round(window * LIGHT[colour]).astype(np.uint8)
+
     if encoding == 'rgb8':
-        return np.dstack([channels['r'], channels['g'], channels['b']])
+        return np.dstack([channel(colour, grey) for colour in 'rgb'])
+    # A Bayer pattern keeps one colour per pixel: each colour is computed only where it is kept
+    # (a quarter of the frame, a half for green), not over the whole frame and then dropped.
     pattern = encoding[len('bayer_'):len('bayer_') + 4]
     mosaic = np.empty_like(grey)
     for index, colour in enumerate(pattern):
         row, column = divmod(index, 2)
-        mosaic[row::2, column::2] = channels[colour][row::2, column::2]
+        mosaic[row::2, column::2] = channel(colour, grey[row::2, column::2])
     return mosaic
 
 
