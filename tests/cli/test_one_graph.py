@@ -17,6 +17,7 @@ from omni_micro_bringup.fleet_graph import first_tick_past
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
+from omni_micro_bringup.readiness import loop_subscriptions
 from omni_micro_cli.cli import main
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.stepper import GridSimulator
@@ -144,6 +145,43 @@ def test_one_wiring_tells_time_whom_to_wait_for_in_a_fleet_and_a_single_robot(tm
     assert {f'{odometry_reader.format(robot="").strip("/")}:/odom',
             'controller_node:/joint_states', 'bag_recorder:/clock',
             'omni_micro_orchestration:/odom_throttle'} <= set(single['awaited_readers'])
+
+
+@pytest.mark.parametrize('vision', ['model', 'images'])
+def test_one_wiring_tells_the_cameras_which_captures_the_controllers_read(tmp_path, vision):
+    """With ``capture_uncertainty: fixed`` (a camera without covariance) the controllers read
+    the bare captures: the camera (vision_node, or the tracker every robot shares) waits for
+    them there, markers_node reads there too, and time may start once they do, for N robots
+    as for one. (The fleet's own wiring named them on the covariance topics: its graph never
+    came up.)"""
+    params = tmp_path / 'bare.yaml'
+    params.write_text('controller_node:\n  ros__parameters:\n    capture_uncertainty: fixed\n')
+    camera = 'tracker_node' if vision == 'images' else 'vision_node'
+
+    def told(specs, executable):
+        hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+        return [spec.overrides for spec in hosted if spec.executable == executable]
+
+    fleet = fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1, math.inf,
+                        (params,), tmp_path, markers=True, vision=vision)
+    robots = [('robot_0',), ('robot_1',)] if vision == 'model' else [('robot_0', 'robot_1')]
+    assert [(overrides['capture_readers'], overrides['covariance_readers'])
+            for overrides in told(fleet, camera)] == [
+        ([f'{robot}/{node}' for robot in shared for node in ('controller_node', 'markers_node')],
+         []) for shared in robots]
+    assert {markers['capture_uncertainty'] for markers in told(fleet, 'markers_node')} == {
+        'fixed'}
+    single = wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision=vision, params_files=(params,)))
+    (alone,) = told(single, camera)
+    assert (alone['capture_readers'], alone['covariance_readers']) == (
+        ['controller_node', 'markers_node'], [])
+    assert told(single, 'markers_node')[0]['capture_uncertainty'] == 'fixed'
+    # Time waits for a reader of each camera's captures, bare or with covariance, in each
+    # robot's namespace.
+    assert ('/robot_1/camera/micro/pose', '/robot_1/camera/micro/pose_with_covariance') in \
+        loop_subscriptions(odometry=True, robots=2)
+    assert ('/camera/micro/pose', '/camera/micro/pose_with_covariance') in loop_subscriptions(
+        odometry=True)
 
 
 def test_a_node_given_as_a_command_is_refused_by_the_container():

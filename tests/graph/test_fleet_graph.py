@@ -329,3 +329,33 @@ def test_an_open_loop_robot_beside_a_closed_loop_one_runs_through_the_graph_as_i
     # One move, 0.44 mm off after 30 mm (the default robot's offsets), no correction after.
     assert summary['outcome'] == 'completed' and summary['periods'] == 1
     assert summary['deviation_mm'] > 0.1
+
+
+def test_a_fleet_whose_controllers_read_bare_captures_runs_as_the_twin_does(omni_micro,
+                                                                           tmp_path):
+    """``capture_uncertainty: fixed`` (a camera without covariance; the paper's rule decides
+    alike on either): each robot's vision_node waits for its controller and markers_node on the
+    bare captures they read, the graph comes up and every robot reaches its goal when and
+    where the twin's does. (Their cameras waited for them on the covariance topics: the graph
+    never came up, "nobody subscribes /robot_0/camera/macro/pose_with_covariance".)"""
+    params = tmp_path / 'bare.yaml'
+    params.write_text('controller_node:\n  ros__parameters:\n    capture_uncertainty: fixed\n'
+                      '    fixed_uncertainty:\n      macro: [1.0e-5, 1.0e-5, 0.001]\n'
+                      '      micro: [1.0e-7, 1.0e-7, 0.0001]\n')
+    drawn = ('--robots', '2', '--seed', '1', '--goals-per-robot', '1', '--json')
+    runs = [omni_micro('fleet', *drawn, *graph) for graph in (
+        ('--graph', '--markers', '--params', str(params), '--log-dir', str(tmp_path / 'logs')),
+        ())]
+    summaries = []
+    for done in runs:
+        assert done.returncode == 0, done.stderr[-2000:]
+        summaries.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    graph, twin = summaries
+    assert graph['outcome'] == twin['outcome'] == 'done'
+    for in_graph, in_twin in zip(graph['robots'], twin['robots'], strict=True):
+        assert (in_graph['reached_at_s'], in_graph['moves']) == (in_twin['reached_at_s'],
+                                                                 in_twin['moves'])
+        assert in_graph['deviation_um'] == pytest.approx(in_twin['deviation_um'], abs=1e-3)
+    (logs,) = (tmp_path / 'logs').iterdir()
+    assert 'capture_readers:=[robot_0/controller_node,robot_0/markers_node]' in (
+        logs / 'robot_0.vision_node.log').read_text()

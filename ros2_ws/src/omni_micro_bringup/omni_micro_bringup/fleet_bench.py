@@ -40,6 +40,7 @@ from omni_micro_bringup.composition import (
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_composition import namespaced_params, robot_node
 from omni_micro_bringup.graph_result import RobotLog
+from omni_micro_bringup.node_overrides import capture_uncertainty_of, captures_read_by
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.params_files import graph_params_file
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
@@ -97,7 +98,9 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
     names = [robot_name(k) for k in range(count)]
     cameras = bench_cameras(options)
     tracker = {'robots': names, 'captures_in_motion': True,
-               'covariance_readers': [f'{robot}/controller_node' for robot in names],
+               **captures_read_by([f'{robot}/controller_node' for robot in names], recorded=False,
+                                  capture_uncertainty=capture_uncertainty_of(
+                                      options.params_files, {})),
                'cameras': sorted(cameras),
                **{key: value for camera, topic in cameras.items()
                   for key, value in ((f'{camera}.image_topic', topic),
@@ -127,14 +130,6 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
             tuple(namespaced_params(list(shipped), names[k], folder)),
             shared=tuple(TRACKER_STATUS_TOPICS.values())))
     return [*specs, *((recorder,) if recorder else ())]
-
-
-def bench_ready_topics(count: int, cameras: list[str]) -> list[tuple[str, ...]]:
-    """What must be read before the first goal: each robot's trajectories (its driver), its
-    wheels and captures (its controller)."""
-    return [(robot_topic(k, topic),) for k in range(count)
-            for topic in (WHEEL_TRAJECTORY_TOPIC, JOINT_STATES_TOPIC,
-                          *(CAPTURE_COVARIANCE_TOPICS[camera] for camera in cameras))]
 
 
 def bench_publications(count: int, image_topics: list[str]) -> dict[str, str]:

@@ -32,7 +32,11 @@ from omni_micro_bringup.composition import (
     viewer_spec,
 )
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.node_overrides import servo_timing_of
+from omni_micro_bringup.node_overrides import (
+    capture_uncertainty_of,
+    captures_read_by,
+    servo_timing_of,
+)
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.node_spec import composed as composed_loop
 from omni_micro_bringup.params_files import (
@@ -92,20 +96,23 @@ def check_vision(vision: str) -> None:
 
 def shared_cameras(count: int, seed: int, params: list[Path],
                    capture_readers: list[str], recorded: bool = False,
-                   in_motion: bool = False) -> list[NodeSpec]:
+                   in_motion: bool = False,
+                   capture_uncertainty: object = 'covariance') -> list[NodeSpec]:
     """The camera pair a fleet shares: camera_node rendering every robot with its
     code, its frames read reliably by tracker_node, which names each robot and publishes its
-    captures under its namespace to the robot's ``capture_readers`` (node names), and with
-    ``in_motion`` its captures in motion (a servo's); with ``recorded``, the recorder reads the
-    frames too, and the first waits for it as well."""
+    captures under its namespace to the robot's ``capture_readers`` (node names: on the topics
+    the controllers' ``capture_uncertainty`` reads), and with ``in_motion`` its captures in
+    motion (a servo's); with ``recorded``, the recorder reads the frames too, and the first
+    waits for it as well."""
     robots = [robot_name(k) for k in range(count)]
     camera: dict[str, object] = {'seed': int(seed), 'robots': robots,
                                  'image_readers': [TRACKER_NODE[1],
                                                    *((RECORDER_NODE,) if recorded else ())]}
-    tracker: dict[str, object] = {'robots': robots, 'image_reliability': 'reliable',
-                                  'covariance_readers': [f'{robot}/{name}' for robot in robots
-                                                         for name in capture_readers],
-                                  **({'captures_in_motion': True} if in_motion else {})}
+    tracker: dict[str, object] = {
+        'robots': robots, 'image_reliability': 'reliable',
+        **captures_read_by([f'{robot}/{name}' for robot in robots for name in capture_readers],
+                           recorded=False, capture_uncertainty=capture_uncertainty),
+        **({'captures_in_motion': True} if in_motion else {})}
     # The tracker takes part in each robot's lockstep as that robot's (it gates its captures).
     return [NodeSpec(*CAMERA_NODE, params=tuple(params), overrides=camera),
             NodeSpec(*TRACKER_NODE, params=tuple(params), overrides=tracker,
@@ -143,6 +150,9 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     servos = tuple(k for k in range(count) if modes[k] == SERVO_MODE)
     images = vision == 'images'
     check_vision(vision)
+    # Which captures the controllers read (bare, or with their covariance): the cameras wait
+    # for those readers, and markers_node reads the same.
+    uncertainty = capture_uncertainty_of(params_files, {})
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     names = [robot_name(k) for k in range(count)]
     streamed = rendered_cameras(params_files, {}) if images and record_images else ()
@@ -159,7 +169,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     if images:
         specs += shared_cameras(count, seed, list(shipped), [name for _, name in nodes],
                                 recorded=bool(streamed) and recorder is not None,
-                                in_motion=bool(servos))
+                                in_motion=bool(servos), capture_uncertainty=uncertainty)
     for k in range(count):
         robot = robot_name(k)
         params = tuple(namespaced_params(list(shipped), robot, folder))
@@ -167,8 +177,9 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
         own: dict[str, dict[str, object]] = {'vision_node': {
                    # Each robot's captures their own noise, as the fleet twin draws it.
                    'seed': int(seed) * 1000 + k,
-                   'covariance_readers': [f'{robot}/{name}' for _, name in nodes
-                                          if name != 'vision_node'],
+                   **captures_read_by([f'{robot}/{name}' for _, name in nodes
+                                       if name != 'vision_node'],
+                                      recorded=False, capture_uncertainty=uncertainty),
                    **({'captures_in_motion': True} if servo else {}),
                    **(vision_overrides or {})},
                'controller_node': {'goal_time': 'stamp', **controller_settings(modes[k]),
@@ -183,6 +194,8 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
                    'robot.label': robot,
+                   **({'capture_uncertainty': uncertainty} if isinstance(uncertainty, str)
+                      else {}),
                    # Its first array waits for the recorder's reader, which must not miss it.
                    'markers_readers': [RECORDER_NODE] if recorder else []}}
         for package, node in nodes:

@@ -40,7 +40,6 @@ from omni_micro_bringup.fleet_bench import (
     HOLD_AFTER_STOP_S,
     BenchGuard,
     bench_publications,
-    bench_ready_topics,
     bench_specs,
     check_bench,
 )
@@ -56,17 +55,13 @@ from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
+from omni_micro_bringup.readiness import loop_subscriptions
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
 )
 from omni_micro_common.topic_names import (
-    CAPTURE_COVARIANCE_TOPICS,
-    JOINT_STATES_TOPIC,
-    ODOM_TOPIC,
-    WHEEL_TRAJECTORY_TOPIC,
     robot_name,
-    robot_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
@@ -82,14 +77,6 @@ def first_tick_past(limit_s: float, period_s: float) -> float:
     while tick * period_s <= limit_s:
         tick += 1
     return tick * period_s
-
-
-def ready_topics(count: int) -> list[tuple[str, ...]]:
-    """What must be read before time starts: each robot's trajectories (the dynamics), wheels
-    (its controller), odometry (its camera) and captures (its controller)."""
-    return [(robot_topic(k, topic),) for k in range(count)
-            for topic in (WHEEL_TRAJECTORY_TOPIC, JOINT_STATES_TOPIC, ODOM_TOPIC,
-                          *CAPTURE_COVARIANCE_TOPICS.values())]
 
 
 class FleetDispatch:
@@ -167,7 +154,8 @@ class FleetDispatch:
             log.tasks_done_s += [0.0] * len(tasks)
         if bench is None:
             monitor.wait_until_ready(graph, timeout_s=60.0,
-                                     subscriptions=ready_topics(self.count),
+                                     subscriptions=loop_subscriptions(
+                                         odometry=True, robots=self.count),
                                      recording=options.record is not None)
             for k in range(self.count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
@@ -335,7 +323,8 @@ class FleetDispatch:
         monitor, bench, cameras = self.monitor, self.bench, bench_cameras(self.options)
         assert monitor is not None and bench is not None
         monitor.wait_until_ready(graph, timeout_s=BENCH_READY_S,
-                                 subscriptions=bench_ready_topics(self.count, sorted(cameras)),
+                                 subscriptions=loop_subscriptions(
+                                     odometry=False, cameras=sorted(cameras), robots=self.count),
                                  publications=bench_publications(self.count,
                                                                  list(cameras.values())),
                                  recording=self.options.record is not None, clock=False)

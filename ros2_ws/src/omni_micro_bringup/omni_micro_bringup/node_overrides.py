@@ -220,15 +220,30 @@ def nodes_present(options: GraphOptions) -> set[str]:
 
 
 def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
-    """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers``: the
-    nodes of this graph that read its captures from the bare and from the covariance topics
-    (the controller and markers_node as the controller's ``capture_uncertainty`` says, the
-    recorder both)."""
+    """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers`` in this
+    graph: :func:`captures_read_by` the controller and markers_node, and the recorder."""
     present = nodes_present(options)
-    source = node_parameters('controller_node', options.params_files,
-                             options.controller_overrides).get('capture_uncertainty',
-                                                               'covariance')
-    readers = [name for name in ('controller_node', 'markers_node') if name in present]
-    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
-    return {'capture_readers': (readers if source == 'fixed' else []) + recorder,
-            'covariance_readers': (readers if source != 'fixed' else []) + recorder}
+    return captures_read_by(
+        [name for name in ('controller_node', 'markers_node') if name in present],
+        recorded='bag_recorder' in present,
+        capture_uncertainty=capture_uncertainty_of(options.params_files,
+                                                   options.controller_overrides))
+
+
+def capture_uncertainty_of(params_files: tuple[Path, ...],
+                           controller_overrides: dict[str, object]) -> object:
+    """The controller's ``capture_uncertainty`` as the params files and overrides give it."""
+    return node_parameters('controller_node', params_files,
+                           controller_overrides).get('capture_uncertainty', 'covariance')
+
+
+def captures_read_by(readers: list[str], recorded: bool,
+                     capture_uncertainty: object) -> dict[str, list[str]]:
+    """A camera's ``capture_readers`` (bare topics) and ``covariance_readers``: ``readers`` (the
+    controller and markers_node, each as its node is named) on the bare topics if the
+    controller's ``capture_uncertainty`` is ``fixed``, else on those with the covariance; the
+    recorder (``recorded``) on both."""
+    fixed = capture_uncertainty == 'fixed'
+    recorder = ['bag_recorder'] if recorded else []
+    return {'capture_readers': (readers if fixed else []) + recorder,
+            'covariance_readers': ([] if fixed else readers) + recorder}

@@ -3,6 +3,8 @@ the bench's drivers must publish, and whether a simulated robot keeps the clock.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from omni_micro_bringup.composition import GraphOptions, bench_cameras, graph_nodes
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -10,6 +12,7 @@ from omni_micro_common.topic_names import (
     JOINT_STATES_TOPIC,
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    robot_topic,
 )
 
 # What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
@@ -21,15 +24,27 @@ def simulates_robot(options: GraphOptions) -> bool:
 
 
 def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
-    """The topics someone must read before time may start (of alternatives, any one): the
-    robot its trajectories, the controller the wheels and the captures (bare or with their
-    covariance, as its capture_uncertainty says: either will do), a simulated camera the
-    robot's /odom."""
+    """The topics someone must read before time may start (of alternatives, any one):
+    :func:`loop_subscriptions` of the root namespace's robot, its odometry if a simulated camera
+    (vision_node, camera_node) is in the graph."""
     names = {spec.executable for spec in graph_nodes(options)}
-    return [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
-            *(((ODOM_TOPIC,),) if names & {'vision_node', 'camera_node'} else ()),
-            *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera])
-              for camera in CAPTURE_TOPICS)]
+    return loop_subscriptions(odometry=bool(names & {'vision_node', 'camera_node'}))
+
+
+def loop_subscriptions(odometry: bool, cameras: Sequence[str] = tuple(CAPTURE_TOPICS),
+                       robots: int | None = None) -> list[tuple[str, ...]]:
+    """What one robot's loop must read before time may start (of alternatives, any one): the
+    robot its trajectories, the controller the wheels and the captures of ``cameras`` (bare or
+    with their covariance, as its capture_uncertainty says: either will do), with ``odometry``
+    a simulated camera the robot's odometry. ``robots``: None for the robot of the root
+    namespace; else each of that many robots' own, in its namespace."""
+    topics = [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
+              *(((ODOM_TOPIC,),) if odometry else ()),
+              *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera]) for camera in cameras)]
+    if robots is None:
+        return topics
+    return [tuple(robot_topic(k, topic) for topic in alternatives) for k in range(robots)
+            for alternatives in topics]
 
 
 def external_publications(options: GraphOptions) -> dict[str, str]:
