@@ -184,6 +184,29 @@ def test_one_wiring_tells_the_cameras_which_captures_the_controllers_read(tmp_pa
         odometry=True)
 
 
+def test_a_shared_tracker_places_captures_in_motion_in_the_blur_the_camera_renders(tmp_path):
+    """Servos on rendered images: the tracker every robot shares is told camera_node's
+    exposure (from the params files) and where a frame's stamp lies in it, as a single robot's
+    tracker is. (The fleet's kept the tracker's own 4 ms: with camera_node's 8 ms, a capture
+    in motion was placed 2 ms before its exposure's middle.)"""
+    params = tmp_path / 'slow_shutter.yaml'
+    params.write_text('camera_node:\n  ros__parameters:\n    macro:\n      exposure_s: 0.008\n')
+
+    def tracker_of(specs):
+        hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+        return next(spec for spec in hosted if spec.executable == 'tracker_node').overrides
+
+    fleet = tracker_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
+                                   math.inf, (params,), tmp_path, controllers=['servo', 'paper'],
+                                   vision='images'))
+    single = tracker_of(wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision='images',
+                                                 params_files=(params,),
+                                                 controller_overrides={'mode': 'servo'})))
+    for told in (fleet, single):
+        assert (told['macro.motion.exposure_s'], told['macro.motion.mid_exposure_after_stamp_s'],
+                told['micro.motion.exposure_s']) == (0.008, 0.004, 0.004)
+
+
 def test_a_node_given_as_a_command_is_refused_by_the_container():
     stand_in = NodeSpec('omni_micro_vision', 'camera_node', command=('driver',))
     with pytest.raises(UsageError, match='camera_node'):

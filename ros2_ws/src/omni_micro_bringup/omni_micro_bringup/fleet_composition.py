@@ -35,6 +35,7 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import (
     capture_uncertainty_of,
     captures_read_by,
+    rendered_motion,
     servo_timing_of,
 )
 from omni_micro_bringup.node_spec import NodeSpec
@@ -102,7 +103,8 @@ def shared_cameras(count: int, seed: int, params: list[Path],
     code, its frames read reliably by tracker_node, which names each robot and publishes its
     captures under its namespace to the robot's ``capture_readers`` (node names: on the topics
     the controllers' ``capture_uncertainty`` reads), and with ``in_motion`` its captures in
-    motion (a servo's); with ``recorded``, the recorder reads the frames too, and the first
+    motion (a servo's: placed in the blur of camera_node's frames as their exposure makes it,
+    as for one robot); with ``recorded``, the recorder reads the frames too, and the first
     waits for it as well."""
     robots = [robot_name(k) for k in range(count)]
     camera: dict[str, object] = {'seed': int(seed), 'robots': robots,
@@ -112,7 +114,8 @@ def shared_cameras(count: int, seed: int, params: list[Path],
         'robots': robots, 'image_reliability': 'reliable',
         **captures_read_by([f'{robot}/{name}' for robot in robots for name in capture_readers],
                            recorded=False, capture_uncertainty=capture_uncertainty),
-        **({'captures_in_motion': True} if in_motion else {})}
+        **({'captures_in_motion': True, **rendered_motion(tuple(params), {})} if in_motion
+           else {})}
     # The tracker takes part in each robot's lockstep as that robot's (it gates its captures).
     return [NodeSpec(*CAMERA_NODE, params=tuple(params), overrides=camera),
             NodeSpec(*TRACKER_NODE, params=tuple(params), overrides=tracker,

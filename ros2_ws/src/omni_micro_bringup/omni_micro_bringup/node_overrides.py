@@ -89,15 +89,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
             # never reported: time would stand still. A driver's frames are read best effort.
             overrides.update(image_reliability='reliable')
             if publishes_in_motion(options):
-                # The blur and the stamp of camera_node's frames (stamped at exposure start).
-                rendering = node_parameters('camera_node', options.params_files,
-                                            options.vision_overrides)
-                for name in CAPTURE_TOPICS:
-                    exposure = rendering.get(f'{name}.exposure_s')
-                    if isinstance(exposure, (int, float)):
-                        overrides.update({f'{name}.motion.exposure_s': float(exposure),
-                                          f'{name}.motion.mid_exposure_after_stamp_s':
-                                          0.5 * float(exposure)})
+                overrides.update(rendered_motion(options.params_files, options.vision_overrides))
         if options.image_topics:
             overrides.update(cameras=sorted(options.image_topics))
             for camera, topic in options.image_topics.items():
@@ -135,6 +127,21 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
             overrides.update(servo_timing(options))
     overrides.update(spec.overrides)
     return overrides
+
+
+def rendered_motion(params_files: tuple[Path, ...],
+                    vision_overrides: dict[str, object]) -> dict[str, object]:
+    """What tracker_node must know of camera_node's frames to place a capture in motion: each
+    camera's blur (its exposure) and the stamp's place in it (camera_node stamps a frame at its
+    exposure's start)."""
+    rendering = node_parameters('camera_node', params_files, vision_overrides)
+    timing: dict[str, object] = {}
+    for name in CAPTURE_TOPICS:
+        exposure = rendering.get(f'{name}.exposure_s')
+        if isinstance(exposure, (int, float)):
+            timing.update({f'{name}.motion.exposure_s': float(exposure),
+                           f'{name}.motion.mid_exposure_after_stamp_s': 0.5 * float(exposure)})
+    return timing
 
 
 def servo_timing(options: GraphOptions) -> dict[str, object]:
