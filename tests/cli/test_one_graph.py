@@ -207,6 +207,34 @@ def test_a_shared_tracker_places_captures_in_motion_in_the_blur_the_camera_rende
                 told['micro.motion.exposure_s']) == (0.008, 0.004, 0.004)
 
 
+@pytest.mark.parametrize('vision', ['model', 'images'])
+def test_a_fleet_s_markers_are_told_what_a_single_robot_s_are(tmp_path, vision):
+    """markers_node draws the cameras' fields as the camera in use has them (a params file's
+    vision_node section) and the controller's tolerance, in a fleet as for one robot; what is
+    each robot's own (its offsets, colour and label) beside. (A fleet's drew the markers
+    section's own fields, whatever the cameras' were.)"""
+    params = tmp_path / 'wider.yaml'
+    section = 'camera_node' if vision == 'images' else 'vision_node'
+    params.write_text(f'{section}:\n  ros__parameters:\n    macro:\n'
+                      '      field_m: [0.2, 0.16]\n'
+                      'controller_node:\n  ros__parameters:\n    tolerance_m: 5.0e-6\n')
+
+    def markers_of(specs):
+        hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+        return [spec.overrides for spec in hosted if spec.executable == 'markers_node']
+
+    fleet = markers_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
+                                   math.inf, (params,), tmp_path, markers=True, vision=vision))
+    (single,) = markers_of(wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision=vision,
+                                                    params_files=(params,))))
+    assert single['macro.field_m'] == [0.2, 0.16] and single['tolerance_m'] == 5e-6
+    for k, told in enumerate(fleet):
+        assert {name: told[name] for name in single if name != 'markers_readers'} == {
+            **{name: value for name, value in single.items() if name != 'markers_readers'},
+            'robot.wheel_offsets_rad': [0.0, 0.0, 0.0]}
+        assert told['robot.label'] == f'robot_{k}'
+
+
 def test_a_node_given_as_a_command_is_refused_by_the_container():
     stand_in = NodeSpec('omni_micro_vision', 'camera_node', command=('driver',))
     with pytest.raises(UsageError, match='camera_node'):

@@ -35,6 +35,7 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_overrides import (
     capture_uncertainty_of,
     captures_read_by,
+    markers_told,
     rendered_motion,
     servo_timing_of,
 )
@@ -154,7 +155,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     images = vision == 'images'
     check_vision(vision)
     # Which captures the controllers read (bare, or with their covariance): the cameras wait
-    # for those readers, and markers_node reads the same.
+    # for those readers there.
     uncertainty = capture_uncertainty_of(params_files, {})
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     names = [robot_name(k) for k in range(count)]
@@ -194,11 +195,12 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                    **(servo_timing_of(params_files, CAMERA_NODE[1] if images
                                                       else 'vision_node') if servo else {})},
                'markers_node': {
+                   # As a single robot's is told, then what is this robot's own.
+                   **markers_told(params_files, CAMERA_NODE[1] if images else 'vision_node',
+                                  vision_overrides or {}, {}, controller_settings(modes[k])),
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
                    'robot.label': robot,
-                   **({'capture_uncertainty': uncertainty} if isinstance(uncertainty, str)
-                      else {}),
                    # Its first array waits for the recorder's reader, which must not miss it.
                    'markers_readers': [RECORDER_NODE] if recorder else []}}
         for package, node in nodes:

@@ -99,22 +99,9 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
         # Its first array waits for the reader that must not miss it.
         recorded = 'bag_recorder' in nodes_present(options)
         overrides.update(markers_readers=['bag_recorder'] if recorded else [])
-        # The fields as the camera in use has them (camera_node has vision_node's names).
-        vision = node_parameters(camera_node_of(options), options.params_files,
-                                 options.vision_overrides)
-        dynamics = node_parameters('dynamics_node', options.params_files,
-                                   options.dynamics_overrides)
-        controller = node_parameters('controller_node', options.params_files,
-                                     options.controller_overrides)
-        sources = [*((name, vision) for name in MARKERS_FROM_VISION),
-                   ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
-                   ('capture_uncertainty', controller)]
-        # Each of the kind markers_node declares, as the graph's params file has it.
-        declared = params_from_files('markers_node')
-        for name, source in sources:
-            value = passed_on(source.get(name), declared[name])
-            if value is not None:
-                overrides[name] = value
+        overrides.update(markers_told(options.params_files, camera_node_of(options),
+                                      options.vision_overrides, options.dynamics_overrides,
+                                      options.controller_overrides))
     elif spec.executable == 'controller_node':
         # Its first move waits for the readers that must not miss it.
         present = nodes_present(options)
@@ -127,6 +114,28 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
             overrides.update(servo_timing(options))
     overrides.update(spec.overrides)
     return overrides
+
+
+def markers_told(params_files: tuple[Path, ...], camera: str,
+                 vision_overrides: dict[str, object], dynamics_overrides: dict[str, object],
+                 controller_overrides: dict[str, object]) -> dict[str, object]:
+    """What markers_node draws as other nodes have it: the cameras' fields as ``camera`` (the
+    one in use: camera_node has vision_node's names) has them, the robot's wheel offsets, the
+    controller's tolerance and the captures it reads; each only if of the kind markers_node
+    declares (:func:`passed_on`)."""
+    vision = node_parameters(camera, params_files, vision_overrides)
+    dynamics = node_parameters('dynamics_node', params_files, dynamics_overrides)
+    controller = node_parameters('controller_node', params_files, controller_overrides)
+    sources = [*((name, vision) for name in MARKERS_FROM_VISION),
+               ('robot.wheel_offsets_rad', dynamics), ('tolerance_m', controller),
+               ('capture_uncertainty', controller)]
+    declared = params_from_files('markers_node')
+    told: dict[str, object] = {}
+    for name, source in sources:
+        value = passed_on(source.get(name), declared[name])
+        if value is not None:
+            told[name] = value
+    return told
 
 
 def rendered_motion(params_files: tuple[Path, ...],
