@@ -157,6 +157,10 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
     # Which captures the controllers read (bare, or with their covariance): the cameras wait
     # for those readers there.
     uncertainty = capture_uncertainty_of(params_files, {})
+    # What every robot's markers_node is told as a single robot's is (the same for all: a
+    # robot's own controller settings are its mode alone).
+    drawn_as_one = markers_told(params_files, CAMERA_NODE[1] if images else 'vision_node',
+                                vision_overrides or {}, {}, {})
     nodes = (*(ROBOT_NODES[1:] if images else ROBOT_NODES), *((MARKERS_NODE,) if markers else ()))
     names = [robot_name(k) for k in range(count)]
     streamed = rendered_cameras(params_files, {}) if images and record_images else ()
@@ -195,9 +199,7 @@ def fleet_specs(starts_m: list[tuple[float, float]], robots: list[RobotParameter
                                    **(servo_timing_of(params_files, CAMERA_NODE[1] if images
                                                       else 'vision_node') if servo else {})},
                'markers_node': {
-                   # As a single robot's is told, then what is this robot's own.
-                   **markers_told(params_files, CAMERA_NODE[1] if images else 'vision_node',
-                                  vision_overrides or {}, {}, controller_settings(modes[k])),
+                   **drawn_as_one,
                    'robot.wheel_offsets_rad': [float(v) for v in robots[k].wheel_offsets_rad],
                    'robot.colour': list(FLEET_COLOURS[k % len(FLEET_COLOURS)]),
                    'robot.label': robot,
