@@ -12,12 +12,12 @@ import pytest
 from omni_micro_bringup import graph
 from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.fleet_composition import fleet_specs
 from omni_micro_bringup.fleet_graph import first_tick_past
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
 from omni_micro_bringup.readiness import loop_subscriptions
+from omni_micro_bringup.robot_namespaces import fleet_specs
 from omni_micro_cli.cli import main
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.stepper import GridSimulator

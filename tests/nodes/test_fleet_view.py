@@ -19,8 +19,8 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from websockets.typing import Subprotocol
 
-from omni_micro_bringup.fleet_composition import fleet_specs
 from omni_micro_bringup.node_spec import process_argv
+from omni_micro_bringup.robot_namespaces import fleet_specs
 from omni_micro_common.errors import ParameterError
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_tools.viewer_node import Viewer

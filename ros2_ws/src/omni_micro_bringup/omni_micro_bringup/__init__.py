@@ -20,7 +20,7 @@ own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node b
 mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
-robots, :mod:`fleet_composition` (one dynamics for all, each robot's nodes in its namespace) and
+robots, :mod:`robot_namespaces` (one dynamics for all, each robot's nodes in its namespace) and
 :mod:`fleet_graph` (their run: legs handed out as the plan says) with
 :mod:`fleet_orchestrator` (the orchestration's node, each robot's coordinator), and
 :mod:`fleet_bench` (several real robots on the bench: their graph, and the guard that stops

@@ -38,11 +38,11 @@ from omni_micro_bringup.composition import (
     recorder_spec,
 )
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.fleet_composition import namespaced_params, robot_node
 from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.node_overrides import capture_uncertainty_of, captures_read_by
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.params_files import graph_params_file
+from omni_micro_bringup.robot_namespaces import namespaced_params, robot_node
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import CAPTURE_QOS, latched
 from omni_micro_common.topic_names import (

@@ -43,11 +43,6 @@ from omni_micro_bringup.fleet_bench import (
     bench_specs,
     check_bench,
 )
-from omni_micro_bringup.fleet_composition import (
-    check_vision,
-    controller_modes,
-    fleet_specs,
-)
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import grid_period_s
@@ -56,6 +51,11 @@ from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
 from omni_micro_bringup.readiness import loop_subscriptions
+from omni_micro_bringup.robot_namespaces import (
+    check_vision,
+    controller_modes,
+    fleet_specs,
+)
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,

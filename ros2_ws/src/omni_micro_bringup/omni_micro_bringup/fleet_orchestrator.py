@@ -20,15 +20,15 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.client import Client
 
 from omni_micro_bringup.errors import RunFailed, UsageError
-from omni_micro_bringup.fleet_composition import (
-    coordinator_name,
-)
 from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
 )
 from omni_micro_bringup.respawns import FleetRespawns
+from omni_micro_bringup.robot_namespaces import (
+    coordinator_name,
+)
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,

@@ -41,7 +41,7 @@ class NodeSpec:
     lockstep: bool = False
     # The nodes this process hosts, for omni_micro_common's container (the loop in one process).
     hosts: tuple[NodeSpec, ...] = ()
-    # A robot's namespace in a fleet's graph (omni_micro_bringup.fleet_composition).
+    # A robot's namespace in a fleet's graph (omni_micro_bringup.robot_namespaces).
     namespace: str = ''
     # Its topics' remaps (``/odom:=/robot_1/odom``) and its params files, in order (later files
     # win): what its command line says before the overrides.
