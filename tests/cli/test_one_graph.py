@@ -10,9 +10,9 @@ import math
 import pytest
 
 from omni_micro_bringup import graph
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_graph import first_tick_past
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv

@@ -51,8 +51,8 @@ def test_the_recorded_qos_is_what_the_graphs_publishers_offer(tmp_path):
     """The metadata above is written from omni_micro_tools.topics' table; this checks the table
     against the publishers a running graph really has (read from the ROS graph, as rqt_graph
     would), so that a publisher whose QoS changes makes the bag's metadata fail here."""
-    from omni_micro_bringup.composition import GraphOptions
     from omni_micro_bringup.graph_description import describe_graph
+    from omni_micro_bringup.graph_options import GraphOptions
 
     described = describe_graph(GraphOptions(goal_m=(0.1, 0.0), log_dir=tmp_path / 'logs',
                                             record=tmp_path / 'bag'))

@@ -111,8 +111,9 @@ def test_the_tracker_captures_the_rendered_robot_in_motion_at_mid_exposure(omni_
 
 
 def test_a_graph_without_a_camera_node_to_publish_them_is_refused():
-    from omni_micro_bringup.composition import GraphOptions, all_specs
+    from omni_micro_bringup.composition import all_specs
     from omni_micro_bringup.errors import UsageError
+    from omni_micro_bringup.graph_options import GraphOptions
     from omni_micro_bringup.node_spec import NodeSpec
 
     robot_and_controller = [NodeSpec('omni_micro_sim', 'dynamics_node'),
@@ -128,8 +129,8 @@ def test_same_seed_same_bag_with_late_captures_in_motion_at_another_speed(tmp_pa
     at --rtf max and at --rtf 2: the delay is simulated time, not message latency."""
     from bag_compare import bag_digest
 
-    from omni_micro_bringup.composition import GraphOptions
     from omni_micro_bringup.graph import run_graph
+    from omni_micro_bringup.graph_options import GraphOptions
 
     late: dict[str, object] = {'macro.motion.delay_s': 0.05, 'macro.motion.jitter_s': 0.02,
                                'micro.motion.delay_s': 0.05, 'micro.motion.jitter_s': 0.02}

@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 from conftest import pause_the_robots_clock
 
-from omni_micro_bringup.composition import FleetRun, GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.graph import run_graph
+from omni_micro_bringup.graph_options import FleetRun, GraphOptions
 from omni_micro_control.fleet_plan import Task, plan_fleet
 from omni_micro_control.fleet_roadmap import ROBOT_DIAMETER_M
 from omni_micro_sim.parameters import RobotParameters

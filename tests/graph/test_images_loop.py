@@ -13,8 +13,8 @@ import pytest
 from bag_compare import bag_digest, recorded_until, stored_messages
 from geometry_msgs.msg import PoseStamped
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.params_files import dds_profile
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.qos import CAPTURE_QOS

@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 from conftest import SHARED_SEED
 
-from omni_micro_bringup.composition import GraphOptions, default_nodes
+from omni_micro_bringup.composition import default_nodes
 from omni_micro_bringup.graph import run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_control.feedback import FeedbackConfig
 from omni_micro_sim import paper

@@ -16,9 +16,9 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.shared_memory import shared_memory_files_in_use, shared_memory_identities
 from omni_micro_tools.bag_reading import read_bag
 

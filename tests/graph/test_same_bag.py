@@ -19,9 +19,9 @@ from bag_compare import bag_digest, stored_messages
 from conftest import SHARED_SEED, Probe
 from thread_stall import ready_to_stall, stall_with
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import Graph, GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.warm_start import WARM_START_ENV
 from omni_micro_common.qos import DATA_QOS
 

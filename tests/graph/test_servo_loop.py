@@ -14,8 +14,8 @@ import pytest
 from bag_compare import bag_digest
 from conftest import ROOT
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS, ODOM_TOPIC
 from omni_micro_control.servo_config import ServoConfig

@@ -11,8 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from omni_micro_bringup.composition import MARKERS_NODE, GraphOptions, all_specs
+from omni_micro_bringup.composition import MARKERS_NODE, all_specs
 from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_overrides import capture_readers, node_overrides
 from omni_micro_bringup.node_spec import LOOP_CONTAINER, NodeSpec, composed
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted

@@ -1,7 +1,8 @@
 """The omni-micro graph brought up, as nav2_bringup and a launch file would (launch is not
 available here): the only package that knows which nodes make the graph.
 
-:mod:`composition` (which nodes, in which processes or one container; GraphOptions),
+:mod:`composition` (which nodes, in which processes or one container), :mod:`graph_options`
+(what a run is asked: GraphOptions, FleetRun),
 :mod:`node_spec` (one node process and its command line),
 :mod:`node_overrides` (what each node is told beyond the params file), :mod:`params_files` (the
 graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file

@@ -32,12 +32,12 @@ from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_bringup.composition import (
     RECORDER_NODE,
-    GraphOptions,
     bench_cameras,
     recorded_topics,
     recorder_spec,
 )
 from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.node_overrides import capture_uncertainty_of, captures_read_by
 from omni_micro_bringup.node_spec import NodeSpec

@@ -29,7 +29,6 @@ from pathlib import Path
 from std_srvs.srv import Trigger
 
 from omni_micro_bringup.composition import (
-    GraphOptions,
     bench_cameras,
     check_camera_faults,
     check_record_images,
@@ -44,6 +43,7 @@ from omni_micro_bringup.fleet_bench import (
     check_bench,
 )
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import grid_period_s
 from omni_micro_bringup.node_spec import NodeSpec

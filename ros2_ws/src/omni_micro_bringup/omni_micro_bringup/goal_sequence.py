@@ -12,13 +12,13 @@ from typing import Protocol
 from omni_micro_bringup.composition import (
     GRAPH_NODE_NAMES,
     OPTIONAL_NODE_NAMES,
-    GraphOptions,
     all_specs,
     bench_cameras,
     servo_mode,
     streaming_cameras,
 )
 from omni_micro_bringup.errors import UsageError
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec

@@ -26,8 +26,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.errors import RunFailed, UsageError
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, process_argv

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import brought_up
+from omni_micro_bringup.graph_options import GraphOptions
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,6 @@ from pathlib import Path
 
 from omni_micro_bringup.composition import (
     MARKERS_FROM_VISION,
-    GraphOptions,
     all_specs,
     awaited_readers,
     camera_node_of,
@@ -20,6 +19,7 @@ from omni_micro_bringup.composition import (
     publishes_in_motion,
     servo_mode,
 )
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.params_files import (
     graph_params_file,

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from omni_micro_bringup.composition import GraphOptions, bench_cameras, graph_nodes
+from omni_micro_bringup.composition import bench_cameras, graph_nodes
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,

@@ -62,8 +62,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def one_run(count: int, composed: bool, containers: int | None, seed: int, sim_s: float,
             scratch: Path) -> GraphResult:
-    from omni_micro_bringup.composition import FleetRun, GraphOptions
     from omni_micro_bringup.graph import run_graph
+    from omni_micro_bringup.graph_options import FleetRun, GraphOptions
     from omni_micro_control.fleet_files import fleet_from
     from omni_micro_control.fleet_plan import plan_fleet
 

@@ -17,8 +17,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import non_negative_int
 from omni_micro_cli.outputs import output_folder, print_json

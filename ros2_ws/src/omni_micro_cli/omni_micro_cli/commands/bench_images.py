@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.machine_load import busy_cores
 from omni_micro_cli.arguments import whole_number_in
 from omni_micro_cli.outputs import print_json

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_bringup.composition import GraphOptions
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_cli.arguments import add_steering_argument, seed_number, steering_overrides
 from omni_micro_cli.errors import RunFailed, UsageError
 from omni_micro_cli.graph_arguments import (

@@ -33,7 +33,7 @@ from omni_micro_control.fleet_guard import STOP_GAP_M, UNNAMED_S
 from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 if TYPE_CHECKING:   # the graph's modules load only for a run through it
-    from omni_micro_bringup.composition import GraphOptions
+    from omni_micro_bringup.graph_options import GraphOptions
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
     fleet = fleet_of(args)
     graph = None
     if args.graph:
-        from omni_micro_bringup.composition import GraphOptions
+        from omni_micro_bringup.graph_options import GraphOptions
         from omni_micro_bringup.params_files import check_params_file
 
         for path in args.params:
@@ -226,8 +226,8 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     if graph is not None:
         from dataclasses import replace
 
-        from omni_micro_bringup.composition import FleetRun
         from omni_micro_bringup.graph import run_graph
+        from omni_micro_bringup.graph_options import FleetRun
         from omni_micro_studies.fleet_routes import told_as_the_twin
 
         ran = run_graph(replace(graph, fleet=FleetRun(

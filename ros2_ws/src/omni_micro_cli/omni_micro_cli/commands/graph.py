@@ -44,8 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_bringup.composition import GraphOptions
     from omni_micro_bringup.graph_description import describe_graph
+    from omni_micro_bringup.graph_options import GraphOptions
 
     if args.out is None and not args.json:
         raise UsageError('give --out FILE (.svg or .png) or --json: nothing to make')

@@ -6,13 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from omni_micro_bringup.composition import (
-    VISION_MODES,
-    GraphOptions,
-    check_camera_faults,
-    check_record_images,
-)
+from omni_micro_bringup.composition import VISION_MODES, check_camera_faults, check_record_images
 from omni_micro_bringup.graph import GraphResult, run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.platform_bounds import check_goal
 from omni_micro_cli.arguments import (

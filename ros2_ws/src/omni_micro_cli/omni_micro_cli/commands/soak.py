@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from omni_micro_bringup.composition import GraphOptions
 from omni_micro_bringup.graph import run_graph
+from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_cli.arguments import (
     add_steering_argument,
     seed_number,
