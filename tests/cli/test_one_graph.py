@@ -6,21 +6,33 @@ robot without a goal is refused, named."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Any
 
 import pytest
 
 from omni_micro_bringup import graph
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_graph import first_tick_past
-from omni_micro_bringup.graph_options import GraphOptions
+from omni_micro_bringup.graph_options import FleetRun, GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
 from omni_micro_bringup.readiness import loop_subscriptions
-from omni_micro_bringup.robot_namespaces import fleet_specs
 from omni_micro_cli.cli import main
+from omni_micro_control.fleet_plan import plan_fleet
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_sim.stepper import GridSimulator
+
+
+def two_robots(folder: Path, controllers: tuple[str, ...] = ('paper', 'paper'),
+               **options: Any) -> list[NodeSpec]:
+    """What the graph starts for two robots (at 0 and 50 mm), as ``fleet --graph`` has it."""
+    plan = plan_fleet([(0.0, 0.0), (0.05, 0.0)], [[], []])
+    options.setdefault('markers', False)
+    return wired_specs(GraphOptions(seed=1, real_time_factor=math.inf, **options,
+                                    fleet=FleetRun(plan, [RobotParameters()] * 2,
+                                                   list(controllers))), folder)
 
 
 def asked_of_the_graph(monkeypatch, argv: list[str]) -> GraphOptions:
@@ -81,9 +93,7 @@ def test_the_two_doors_take_the_same_fleet_flags(monkeypatch, tmp_path, capsys):
 
 @pytest.mark.parametrize('composed_loop', [False, True])
 def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_loop):
-    specs = fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1, math.inf, (),
-                        tmp_path, record=(tmp_path / 'bag', 'mcap'), composed=composed_loop,
-                        markers=True)
+    specs = two_robots(tmp_path, record=tmp_path / 'bag', composed=composed_loop, markers=True)
     hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
     assert all(spec.command is None for spec in [*specs, *hosted])
     names = [spec.name for spec in hosted]
@@ -100,6 +110,8 @@ def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_
     assert files[-1].endswith('robot_1.params.0.yaml')
     assert 'goal_time:=stamp' in argv and argv.index('goal_time:=stamp') > argv.index(files[-1])
     if composed_loop:
+        # Each robot's markers_node is hosted with its robot's nodes, none a process of its own.
+        assert [spec.name for spec in specs if not spec.hosts] == ['bag_recorder']
         # However many containers this machine's cores make, one hosts robot_1's controller.
         container = process_argv(next(spec for spec in specs if controller in spec.hosts))
         # The container hosts each node with the very arguments its own process would have.
@@ -107,6 +119,43 @@ def test_a_fleet_s_nodes_are_started_as_a_single_robot_s_are(tmp_path, composed_
                  if word == 'omni_micro_control.controller_node'][1]   # robot_1's
         assert container[start + 1:start + len(argv)] == argv[1:]
         assert container[start + len(argv)] == '--'
+
+
+@pytest.mark.parametrize('vision, mode', [('model', 'paper'), ('model', 'servo'),
+                                          ('images', 'servo'), ('images', 'model')])
+def test_a_fleet_s_robot_is_told_what_a_single_robot_is_and_what_is_its_own_beside(
+        tmp_path, vision, mode):
+    """One composition for 1..N robots: each node of robot_1 is told what the single robot's
+    is, its readers named in its namespace; beside that only what is its own (its captures'
+    seed, its goals stamped by the coordinator, its offsets, colour and label)."""
+    own = {'vision_node': {'seed'}, 'controller_node': {'goal_time'},
+           'markers_node': {'robot.wheel_offsets_rad', 'robot.colour', 'robot.label'}}
+
+    def told(specs, namespace):
+        def unqualified(value):
+            return [str(item).removeprefix(f'{namespace}/') for item in value] \
+                if isinstance(value, list) else value
+        hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
+        return {spec.executable: {name: unqualified(value)
+                                  for name, value in spec.overrides.items()}
+                for spec in hosted if spec.namespace == namespace}
+
+    single = told(wired_specs(GraphOptions(goal_m=(0.1, 0.0), seed=1, real_time_factor=math.inf,
+                                           vision=vision, record=tmp_path / 'one' / 'bag',
+                                           controller_overrides={'mode': mode})), '')
+    robot_1 = told(two_robots(tmp_path, (mode, mode), vision=vision, markers=True,
+                              record=tmp_path / 'bag'), 'robot_1')
+    robot_nodes = {'controller_node', 'markers_node',
+                   *(('vision_node',) if vision == 'model' else ())}
+    assert set(robot_1) == robot_nodes
+    for node in robot_nodes:
+        assert {name: value for name, value in robot_1[node].items()
+                if name not in own[node]} == {
+            name: value for name, value in single[node].items() if name not in own[node]}, node
+    assert robot_1['controller_node']['goal_time'] == 'stamp'
+    assert 'goal_time' not in single['controller_node']
+    if vision == 'model':
+        assert (single['vision_node']['seed'], robot_1['vision_node']['seed']) == (1, 1001)
 
 
 @pytest.mark.parametrize('vision', ['model', 'images'])
@@ -118,9 +167,8 @@ def test_one_wiring_tells_time_whom_to_wait_for_in_a_fleet_and_a_single_robot(tm
         hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
         return next(spec for spec in hosted if spec.executable == 'dynamics_node').overrides
 
-    fleet = dynamics_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
-                                    math.inf, (), tmp_path, record=(tmp_path / 'bag', 'mcap'),
-                                    markers=True, vision=vision))
+    fleet = dynamics_of(two_robots(tmp_path, record=tmp_path / 'bag', markers=True,
+                                   vision=vision))
     robots = ('robot_0', 'robot_1')
     assert set(fleet['lockstep_nodes']) == {
         *(f'{robot}/{node}' for robot in robots for node in (
@@ -162,8 +210,7 @@ def test_one_wiring_tells_the_cameras_which_captures_the_controllers_read(tmp_pa
         hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
         return [spec.overrides for spec in hosted if spec.executable == executable]
 
-    fleet = fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1, math.inf,
-                        (params,), tmp_path, markers=True, vision=vision)
+    fleet = two_robots(tmp_path, params_files=(params,), markers=True, vision=vision)
     robots = [('robot_0',), ('robot_1',)] if vision == 'model' else [('robot_0', 'robot_1')]
     assert [(overrides['capture_readers'], overrides['covariance_readers'])
             for overrides in told(fleet, camera)] == [
@@ -196,9 +243,8 @@ def test_a_shared_tracker_places_captures_in_motion_in_the_blur_the_camera_rende
         hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
         return next(spec for spec in hosted if spec.executable == 'tracker_node').overrides
 
-    fleet = tracker_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
-                                   math.inf, (params,), tmp_path, controllers=['servo', 'paper'],
-                                   vision='images'))
+    fleet = tracker_of(two_robots(tmp_path, ('servo', 'paper'), params_files=(params,),
+                                  vision='images'))
     single = tracker_of(wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision='images',
                                                  params_files=(params,),
                                                  controller_overrides={'mode': 'servo'})))
@@ -223,8 +269,8 @@ def test_a_fleet_s_markers_are_told_what_a_single_robot_s_are(tmp_path, vision):
         hosted = [inner for spec in specs for inner in (spec.hosts or (spec,))]
         return [spec.overrides for spec in hosted if spec.executable == 'markers_node']
 
-    fleet = markers_of(fleet_specs([(0.0, 0.0), (0.05, 0.0)], [RobotParameters()] * 2, 1,
-                                   math.inf, (params,), tmp_path, markers=True, vision=vision))
+    fleet = markers_of(two_robots(tmp_path, params_files=(params,), markers=True,
+                                  vision=vision))
     (single,) = markers_of(wired_specs(GraphOptions(goal_m=(0.1, 0.0), vision=vision,
                                                     params_files=(params,))))
     assert single['macro.field_m'] == [0.2, 0.16] and single['tolerance_m'] == 5e-6

@@ -14,7 +14,7 @@ import pytest
 from omni_micro_bringup.composition import MARKERS_NODE, all_specs
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
-from omni_micro_bringup.node_overrides import capture_readers, node_overrides
+from omni_micro_bringup.node_overrides import node_overrides
 from omni_micro_bringup.node_spec import LOOP_CONTAINER, NodeSpec, composed
 from omni_micro_common.container import ContainerUsageError, load_component, parse_hosted
 from omni_micro_common.node_runtime import NodeComponent
@@ -86,6 +86,7 @@ def test_composed_the_loop_is_one_container_process_and_keeps_its_lockstep():
     options = GraphOptions(goal_m=(0.1, 0.0), real_time_factor=math.inf, composed=True,
                            markers=True)
     specs = all_specs(options)
+    # A single robot's markers_node beside the container (a fleet's are hosted: test_one_graph).
     assert [spec.name for spec in specs] == [LOOP_CONTAINER, 'markers_node']
     loop = specs[0]
     assert (loop.package, loop.executable) == ('omni_micro_common', 'container')
@@ -191,27 +192,27 @@ def test_markers_are_handed_the_controller_s_tolerance_only_of_the_type_they_dec
     assert node_overrides(MARKERS_NODE, options).get('tolerance_m') == passed
 
 
+def captures_awaited(executable: str, options: GraphOptions) -> dict[str, object]:
+    told = node_overrides(NodeSpec('omni_micro_vision', executable), options)
+    return {name: told[name] for name in ('capture_readers', 'covariance_readers')}
+
+
 def test_the_tracker_waits_for_the_readers_of_its_captures_as_vision_does():
     images = GraphOptions(goal_m=(0.1, 0.0), vision='images', record=Path('bag'))
-    tracker = NodeSpec('omni_micro_vision', 'tracker_node')
-    assert {name: node_overrides(tracker, images)[name]
-            for name in ('capture_readers', 'covariance_readers')} == capture_readers(images)
-    assert capture_readers(images)['covariance_readers'] == [
-        'controller_node', 'markers_node', 'bag_recorder']
+    assert captures_awaited('tracker_node', images) == {
+        'capture_readers': ['bag_recorder'],
+        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder']}
 
 
 def test_vision_waits_for_the_readers_of_its_captures_on_the_topics_they_read():
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
-    assert capture_readers(recorded) == {
+    assert captures_awaited('vision_node', recorded) == {
         'capture_readers': ['bag_recorder'],
         'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder']}
-    bare = GraphOptions(goal_m=(0.1, 0.0), markers=False, composed=True,
+    bare = GraphOptions(goal_m=(0.1, 0.0), composed=True,
                         controller_overrides={'capture_uncertainty': 'fixed'})
-    assert capture_readers(bare) == {'capture_readers': ['controller_node'],
-                                     'covariance_readers': []}
-    vision = NodeSpec('omni_micro_vision', 'vision_node')
-    assert node_overrides(vision, recorded)['covariance_readers'] == [
-        'controller_node', 'markers_node', 'bag_recorder']
+    assert captures_awaited('vision_node', bare) == {
+        'capture_readers': ['controller_node', 'markers_node'], 'covariance_readers': []}
 
 
 def test_composed_refuses_what_needs_separate_processes():

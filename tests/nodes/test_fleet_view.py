@@ -19,9 +19,11 @@ from nav_msgs.msg import Odometry
 from rclpy.serialization import serialize_message
 from websockets.typing import Subprotocol
 
+from omni_micro_bringup.graph_options import FleetRun, GraphOptions
+from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import process_argv
-from omni_micro_bringup.robot_namespaces import fleet_specs
 from omni_micro_common.errors import ParameterError
+from omni_micro_control.fleet_plan import plan_fleet
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_tools.viewer_node import Viewer
 
@@ -88,8 +90,10 @@ def test_a_robot_namespace_that_is_not_one_name_is_refused(context):
 
 def test_the_fleet_s_graph_starts_the_view_with_its_robots_and_without_it_none(tmp_path):
     def specs(view):
-        return fleet_specs([(0.0, 0.0), (0.05, 0.0), (0.1, 0.02)], [RobotParameters()] * 3, 1,
-                           math.inf, (), tmp_path, markers=True, view=view)
+        plan = plan_fleet([(0.0, 0.0), (0.05, 0.0), (0.1, 0.02)], [[], [], []])
+        return wired_specs(GraphOptions(seed=1, real_time_factor=math.inf, markers=True,
+                                        view=view, fleet=FleetRun(plan, [RobotParameters()] * 3,
+                                                                  ['paper'] * 3)), tmp_path)
     (viewer,) = [spec for spec in specs(('127.0.0.1', 8799)) if spec.executable == 'viewer']
     arguments = ' '.join(process_argv(viewer))
     for expected in ("host:=127.0.0.1", 'port:=8799', 'markers:=true',

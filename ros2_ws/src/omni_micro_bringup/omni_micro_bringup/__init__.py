@@ -1,9 +1,9 @@
 """The omni-micro graph brought up, as nav2_bringup and a launch file would (launch is not
 available here): the only package that knows which nodes make the graph.
 
-:mod:`composition` (which nodes, in which processes or one container), :mod:`graph_options`
-(what a run is asked: GraphOptions, FleetRun),
-:mod:`node_spec` (one node process and its command line),
+:mod:`composition` (which nodes, in which processes or containers, for 1..N robots),
+:mod:`graph_options` (what a run is asked: GraphOptions, FleetRun), :mod:`node_spec` (one node
+process and its command line),
 :mod:`node_overrides` (what each node is told beyond the params file), :mod:`params_files` (the
 graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file
 against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
@@ -21,7 +21,7 @@ own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node b
 mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
-robots, :mod:`robot_namespaces` (one dynamics for all, each robot's nodes in its namespace) and
+robots, :mod:`robot_namespaces` (each robot's nodes in its namespace) and
 :mod:`fleet_graph` (their run: legs handed out as the plan says) with
 :mod:`fleet_orchestrator` (the orchestration's node, each robot's coordinator), and
 :mod:`fleet_bench` (several real robots on the bench: their graph, and the guard that stops

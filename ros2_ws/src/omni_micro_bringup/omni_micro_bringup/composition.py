@@ -1,7 +1,9 @@
-"""What a single robot's run starts: the graph's nodes (node_spec.NodeSpec), and its options.
+"""What a run starts, for one robot or several: the graph's nodes (node_spec.NodeSpec).
 
-The loop (dynamics, the cameras' stand-in, the controller), then who only listens (markers,
-the recorder, the live view); what each node is told beyond its package's params file.
+The simulation (dynamics; on rendered images the cameras and their tracker, which every robot
+shares), each robot's own nodes in its namespace (:mod:`.robot_namespaces`: its vision_node,
+controller_node and markers_node; a single robot's in the root namespace), then who only
+listens (the recorder, the live view).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec, composed
 from omni_micro_bringup.params_files import node_parameters
+from omni_micro_bringup.robot_namespaces import ROBOT_NODE_NAMES, controller_modes, in_namespace
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -28,6 +31,7 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_SLIP_TOPIC,
     namespaced_topic,
+    robot_name,
 )
 from omni_micro_control.servo_config import SERVO_MODE
 
@@ -154,21 +158,60 @@ def servo_mode(options: GraphOptions) -> bool:
 
 
 def publishes_in_motion(options: GraphOptions) -> bool:
-    """Whether the vision side publishes captures of the moving robot: asked, or read by the
+    """Whether the vision side publishes captures of a moving robot: asked, or read by a
     servo."""
-    return options.captures_in_motion or servo_mode(options)
+    return bool(robots_in_motion(options))
+
+
+def robot_names(options: GraphOptions) -> list[str]:
+    """The robots' namespaces: a fleet's ``robot_k``, or the root one (``''``) of a single
+    robot."""
+    if options.fleet is None:
+        return ['']
+    return [robot_name(k) for k in range(len(options.fleet.plan.starts_m))]
+
+
+def robot_modes(options: GraphOptions) -> list[str]:
+    """Each robot's controller mode as its controller_node will have it."""
+    if options.fleet is None:
+        return [str(node_parameters('controller_node', options.params_files,
+                                    options.controller_overrides).get('mode', 'paper'))]
+    return controller_modes(options.fleet.controllers, options.params_files)
+
+
+def robots_in_motion(options: GraphOptions) -> list[str]:
+    """The robots whose captures in motion the vision side publishes: asked, or read by their
+    servo."""
+    return [robot for robot, mode in zip(robot_names(options), robot_modes(options), strict=True)
+            if options.captures_in_motion or mode == SERVO_MODE]
+
+
+def coordinator_name(robot: str) -> str:
+    """How the orchestration reports on /lockstep as ``robot``'s coordinator (a fleet's)."""
+    return qualified_node_name(robot, ORCHESTRATOR_NODE)
 
 
 def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
     """The nodes closing the loop: those given, else the default set for ``options.vision``,
     less what the bench supplies (the robot's driver for dynamics_node; the camera's driver for
-    camera_node, its images then read by tracker_node)."""
+    camera_node, its images then read by tracker_node); the simulation's and the shared
+    cameras' once, then each robot's own (ROBOT_NODE_NAMES) in its namespace."""
     if options.nodes:
         return list(options.nodes)
     nodes = default_nodes('images' if options.camera == 'external' else options.vision)
     replaced = {*(('camera_node',) if options.camera == 'external' else ()),
                 *(('dynamics_node',) if options.robot == 'external' else ())}
-    return [spec for spec in nodes if spec.executable not in replaced]
+    kept = [spec for spec in nodes if spec.executable not in replaced]
+    robots = robot_names(options)
+    shared = [spec for spec in kept if spec.executable not in ROBOT_NODE_NAMES]
+    if options.fleet is not None:
+        # The tracker takes part in each robot's lockstep as that robot's (it gates its
+        # captures).
+        shared = [replace(spec, reports_as=tuple(qualified_node_name(robot, spec.executable)
+                                                 for robot in robots))
+                  if spec.executable == 'tracker_node' else spec for spec in shared]
+    return [*shared, *(in_namespace(spec, robot) for robot in robots for spec in kept
+                       if spec.executable in ROBOT_NODE_NAMES)]
 
 
 def streaming_cameras(options: GraphOptions) -> tuple[str, ...]:
@@ -257,14 +300,34 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
                          'in motion, and this graph has neither')
     check_respawn(options)
-    specs = composed(loop, options.containers) if options.composed else list(loop)
+    robots = robot_names(options)
     if options.markers:
-        specs.append(MARKERS_NODE)
+        loop = with_markers(loop, robots)
+    specs = list(loop)
+    if options.composed:
+        # Each robot's markers_node joins its robot's nodes in the containers from two robots
+        # on, as the containers take one per core from there (42 processes of their own would
+        # cost more than they give); a single robot's stays a process of its own, beside its
+        # one container on another core (49x real time against 42x hosted, on 2 cores).
+        apart = [spec for spec in loop if spec.executable == 'markers_node'] \
+            if len(robots) == 1 else []
+        specs = [*composed([spec for spec in loop if spec not in apart], options.containers),
+                 *apart]
     if options.record is not None:
         specs.append(recorder_of_graph(options, options.record))
     if options.view is not None:
-        specs.append(viewer_spec(*options.view, options.markers))
+        specs.append(viewer_spec(*options.view, options.markers,
+                                 robots if options.fleet else ()))
     return specs
+
+
+def with_markers(loop: list[NodeSpec], robots: list[str]) -> list[NodeSpec]:
+    """``loop`` with each robot's markers_node after the last of its nodes."""
+    nodes = list(loop)
+    for robot in robots:
+        own = [k for k, spec in enumerate(nodes) if spec.namespace == robot]
+        nodes.insert(own[-1] + 1 if own else len(nodes), in_namespace(MARKERS_NODE, robot))
+    return nodes
 
 
 def camera_node_of(options: GraphOptions) -> str:
@@ -300,9 +363,9 @@ def recorder_of_graph(options: GraphOptions, bag: Path) -> NodeSpec:
     cameras = tracked_cameras(options)
     unpublished += tuple(topic for name in CAPTURE_TOPICS if name not in cameras
                          for topic in (CAPTURE_TOPICS[name], CAPTURE_COVARIANCE_TOPICS[name]))
-    topics = recorded_topics(markers=options.markers, without=unpublished,
-                             in_motion=('',) if publishes_in_motion(options) else (),
-                             cameras=cameras, images=images)
+    topics = recorded_topics(robot_names(options), markers=options.markers, without=unpublished,
+                             in_motion=robots_in_motion(options), cameras=cameras,
+                             images=images)
     spec = recorder_spec(bag, options.storage, topics, frames=bool(images),
                          whole=options.record_whole)
     overrides = dict(spec.overrides)

@@ -42,7 +42,7 @@ from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.node_overrides import capture_uncertainty_of, captures_read_by
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.params_files import graph_params_file
-from omni_micro_bringup.robot_namespaces import namespaced_params, robot_node
+from omni_micro_bringup.robot_namespaces import in_namespace, namespaced_params
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import CAPTURE_QOS, latched
 from omni_micro_common.topic_names import (
@@ -123,12 +123,12 @@ def bench_specs(options: GraphOptions, count: int, modes: list[str],
             **({'driver_images': sorted(cameras.values())} if options.record_images else {})})
     specs = [NodeSpec('omni_micro_vision', 'tracker_node', params=shipped, overrides=tracker)]
     for k in range(count):
-        specs.append(robot_node(k, 'omni_micro_control', 'controller_node', {
+        specs.append(in_namespace(NodeSpec('omni_micro_control', 'controller_node', {
             'goal_time': 'stamp', **controller_settings(modes[k]),
             # The drivers' readers are not the graph's to name: only the recorder's.
             'trajectory_readers': [RECORDER_NODE] if recorder else []},
-            tuple(namespaced_params(list(shipped), names[k], folder)),
-            shared=tuple(TRACKER_STATUS_TOPICS.values())))
+            params=tuple(namespaced_params(list(shipped), names[k], folder))),
+            names[k], shared=tuple(TRACKER_STATUS_TOPICS.values())))
     return [*specs, *((recorder,) if recorder else ())]
 
 

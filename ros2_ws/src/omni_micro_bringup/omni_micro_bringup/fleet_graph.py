@@ -45,17 +45,13 @@ from omni_micro_bringup.fleet_bench import (
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
-from omni_micro_bringup.node_overrides import grid_period_s
+from omni_micro_bringup.node_overrides import grid_period_s, wired_specs
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
 from omni_micro_bringup.readiness import loop_subscriptions
-from omni_micro_bringup.robot_namespaces import (
-    check_vision,
-    controller_modes,
-    fleet_specs,
-)
+from omni_micro_bringup.robot_namespaces import check_vision, controller_modes
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
@@ -112,18 +108,10 @@ class FleetDispatch:
                             options.camera)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
-        options, record = self.options, self.options.record
-        if options.external:
-            return bench_specs(options, self.count, self.modes, log_dir)
-        specs = fleet_specs(list(self.fleet.plan.starts_m), self.fleet.robots, options.seed,
-                           options.real_time_factor, options.params_files, log_dir,
-                           record=None if record is None else (record, options.storage),
-                           composed=options.composed, containers=options.containers,
-                           markers=options.markers,
-                           view=options.view, controllers=self.modes, vision=options.vision,
-                           vision_overrides=options.vision_overrides,
-                           record_images=options.record_images)
-        if options.respawn:
+        if self.options.external:
+            return bench_specs(self.options, self.count, self.modes, log_dir)
+        specs = wired_specs(self.options, log_dir)
+        if self.options.respawn:
             self.respawnable = [spec.name for spec in specs if spec.respawnable]
         return specs
 

@@ -19,6 +19,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.client import Client
 
+from omni_micro_bringup.composition import coordinator_name
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.orchestrator import (
@@ -26,9 +27,6 @@ from omni_micro_bringup.orchestrator import (
     Orchestrator,
 )
 from omni_micro_bringup.respawns import FleetRespawns
-from omni_micro_bringup.robot_namespaces import (
-    coordinator_name,
-)
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -76,7 +74,8 @@ class FleetMonitor(Orchestrator):
                 functools.partial(self._on_robot_odometry, k), DATA_QOS)
         # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
         # and each end is held until that robot's is handled.
-        self.reporters = [LockstepReporter(self.node, coordinator_name(k)) for k in range(count)]
+        self.reporters = [LockstepReporter(self.node, coordinator_name(robot_name(k)))
+                          for k in range(count)]
         self.contacts: list[dict[str, str]] = []   # dynamics_node's: two chassis touching
         self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
                                       STATUS_QOS)
@@ -102,7 +101,7 @@ class FleetMonitor(Orchestrator):
         return max(stamps) if stamps else None
 
     def report_handled(self, robot: int, outcome_ns: int) -> None:
-        self.reporters[robot].report(Ack(coordinator_name(robot), None,
+        self.reporters[robot].report(Ack(coordinator_name(robot_name(robot)), None,
                                          outcome_handled_ns=outcome_ns))
 
     def set_tolerance(self, graph: Supervisor, robot: int, tolerance_m: float,

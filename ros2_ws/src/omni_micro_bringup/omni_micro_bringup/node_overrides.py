@@ -5,7 +5,7 @@ cameras' fields, the tracker blurs as the rendering camera exposes).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from omni_micro_bringup.composition import (
@@ -13,11 +13,12 @@ from omni_micro_bringup.composition import (
     all_specs,
     awaited_readers,
     camera_node_of,
-    graph_nodes,
+    coordinator_name,
     lockstep_nodes,
     orchestration_odometry_topic,
-    publishes_in_motion,
-    servo_mode,
+    robot_modes,
+    robot_names,
+    robots_in_motion,
 )
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec
@@ -26,69 +27,125 @@ from omni_micro_bringup.params_files import (
     node_parameters,
     params_from_files,
 )
+from omni_micro_bringup.robot_namespaces import namespaced_params
+from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
+from omni_micro_control.fleet_files import controller_settings
+from omni_micro_control.servo_config import SERVO_MODE
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_vision.errors import CameraConfigError
 from omni_micro_vision.motion_capture import CameraTiming, capture_age_bound_s
+from omni_micro_vision.scene import FLEET_COLOURS
 
 # The graph's nodes that must have every move: the robot and the two in the lockstep with it.
 TRAJECTORY_READERS = ('dynamics_node', 'markers_node', 'bag_recorder')
 
 
-def wired_specs(options: GraphOptions) -> list[NodeSpec]:
+@dataclass(frozen=True)
+class GraphWiring:
+    """What every node's overrides are worked out from, worked out once per graph (a fleet of
+    42 robots has some 130 nodes)."""
+
+    specs: list[NodeSpec]        # all_specs
+    present: set[str]            # the executables of every node started, hosted ones too
+    robots: list[str]            # the robots' namespaces
+    modes: list[str]             # each robot's controller mode
+    in_motion: list[str]         # the robots whose captures in motion are published
+
+    @classmethod
+    def of(cls, options: GraphOptions) -> GraphWiring:
+        specs = all_specs(options)
+        return cls(specs, {hosted.executable for spec in specs
+                           for hosted in (spec.hosts or (spec,))},
+                   robot_names(options), robot_modes(options), robots_in_motion(options))
+
+
+def wired_specs(options: GraphOptions, folder: Path | None = None) -> list[NodeSpec]:
     """Every process of the graph as it starts (:func:`~.composition.all_specs`), each node
-    with its params files (the package's, then the user's) and its overrides; a process given
-    as a command is started as it is."""
+    with its params files (the package's, then the user's; a robot's in a namespace, written
+    in ``folder`` with its sections renamed there) and its overrides; a process given as a
+    command is started as it is."""
     params = (graph_params_file(), *options.params_files)
+    wiring = GraphWiring.of(options)
+    robots = [robot for robot in wiring.robots if robot]
+    if robots and folder is None:
+        raise ValueError('the params files of robots in namespaces are written in a folder')
+    own = {robot: tuple(namespaced_params(list(params), robot, folder)) for robot in robots
+           if folder is not None}
 
     def wired(spec: NodeSpec) -> NodeSpec:
         if spec.command is not None:
             return spec
         if spec.hosts:
             return replace(spec, hosts=tuple(wired(hosted) for hosted in spec.hosts))
-        return replace(spec, params=params, overrides=node_overrides(spec, options))
+        return replace(spec, params=own.get(spec.namespace, params),
+                       overrides=node_overrides(spec, options, wiring))
 
-    return [wired(spec) for spec in all_specs(options)]
+    return [wired(spec) for spec in wiring.specs]
 
 
-def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
+def node_overrides(spec: NodeSpec, options: GraphOptions,
+                   wiring: GraphWiring | None = None) -> dict[str, object]:
+    """What ``spec``'s node is told beyond the params files: the lockstep's and the readers'
+    wiring, the seed, values it must share with another node, and what a robot of a fleet has
+    of its own (its start, its wheels, its controller mode, its colour)."""
     overrides: dict[str, object] = {}
+    wiring = wiring or GraphWiring.of(options)
+    robots, present, fleet = wiring.robots, wiring.present, options.fleet
+    robot = robots.index(spec.namespace) if spec.namespace in robots else 0
+    own_readers = [qualified_node_name(spec.namespace, name)
+                   for name in ('controller_node', 'markers_node') if name in present]
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
-        specs = all_specs(options)
-        overrides.update(lockstep_nodes=lockstep_nodes(specs) if options.in_lockstep else [])
-        # Time waits for the readers of every node of the graph that must have the robot's
+        if fleet is not None:
+            overrides.update(robots=robots, robot_poses=[
+                float(v) for x, y in fleet.plan.starts_m for v in (x, y, 0.0)],
+                robot_wheel_offsets_rad=[float(v) for true_robot in fleet.robots
+                                         for v in true_robot.wheel_offsets_rad])
+        specs = wiring.specs
+        # A fleet's orchestration takes part as each robot's coordinator (fleet_graph).
+        coordinators = [coordinator_name(name) for name in robots] if fleet else []
+        overrides.update(lockstep_nodes=lockstep_nodes(specs, coordinators)
+                         if options.in_lockstep else [])
+        # Time waits for the readers of every node of the graph that must have the robots'
         # streams from the first sample (READS_FROM_ROBOT).
         overrides.update(awaited_readers=awaited_readers(
-            specs, ('',), orchestration_odometry_topic(options.follow_route)))
+            specs, robots, orchestration_odometry_topic(options.follow_route)))
         if options.external:
             # Beside a real camera: stamps on the wall clock, at real time.
             overrides.update(stamp_origin='wall', real_time_factor=1.0)
         overrides.update(options.dynamics_overrides)
     elif spec.executable in ('vision_node', 'camera_node'):
-        overrides.update(seed=int(options.seed))
+        # A fleet's robots each their captures' own noise, as the fleet twin draws it.
+        seed = int(options.seed) * 1000 + robot if spec.namespace else int(options.seed)
+        overrides.update(seed=seed)
         if spec.executable == 'vision_node':
-            overrides.update(capture_readers(options))
-            if publishes_in_motion(options):
+            overrides.update(capture_readers(options, own_readers, present))
+            if spec.namespace in wiring.in_motion:
                 overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':
+            if fleet is not None:
+                overrides.update(robots=robots)   # each drawn with its code
             # Its first frame waits for the readers that must not miss it.
-            present = {other.executable for other in all_specs(options)}
             readers = ['tracker_node'] if 'tracker_node' in present else []
             if options.record_images:
                 readers.append('bag_recorder')
             overrides.update(image_readers=readers)
         overrides.update(options.vision_overrides)
     elif spec.executable == 'tracker_node':
-        overrides.update(capture_readers(options))
-        if publishes_in_motion(options):
+        if fleet is not None:
+            overrides.update(robots=robots)   # named by their codes
+        overrides.update(capture_readers(options, [
+            qualified_node_name(name, node) for name in robots
+            for node in ('controller_node', 'markers_node') if node in present], present))
+        if wiring.in_motion:
             overrides.update(captures_in_motion=True)
         if options.camera == 'simulated':
             # camera_node publishes reliable, and in the lockstep a lost frame would be a frame
             # never reported: time would stand still. A driver's frames are read best effort.
             overrides.update(image_reliability='reliable')
-            if publishes_in_motion(options):
+            if wiring.in_motion:
                 overrides.update(rendered_motion(options.params_files, options.vision_overrides))
         if options.image_topics:
             overrides.update(cameras=sorted(options.image_topics))
@@ -97,20 +154,29 @@ def node_overrides(spec: NodeSpec, options: GraphOptions) -> dict[str, object]:
                                   f'{camera}.info_topic': camera_info_beside(topic)})
     elif spec.executable == 'markers_node':
         # Its first array waits for the reader that must not miss it.
-        recorded = 'bag_recorder' in nodes_present(options)
-        overrides.update(markers_readers=['bag_recorder'] if recorded else [])
+        overrides.update(markers_readers=['bag_recorder'] if 'bag_recorder' in present else [])
         overrides.update(markers_told(options.params_files, camera_node_of(options),
                                       options.vision_overrides, options.dynamics_overrides,
                                       options.controller_overrides))
+        if fleet is not None:
+            overrides.update({
+                'robot.wheel_offsets_rad': [float(v)
+                                            for v in fleet.robots[robot].wheel_offsets_rad],
+                'robot.colour': list(FLEET_COLOURS[robot % len(FLEET_COLOURS)]),
+                'robot.label': spec.namespace})
     elif spec.executable == 'controller_node':
         # Its first move waits for the readers that must not miss it.
-        present = nodes_present(options)
-        overrides.update(trajectory_readers=[name for name in TRAJECTORY_READERS
-                                             if name in present])
+        overrides.update(trajectory_readers=[
+            qualified_node_name(spec.namespace, name) if name == 'markers_node' else name
+            for name in TRAJECTORY_READERS if name in present])
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)
-        if servo_mode(options):
+        mode = wiring.modes[robot]
+        if fleet is not None:
+            # Each goal counts from the end it follows, which the coordinator stamps it with.
+            overrides.update(goal_time='stamp', **controller_settings(mode))
+        if mode == SERVO_MODE:
             overrides.update(servo_timing(options))
     overrides.update(spec.overrides)
     return overrides
@@ -230,18 +296,13 @@ def passed_on(value: object, like: object) -> object | None:
     return number(value)
 
 
-def nodes_present(options: GraphOptions) -> set[str]:
-    """The executables of every node ``options`` starts."""
-    return {spec.executable for spec in [*graph_nodes(options), *all_specs(options)]}
-
-
-def capture_readers(options: GraphOptions) -> dict[str, list[str]]:
+def capture_readers(options: GraphOptions, readers: list[str],
+                    present: set[str]) -> dict[str, list[str]]:
     """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers`` in this
-    graph: :func:`captures_read_by` the controller and markers_node, and the recorder."""
-    present = nodes_present(options)
+    graph: :func:`captures_read_by` ``readers`` (the controllers and markers_nodes it captures
+    for, each as its node is named), and the recorder if ``present``."""
     return captures_read_by(
-        [name for name in ('controller_node', 'markers_node') if name in present],
-        recorded='bag_recorder' in present,
+        readers, recorded='bag_recorder' in present,
         capture_uncertainty=capture_uncertainty_of(options.params_files,
                                                    options.controller_overrides))
 
