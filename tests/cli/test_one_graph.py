@@ -143,8 +143,9 @@ def test_a_fleet_s_robot_is_told_what_a_single_robot_is_and_what_is_its_own_besi
     single = told(wired_specs(GraphOptions(goal_m=(0.1, 0.0), seed=1, real_time_factor=math.inf,
                                            vision=vision, record=tmp_path / 'one' / 'bag',
                                            controller_overrides={'mode': mode})), '')
-    robot_1 = told(two_robots(tmp_path, (mode, mode), vision=vision, markers=True,
-                              record=tmp_path / 'bag'), 'robot_1')
+    fleet = two_robots(tmp_path, (mode, mode), vision=vision, markers=True,
+                       record=tmp_path / 'bag')
+    robot_1 = told(fleet, 'robot_1')
     robot_nodes = {'controller_node', 'markers_node',
                    *(('vision_node',) if vision == 'model' else ())}
     assert set(robot_1) == robot_nodes
@@ -156,6 +157,11 @@ def test_a_fleet_s_robot_is_told_what_a_single_robot_is_and_what_is_its_own_besi
     assert 'goal_time' not in single['controller_node']
     if vision == 'model':
         assert (single['vision_node']['seed'], robot_1['vision_node']['seed']) == (1, 1001)
+    # A servo reads how old the tracker's frames come on the tracker's own topics: a shared
+    # tracker's are not remapped into the robot's namespace.
+    (controller,) = [spec for spec in fleet if spec.name == 'robot_1.controller_node']
+    assert ('/camera/macro/tracker_status:=/robot_1/camera/macro/tracker_status'
+            in controller.remaps) == (vision == 'model')
 
 
 @pytest.mark.parametrize('vision', ['model', 'images'])

@@ -24,6 +24,6 @@ mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the pro
 robots, :mod:`robot_namespaces` (each robot's nodes in its namespace) and
 :mod:`fleet_graph` (their run: legs handed out as the plan says) with
 :mod:`fleet_orchestrator` (the orchestration's node, each robot's coordinator), and
-:mod:`fleet_bench` (several real robots on the bench: their graph, and the guard that stops
-them all).
+:mod:`fleet_bench` (several real robots on the bench: what they are refused, and the guard
+that stops them all).
 """

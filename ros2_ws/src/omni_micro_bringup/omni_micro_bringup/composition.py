@@ -24,11 +24,13 @@ from omni_micro_common.topic_names import (
     CAPTURE_IN_MOTION_TOPICS,
     CAPTURE_TOPICS,
     CLOCK_TOPIC,
+    FLEET_GUARD_TOPIC,
     JOINT_STATES_THROTTLE_TOPIC,
     JOINT_STATES_TOPIC,
     MARKERS_TOPIC,
     ODOM_THROTTLE_TOPIC,
     ODOM_TOPIC,
+    TRACKER_STATUS_TOPICS,
     WHEEL_SLIP_TOPIC,
     namespaced_topic,
     robot_name,
@@ -179,11 +181,19 @@ def robot_modes(options: GraphOptions) -> list[str]:
     return controller_modes(options.fleet.controllers, options.params_files)
 
 
+def guarded(options: GraphOptions) -> bool:
+    """Whether the orchestration's guard keeps the robots apart: several real robots, which no
+    dynamics_node sees touch (fleet_bench). It follows every robot's captures, in motion too,
+    and its stops are recorded, as is what comes after the last goal's end (a stop, the robots
+    coming to rest)."""
+    return options.fleet is not None and options.external
+
+
 def robots_in_motion(options: GraphOptions) -> list[str]:
-    """The robots whose captures in motion the vision side publishes: asked, or read by their
-    servo."""
+    """The robots whose captures in motion the vision side publishes: asked, read by their
+    servo, or followed by the guard."""
     return [robot for robot, mode in zip(robot_names(options), robot_modes(options), strict=True)
-            if options.captures_in_motion or mode == SERVO_MODE]
+            if options.captures_in_motion or mode == SERVO_MODE or guarded(options)]
 
 
 def coordinator_name(robot: str) -> str:
@@ -204,13 +214,16 @@ def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
     kept = [spec for spec in nodes if spec.executable not in replaced]
     robots = robot_names(options)
     shared = [spec for spec in kept if spec.executable not in ROBOT_NODE_NAMES]
+    # A tracker every robot shares says how old its frames come on its own topics.
+    statuses = tuple(TRACKER_STATUS_TOPICS.values()) \
+        if any(spec.executable == 'tracker_node' for spec in shared) else ()
     if options.fleet is not None:
         # The tracker takes part in each robot's lockstep as that robot's (it gates its
         # captures).
         shared = [replace(spec, reports_as=tuple(qualified_node_name(robot, spec.executable)
                                                  for robot in robots))
                   if spec.executable == 'tracker_node' else spec for spec in shared]
-    return [*shared, *(in_namespace(spec, robot) for robot in robots for spec in kept
+    return [*shared, *(in_namespace(spec, robot, statuses) for robot in robots for spec in kept
                        if spec.executable in ROBOT_NODE_NAMES)]
 
 
@@ -366,8 +379,10 @@ def recorder_of_graph(options: GraphOptions, bag: Path) -> NodeSpec:
     topics = recorded_topics(robot_names(options), markers=options.markers, without=unpublished,
                              in_motion=robots_in_motion(options), cameras=cameras,
                              images=images)
+    if guarded(options):
+        topics.append(FLEET_GUARD_TOPIC)
     spec = recorder_spec(bag, options.storage, topics, frames=bool(images),
-                         whole=options.record_whole)
+                         whole=options.record_whole or guarded(options))
     overrides = dict(spec.overrides)
     if driver_images:
         overrides.update(driver_images=list(driver_images))

@@ -1,12 +1,14 @@
 """Several real robots on one bench (``run --robots FILE --camera external --robot external``):
-what the graph starts, and how the orchestration keeps the robots apart.
+what it is refused, what its drivers must publish, and how the orchestration keeps the robots
+apart.
 
 No dynamics_node and no camera_node: each robot's driver publishes ``/robot_k/joint_states`` and
 reads ``/robot_k/wheel_trajectory`` on the wall clock, and a camera driver shows every robot
-with the code printed on it. The graph starts one tracker_node that names each robot in the
-driver's frames (its captures in motion on for every robot: the guard follows them moving),
-each robot's controller_node under ``/robot_k``, and the recorder on the wall clock. Nothing
-runs in lockstep.
+with the code printed on it. The graph, built by :mod:`~omni_micro_bringup.composition` as any
+other, has one tracker_node that names each robot in the driver's frames (its captures in
+motion on for every robot: the guard follows them moving), each robot's controller_node under
+``/robot_k``, and the recorder on the wall clock, keeping the guard's stops. Nothing runs in
+lockstep.
 
 The orchestration (:mod:`omni_micro_bringup.fleet_graph`) hands out the planner's legs as in
 simulation, each goal stamped with the wall-clock time of the end it follows (the single robot's
@@ -20,8 +22,6 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -30,39 +30,21 @@ from rclpy.duration import Duration
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from omni_micro_bringup.composition import (
-    RECORDER_NODE,
-    bench_cameras,
-    recorded_topics,
-    recorder_spec,
-)
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import RobotLog
-from omni_micro_bringup.node_overrides import capture_uncertainty_of, captures_read_by
-from omni_micro_bringup.node_spec import NodeSpec
-from omni_micro_bringup.params_files import graph_params_file
-from omni_micro_bringup.robot_namespaces import in_namespace, namespaced_params
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
 from omni_micro_common.qos import CAPTURE_QOS, latched
 from omni_micro_common.topic_names import (
-    CAMERA_STATUS_TOPIC,
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
-    CAPTURE_TOPICS,
-    CLOCK_TOPIC,
     FLEET_GUARD_TOPIC,
     JOINT_STATES_TOPIC,
-    ODOM_TOPIC,
-    TRACKER_STATUS_TOPICS,
-    WHEEL_SLIP_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
-    camera_info_beside,
     robot_name,
     robot_topic,
 )
 from omni_micro_control.controller_messages import stop_trajectory
-from omni_micro_control.fleet_files import controller_settings
 from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 
 # How often the guard looks (a 15 Hz camera's frames come every 67 ms).
@@ -86,50 +68,6 @@ def check_bench(options: GraphOptions) -> None:
     if refused:
         raise UsageError(f'{", ".join(refused)}: not with real robots (no simulated robot to '
                          'hold, draw or fault); leave them out')
-
-
-def bench_specs(options: GraphOptions, count: int, modes: list[str],
-                folder: Path) -> list[NodeSpec]:
-    """The processes of a fleet's bench: the tracker naming every robot in the drivers'
-    frames, each robot's controller_node under its namespace (reading the shared tracker's
-    statuses: how old the driver's frames come), and with ``options.record`` the recorder on
-    the wall clock."""
-    shipped = (graph_params_file(), *options.params_files)
-    names = [robot_name(k) for k in range(count)]
-    cameras = bench_cameras(options)
-    tracker = {'robots': names, 'captures_in_motion': True,
-               **captures_read_by([f'{robot}/controller_node' for robot in names], recorded=False,
-                                  capture_uncertainty=capture_uncertainty_of(
-                                      options.params_files, {})),
-               'cameras': sorted(cameras),
-               **{key: value for camera, topic in cameras.items()
-                  for key, value in ((f'{camera}.image_topic', topic),
-                                     (f'{camera}.info_topic', camera_info_beside(topic)))}}
-    recorder = None
-    if options.record is not None:
-        # What a real robot's bench publishes: no clock, odometry, slip or markers; captures of
-        # the tracked cameras only, every robot's in motion (the guard's) and the guard's stops.
-        untracked = tuple(topic for name in CAPTURE_TOPICS if name not in cameras
-                          for topic in (CAPTURE_TOPICS[name], CAPTURE_COVARIANCE_TOPICS[name]))
-        topics = recorded_topics(names, markers=False, without=(
-            CLOCK_TOPIC, ODOM_TOPIC, WHEEL_SLIP_TOPIC, CAMERA_STATUS_TOPIC, *untracked),
-            in_motion=names, cameras=sorted(cameras))
-        # Whole: the log keeps what came after the last goal's end too (a guard's stop, the
-        # robots coming to rest).
-        spec = recorder_spec(options.record, options.storage, [*topics, FLEET_GUARD_TOPIC],
-                             whole=True)
-        recorder = replace(spec, params=shipped, overrides={
-            **spec.overrides, 'lockstep_ticks': False, 'log_clock': 'wall',
-            **({'driver_images': sorted(cameras.values())} if options.record_images else {})})
-    specs = [NodeSpec('omni_micro_vision', 'tracker_node', params=shipped, overrides=tracker)]
-    for k in range(count):
-        specs.append(in_namespace(NodeSpec('omni_micro_control', 'controller_node', {
-            'goal_time': 'stamp', **controller_settings(modes[k]),
-            # The drivers' readers are not the graph's to name: only the recorder's.
-            'trajectory_readers': [RECORDER_NODE] if recorder else []},
-            params=tuple(namespaced_params(list(shipped), names[k], folder))),
-            names[k], shared=tuple(TRACKER_STATUS_TOPICS.values())))
-    return [*specs, *((recorder,) if recorder else ())]
 
 
 def bench_publications(count: int, image_topics: list[str]) -> dict[str, str]:

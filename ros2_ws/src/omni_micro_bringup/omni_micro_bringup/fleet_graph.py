@@ -39,7 +39,6 @@ from omni_micro_bringup.fleet_bench import (
     HOLD_AFTER_STOP_S,
     BenchGuard,
     bench_publications,
-    bench_specs,
     check_bench,
 )
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
@@ -108,8 +107,6 @@ class FleetDispatch:
                             options.camera)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
-        if self.options.external:
-            return bench_specs(self.options, self.count, self.modes, log_dir)
         specs = wired_specs(self.options, log_dir)
         if self.options.respawn:
             self.respawnable = [spec.name for spec in specs if spec.respawnable]
