@@ -287,6 +287,27 @@ def test_a_fleet_s_markers_are_told_what_a_single_robot_s_are(tmp_path, vision):
         assert told['robot.label'] == f'robot_{k}'
 
 
+@pytest.mark.parametrize('asked, refused', [
+    ({'vision': 'images', 'vision_overrides': {'faults.drop_rate': 0.1}},
+     "fault injection .* is vision_node's"),
+    ({'record_images': True, 'vision': 'images'}, '--record-images needs --record BAG'),
+    ({'composed': True, 'respawn': True}, '--respawn restarts a crashed node'),
+    ({'vision': 'photos'}, "vision must be one of \\['images', 'model'\\], got 'photos'")])
+def test_one_robot_and_a_fleet_are_refused_a_graph_that_cannot_be_in_the_same_words(
+        tmp_path, asked, refused):
+    """One check for 1..N robots, in the run sequence itself (before, a single robot's graph
+    with camera faults on rendered images was refused by the command line only)."""
+    from omni_micro_bringup.fleet_graph import FleetDispatch
+    from omni_micro_bringup.goal_sequence import GoalSequence
+
+    plan = plan_fleet([(0.0, 0.0), (0.05, 0.0)], [[], []])
+    fleet = GraphOptions(fleet=FleetRun(plan, [RobotParameters()] * 2, ['paper'] * 2), **asked)
+    for driver in (GoalSequence(GraphOptions(goal_m=(0.1, 0.0), **asked)),
+                   FleetDispatch(fleet)):
+        with pytest.raises(UsageError, match=refused):
+            driver.check()
+
+
 def test_a_node_given_as_a_command_is_refused_by_the_container():
     stand_in = NodeSpec('omni_micro_vision', 'camera_node', command=('driver',))
     with pytest.raises(UsageError, match='camera_node'):

@@ -292,9 +292,10 @@ def check_respawn(options: GraphOptions) -> None:
                          '--composed the loop shares one process: choose one of them')
 
 
-def all_specs(options: GraphOptions) -> list[NodeSpec]:
-    """Every process of the graph: the loop (one process with ``composed``), then who listens
-    (markers, recorder, viewer)."""
+def check_graph(options: GraphOptions) -> None:
+    """Raises UsageError for a graph that cannot be, one robot's or several's, naming what to
+    leave out (a fleet on the bench is checked for what real robots cannot do besides:
+    fleet_bench.check_bench)."""
     loop = graph_nodes(options)
     for name, source in (('camera', options.camera), ('robot', options.robot)):
         if source not in SOURCES:
@@ -313,6 +314,21 @@ def all_specs(options: GraphOptions) -> list[NodeSpec]:
         raise UsageError('--captures-in-motion: vision_node or tracker_node publishes captures '
                          'in motion, and this graph has neither')
     check_respawn(options)
+    check_camera_faults(options.vision_overrides, options.vision)
+    check_record_images(options.record_images, options.record, options.vision, options.camera)
+
+
+def all_specs(options: GraphOptions) -> list[NodeSpec]:
+    """Every process of the graph: the simulation's, each robot's (in containers with
+    ``composed``), then who listens (recorder, viewer).
+
+    Raises
+    ------
+    UsageError
+        A graph that cannot be (:func:`check_graph`).
+    """
+    check_graph(options)
+    loop = graph_nodes(options)
     robots = robot_names(options)
     if options.markers:
         loop = with_markers(loop, robots)

@@ -30,9 +30,7 @@ from std_srvs.srv import Trigger
 
 from omni_micro_bringup.composition import (
     bench_cameras,
-    check_camera_faults,
-    check_record_images,
-    check_respawn,
+    check_graph,
 )
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_bench import (
@@ -50,7 +48,7 @@ from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
 from omni_micro_bringup.readiness import loop_subscriptions
-from omni_micro_bringup.robot_namespaces import check_vision, controller_modes
+from omni_micro_bringup.robot_namespaces import controller_modes
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
@@ -95,16 +93,11 @@ class FleetDispatch:
 
     @staticmethod
     def check_options(options: GraphOptions) -> None:
-        """Raises UsageError for a vision not known, for ``respawn`` with ``composed``, camera
-        faults without vision_nodes, or images to record without a bag or images; on the bench
-        (``options.external``) for what real robots cannot do."""
+        """Raises UsageError for a graph that cannot be (composition.check_graph) and, on the
+        bench (``options.external``), for what real robots cannot do."""
         if options.external:
             check_bench(options)
-        check_vision(options.vision)
-        check_respawn(options)
-        check_camera_faults(options.vision_overrides, options.vision)
-        check_record_images(options.record_images, options.record, options.vision,
-                            options.camera)
+        check_graph(options)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         specs = wired_specs(self.options, log_dir)

@@ -12,8 +12,8 @@ from typing import Protocol
 from omni_micro_bringup.composition import (
     GRAPH_NODE_NAMES,
     OPTIONAL_NODE_NAMES,
-    all_specs,
     bench_cameras,
+    check_graph,
     servo_mode,
     streaming_cameras,
 )
@@ -61,7 +61,7 @@ class GoalSequence:
         """Raises UsageError for a bad params file or a graph that cannot be."""
         for path in self.options.params_files:
             check_params_file(path, (*GRAPH_NODE_NAMES, *OPTIONAL_NODE_NAMES))
-        all_specs(self.options)
+        check_graph(self.options)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         return wired_specs(self.options)

@@ -20,7 +20,6 @@ from pathlib import Path
 
 import yaml
 
-from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.params_files import node_parameters
 from omni_micro_common.params import load_params_file
@@ -61,9 +60,3 @@ def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[s
     the params files' (a ``controller_node:`` section sets every robot's)."""
     configured = str(node_parameters('controller_node', params_files, {}).get('mode', 'paper'))
     return [mode if mode != 'paper' else configured for mode in modes]
-
-
-def check_vision(vision: str) -> None:
-    """Raises UsageError if ``vision`` is not one known."""
-    if vision not in ('model', 'images'):
-        raise UsageError(f"vision must be 'model' or 'images', got {vision!r}")
