@@ -18,7 +18,11 @@ from omni_micro_bringup.graph_options import FleetRun, GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
 from omni_micro_bringup.node_spec import NodeSpec, composed, process_argv
-from omni_micro_bringup.readiness import loop_subscriptions
+from omni_micro_bringup.readiness import (
+    external_publications,
+    loop_subscriptions,
+    ready_subscriptions,
+)
 from omni_micro_cli.cli import main
 from omni_micro_control.fleet_plan import plan_fleet
 from omni_micro_sim.parameters import RobotParameters
@@ -306,6 +310,27 @@ def test_one_robot_and_a_fleet_are_refused_a_graph_that_cannot_be_in_the_same_wo
                    FleetDispatch(fleet)):
         with pytest.raises(UsageError, match=refused):
             driver.check()
+
+
+@pytest.mark.parametrize('source', ['simulated', 'external'])
+def test_time_waits_for_each_robot_s_readers_and_drivers_as_for_a_single_robot_s(source):
+    """One readiness for 1..N robots: the readers a single robot's loop must have, and on the
+    bench the drivers that must publish, each robot's in its namespace."""
+    plan = plan_fleet([(0.0, 0.0), (0.05, 0.0)], [[], []])
+    asked = {'camera': source, 'robot': source}
+    single = GraphOptions(goal_m=(0.1, 0.0), **asked)
+    fleet = GraphOptions(fleet=FleetRun(plan, [RobotParameters()] * 2, ['paper'] * 2), **asked)
+    assert ready_subscriptions(fleet) == [
+        tuple(f'/{robot}{topic}' for topic in alternatives)
+        for robot in ('robot_0', 'robot_1') for alternatives in ready_subscriptions(single)]
+    assert ('/odom',) in ready_subscriptions(single) or source == 'external'
+    cameras = {'/camera/macro/image_raw': 'the camera driver',
+               '/camera/micro/image_raw': 'the camera driver'}
+    assert external_publications(single) == (
+        {'/joint_states': "the robot's driver", **cameras} if source == 'external' else {})
+    assert external_publications(fleet) == (
+        {'/robot_0/joint_states': "robot_0's driver", '/robot_1/joint_states': "robot_1's driver",
+         **cameras} if source == 'external' else {})
 
 
 def test_a_node_given_as_a_command_is_refused_by_the_container():

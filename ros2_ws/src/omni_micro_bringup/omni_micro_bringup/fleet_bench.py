@@ -39,7 +39,6 @@ from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
     FLEET_GUARD_TOPIC,
-    JOINT_STATES_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
     robot_name,
     robot_topic,
@@ -68,13 +67,6 @@ def check_bench(options: GraphOptions) -> None:
     if refused:
         raise UsageError(f'{", ".join(refused)}: not with real robots (no simulated robot to '
                          'hold, draw or fault); leave them out')
-
-
-def bench_publications(count: int, image_topics: list[str]) -> dict[str, str]:
-    """What the drivers must publish, each with whose it is."""
-    return {**{robot_topic(k, JOINT_STATES_TOPIC): f"{robot_name(k)}'s driver"
-               for k in range(count)},
-            **{topic: 'the camera driver' for topic in image_topics}}
 
 
 class BenchGuard:

@@ -36,7 +36,6 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.fleet_bench import (
     HOLD_AFTER_STOP_S,
     BenchGuard,
-    bench_publications,
     check_bench,
 )
 from omni_micro_bringup.fleet_orchestrator import FleetMonitor
@@ -47,7 +46,7 @@ from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
-from omni_micro_bringup.readiness import loop_subscriptions
+from omni_micro_bringup.readiness import external_publications, ready_subscriptions
 from omni_micro_bringup.robot_namespaces import controller_modes
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
@@ -132,8 +131,7 @@ class FleetDispatch:
             log.tasks_done_s += [0.0] * len(tasks)
         if bench is None:
             monitor.wait_until_ready(graph, timeout_s=60.0,
-                                     subscriptions=loop_subscriptions(
-                                         odometry=True, robots=self.count),
+                                     subscriptions=ready_subscriptions(options),
                                      recording=options.record is not None)
             for k in range(self.count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
@@ -298,13 +296,11 @@ class FleetDispatch:
         from omni_micro_bringup.bench_start import wait_for_fleet_bench
         from omni_micro_bringup.goal_sequence import BENCH_READY_S
 
-        monitor, bench, cameras = self.monitor, self.bench, bench_cameras(self.options)
+        monitor, bench = self.monitor, self.bench
         assert monitor is not None and bench is not None
         monitor.wait_until_ready(graph, timeout_s=BENCH_READY_S,
-                                 subscriptions=loop_subscriptions(
-                                     odometry=False, cameras=sorted(cameras), robots=self.count),
-                                 publications=bench_publications(self.count,
-                                                                 list(cameras.values())),
+                                 subscriptions=ready_subscriptions(self.options),
+                                 publications=external_publications(self.options),
                                  recording=self.options.record is not None, clock=False)
         wait_for_fleet_bench(monitor, graph, [robot_name(k) for k in range(self.count)],
                              lambda: bench.guard.named, BENCH_READY_S)

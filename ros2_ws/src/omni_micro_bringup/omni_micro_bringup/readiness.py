@@ -5,7 +5,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from omni_micro_bringup.composition import bench_cameras, graph_nodes
+from omni_micro_bringup.composition import (
+    bench_cameras,
+    graph_nodes,
+    robot_names,
+    tracked_cameras,
+)
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
@@ -13,6 +18,7 @@ from omni_micro_common.topic_names import (
     JOINT_STATES_TOPIC,
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
+    namespaced_topic,
     robot_topic,
 )
 
@@ -26,10 +32,13 @@ def simulates_robot(options: GraphOptions) -> bool:
 
 def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
     """The topics someone must read before time may start (of alternatives, any one):
-    :func:`loop_subscriptions` of the root namespace's robot, its odometry if a simulated camera
+    :func:`loop_subscriptions` of every robot (a single robot's in the root namespace), of the
+    cameras whose captures the graph publishes, the robots' odometry if a simulated camera
     (vision_node, camera_node) is in the graph."""
     names = {spec.executable for spec in graph_nodes(options)}
-    return loop_subscriptions(odometry=bool(names & {'vision_node', 'camera_node'}))
+    return loop_subscriptions(odometry=bool(names & {'vision_node', 'camera_node'}),
+                              cameras=tracked_cameras(options),
+                              robots=None if options.fleet is None else len(robot_names(options)))
 
 
 def loop_subscriptions(odometry: bool, cameras: Sequence[str] = tuple(CAPTURE_TOPICS),
@@ -53,6 +62,8 @@ def external_publications(options: GraphOptions) -> dict[str, str]:
     and names the one missing)."""
     needed = {}
     if options.robot == 'external':
-        needed.update({topic: "the robot's driver" for topic in EXTERNAL_ROBOT_PUBLISHES})
+        needed.update({namespaced_topic(robot, topic): f"{robot}'s driver" if robot
+                       else "the robot's driver"
+                       for robot in robot_names(options) for topic in EXTERNAL_ROBOT_PUBLISHES})
     needed.update({topic: 'the camera driver' for topic in bench_cameras(options).values()})
     return needed
