@@ -217,12 +217,10 @@ def graph_nodes(options: GraphOptions) -> list[NodeSpec]:
     # A tracker every robot shares says how old its frames come on its own topics.
     statuses = tuple(TRACKER_STATUS_TOPICS.values()) \
         if any(spec.executable == 'tracker_node' for spec in shared) else ()
-    if options.fleet is not None:
-        # The tracker takes part in each robot's lockstep as that robot's (it gates its
-        # captures).
-        shared = [replace(spec, reports_as=tuple(qualified_node_name(robot, spec.executable)
-                                                 for robot in robots))
-                  if spec.executable == 'tracker_node' else spec for spec in shared]
+    # The tracker takes part in each robot's lockstep as that robot's (it gates its captures).
+    shared = [replace(spec, reports_as=tuple(qualified_node_name(robot, spec.executable)
+                                             for robot in robots))
+              if spec.executable == 'tracker_node' else spec for spec in shared]
     return [*shared, *(in_namespace(spec, robot, statuses) for robot in robots for spec in kept
                        if spec.executable in ROBOT_NODE_NAMES)]
 
