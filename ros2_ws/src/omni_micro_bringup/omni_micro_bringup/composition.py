@@ -16,7 +16,13 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec, composed
 from omni_micro_bringup.params_files import node_parameters
-from omni_micro_bringup.robot_namespaces import ROBOT_NODE_NAMES, controller_modes, in_namespace
+from omni_micro_bringup.robot_namespaces import (
+    ROBOT_NODE_NAMES,
+    guarded,
+    in_namespace,
+    robot_names,
+    robots_in_motion,
+)
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -33,7 +39,6 @@ from omni_micro_common.topic_names import (
     TRACKER_STATUS_TOPICS,
     WHEEL_SLIP_TOPIC,
     namespaced_topic,
-    robot_name,
 )
 from omni_micro_control.servo_config import SERVO_MODE
 
@@ -163,37 +168,6 @@ def publishes_in_motion(options: GraphOptions) -> bool:
     """Whether the vision side publishes captures of a moving robot: asked, or read by a
     servo."""
     return bool(robots_in_motion(options))
-
-
-def robot_names(options: GraphOptions) -> list[str]:
-    """The robots' namespaces: a fleet's ``robot_k``, or the root one (``''``) of a single
-    robot."""
-    if options.fleet is None:
-        return ['']
-    return [robot_name(k) for k in range(len(options.fleet.plan.starts_m))]
-
-
-def robot_modes(options: GraphOptions) -> list[str]:
-    """Each robot's controller mode as its controller_node will have it."""
-    if options.fleet is None:
-        return [str(node_parameters('controller_node', options.params_files,
-                                    options.controller_overrides).get('mode', 'paper'))]
-    return controller_modes(options.fleet.controllers, options.params_files)
-
-
-def guarded(options: GraphOptions) -> bool:
-    """Whether the orchestration's guard keeps the robots apart: several real robots, which no
-    dynamics_node sees touch (fleet_bench). It follows every robot's captures, in motion too,
-    and its stops are recorded, as is what comes after the last goal's end (a stop, the robots
-    coming to rest)."""
-    return options.fleet is not None and options.external
-
-
-def robots_in_motion(options: GraphOptions) -> list[str]:
-    """The robots whose captures in motion the vision side publishes: asked, read by their
-    servo, or followed by the guard."""
-    return [robot for robot, mode in zip(robot_names(options), robot_modes(options), strict=True)
-            if options.captures_in_motion or mode == SERVO_MODE or guarded(options)]
 
 
 def coordinator_name(robot: str) -> str:

@@ -16,9 +16,6 @@ from omni_micro_bringup.composition import (
     coordinator_name,
     lockstep_nodes,
     orchestration_odometry_topic,
-    robot_modes,
-    robot_names,
-    robots_in_motion,
 )
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec
@@ -27,7 +24,12 @@ from omni_micro_bringup.params_files import (
     node_parameters,
     params_from_files,
 )
-from omni_micro_bringup.robot_namespaces import namespaced_params
+from omni_micro_bringup.robot_namespaces import (
+    namespaced_params,
+    robot_modes,
+    robot_names,
+    robots_in_motion,
+)
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.topic_names import CAPTURE_TOPICS, camera_info_beside
 from omni_micro_control.fleet_files import controller_settings

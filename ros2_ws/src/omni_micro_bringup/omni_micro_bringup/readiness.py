@@ -8,10 +8,10 @@ from collections.abc import Sequence
 from omni_micro_bringup.composition import (
     bench_cameras,
     graph_nodes,
-    robot_names,
     tracked_cameras,
 )
 from omni_micro_bringup.graph_options import GraphOptions
+from omni_micro_bringup.robot_namespaces import robot_names
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_TOPICS,
