@@ -236,7 +236,7 @@ def test_one_wiring_tells_the_cameras_which_captures_the_controllers_read(tmp_pa
     # Time waits for a reader of each camera's captures, bare or with covariance, in each
     # robot's namespace.
     assert ('/robot_1/camera/micro/pose', '/robot_1/camera/micro/pose_with_covariance') in \
-        loop_subscriptions(odometry=True, robots=2)
+        loop_subscriptions(odometry=True, robots=('robot_0', 'robot_1'))
     assert ('/camera/micro/pose', '/camera/micro/pose_with_covariance') in loop_subscriptions(
         odometry=True)
 

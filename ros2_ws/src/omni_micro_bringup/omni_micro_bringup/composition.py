@@ -20,6 +20,7 @@ from omni_micro_bringup.robot_namespaces import (
     ROBOT_NODE_NAMES,
     guarded,
     in_namespace,
+    robot_modes,
     robot_names,
     robots_in_motion,
 )
@@ -159,9 +160,8 @@ MARKERS_FROM_VISION = ('macro.center_m', 'macro.field_m', 'macro.yaw_rad', 'micr
 
 
 def servo_mode(options: GraphOptions) -> bool:
-    """Whether the controller runs the servo mode (``--controller servo`` or its params)."""
-    return node_parameters('controller_node', options.params_files,
-                           options.controller_overrides).get('mode') == SERVO_MODE
+    """Whether a controller runs the servo mode (``--controller servo`` or its params)."""
+    return SERVO_MODE in robot_modes(options)
 
 
 def publishes_in_motion(options: GraphOptions) -> bool:

@@ -70,10 +70,11 @@ def wired_specs(options: GraphOptions, folder: Path | None = None) -> list[NodeS
     params = (graph_params_file(), *options.params_files)
     wiring = GraphWiring.of(options)
     robots = [robot for robot in wiring.robots if robot]
-    if robots and folder is None:
-        raise ValueError('the params files of robots in namespaces are written in a folder')
-    own = {robot: tuple(namespaced_params(list(params), robot, folder)) for robot in robots
-           if folder is not None}
+    own: dict[str, tuple[Path, ...]] = {}
+    if robots:
+        if folder is None:
+            raise ValueError('the params files of robots in namespaces are written in a folder')
+        own = {robot: tuple(namespaced_params(list(params), robot, folder)) for robot in robots}
 
     def wired(spec: NodeSpec) -> NodeSpec:
         if spec.command is not None:
@@ -95,8 +96,14 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
     wiring = wiring or GraphWiring.of(options)
     robots, present, fleet = wiring.robots, wiring.present, options.fleet
     robot = robots.index(spec.namespace) if spec.namespace in robots else 0
-    own_readers = [qualified_node_name(spec.namespace, name)
-                   for name in ('controller_node', 'markers_node') if name in present]
+
+    def capture_readers_of(namespaces: list[str]) -> dict[str, list[str]]:
+        """A camera's readers: the controller and markers_node of each of ``namespaces``."""
+        return capture_readers(options, [qualified_node_name(namespace, name)
+                                         for namespace in namespaces
+                                         for name in ('controller_node', 'markers_node')
+                                         if name in present], present)
+
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
         overrides.update(paused=True, real_time_factor=float(options.real_time_factor))
@@ -123,7 +130,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
         seed = int(options.seed) * 1000 + robot if spec.namespace else int(options.seed)
         overrides.update(seed=seed)
         if spec.executable == 'vision_node':
-            overrides.update(capture_readers(options, own_readers, present))
+            overrides.update(capture_readers_of([spec.namespace]))
             if spec.namespace in wiring.in_motion:
                 overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':
@@ -138,9 +145,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
     elif spec.executable == 'tracker_node':
         if fleet is not None:
             overrides.update(robots=robots)   # named by their codes
-        overrides.update(capture_readers(options, [
-            qualified_node_name(name, node) for name in robots
-            for node in ('controller_node', 'markers_node') if node in present], present))
+        overrides.update(capture_readers_of(robots))
         if wiring.in_motion:
             overrides.update(captures_in_motion=True)
         if options.camera == 'simulated':

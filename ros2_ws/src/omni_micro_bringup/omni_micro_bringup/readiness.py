@@ -19,7 +19,6 @@ from omni_micro_common.topic_names import (
     ODOM_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
     namespaced_topic,
-    robot_topic,
 )
 
 # What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
@@ -37,23 +36,20 @@ def ready_subscriptions(options: GraphOptions) -> list[tuple[str, ...]]:
     (vision_node, camera_node) is in the graph."""
     names = {spec.executable for spec in graph_nodes(options)}
     return loop_subscriptions(odometry=bool(names & {'vision_node', 'camera_node'}),
-                              cameras=tracked_cameras(options),
-                              robots=None if options.fleet is None else len(robot_names(options)))
+                              cameras=tracked_cameras(options), robots=robot_names(options))
 
 
 def loop_subscriptions(odometry: bool, cameras: Sequence[str] = tuple(CAPTURE_TOPICS),
-                       robots: int | None = None) -> list[tuple[str, ...]]:
+                       robots: Sequence[str] = ('',)) -> list[tuple[str, ...]]:
     """What one robot's loop must read before time may start (of alternatives, any one): the
     robot its trajectories, the controller the wheels and the captures of ``cameras`` (bare or
     with their covariance, as its capture_uncertainty says: either will do), with ``odometry``
-    a simulated camera the robot's odometry. ``robots``: None for the robot of the root
-    namespace; else each of that many robots' own, in its namespace."""
+    a simulated camera the robot's odometry; each of ``robots``' own, in its namespace (``''``
+    the root one)."""
     topics = [(WHEEL_TRAJECTORY_TOPIC,), (JOINT_STATES_TOPIC,),
               *(((ODOM_TOPIC,),) if odometry else ()),
               *((CAPTURE_TOPICS[camera], CAPTURE_COVARIANCE_TOPICS[camera]) for camera in cameras)]
-    if robots is None:
-        return topics
-    return [tuple(robot_topic(k, topic) for topic in alternatives) for k in range(robots)
+    return [tuple(namespaced_topic(robot, topic) for topic in alternatives) for robot in robots
             for alternatives in topics]
 
 
