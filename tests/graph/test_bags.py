@@ -254,8 +254,9 @@ def test_odometry_replayed_into_a_vision_node_gives_the_same_captures(
 
 @pytest.mark.parametrize('synced', [True, False], ids=['sync', 'no-sync'])
 def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, domain_id, synced):
-    """A slow node (10-deep queue, 5 ms per sample) gets every /odom sample with --sync; without
-    it the replay outruns the node and samples are lost (which shows the test can fail)."""
+    """A slow node (10-deep queue, 2 ms per sample: the replay at --rate 200 sends one every
+    0.1 ms) gets every /odom sample with --sync; without it the replay outruns the node and
+    samples are lost (which shows the test can fail)."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
     from nav_msgs.msg import Odometry
 
@@ -267,7 +268,7 @@ def test_replay_waits_for_a_subscriber_that_cannot_keep_up(recorded, probe, doma
     received = []
 
     def slow_node(msg: Odometry) -> None:
-        time.sleep(0.005)
+        time.sleep(0.002)
         received.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
         reports.publish(DiagnosticStatus(name='slow_node', message=ACK_MESSAGE, values=[
             KeyValue(key=k, value=v) for k, v in Ack('slow_node', received[-1]).to_values()]))
