@@ -25,13 +25,13 @@ from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
+    goal_pose,
 )
 from omni_micro_bringup.respawns import FleetRespawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
     quaternion_to_yaw,
-    split_stamp,
 )
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
@@ -144,11 +144,7 @@ class FleetMonitor(Orchestrator):
         publisher = self.goal_publishers[order.robot]
         self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
                                    self.recording, deadline, timeout_s)
-        goal = PoseStamped()
-        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(order.stamp_s)
-        goal.header.frame_id = 'platform'
-        goal.pose.position.x, goal.pose.position.y = map(float, order.goal_m)
-        goal.pose.orientation.w = 1.0
+        goal = goal_pose(order.goal_m, order.stamp_s)
         seen = len(self.fleet_statuses)
         # Unlike a single robot's goal, it does not wait for its acknowledgments: they come with
         # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms

@@ -37,6 +37,7 @@ from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
+    PLATFORM_FRAME,
     join_stamp,
     quaternion_to_yaw,
     split_stamp,
@@ -222,11 +223,7 @@ class Orchestrator:
         deadline = time.monotonic() + timeout_s
         self.wait_for_goal_readers(graph, publisher, '/', recording, deadline, timeout_s)
         self.goal_stamp_s = stamp_s
-        goal = PoseStamped()
-        goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
-        goal.header.frame_id = 'platform'
-        goal.pose.position.x, goal.pose.position.y = float(goal_m[0]), float(goal_m[1])
-        goal.pose.orientation.w = 1.0
+        goal = goal_pose(goal_m, stamp_s)
         seen = len(self.statuses)
         publisher.publish(goal)
         publisher.wait_for_all_acked(Duration(seconds=acked_within_s))
@@ -361,6 +358,16 @@ class Orchestrator:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
+
+
+def goal_pose(goal_m: tuple[float, float], stamp_s: float) -> PoseStamped:
+    """A goal as every controller reads it: on the platform, stamped ``stamp_s``."""
+    goal = PoseStamped()
+    goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
+    goal.header.frame_id = PLATFORM_FRAME
+    goal.pose.position.x, goal.pose.position.y = float(goal_m[0]), float(goal_m[1])
+    goal.pose.orientation.w = 1.0
+    return goal
 
 
 def first_sample_at_or_after(samples: deque[tuple[float, float, float, float]],

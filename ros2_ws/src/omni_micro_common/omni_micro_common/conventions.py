@@ -19,6 +19,8 @@ JOINT_NAMES = (STEERING_JOINT, *WHEEL_JOINTS)
 # The robot's frames (REP-105), prefixed by its namespace in a fleet (robot_1/odom).
 ODOM_FRAME = 'odom'
 BASE_FRAME = 'base_link'
+# The platform's own frame, every robot's: where goals and captures are (each node's frame_id).
+PLATFORM_FRAME = 'platform'
 
 
 def split_stamp(seconds: float) -> tuple[int, int]:

@@ -11,7 +11,12 @@ from dataclasses import dataclass
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
-from omni_micro_common.conventions import PLATFORM_CENTER_M, PLATFORM_SIZE_M, CaptureUncertainty
+from omni_micro_common.conventions import (
+    PLATFORM_CENTER_M,
+    PLATFORM_FRAME,
+    PLATFORM_SIZE_M,
+    CaptureUncertainty,
+)
 from omni_micro_common.topic_names import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
@@ -77,7 +82,7 @@ def declare_controller_parameters(node: Node) -> ControllerParameters:
         for name, field in FeedbackConfig.__dataclass_fields__.items()
         if name not in DERIVED_CONFIG})
     servo = _declare_servo_config(node, config)
-    frame_id = node.declare_parameter('frame_id', 'platform').value
+    frame_id = node.declare_parameter('frame_id', PLATFORM_FRAME).value
     platform_center = list(node.declare_parameter('platform.center_m',
                                                   list(PLATFORM_CENTER_M)).value)
     platform_size = list(node.declare_parameter('platform.size_m', list(PLATFORM_SIZE_M)).value)

@@ -47,6 +47,7 @@ from visualization_msgs.msg import MarkerArray
 from omni_micro_common.cdr import header_stamp_ns
 from omni_micro_common.conventions import (
     GOAL_TOLERANCE_M,
+    PLATFORM_FRAME,
     STEERING_JOINT,
     CaptureUncertainty,
     quaternion_to_yaw,
@@ -101,7 +102,7 @@ class MarkersNode(Node):
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('markers_node', **node_options)
-        self.frame_id = self.declare_parameter('frame_id', 'platform').value
+        self.frame_id = self.declare_parameter('frame_id', PLATFORM_FRAME).value
         publish_s = self.declare_parameter('publish_period_s', 0.1).value
         refresh_s = self.declare_parameter('refresh_period_s', 5.0).value
         self.publish_ns, self.refresh_ns = (_period_ns(name, value) for name, value in (

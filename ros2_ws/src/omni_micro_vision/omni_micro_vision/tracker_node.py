@@ -54,7 +54,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.validate_topic_name import validate_topic_name
 from sensor_msgs.msg import CameraInfo, Image
 
-from omni_micro_common.conventions import join_stamp, stamp_ns
+from omni_micro_common.conventions import PLATFORM_FRAME, join_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_groups import qualified_node_name
 from omni_micro_common.lockstep_reporting import LockstepReporter
@@ -99,7 +99,7 @@ class TrackerNode(Node):
         # node_options (context, parameter_overrides, ...) as rclpy's Node takes them: tests
         # build the node in-process with them.
         super().__init__('tracker_node', **node_options)
-        self.frame_id = self.declare_parameter('frame_id', 'platform').value
+        self.frame_id = self.declare_parameter('frame_id', PLATFORM_FRAME).value
         # An empty list reaches rclpy as no value at all.
         cameras = list(self.declare_parameter('cameras', ['macro', 'micro']).value or [])
         self.still_frames = int(self.declare_parameter('still_frames', 3).value)

@@ -34,6 +34,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 
 from omni_micro_common.conventions import (
+    PLATFORM_FRAME,
     STATUS_TIME_KEY,
     join_stamp,
     quaternion_to_yaw,
@@ -78,7 +79,7 @@ class VisionNode(Node):
         # build the node in-process with them.
         super().__init__('vision_node', **node_options)
         rule_defaults = CaptureRule()
-        self.frame_id = self.declare_parameter('frame_id', 'platform').value
+        self.frame_id = self.declare_parameter('frame_id', PLATFORM_FRAME).value
         seed = self.declare_parameter('seed', 0).value
         rule = CaptureRule(**{
             name: self.declare_parameter(name, getattr(rule_defaults, name)).value
