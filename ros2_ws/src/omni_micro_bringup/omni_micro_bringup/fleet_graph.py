@@ -47,7 +47,7 @@ from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
 from omni_micro_bringup.readiness import external_publications, ready_subscriptions
-from omni_micro_bringup.robot_namespaces import controller_modes
+from omni_micro_bringup.robot_namespaces import robot_modes
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
     STATUS_TIME_KEY,
@@ -80,7 +80,7 @@ class FleetDispatch:
         self.options = options
         self.fleet = options.fleet
         self.count = len(self.fleet.plan.starts_m)
-        self.modes = controller_modes(self.fleet.controllers, options.params_files)
+        self.modes = robot_modes(options)
         self.monitor: FleetMonitor | None = None
         self.respawnable: list[str] = []
         # Real robots and their camera (options.external): no lockstep, the wall clock, and

@@ -305,29 +305,13 @@ def passed_on(value: object, like: object) -> object | None:
 
 def capture_readers(options: GraphOptions, readers: list[str],
                     present: set[str]) -> dict[str, list[str]]:
-    """vision_node's (or tracker_node's) ``capture_readers`` and ``covariance_readers`` in this
-    graph: :func:`captures_read_by` ``readers`` (the controllers and markers_nodes it captures
-    for, each as its node is named), and the recorder if ``present``."""
-    return captures_read_by(
-        readers, recorded='bag_recorder' in present,
-        capture_uncertainty=capture_uncertainty_of(options.params_files,
-                                                   options.controller_overrides))
-
-
-def capture_uncertainty_of(params_files: tuple[Path, ...],
-                           controller_overrides: dict[str, object]) -> object:
-    """The controller's ``capture_uncertainty`` as the params files and overrides give it."""
-    return node_parameters('controller_node', params_files,
-                           controller_overrides).get('capture_uncertainty', 'covariance')
-
-
-def captures_read_by(readers: list[str], recorded: bool,
-                     capture_uncertainty: object) -> dict[str, list[str]]:
-    """A camera's ``capture_readers`` (bare topics) and ``covariance_readers``: ``readers`` (the
-    controller and markers_node, each as its node is named) on the bare topics if the
-    controller's ``capture_uncertainty`` is ``fixed``, else on those with the covariance; the
-    recorder (``recorded``) on both."""
-    fixed = capture_uncertainty == 'fixed'
-    recorder = ['bag_recorder'] if recorded else []
+    """vision_node's (or tracker_node's) ``capture_readers`` (bare topics) and
+    ``covariance_readers`` in this graph: ``readers`` (the controllers and markers_nodes it
+    captures for, each as its node is named) on the bare topics if the controller's
+    ``capture_uncertainty`` is ``fixed``, else on those with the covariance; the recorder, if
+    ``present``, on both."""
+    fixed = node_parameters('controller_node', options.params_files, options.controller_overrides
+                            ).get('capture_uncertainty', 'covariance') == 'fixed'
+    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
     return {'capture_readers': (readers if fixed else []) + recorder,
             'covariance_readers': ([] if fixed else readers) + recorder}

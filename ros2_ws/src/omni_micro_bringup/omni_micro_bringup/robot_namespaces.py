@@ -59,13 +59,6 @@ def namespaced_params(sources: list[Path], robot: str, folder: Path) -> list[Pat
     return written
 
 
-def controller_modes(modes: list[str], params_files: tuple[Path, ...]) -> list[str]:
-    """Each robot's controller mode as its node will have it: the one given, else (``paper``)
-    the params files' (a ``controller_node:`` section sets every robot's)."""
-    configured = str(node_parameters('controller_node', params_files, {}).get('mode', 'paper'))
-    return [mode if mode != 'paper' else configured for mode in modes]
-
-
 def robot_names(options: GraphOptions) -> list[str]:
     """The robots' namespaces: a fleet's ``robot_k``, or the root one (``''``) of a single
     robot."""
@@ -75,11 +68,15 @@ def robot_names(options: GraphOptions) -> list[str]:
 
 
 def robot_modes(options: GraphOptions) -> list[str]:
-    """Each robot's controller mode as its controller_node will have it."""
+    """Each robot's controller mode as its controller_node will have it: a single robot's as
+    the params files and overrides say; a fleet robot's as its robots file says, else
+    (``paper``) the params files' (a ``controller_node:`` section sets every robot's)."""
     if options.fleet is None:
         return [str(node_parameters('controller_node', options.params_files,
                                     options.controller_overrides).get('mode', 'paper'))]
-    return controller_modes(options.fleet.controllers, options.params_files)
+    configured = str(node_parameters('controller_node', options.params_files,
+                                     {}).get('mode', 'paper'))
+    return [mode if mode != 'paper' else configured for mode in options.fleet.controllers]
 
 
 def guarded(options: GraphOptions) -> bool:
