@@ -24,7 +24,6 @@ since when, and what most likely lost them:
 from __future__ import annotations
 
 import bisect
-import itertools
 import statistics
 from collections import deque
 from collections.abc import Callable
@@ -102,29 +101,6 @@ def likely_cause(frame_bytes: int, best_effort: bool, tracking_s: float, period_
     return ('likely cause: ' if len(causes) == 1 else 'likely causes: ') + '; and '.join(causes)
 
 
-def periods_spanned(gaps: list[int]) -> int:
-    """How many of a driver's periods ``gaps`` span (the gaps between the stamps of frames known
-    sent: by their CameraInfo or by the frame): one each, but where a gap is some whole number of
-    the typical one and the next is not a catch-up, frames went by whose frame and CameraInfo
-    were both lost (best effort, on a busy machine). A frame stamped late and the next soon after
-    (a driver that stamps a frame when it gets to it) span two periods together. An irregular
-    driver, its gaps between one and two periods, loses nothing."""
-    if not gaps:
-        return 1
-    typical = statistics.median(gaps)
-    periods, index = 0, 0
-    while index < len(gaps):
-        spanned = gaps[index]
-        if index + 1 < len(gaps) and gaps[index + 1] < typical / 2:
-            index += 1
-            spanned += gaps[index]
-            periods += max(2, round(spanned / typical))
-        else:
-            periods += max(1, round(spanned / typical))
-        index += 1
-    return periods
-
-
 @dataclass
 class FrameLosses:
     """The frames of one image topic: the driver's period from their stamps, and the stretches
@@ -154,15 +130,15 @@ class FrameLosses:
 
         With CameraInfo, the frames known sent over their span: one CameraInfo for every frame
         sent, however irregularly, or its frame where that CameraInfo was lost (best effort:
-        one of 54 on a busy machine), or neither where both were lost (:func:`periods_spanned`).
-        Else the commonest of the frames' shorter gaps (not the shortest: a driver that stamps
-        a late frame when it gets to it sends the next one soon after) gives it roughly, and the
-        latest gaps, each counted in whole periods of that, over seconds."""
+        one of 54 on a busy machine). Else the commonest of the frames' shorter gaps (not the
+        shortest: a driver that stamps a late frame when it gets to it sends the next one soon
+        after) gives it roughly, and the latest gaps, each counted in whole periods of that,
+        over seconds."""
         if len(self._infos) >= PERIOD_SEEN:
             first, last = self._infos[0], self._infos[-1]
-            known = self._sent[bisect.bisect_left(self._sent, first):
-                               bisect.bisect_right(self._sent, last)]
-            return (last - first) / periods_spanned([b - a for a, b in itertools.pairwise(known)])
+            sent = (bisect.bisect_right(self._sent, last)
+                    - bisect.bisect_left(self._sent, first))
+            return (last - first) / (sent - 1)
         if len(self._gaps) < PERIOD_AFTER:
             return None
         ordered = sorted(self._gaps)
@@ -226,8 +202,7 @@ class FrameLosses:
         if last is None or stamp_ns <= last:
             return None   # the first frame, or a driver that restarted its clock
         gap = stamp_ns - last
-        # Read before this gap counts in it; without CameraInfo only, where it says what is lost.
-        period = self.period_ns if by_info is None else None
+        period = self.period_ns
         self._gaps.append(gap)
         if by_info is not None:
             missing = len(by_info)
