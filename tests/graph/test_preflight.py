@@ -46,8 +46,15 @@ def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tm
     stamps = [stamp for line in (tmp_path / 'camera_driver.py-0.log').read_text().splitlines()
               if line.startswith('sent frame stamped')
               and first - 1000 <= (stamp := int(line.split()[-1])) <= last + 1000]
-    sent_hz = (len(stamps) - 1) / ((stamps[-1] - stamps[0]) * 1e-9)
-    assert seen['sent_hz'] == pytest.approx(sent_hz, rel=1e-3)
+    # Counted from every frame of which something came, its image or its CameraInfo. One of
+    # which neither came (best effort, beside a busy worker: once in eight suite runs) leaves no
+    # trace: the driver's stamps are irregular, so its gap cannot be told from the driver
+    # running late (counting such gaps as lost frames read 15.47 Hz of 14.67). Exact, but for
+    # at most two such frames.
+    span_s = (stamps[-1] - stamps[0]) * 1e-9
+    counted = [(known - 1) / span_s for known in range(len(stamps) - 2, len(stamps) + 1)]
+    assert any(seen['sent_hz'] == pytest.approx(hz, rel=1e-3) for hz in counted), \
+        (seen['sent_hz'], counted)
     assert 0 < seen['age_s'] < 1.0   # on this machine's clock (how late: the machine's load)
     assert [offer.split(': ')[1] for offer in seen['qos_offered']] == [
         'best_effort, volatile']
