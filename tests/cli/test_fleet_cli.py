@@ -256,7 +256,9 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
         assert final.x * 1e3 == pytest.approx(robot['final_mm'][0], abs=1e-3)
         assert final.y * 1e3 == pytest.approx(robot['final_mm'][1], abs=1e-3)
         (goal,) = data.messages[f'/robot_{k}/goal_pose']
-        assert goal.header.frame_id == f'robot_{k}/odom'
+        # In the frame the graph's goals are in: a controller_node (frame_id 'platform')
+        # rejects a goal in any other, replayed to it (docs/graph.md).
+        assert goal.header.frame_id == 'platform'
     stamps = data.timestamps['/robot_0/odom']
     assert all(later - earlier == 100_000_000 for earlier, later in itertools.pairwise(stamps))
     # In this pytest process's own DDS domain (tests/conftest.py).

@@ -135,6 +135,9 @@ def test_the_bag_holds_every_robot_under_its_namespace_to_the_last_goal(as_fast_
         last = odometry[-1].pose.pose.position
         assert math.dist((last.x * 1e3, last.y * 1e3), robot['final_mm']) < 1e-3
         # Its legs' goals (sub-goals on the way), the task's last.
+        # In the frame the twin's bag puts them (tests/cli/test_fleet_cli.py).
+        assert {m.header.frame_id for m in data.messages[f'/robot_{k}/goal_pose']} == {
+            'platform'}
         last_goal = data.messages[f'/robot_{k}/goal_pose'][-1].pose.position
         assert math.dist((last_goal.x * 1e3, last_goal.y * 1e3), GOALS_MM[k]) < 1e-9
         assert data.messages[f'/robot_{k}/camera/macro/pose']

@@ -15,6 +15,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from omni_micro_common.conventions import (
+    BASE_FRAME,
     CAPTURE_AGE_KEY,
     IMAGE_TOPIC_KEY,
     JOINT_NAMES,
@@ -38,7 +39,7 @@ STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: Diagno
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
                  Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
 # The robot's frame: a trajectory's joints are the robot's own.
-TRAJECTORY_FRAME = 'base_link'
+TRAJECTORY_FRAME = BASE_FRAME
 
 
 def move_trajectory(move: Move | ServoCommand, profile: WheelSpeedProfile) -> JointTrajectory:

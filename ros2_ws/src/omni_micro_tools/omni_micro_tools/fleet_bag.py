@@ -3,7 +3,8 @@ namespace.
 
 Per robot k, ``/robot_k/odom`` (nav_msgs/Odometry, REP-105 frames ``robot_k/odom`` ->
 ``robot_k/base_link``, twist in the robot's frame) at ``ODOM_RATE_HZ``, ``/robot_k/goal_pose``
-(each task's goal, stamped when the robot set out for it) and ``/robot_k/controller/status``
+(each task's goal in the ``platform`` frame, as the graph sends it and a controller_node
+accepts it, stamped when the robot set out for it) and ``/robot_k/controller/status``
 (each goal reached, as the robot's controller node says it: ``reached`` at the time of what
 decided it, with the goal); ``/clock``, the simulated time, at the same rate. Every message
 is logged at its simulated time. ``omni-micro replay --robot k`` publishes one robot's topics
@@ -17,7 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from omni_micro_common.controller_status import status_message
-from omni_micro_common.conventions import yaw_to_quaternion
+from omni_micro_common.conventions import (
+    BASE_FRAME,
+    ODOM_FRAME,
+    PLATFORM_FRAME,
+    yaw_to_quaternion,
+)
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
     CONTROLLER_STATUS_TOPIC,
@@ -77,8 +83,8 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
             omega = (phi - float(before[3])) / dt if dt > 0 else 0.0
             message = Odometry()
             message.header.stamp = stamp(time_s)
-            message.header.frame_id = namespaced_frame(robot_name(robot), 'odom')
-            message.child_frame_id = namespaced_frame(robot_name(robot), 'base_link')
+            message.header.frame_id = namespaced_frame(robot_name(robot), ODOM_FRAME)
+            message.child_frame_id = namespaced_frame(robot_name(robot), BASE_FRAME)
             message.pose.pose.position.x, message.pose.pose.position.y = x, y
             orientation = message.pose.pose.orientation
             orientation.z, orientation.w = yaw_to_quaternion(phi)
@@ -91,7 +97,7 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
         for task, goal in enumerate(plan.tasks[robot][:len(run.tasks_done_s) + 1]):
             message = PoseStamped()
             message.header.stamp = stamp(set_out[task])
-            message.header.frame_id = namespaced_frame(robot_name(robot), 'odom')
+            message.header.frame_id = PLATFORM_FRAME
             message.pose.position.x, message.pose.position.y = goal.goal_m
             message.pose.orientation.w = 1.0
             events.append((round(set_out[task] * 1e9), robot_topic(robot, GOAL_TOPIC),
