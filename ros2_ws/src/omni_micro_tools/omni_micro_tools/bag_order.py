@@ -29,15 +29,23 @@ from typing import Any
 
 from omni_micro_common.clocks import is_wall_clock
 from omni_micro_common.conventions import OUTCOME_KEY, STATUS_TIME_KEY
-from omni_micro_tools.topics import BAG_TAIL_S, IMAGE_TYPES, TOPIC_ORDER, robot_and_topic
+from omni_micro_common.topic_names import CLOCK_TOPIC, CONTROLLER_STATUS_TOPIC, MARKERS_TOPIC
+from omni_micro_tools.topics import (
+    BAG_TAIL_S,
+    IMAGE_TYPES,
+    RECORDABLE_TOPICS,
+    TOPIC_ORDER,
+    robot_and_topic,
+)
 
 # A killed recorder's last messages of a tick may still have been on their way: a recovered
 # bag ends this far (simulated time) before its latest message.
 RECOVERY_WINDOW_S = 1.0
 
-STATUS_TYPE = 'diagnostic_msgs/msg/DiagnosticStatus'
-CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
-MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
+# The catalogue's types of the messages ordered by a stamp of their own.
+STATUS_TYPE = RECORDABLE_TOPICS[CONTROLLER_STATUS_TOPIC].msgtype
+CLOCK_TYPE = RECORDABLE_TOPICS[CLOCK_TOPIC].msgtype
+MARKERS_TYPE = RECORDABLE_TOPICS[MARKERS_TOPIC].msgtype
 # Types whose serialization starts with a std_msgs/Header (its stamp first).
 HEADER_FIRST = frozenset({
     'nav_msgs/msg/Odometry', 'sensor_msgs/msg/JointState', 'sensor_msgs/msg/Image',
