@@ -46,7 +46,6 @@ from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import (
     RUN_ON_PAST_BAG_END_S,
 )
-from omni_micro_bringup.readiness import external_publications, ready_subscriptions
 from omni_micro_bringup.robot_namespaces import robot_modes
 from omni_micro_bringup.supervisor import RestartsNoted, Supervisor
 from omni_micro_common.conventions import (
@@ -117,7 +116,7 @@ class FleetDispatch:
 
     def drive(self, graph: Supervisor, on_running: Callable[[], None],
               domain_id: int) -> GraphResult:
-        """From the graph started to every task done (or the first robot lost, two robots
+        """From the graph ready to every task done (or the first robot lost, two robots
         touching, the time up) and the bag's tail."""
         from omni_micro_tools.topics import BAG_TAIL_S
 
@@ -130,9 +129,6 @@ class FleetDispatch:
         for log, tasks in zip(logs, plan.done_at_start, strict=True):
             log.tasks_done_s += [0.0] * len(tasks)
         if bench is None:
-            monitor.wait_until_ready(graph, timeout_s=60.0,
-                                     subscriptions=ready_subscriptions(options),
-                                     recording=options.record is not None)
             for k in range(self.count):
                 monitor.report_handled(k, -1)   # the coordinator takes part from here
         else:
@@ -290,18 +286,14 @@ class FleetDispatch:
             self.monitor.report_handled(robot, round(at_s * 1e9))
 
     def wait_for_bench(self, graph: Supervisor) -> None:
-        """Until every robot's driver and the camera driver publish, the graph's nodes read,
-        every controller has its robot's state and the cameras have named every robot; then
-        the robots' time starts (the wall clock's now)."""
+        """The graph ready (its drivers publish, its nodes read: graph.brought_up), until every
+        controller has its robot's state and the cameras have named every robot; then the
+        robots' time starts (the wall clock's now)."""
         from omni_micro_bringup.bench_start import wait_for_fleet_bench
         from omni_micro_bringup.goal_sequence import BENCH_READY_S
 
         monitor, bench = self.monitor, self.bench
         assert monitor is not None and bench is not None
-        monitor.wait_until_ready(graph, timeout_s=BENCH_READY_S,
-                                 subscriptions=ready_subscriptions(self.options),
-                                 publications=external_publications(self.options),
-                                 recording=self.options.record is not None, clock=False)
         wait_for_fleet_bench(monitor, graph, [robot_name(k) for k in range(self.count)],
                              lambda: bench.guard.named, BENCH_READY_S)
         misplaced = bench.guard.misplaced(self.fleet.plan.starts_m)

@@ -15,7 +15,6 @@ from omni_micro_bringup.composition import (
     bench_cameras,
     check_graph,
     servo_mode,
-    streaming_cameras,
 )
 from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
@@ -25,8 +24,6 @@ from omni_micro_bringup.node_spec import NodeSpec
 from omni_micro_bringup.orchestrator import RUN_ON_PAST_BAG_END_S, Orchestrator
 from omni_micro_bringup.params_files import check_params_file
 from omni_micro_bringup.readiness import (
-    external_publications,
-    ready_subscriptions,
     simulates_robot,
 )
 from omni_micro_bringup.supervisor import Supervisor
@@ -71,21 +68,9 @@ class GoalSequence:
                                     echo=self.options.echo, markers=self.options.markers)
         return self.monitor
 
-    def wait_until_ready(self, graph: Supervisor) -> None:
-        """Until every node listens, the bench's drivers publish and a simulated robot's clock
-        can be started (readiness)."""
-        options, monitor = self.options, self.monitor
-        assert monitor is not None
-        monitor.wait_until_ready(graph, timeout_s=60.0, recording=options.record is not None,
-                                 markers=options.markers,
-                                 images=streaming_cameras(options),
-                                 subscriptions=ready_subscriptions(options),
-                                 publications=external_publications(options),
-                                 clock=simulates_robot(options))
-
     def drive(self, graph: RunningProcesses, on_running: Callable[[], None],
               domain_id: int) -> GraphResult:
-        """From the graph started to the last goal's outcome and the bag's tail: the result,
+        """From the graph ready to the last goal's outcome and the bag's tail: the result,
         but for what the nodes say they published (their logs, once stopped)."""
         from omni_micro_bringup.bench_start import wait_for_bench
         from omni_micro_tools.topics import BAG_TAIL_S
@@ -96,7 +81,6 @@ class GoalSequence:
         simulated_robot = simulates_robot(options)
         statuses = []
         memory: dict[str, list[int]] = {}
-        self.wait_until_ready(graph)
         if options.external:
             wait_for_bench(monitor, graph, robot=options.robot == 'external',
                            cameras=bench_cameras(options), timeout_s=BENCH_READY_S,

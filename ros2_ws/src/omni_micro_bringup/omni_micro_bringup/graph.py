@@ -1,12 +1,14 @@
 """Orchestration of the node graph (what a launch file would do, launch being unavailable here).
 
 One run sequence for one robot or several (:func:`run_graph`): the graph checked, started with
-the clock paused so that nothing moves before every node listens, driven (a single robot's
-goals, :mod:`.goal_sequence`, or a fleet's legs, :mod:`.fleet_graph`), the recorder's tail
-waited for, and stopped in phases (the controller, then the rest at once, then the recorder;
-SIGINT, and SIGTERM / SIGKILL only for a node that hangs), Fast DDS shared-memory leftovers
-cleaned. Each node is its own OS process through its installed entry point (or one container
-for the loop), on loopback only and in a private DDS domain; their logs are kept and prefixed.
+the clock paused so that nothing moves before every node listens (what each robot's nodes, the
+bench's drivers and the recorder must show: :mod:`.readiness`, for 1..N robots alike), driven (a
+single robot's goals, :mod:`.goal_sequence`, or a fleet's legs, :mod:`.fleet_graph`), the
+recorder's tail waited for, and stopped in phases (the controller, then the rest at once, then
+the recorder; SIGINT, and SIGTERM / SIGKILL only for a node that hangs), Fast DDS shared-memory
+leftovers cleaned. Each node is its own OS process through its installed entry point (or one
+container for the loop), on loopback only and in a private DDS domain; their logs are kept and
+prefixed.
 
 The children cannot outlive it: each inherits the read end of a lifeline pipe whose write end
 only this process holds (when it dies, however it dies, every node reads end-of-file and stops),
@@ -40,6 +42,7 @@ from omni_micro_bringup.processes import (
     resident_memory_kb,
     stop_together,
 )
+from omni_micro_bringup.readiness import readiness
 from omni_micro_bringup.shared_memory import (
     clean_shared_memory,
     left_shared_memory,
@@ -226,8 +229,8 @@ class Driver(Protocol):
 
     def drive(self, graph: Graph, on_running: Callable[[], None],
               domain_id: int) -> GraphResult:
-        """From the graph started to the run's end and its bag's tail, the clock started on
-        the way (``on_running`` called then)."""
+        """From the graph ready (readiness) to the run's end and its bag's tail, the clock
+        started on the way (``on_running`` called then)."""
         ...
 
     def goals_published(self) -> dict[str, int]:
@@ -273,8 +276,9 @@ def run_graph(options: GraphOptions,
 @contextmanager
 def brought_up(options: GraphOptions, driver: Driver) -> Iterator[tuple[Graph, int]]:
     """The graph of ``driver``'s processes started in the run's domain (leased, or the
-    drivers' joined) with the orchestration's node, and stopped in phases however the block
-    ends; what cannot run is refused before anything is written."""
+    drivers' joined) with the orchestration's node, and ready as readiness says (its clock still
+    paused), then stopped in phases however the block ends; what cannot run is refused before
+    anything is written."""
     driver.check()
     if options.record is not None:
         from omni_micro_tools.bags import check_bag_output
@@ -289,6 +293,7 @@ def brought_up(options: GraphOptions, driver: Driver) -> Iterator[tuple[Graph, i
         monitor = driver.orchestrator(domain_id)
         try:
             graph.start()
+            monitor.wait_until_ready(graph, readiness(options))
             yield graph, domain_id
         finally:
             driver.close(log_dir)

@@ -41,11 +41,10 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     from omni_micro_bringup.goal_sequence import GoalSequence
 
     sequence = GoalSequence(options)
-    with brought_up(options, sequence) as (graph, _):
-        sequence.wait_until_ready(graph)
+    with brought_up(options, sequence):
         monitor = sequence.monitor
         assert monitor is not None
-        # Every endpoint seen, not only the readers wait_until_ready looks for.
+        # Every endpoint seen, not only the readers the start waits for (readiness).
         monitor.spin_for(GRAPH_SETTLE_S)
         node = monitor.node
         described = []

@@ -34,6 +34,7 @@ from rclpy.publisher import Publisher
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odometry_topic
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.params_files import dds_profile
+from omni_micro_bringup.readiness import Readiness
 from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
@@ -49,6 +50,7 @@ from omni_micro_common.topic_names import (
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     RECORDER_STATUS_TOPIC,
+    namespaced_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
@@ -57,6 +59,8 @@ from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 # the status naming the outcome's capture reaches this process after its sample, by far less.
 ODOMETRY_KEPT = 4000
 
+# How long a graph may take to come up: its nodes to listen, the bench's drivers to publish.
+READY_WITHIN_S = 60.0
 # Discovery shows an endpoint a little before every peer has matched it.
 MATCH_GRACE_S = 0.5
 # How long a goal waits for its readers to match it and then to acknowledge it (a dead
@@ -167,33 +171,32 @@ class Orchestrator:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=min(0.05, max(0.0, deadline - time.monotonic())))
 
-    def wait_until_ready(self, graph: Supervisor, timeout_s: float,
-                         recording: bool = False, markers: bool = False,
-                         images: tuple[str, ...] = (),
-                         subscriptions: list[tuple[str, ...]] | None = None,
-                         publications: dict[str, str] | None = None,
-                         clock: bool = True) -> None:
-        """Until every node listens (``subscriptions``: the topics someone must read, of
-        alternatives any one, as the composition says; with ``images``, the tracker reads those
-        cameras'), the bench's drivers publish (``publications``: topic -> whose) and, with
-        ``clock``, the simulated robot's clock can be started."""
+    def wait_until_ready(self, graph: Supervisor, ready: Readiness,
+                         timeout_s: float = READY_WITHIN_S) -> None:
+        """Until every node listens (``ready.subscriptions``: the topics someone must read, of
+        alternatives any one, as the composition says; the tracker the ``ready.images``
+        cameras'), the bench's drivers publish (``ready.publications``: topic -> whose) and,
+        with ``ready.clock``, the simulated robot's clock can be started."""
         deadline = time.monotonic() + timeout_s
-        needed = [*(subscriptions or []),
-                  *((f'/camera/{camera}/image_raw',) for camera in images)]
+        needed = [*ready.subscriptions,
+                  *((f'/camera/{camera}/image_raw',) for camera in ready.images)]
         while True:
             graph.check_alive()
             missing = [' or '.join(topics) for topics in needed
                        if not any(self.node.count_subscribers(topic) for topic in topics)]
-            silent = [f'{topic} ({whose})' for topic, whose in (publications or {}).items()
+            silent = [f'{topic} ({whose})' for topic, whose in ready.publications.items()
                       if not self.node.count_publishers(topic)]
-            # markers_node reads /goal_pose last of all: seen, it is listening.
-            if markers and not any(info.node_name == 'markers_node' for info in
-                                   self.node.get_subscriptions_info_by_topic(GOAL_TOPIC)):
-                missing.append('(markers_node: not reading /goal_pose yet)')
-            if recording and not self.recorder_ready:
+            # markers_node reads its robot's goals last of all: seen, it is listening.
+            for robot in ready.markers:
+                goals = namespaced_topic(robot, GOAL_TOPIC)
+                if not any(info.node_name == 'markers_node' for info in
+                           self.node.get_subscriptions_info_by_topic(goals)):
+                    missing.append(f'(markers_node: not reading {goals} yet)')
+            if ready.recording and not self.recorder_ready:
                 missing.append('(the recorder: not matched to every publisher, or no driver '
                                'frame written, yet)')
-            if not missing and not silent and (not clock or self.parameters.service_is_ready()):
+            if not missing and not silent and \
+                    (not ready.clock or self.parameters.service_is_ready()):
                 break
             if time.monotonic() > deadline:
                 if silent and not missing:

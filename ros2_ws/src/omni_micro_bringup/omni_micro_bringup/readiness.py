@@ -1,13 +1,16 @@
-"""What the orchestrator waits for before it starts the clock: who must read which topics, what
-the bench's drivers must publish, and whether a simulated robot keeps the clock."""
+"""What the orchestrator waits for before it starts the clock (:func:`readiness`), for one robot
+or several, simulated or on the bench: who must read which topics, what the bench's drivers must
+publish, and whether a simulated robot keeps the clock."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 from omni_micro_bringup.composition import (
     bench_cameras,
     graph_nodes,
+    streaming_cameras,
     tracked_cameras,
 )
 from omni_micro_bringup.graph_options import GraphOptions
@@ -23,6 +26,27 @@ from omni_micro_common.topic_names import (
 
 # What a real robot's driver must publish for the loop (it reads /wheel_trajectory).
 EXTERNAL_ROBOT_PUBLISHES = (JOINT_STATES_TOPIC,)
+
+
+@dataclass(frozen=True)
+class Readiness:
+    """What a graph must show before its run starts."""
+
+    subscriptions: list[tuple[str, ...]]   # topics someone must read (of alternatives, any one)
+    publications: dict[str, str]           # topic -> who must publish it (the bench's drivers)
+    images: tuple[str, ...]                # the cameras whose images the tracker must read
+    markers: tuple[str, ...]               # the namespaces whose markers_node must read goals
+    recording: bool                        # the recorder must have matched every publisher
+    clock: bool                            # a simulated robot's clock must be startable
+
+
+def readiness(options: GraphOptions) -> Readiness:
+    """What the graph of ``options`` must show before its run starts, for every robot."""
+    return Readiness(subscriptions=ready_subscriptions(options),
+                     publications=external_publications(options),
+                     images=streaming_cameras(options),
+                     markers=tuple(robot_names(options)) if options.markers else (),
+                     recording=options.record is not None, clock=simulates_robot(options))
 
 
 def simulates_robot(options: GraphOptions) -> bool:
