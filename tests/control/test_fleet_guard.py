@@ -145,6 +145,52 @@ def test_a_robot_driving_unnamed_is_stopped_after_the_bound_and_one_parked_is_no
     assert guard.check(last + 10.0) is None
 
 
+WHEELS_S = 0.02   # a driver's joint states at 50 Hz (joint_state_broadcaster)
+
+
+def report_wheels(guard, robot, start_s, end_s, turning):
+    """The robot's driver reporting its wheels ``turning`` (or standing) from ``start_s`` to
+    ``end_s``; whether the guard stopped every robot meanwhile, and when."""
+    for tick in range(round((end_s - start_s) / WHEELS_S) + 1):
+        now = start_s + tick * WHEELS_S
+        guard.wheels(robot, turning, arrived_s=now)
+        stop = guard.check(now)
+        if stop is not None:
+            return stop, now
+    return None, None
+
+
+def test_a_robot_standing_unnamed_is_left_alone_and_stopped_once_its_wheels_turned_the_bound():
+    """The paper's rule stands still between moves, waiting for a capture: a slow camera is no
+    danger then. Only the time its wheels turn unnamed counts, over every move since it was
+    last named: 0.4 s, standing 2 s, 0.7 s more."""
+    guard = FleetGuard(2)
+    guard.saw(1, 0.0, 0.02, 0.0, arrived_s=0.0)
+    guard.driving(1, now_s=0.0)
+    assert report_wheels(guard, 1, 0.0, 0.4, turning=True) == (None, None)
+    assert report_wheels(guard, 1, 0.42, 2.4, turning=False) == (None, None)
+    stop, at = report_wheels(guard, 1, 2.42, 4.0, turning=True)
+    assert stop is not None and stop.kind == 'unnamed' and stop.robots == (1,)
+    assert at == pytest.approx(2.42 + 0.62, abs=WHEELS_S + 1e-9)
+    assert stop.reason.startswith('robot_1 drove unnamed by the cameras for 1.0')
+    # Named again, the count starts over.
+    guard.saw(1, 4.0, 0.03, 0.0, arrived_s=4.0)
+    assert report_wheels(guard, 1, 4.0, 4.9, turning=True) == (None, None)
+
+
+def test_a_robot_whose_driver_falls_silent_counts_all_its_time_unnamed():
+    """Its wheels last said standing, then nothing: after the bound, all the time since it was
+    named counts, as without word from its wheels."""
+    guard = FleetGuard(2)
+    guard.saw(0, 0.0, 0.0, 0.0, arrived_s=0.0)
+    guard.driving(0, now_s=0.0)
+    guard.wheels(0, turning=False, arrived_s=0.1)
+    assert guard.check(1.05) is None          # its latest state is recent, and standing
+    stop = guard.check(1.15)                  # nothing from its wheels for over 1 s
+    assert stop is not None and stop.reason.startswith(
+        'robot_0 drove unnamed by the cameras for 1.15 s')
+
+
 def test_a_robot_given_a_leg_before_any_capture_is_stopped_as_never_named():
     guard = FleetGuard(2)
     guard.driving(0, now_s=5.0)

@@ -204,14 +204,39 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
 
 def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tmp_path, probe):
     """Robot 1, sent to its goal, is no longer seen by the camera once it moves (a shadow over
-    it): after the bound (1 s) every robot is stopped, robot 1 named."""
+    it), and is jogged on by hand: once its wheels have turned unnamed for the bound (1 s),
+    every robot is stopped, robot 1 named."""
+    from geometry_msgs.msg import PoseStamped
+
+    truth = truths(probe)
+    goals: list[PoseStamped] = []
+    probe.node.create_subscription(PoseStamped, '/robot_1/goal_pose', goals.append, 10)
+    run = bench_run(domain_id, tmp_path, goals_mm=(STARTS_MM[0], GOALS_MM[1]))
+    start_camera(bench, robots='robot_0,robot_1@moving')
+    start_robot(bench, 0)
+    start_robot(bench, 1)
+    probe.spin_until(lambda: bool(goals), 90.0, "robot_1's goal")
+    jog(probe, 1, 0.0, 2.5)
+    last = stopped(run, 'robot_1 drove unnamed by the cameras for 1.0')
+    assert 'last named at (20.0, 30.0) mm' in last
+    assert_at_rest(probe, truth)
+
+
+def test_a_robot_standing_unseen_is_left_to_its_controller(bench, domain_id, tmp_path, probe):
+    """Robot 1, unseen once it has moved, stands still waiting for a capture (the paper's rule
+    moves, then looks): no danger, so the guard leaves it to its controller, which gives up on
+    it as a single robot's does (lost); nobody was stopped."""
     truth = truths(probe)
     run = bench_run(domain_id, tmp_path, goals_mm=(STARTS_MM[0], GOALS_MM[1]))
     start_camera(bench, robots='robot_0,robot_1@moving')
     start_robot(bench, 0)
     start_robot(bench, 1)
-    last = stopped(run, 'robot_1 drove unnamed by the cameras for 1.0')
-    assert 'last named at (20.0, 30.0) mm' in last
+    out, err = finished(run, 90)
+    assert run.returncode == 1, err
+    assert json.loads(out)['outcome'] == 'lost', err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith('omni-micro run: failed: lost: robot 1 lost: no capture'), err
+    assert 'every robot stopped' not in err
     assert_at_rest(probe, truth)
 
 

@@ -16,6 +16,8 @@ bench timing, per robot), once every robot's first state and a frame naming ever
 come. No dynamics_node can see two real robots touch: :class:`BenchGuard` follows every robot's
 captures and stops them all (an empty trajectory to each: ramp the wheels down now) when the
 plain :class:`~omni_micro_control.fleet_guard.FleetGuard` says so, and says why on /fleet_guard.
+It also reads each robot's ``/robot_k/joint_states``: a robot standing still while the camera is
+slow to name it is no danger (the guard counts only the time its wheels turn unnamed).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.duration import Duration
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
@@ -34,11 +37,13 @@ from omni_micro_bringup.errors import UsageError
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_common.conventions import join_stamp, quaternion_to_yaw
-from omni_micro_common.qos import CAPTURE_QOS, latched
+from omni_micro_common.qos import CAPTURE_QOS, latched, profile
+from omni_micro_common.tick_messages import read_wheel_state, robot_joint_state_template
 from omni_micro_common.topic_names import (
     CAPTURE_COVARIANCE_TOPICS,
     CAPTURE_IN_MOTION_TOPICS,
     FLEET_GUARD_TOPIC,
+    JOINT_STATES_TOPIC,
     WHEEL_TRAJECTORY_TOPIC,
     robot_name,
     robot_topic,
@@ -50,6 +55,9 @@ from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 GUARD_PERIOD_S = 0.02
 # After the guard's stop: the stops go on this long after every controller has cancelled its goal.
 HOLD_AFTER_STOP_S = 0.5
+# The robots' joint states, read best effort: that matches a driver's reliable writer
+# (ros2_control's joint_state_broadcaster) and a best-effort one alike.
+WHEELS_QOS = profile(10, best_effort=True)
 
 
 def check_bench(options: GraphOptions) -> None:
@@ -89,7 +97,12 @@ class BenchGuard:
         self.cancels = [node.create_client(Trigger, f'/{robot_name(k)}/controller_node/cancel')
                         for k in range(len(logs))]
         self.timer = node.create_timer(GUARD_PERIOD_S, self._on_tick)
+        self.joint_states = [robot_joint_state_template(robot_name(k))
+                             for k in range(len(logs))]
         for k in range(len(logs)):
+            node.create_subscription(JointState, robot_topic(k, JOINT_STATES_TOPIC),
+                                     functools.partial(self._on_wheels, k), WHEELS_QOS,
+                                     raw=True)
             for camera in cameras:
                 for topic in (CAPTURE_COVARIANCE_TOPICS[camera],
                               CAPTURE_IN_MOTION_TOPICS[camera]):
@@ -105,6 +118,13 @@ class BenchGuard:
             self.logs[robot].route.append((
                 stamp_s - self.origin_s, pose.position.x, pose.position.y,
                 quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
+
+    def _on_wheels(self, robot: int, data: bytes) -> None:
+        wheels = read_wheel_state(self.joint_states[robot], data)
+        if wheels is not None:
+            turning = (any(speed != 0.0 for speed in wheels.speeds_rad_s)
+                       or wheels.steering_rate_rad_s != 0.0)
+            self.guard.wheels(robot, turning, time.monotonic())
 
     def _on_tick(self) -> None:
         if self.stopped is not None:

@@ -227,8 +227,9 @@ def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
     bench.add_argument('--stop-unnamed-s', type=positive_float, default=UNNAMED_S,
                        metavar='S',
                        help='with several robots on the bench: stop every robot once one '
-                            f'driving a leg goes unnamed by the cameras this long (default '
-                            f'{UNNAMED_S:g})')
+                            'driving a leg has turned its wheels this long unnamed by the '
+                            'cameras (its joint states say when; standing, it is left to its '
+                            f'controller; default {UNNAMED_S:g})')
 
 
 def stop_gap_mm(text: str) -> float:

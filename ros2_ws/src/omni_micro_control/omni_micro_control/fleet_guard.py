@@ -7,9 +7,13 @@ the last 40 ms or more say, their centres would come within ``stop_gap_m`` befor
 now has taken hold: the captures' age (a frame waits for the tracker, the tracker for the
 machine: on a busy one a capture arrives a quarter of a second old) and ``horizon_s`` beyond it
 (the command on its way and the wheels' ramp down). A robot is unnamed while no capture of it
-(still or in motion) has arrived; one that drives a leg and stays unnamed longer than
-``unnamed_s`` is driving blind. Times of arrival are the caller's clock (any monotonic one),
-positions in the platform frame, stamps the camera's.
+(still or in motion) has arrived; one that drives a leg and has turned its wheels longer than
+``unnamed_s`` since it was last named is driving blind. Standing, it is no danger however long
+the camera takes (a robot of the paper's rule stands still between its moves, waiting for a
+capture): its wheels say so, as its driver reports them (:meth:`FleetGuard.wheels`). Without
+word from its wheels (none yet, or none for longer than ``unnamed_s``), all the time unnamed
+counts. Times of arrival are the caller's clock (any monotonic one), positions in the platform
+frame, stamps the camera's.
 """
 
 from __future__ import annotations
@@ -66,6 +70,12 @@ class _Seen:
 
 
 @dataclass
+class _Wheels:
+    reported_s: float    # the latest state's arrival
+    turning: bool        # a wheel or the steering moving in it
+
+
+@dataclass
 class FleetGuard:
     """Every robot's latest capture and whether it drives a leg; :meth:`check` says whether
     all must stop."""
@@ -81,6 +91,9 @@ class FleetGuard:
     _recent: dict[int, collections.deque[tuple[float, float, float]]] = field(
         default_factory=dict)
     _driving_since: dict[int, float] = field(default_factory=dict)
+    _wheels: dict[int, _Wheels] = field(default_factory=dict)
+    # How long each robot's wheels turned since it was last named, up to its latest state.
+    _turned_unnamed_s: dict[int, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in ('stop_gap_m', 'horizon_s', 'unnamed_s'):
@@ -95,6 +108,7 @@ class FleetGuard:
         """A capture of ``robot`` (still or in motion) stamped ``stamp_s``, arrived at
         ``arrived_s``; an older one than the latest is only a sign of life."""
         last = self._seen.get(robot)
+        self._turned_unnamed_s[robot] = 0.0
         if last is not None and stamp_s <= last.stamp_s:
             last.arrived_s = max(last.arrived_s, arrived_s)
             return
@@ -137,6 +151,17 @@ class FleetGuard:
                             f'start ({start[0] * 1e3:g}, {start[1] * 1e3:g}) mm')
         return said
 
+    def wheels(self, robot: int, turning: bool, arrived_s: float) -> None:
+        """A state of ``robot``'s wheels from its driver, arrived at ``arrived_s``: ``turning``
+        when a wheel or the steering moves in it."""
+        last = self._wheels.get(robot)
+        if last is not None and last.turning:
+            seen = self._seen.get(robot)
+            since_s = max(last.reported_s, seen.arrived_s if seen else -math.inf)
+            self._turned_unnamed_s[robot] = (self._turned_unnamed_s.get(robot, 0.0)
+                                             + max(arrived_s - since_s, 0.0))
+        self._wheels[robot] = _Wheels(arrived_s, turning)
+
     def driving(self, robot: int, now_s: float, driving: bool = True) -> None:
         """``robot`` has a leg under way from ``now_s`` (or, ``driving`` False, none)."""
         if driving:
@@ -151,12 +176,13 @@ class FleetGuard:
         for robot, since in sorted(self._driving_since.items()):
             seen = self._seen.get(robot)
             named_s = max(since, seen.arrived_s) if seen else since
-            if now_s - named_s > self.unnamed_s:
+            blind_s = self.turned_unnamed_s(robot, now_s, named_s)
+            if blind_s > self.unnamed_s:
                 last = (f'last named at ({seen.x_m * 1e3:.1f}, {seen.y_m * 1e3:.1f}) mm'
                         if seen else 'never named')
                 return GuardStop('unnamed', (robot,), (
                     f'{robot_name(robot)} drove unnamed by the cameras for '
-                    f'{now_s - named_s:.2f} s (over {self.unnamed_s:g} s; {last})'))
+                    f'{blind_s:.2f} s (over {self.unnamed_s:g} s; {last})'))
         for a, b in itertools.combinations(sorted(self._seen), 2):
             age = 0.0 if stamps_now_s is None else min(
                 max(stamps_now_s - self._later(a, b), 0.0), VELOCITY_SPAN_S)
@@ -169,6 +195,17 @@ class FleetGuard:
                     f'closing at {closing * 1e3:.1f} mm/s: under {self.stop_gap_m * 1e3:g} mm '
                     f'within {age + self.horizon_s:.2f} s (9 mm discs; seen {age:.2f} s ago)'))
         return None
+
+    def turned_unnamed_s(self, robot: int, now_s: float, named_s: float) -> float:
+        """How long ``robot``'s wheels have turned since ``named_s`` (when it was last named,
+        or its leg began): all of that time without word from its wheels."""
+        wheels = self._wheels.get(robot)
+        if wheels is None or now_s - wheels.reported_s > self.unnamed_s:
+            return now_s - named_s
+        turned_s = self._turned_unnamed_s.get(robot, 0.0)
+        if wheels.turning:
+            turned_s += max(now_s - max(wheels.reported_s, named_s), 0.0)
+        return turned_s
 
     def projected_gap(self, a: int, b: int, ahead_s: float) -> tuple[float, float]:
         """The closest robots ``a`` and ``b`` come within ``ahead_s`` from their latest
