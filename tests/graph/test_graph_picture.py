@@ -72,3 +72,22 @@ def test_the_picture_the_readme_shows_is_the_graph_of_today(plain_picture):
         for endpoint in (*topic['publishers'], *topic['subscribers']):
             if endpoint['node'] != 'omni_micro_orchestration':
                 assert endpoint['node'] in shown, endpoint['node']
+
+
+def test_the_picture_of_several_robots_names_each_robot_s_nodes_under_its_namespace(
+        omni_micro):
+    """`graph --robots 2`: the fleet's graph as `run --robots 2` brings it up, one
+    dynamics_node for both robots and each robot's own nodes and topics under /robot_k, told
+    apart by their namespace (the single robot's keep their bare names)."""
+    described = {t['topic']: t for t in graph_json(omni_micro, '--robots', '2')}
+    for k in range(2):
+        assert {p['node'] for p in described[f'/robot_{k}/odom']['publishers']} == {
+            'dynamics_node'}
+        assert {s['node'] for s in described[f'/robot_{k}/goal_pose']['subscribers']} == {
+            f'robot_{k}/controller_node', f'robot_{k}/markers_node'}
+        assert {p['node'] for p in described[f'/robot_{k}/camera/macro/pose']['publishers']} \
+            == {f'robot_{k}/vision_node'}
+    assert {p['node'] for p in described['/robot_contacts']['publishers']} == {'dynamics_node'}
+    refused = omni_micro('graph', '--json', '--robots', '0')
+    assert refused.returncode == 2 and refused.stderr.strip() == (
+        "omni-micro graph: error: --robots must be a whole number 1..42 or a YAML file, got '0'")

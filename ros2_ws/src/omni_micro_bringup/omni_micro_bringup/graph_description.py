@@ -35,14 +35,16 @@ _INFRASTRUCTURE_TOPICS = ('/rosout', '/parameter_events')
 
 
 def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
-    """Bring the graph of ``options`` up (its clock paused, no goal), read from the ROS graph
-    who publishes and who subscribes each topic with which type and QoS, as rqt_graph would,
-    and stop it. The orchestrator's own node is in it: it sends the goal and reads statuses."""
+    """Bring the graph of ``options`` up (one robot's, or with ``options.fleet`` each robot's
+    under its namespace; its clock paused, no goal), read from the ROS graph who publishes and
+    who subscribes each topic with which type and QoS, as rqt_graph would, and stop it. The
+    orchestrator's own node is in it: it sends the goals and reads statuses."""
+    from omni_micro_bringup.fleet_graph import FleetDispatch
     from omni_micro_bringup.goal_sequence import GoalSequence
 
-    sequence = GoalSequence(options)
-    with brought_up(options, sequence):
-        monitor = sequence.monitor
+    driver = FleetDispatch(options) if options.fleet else GoalSequence(options)
+    with brought_up(options, driver):
+        monitor = driver.monitor
         assert monitor is not None
         # Every endpoint seen, not only the readers the start waits for (readiness).
         monitor.spin_for(GRAPH_SETTLE_S)
@@ -54,7 +56,8 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
 
             def endpoints(infos: list) -> tuple[Endpoint, ...]:
                 return tuple(sorted(
-                    (Endpoint(info.node_name, info.qos_profile.reliability.name.lower(),
+                    (Endpoint(_node_name(info.node_namespace, info.node_name),
+                              info.qos_profile.reliability.name.lower(),
                               info.qos_profile.durability.name.lower())
                      for info in infos),
                     key=lambda e: e.node))
@@ -64,3 +67,9 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
             if publishers or subscribers:
                 described.append(TopicEndpoints(topic, types[0], publishers, subscribers))
         return described
+
+
+def _node_name(namespace: str, name: str) -> str:
+    """A node as the picture names it: a single robot's nodes (the root namespace) by their
+    names, a fleet robot's with its namespace (``robot_1/controller_node``)."""
+    return name if namespace == '/' else f'{namespace.strip("/")}/{name}'

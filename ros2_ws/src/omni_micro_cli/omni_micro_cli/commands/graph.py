@@ -1,10 +1,11 @@
 """`omni-micro graph`: the node graph as a picture, read from a running graph as rqt_graph does.
 
 The graph of the options given (the same as `run`'s: --vision images, --view, --no-markers,
---record) is started with its clock paused, every topic's publishers and subscribers are read
-from the ROS graph with their types and QoS, and the graph is stopped. The picture (SVG or PNG,
-drawn with matplotlib, which the lock installs: no Graphviz needed) puts who publishes on the
-left, the topics in the middle and who subscribes on the right; --json prints the same as data.
+--record, --robots for several robots, each under its namespace) is started with its clock
+paused, every topic's publishers and subscribers are read from the ROS graph with their types
+and QoS, and the graph is stopped. The picture (SVG or PNG, drawn with matplotlib, which the
+lock installs: no Graphviz needed) puts who publishes on the left, the topics in the middle and
+who subscribes on the right; --json prints the same as data.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from omni_micro_cli.outputs import atomic_bytes, output_file, print_json
 
 if TYPE_CHECKING:
     from omni_micro_bringup.graph_description import TopicEndpoints
+    from omni_micro_bringup.graph_options import FleetRun
 
 # What the picture calls the orchestrator's node: the command that started the graph.
 ORCHESTRATOR_LABEL = 'omni-micro (orchestration)'
@@ -38,6 +40,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument('--record', action='store_true',
                         help='with the bag recorder, as `run --record`')
     add_view_arguments(parser, flag=True)
+    parser.add_argument('--robots', metavar='N|FILE',
+                        help='several robots, as `run --robots` (N robots, or a YAML file of '
+                             'robots): each with its nodes under /robot_k')
     parser.add_argument('--json', action='store_true',
                         help='print the topics, types, QoS, publishers and subscribers as JSON')
     parser.set_defaults(handler=run)
@@ -51,11 +56,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError('give --out FILE (.svg or .png) or --json: nothing to make')
     if args.out is not None and args.out.suffix not in ('.svg', '.png'):
         raise UsageError(f'--out {str(args.out)!r}: expected a .svg or .png file')
+    fleet = None if args.robots is None else fleet_run(args.robots)
     with tempfile.TemporaryDirectory(prefix='omni-micro-graph-') as scratch:
         topics = describe_graph(GraphOptions(
-            goal_m=(0.1, 0.0), log_dir=Path(scratch) / 'logs', markers=args.markers,
-            vision=args.vision, view=view_from_args(args),
-            record=Path(scratch) / 'bag' if args.record else None))
+            goal_m=None if fleet else (0.1, 0.0), log_dir=Path(scratch) / 'logs',
+            markers=args.markers, vision=args.vision, view=view_from_args(args),
+            record=Path(scratch) / 'bag' if args.record else None, fleet=fleet))
     if args.out is not None:
         atomic_bytes(args.out, draw(topics, args.out.suffix[1:]))
         print(f'wrote {args.out}: {len(topics)} topics, '
@@ -63,6 +69,17 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json([asdict(topic) for topic in topics])
     return 0
+
+
+def fleet_run(robots: str) -> FleetRun:
+    """Several robots' graph as ``run --robots`` brings it up: the robots given, a goal each
+    drawn (the graph's shape does not depend on the goals), planned."""
+    from omni_micro_bringup.graph_options import FleetRun
+    from omni_micro_control.fleet_files import fleet_from
+    from omni_micro_control.fleet_plan import plan_fleet
+
+    fleet = fleet_from(robots, None, goals_per_robot=1, seed=0)
+    return FleetRun(plan_fleet(fleet.starts_m, fleet.tasks), fleet.robots, fleet.controllers)
 
 
 def nodes_of(topics: list[TopicEndpoints]) -> list[str]:
