@@ -122,9 +122,7 @@ class BenchGuard:
     def _on_wheels(self, robot: int, data: bytes) -> None:
         wheels = read_wheel_state(self.joint_states[robot], data)
         if wheels is not None:
-            turning = (any(speed != 0.0 for speed in wheels.speeds_rad_s)
-                       or wheels.steering_rate_rad_s != 0.0)
-            self.guard.wheels(robot, turning, time.monotonic())
+            self.guard.wheels(robot, wheels.turning, time.monotonic())
 
     def _on_tick(self) -> None:
         if self.stopped is not None:

@@ -215,6 +215,11 @@ class Driver(Protocol):
     """What the run sequence needs of whoever drives the robots: a single robot's goals
     (goal_sequence.GoalSequence) or a fleet's legs (fleet_graph.FleetDispatch)."""
 
+    @property
+    def monitor(self) -> Orchestrator | None:
+        """The orchestration's node, once made (:meth:`orchestrator`)."""
+        ...
+
     def check(self) -> None:
         """Raise UsageError for what cannot run, before anything is written."""
         ...
@@ -258,10 +263,7 @@ def run_graph(options: GraphOptions,
         If a node died, the graph did not come up, or no outcome came within the timeout; the
         message names the node and where its log is.
     """
-    from omni_micro_bringup.fleet_graph import FleetDispatch
-    from omni_micro_bringup.goal_sequence import GoalSequence
-
-    driver: Driver = FleetDispatch(options) if options.fleet else GoalSequence(options)
+    driver = driver_for(options)
     with brought_up(options, driver) as (graph, domain_id):
         def running() -> None:
             if on_running is not None:
@@ -271,6 +273,15 @@ def run_graph(options: GraphOptions,
     result.published = {**graph.published(), **driver.goals_published()}
     result.respawns = {p.name: p.starts - 1 for p in graph.processes if p.starts > 1}
     return result
+
+
+def driver_for(options: GraphOptions) -> Driver:
+    """Who drives the graph of ``options``: a fleet's legs (``options.fleet``) or a single
+    robot's goals."""
+    from omni_micro_bringup.fleet_graph import FleetDispatch
+    from omni_micro_bringup.goal_sequence import GoalSequence
+
+    return FleetDispatch(options) if options.fleet else GoalSequence(options)
 
 
 @contextmanager

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from omni_micro_bringup.graph import brought_up
+from omni_micro_bringup.graph import brought_up, driver_for
 from omni_micro_bringup.graph_options import GraphOptions
 
 
@@ -39,10 +39,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     under its namespace; its clock paused, no goal), read from the ROS graph who publishes and
     who subscribes each topic with which type and QoS, as rqt_graph would, and stop it. The
     orchestrator's own node is in it: it sends the goals and reads statuses."""
-    from omni_micro_bringup.fleet_graph import FleetDispatch
-    from omni_micro_bringup.goal_sequence import GoalSequence
-
-    driver = FleetDispatch(options) if options.fleet else GoalSequence(options)
+    driver = driver_for(options)
     with brought_up(options, driver):
         monitor = driver.monitor
         assert monitor is not None

@@ -85,6 +85,11 @@ class WheelState:
     speeds_rad_s: tuple[float, ...]
     steering_rate_rad_s: float
 
+    @property
+    def turning(self) -> bool:
+        """A wheel or the steering moving."""
+        return any(speed != 0.0 for speed in self.speeds_rad_s) or self.steering_rate_rad_s != 0.0
+
 
 def read_wheel_state(template: MessageTemplate, data: bytes) -> WheelState | None:
     """A serialized JointState read in place when it has the robot's own layout (JOINT_NAMES

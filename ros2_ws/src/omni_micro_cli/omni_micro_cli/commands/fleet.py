@@ -34,6 +34,7 @@ from omni_micro_control.fleet_roadmap import CLEARANCE_M
 
 if TYPE_CHECKING:   # the graph's modules load only for a run through it
     from omni_micro_bringup.graph_options import GraphOptions
+    from omni_micro_control.fleet_plan import FleetPlan
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -185,6 +186,22 @@ def run(args: argparse.Namespace) -> int:
 WALL_TIMEOUT_S = 3600.0
 
 
+def planned(fleet: Fleet, seed: int) -> FleetPlan:
+    """The plan of ``fleet``'s tasks; tasks no plan can meet refused in one line (UsageError),
+    a search that gave up said with how to try again (RunFailed)."""
+    from omni_micro_control.fleet_plan import PlannerGaveUpError, PlanningError, plan_fleet
+    from omni_micro_control.fleet_roadmap import RoadmapError
+    from omni_micro_studies.fleet_twin import check_tolerances
+
+    try:
+        check_tolerances(fleet.tasks)
+        return plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
+    except (PlanningError, RoadmapError) as error:
+        raise UsageError(str(error)) from None
+    except PlannerGaveUpError as error:     # not the tasks' fault: say how to try again
+        raise RunFailed(f'{error} (seed {seed}: another --seed may plan these tasks)') from None
+
+
 def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_sim_time_s: float,
                   record: Path | None, plot: Path | None, as_json: bool,
                   force: bool = False, stop_gap_m: float = STOP_GAP_M,
@@ -193,23 +210,15 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     options) through the node graph, print the table (and ``as_json``, the JSON), write the
     twin's bag and the routes' plot. On the bench (real robots), ``stop_gap_m`` and
     ``unnamed_s`` are the guard's."""
-    from omni_micro_control.fleet_plan import PlannerGaveUpError, PlanningError, plan_fleet
-    from omni_micro_control.fleet_roadmap import RoadmapError
     from omni_micro_studies.fleet_report import fleet_table, route_figure, summarize
-    from omni_micro_studies.fleet_twin import DONE, check_tolerances, run_fleet
+    from omni_micro_studies.fleet_twin import DONE, run_fleet
 
     if graph is not None:
         from omni_micro_bringup.fleet_graph import FleetDispatch
 
         FleetDispatch.check_options(graph)   # refused before the planning
     started = time.perf_counter()
-    try:
-        check_tolerances(fleet.tasks)
-        plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
-    except (PlanningError, RoadmapError) as error:
-        raise UsageError(str(error)) from None
-    except PlannerGaveUpError as error:     # not the tasks' fault: say how to try again
-        raise RunFailed(f'{error} (seed {seed}: another --seed may plan these tasks)') from None
+    plan = planned(fleet, seed)
     planned_s = time.perf_counter() - started
     if record is not None:
         from omni_micro_tools.bags import check_bag_output

@@ -75,11 +75,11 @@ def fleet_run(robots: str) -> FleetRun:
     """Several robots' graph as ``run --robots`` brings it up: the robots given, a goal each
     drawn (the graph's shape does not depend on the goals), planned."""
     from omni_micro_bringup.graph_options import FleetRun
+    from omni_micro_cli.commands.fleet import planned
     from omni_micro_control.fleet_files import fleet_from
-    from omni_micro_control.fleet_plan import plan_fleet
 
     fleet = fleet_from(robots, None, goals_per_robot=1, seed=0)
-    return FleetRun(plan_fleet(fleet.starts_m, fleet.tasks), fleet.robots, fleet.controllers)
+    return FleetRun(planned(fleet, seed=0), fleet.robots, fleet.controllers)
 
 
 def nodes_of(topics: list[TopicEndpoints]) -> list[str]:
