@@ -206,6 +206,21 @@ def test_one_wiring_tells_time_whom_to_wait_for_in_a_fleet_and_a_single_robot(tm
 
 
 @pytest.mark.parametrize('vision', ['model', 'images'])
+def test_each_robots_camera_waits_for_its_servo_on_the_captures_in_motion(tmp_path, vision):
+    """The servo acts on its robot's captures in motion, the recorder keeps every robot's: the
+    camera's writers of them wait for both, so that neither misses the first (beside busy
+    processes three servos each counted one fewer than the bag held)."""
+    fleet = two_robots(tmp_path, controllers=('servo', 'paper'), vision=vision,
+                       record=tmp_path / 'bag')
+    camera = 'tracker_node' if vision == 'images' else 'vision_node'
+    told = [spec.overrides for spec in fleet for inner in (spec.hosts or (spec,))
+            if inner.executable == camera]
+    expected = [['robot_0/controller_node', 'bag_recorder']] if vision == 'images' else [
+        ['robot_0/controller_node', 'bag_recorder'], []]
+    assert [overrides['motion_readers'] for overrides in told] == expected
+
+
+@pytest.mark.parametrize('vision', ['model', 'images'])
 def test_one_wiring_tells_the_cameras_which_captures_the_controllers_read(tmp_path, vision):
     """With ``capture_uncertainty: fixed`` (a camera without covariance) the controllers read
     the bare captures: the camera (vision_node, or the tracker every robot shares) waits for

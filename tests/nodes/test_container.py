@@ -194,25 +194,41 @@ def test_markers_are_handed_the_controller_s_tolerance_only_of_the_type_they_dec
 
 def captures_awaited(executable: str, options: GraphOptions) -> dict[str, object]:
     told = node_overrides(NodeSpec('omni_micro_vision', executable), options)
-    return {name: told[name] for name in ('capture_readers', 'covariance_readers')}
+    return {name: told[name] for name in ('capture_readers', 'covariance_readers',
+                                          'motion_readers')}
 
 
 def test_the_tracker_waits_for_the_readers_of_its_captures_as_vision_does():
     images = GraphOptions(goal_m=(0.1, 0.0), vision='images', record=Path('bag'))
     assert captures_awaited('tracker_node', images) == {
         'capture_readers': ['bag_recorder'],
-        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder']}
+        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder'],
+        'motion_readers': []}
+
+
+def test_a_camera_waits_for_the_servo_and_the_recorder_on_its_captures_in_motion():
+    servo: dict[str, object] = {'mode': 'servo'}
+    for executable, vision in (('tracker_node', 'images'), ('vision_node', 'model')):
+        options = GraphOptions(goal_m=(0.1, 0.0), vision=vision, record=Path('bag'),
+                               controller_overrides=servo)
+        assert captures_awaited(executable, options)['motion_readers'] == [
+            'controller_node', 'bag_recorder']
+    # Published for the recorder alone, they wait for it alone.
+    watched = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'), captures_in_motion=True)
+    assert captures_awaited('vision_node', watched)['motion_readers'] == ['bag_recorder']
 
 
 def test_vision_waits_for_the_readers_of_its_captures_on_the_topics_they_read():
     recorded = GraphOptions(goal_m=(0.1, 0.0), record=Path('bag'))
     assert captures_awaited('vision_node', recorded) == {
         'capture_readers': ['bag_recorder'],
-        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder']}
+        'covariance_readers': ['controller_node', 'markers_node', 'bag_recorder'],
+        'motion_readers': []}
     bare = GraphOptions(goal_m=(0.1, 0.0), composed=True,
                         controller_overrides={'capture_uncertainty': 'fixed'})
     assert captures_awaited('vision_node', bare) == {
-        'capture_readers': ['controller_node', 'markers_node'], 'covariance_readers': []}
+        'capture_readers': ['controller_node', 'markers_node'], 'covariance_readers': [],
+        'motion_readers': []}
 
 
 def test_composed_refuses_what_needs_separate_processes():

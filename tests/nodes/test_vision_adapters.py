@@ -113,6 +113,44 @@ def test_tracker_node_reads_images_only_once_the_capture_readers_are_matched(con
         covariance_readers, input_topic='/camera/macro/image_raw')
 
 
+def test_tracker_node_reads_images_only_once_the_servos_motion_reader_is_matched(context):
+    """A servo acts on the captures in motion: one sent before its reader was matched was lost
+    to it (beside busy processes, three servos each counted one capture fewer than the bag)."""
+    assert_reads_input_only_once_matched(
+        context, TrackerNode(context=context, parameter_overrides=overrides(
+            cameras=['macro'], captures_in_motion=True, motion_readers=['controller_node'])),
+        'controller_node',
+        lambda servo: servo.create_subscription(PoseWithCovarianceStamped,
+                                                '/camera/macro/pose_in_motion',
+                                                lambda msg: None, CAPTURE_QOS),
+        input_topic='/camera/macro/image_raw')
+
+
+def test_a_fleet_tracker_waits_for_the_recorder_on_each_robots_captures_in_motion(context):
+    """A reader outside every robot's namespace (the recorder) reads each robot's topics, and
+    is waited for on each."""
+    assert_reads_input_only_once_matched(
+        context, TrackerNode(context=context, parameter_overrides=overrides(
+            cameras=['macro'], robots=['robot_0'], captures_in_motion=True,
+            motion_readers=['bag_recorder'])), 'bag_recorder',
+        lambda recorder: recorder.create_subscription(
+            PoseWithCovarianceStamped, '/robot_0/camera/macro/pose_in_motion', lambda msg: None,
+            CAPTURE_QOS),
+        input_topic='/camera/macro/image_raw')
+
+
+def test_vision_node_reads_odometry_only_once_the_servos_motion_readers_are_matched(context):
+    def motion_readers(servo: Node) -> None:
+        for camera in ('macro', 'micro'):
+            servo.create_subscription(PoseWithCovarianceStamped,
+                                      f'/camera/{camera}/pose_in_motion', lambda msg: None,
+                                      CAPTURE_QOS)
+    assert_reads_input_only_once_matched(
+        context, VisionNode(context=context, parameter_overrides=overrides(
+            captures_in_motion=True, motion_readers=['controller_node'])), 'controller_node',
+        motion_readers)
+
+
 def test_markers_node_reads_odometry_only_once_the_recorders_markers_reader_is_matched(
         context):
     """An array sent before would be lost to the bag (reliable, volatile): beside two busy

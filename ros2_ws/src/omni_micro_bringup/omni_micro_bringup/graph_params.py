@@ -30,8 +30,9 @@ from omni_micro_common.params import flatten, load_params_file
 LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
                    'dynamics_node': {'lockstep_nodes', 'awaited_readers', 'robots',
                                      'robot_poses', 'robot_wheel_offsets_rad'},
-                   'vision_node': {'capture_readers', 'covariance_readers'},
-                   'tracker_node': {'capture_readers', 'covariance_readers', 'robots'},
+                   'vision_node': {'capture_readers', 'covariance_readers', 'motion_readers'},
+                   'tracker_node': {'capture_readers', 'covariance_readers', 'motion_readers',
+                                    'robots'},
                    'camera_node': {'image_readers', 'robots'}, 'markers_node': {'markers_readers'},
                    'controller_node': {'trajectory_readers'},
                    'omni_micro_viewer': {'robots'}}

@@ -98,11 +98,16 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
     robot = robots.index(spec.namespace) if spec.namespace in robots else 0
 
     def capture_readers_of(namespaces: list[str]) -> dict[str, list[str]]:
-        """A camera's readers: the controller and markers_node of each of ``namespaces``."""
+        """A camera's readers: the controller and markers_node of each of ``namespaces``, and
+        of the captures in motion the servos among those controllers."""
+        servos = [qualified_node_name(namespace, 'controller_node') for namespace in namespaces
+                  if namespace in wiring.in_motion and 'controller_node' in present
+                  and wiring.modes[robots.index(namespace)] == SERVO_MODE]
         return capture_readers(options, [qualified_node_name(namespace, name)
                                          for namespace in namespaces
                                          for name in ('controller_node', 'markers_node')
-                                         if name in present], present)
+                                         if name in present], present, servos,
+                               in_motion=any(ns in wiring.in_motion for ns in namespaces))
 
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
@@ -303,15 +308,17 @@ def passed_on(value: object, like: object) -> object | None:
     return number(value)
 
 
-def capture_readers(options: GraphOptions, readers: list[str],
-                    present: set[str]) -> dict[str, list[str]]:
-    """vision_node's (or tracker_node's) ``capture_readers`` (bare topics) and
-    ``covariance_readers`` in this graph: ``readers`` (the controllers and markers_nodes it
-    captures for, each as its node is named) on the bare topics if the controller's
-    ``capture_uncertainty`` is ``fixed``, else on those with the covariance; the recorder, if
-    ``present``, on both."""
+def capture_readers(options: GraphOptions, readers: list[str], present: set[str],
+                    servos: list[str], in_motion: bool) -> dict[str, list[str]]:
+    """vision_node's (or tracker_node's) ``capture_readers`` (bare topics),
+    ``covariance_readers`` and ``motion_readers`` in this graph: ``readers`` (the controllers
+    and markers_nodes it captures for, each as its node is named) on the bare topics if the
+    controller's ``capture_uncertainty`` is ``fixed``, else on those with the covariance;
+    ``servos`` on the captures in motion; the recorder, if ``present``, on all of them (those in
+    motion if the camera publishes them, ``in_motion``)."""
     fixed = node_parameters('controller_node', options.params_files, options.controller_overrides
                             ).get('capture_uncertainty', 'covariance') == 'fixed'
     recorder = ['bag_recorder'] if 'bag_recorder' in present else []
     return {'capture_readers': (readers if fixed else []) + recorder,
-            'covariance_readers': ([] if fixed else readers) + recorder}
+            'covariance_readers': ([] if fixed else readers) + recorder,
+            'motion_readers': servos + recorder if in_motion else []}

@@ -72,15 +72,25 @@ def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
                               clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
+def capture_reader_names(node: Node) -> tuple[list[str], list[str], list[str]]:
+    """The nodes that must not miss a camera's captures, by the topics they read: its
+    ``capture_readers`` (bare PoseStamped captures), ``covariance_readers`` (their
+    PoseWithCovarianceStamped) and ``motion_readers`` (captures in motion: a servo, a recorder)
+    parameters, which the orchestration sets from the nodes present and which are empty when
+    the camera is started alone."""
+    return (node_list_parameter(node, 'capture_readers'),
+            node_list_parameter(node, 'covariance_readers'),
+            node_list_parameter(node, 'motion_readers'))
+
+
 def when_capture_readers_matched(node: Node, pose_publishers: Iterable[Publisher],
                                  covariance_publishers: Iterable[Publisher],
+                                 motion_publishers: Iterable[Publisher],
                                  then: Callable[[], None]) -> None:
-    """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node): the
-    readers of the nodes named in its ``capture_readers`` (bare PoseStamped captures) and
-    ``covariance_readers`` (their PoseWithCovarianceStamped) parameters, which the
-    orchestration sets from the nodes present and which are empty when it is started alone."""
-    pose_readers = node_list_parameter(node, 'capture_readers')
-    covariance_readers = node_list_parameter(node, 'covariance_readers')
+    """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node), each
+    publisher with the readers :func:`capture_reader_names` names for it."""
+    pose_readers, covariance_readers, motion_readers = capture_reader_names(node)
     when_readers_matched(
         node, [(publisher, pose_readers) for publisher in pose_publishers]
-        + [(publisher, covariance_readers) for publisher in covariance_publishers], then)
+        + [(publisher, covariance_readers) for publisher in covariance_publishers]
+        + [(publisher, motion_readers) for publisher in motion_publishers], then)

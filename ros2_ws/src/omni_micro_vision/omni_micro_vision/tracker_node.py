@@ -29,8 +29,8 @@ written by ``omni-micro calibrate-camera``) or, without one, its nominal geometr
 refused, with the reason in ``tracker_status``, when their size or their CameraInfo
 contradicts that geometry. The image processing is :mod:`omni_micro_vision.tracking`'s.
 It reads images only once its capture writers have matched the readers of the nodes named in
-``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
-that none of them misses the first captures.
+``capture_readers`` (bare captures), ``covariance_readers`` and ``motion_readers`` (captures
+in motion; all empty when started alone), so that none of them misses the first captures.
 
 Several robots under one camera pair (a fleet, ``robots``: their namespaces, robot_k
 carrying fiducial code k): each frame's robots are named by their codes
@@ -61,6 +61,7 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
 from omni_micro_common.reader_matching import (
+    capture_reader_names,
     node_list_parameter,
     when_capture_readers_matched,
     when_readers_matched,
@@ -200,20 +201,28 @@ class TrackerNode(Node):
         # The nodes that must not miss a capture, by the topics they read (empty when started
         # alone): the images are read, and the camera (whose frames wait for these readers),
         # then the robot's clock, start only once the capture writers have matched them. A
-        # robot's publishers wait for the readers in its namespace.
+        # robot's publishers wait for the readers in its namespace and for those outside every
+        # robot's (a recorder's).
         if self.robots:
-            pose_readers = node_list_parameter(self, 'capture_readers')
-            covariance_readers = node_list_parameter(self, 'covariance_readers')
+            names = capture_reader_names(self)
+
+            def of_robot(robot: str, readers: list[str]) -> list[str]:
+                return [name for name in readers if name.startswith(f'{robot}/')
+                        or '/' not in name]
             when_readers_matched(self, [
-                (publisher, [name for name in names if name.startswith(f'{robot}/')])
+                (publisher, of_robot(robot, readers))
                 for robot, code in self.robots.items() for reader in self.readers
-                for publisher, names in zip(self.robot_publishers[code, reader.name],
-                                            (pose_readers, covariance_readers), strict=True)],
+                for publisher, readers in zip(
+                    (*self.robot_publishers[code, reader.name],
+                     self.robot_in_motion_publishers.get((code, reader.name))), names,
+                    strict=True) if publisher is not None],
                 read_images)
         else:
-            when_capture_readers_matched(self, [reader.capture_pub for reader in self.readers],
-                                         [reader.covariance_pub for reader in self.readers],
-                                         read_images)
+            when_capture_readers_matched(
+                self, [reader.capture_pub for reader in self.readers],
+                [reader.covariance_pub for reader in self.readers],
+                [reader.in_motion_pub for reader in self.readers
+                 if reader.in_motion_pub is not None], read_images)
         self.get_logger().info(f'tracking {", ".join(cameras)}; a capture once '
                                f'{self.still_frames} frames agree within {self.still_px} px')
 

@@ -16,9 +16,9 @@ is still, geometry_msgs/PoseStamped captures in the ``platform`` frame:
   /lockstep            its report after each odometry sample (omni_micro_common.lockstep),
                        with the stamps of the captures and captures in motion it published
 It reads /odom only once its capture writers have matched the readers of the nodes named in
-``capture_readers`` (bare captures) and ``covariance_readers`` (empty when started alone), so
-that none of them misses the first captures. The stamp of a capture is its exposure time in
-simulated time. The camera model and the capture
+``capture_readers`` (bare captures), ``covariance_readers`` and ``motion_readers`` (captures
+in motion; all empty when started alone), so that none of them misses the first captures.
+The stamp of a capture is its exposure time in simulated time. The camera model and the capture
 rule are in :mod:`omni_micro_vision.camera`; this node only moves numbers in and out.
 """
 
@@ -129,7 +129,8 @@ class VisionNode(Node):
         # once the capture writers have matched their readers. The first captures come at time
         # 0, and one was lost to markers_node in a fast start.
         when_capture_readers_matched(self, self.capture_pubs.values(),
-                                     self.covariance_pubs.values(), self._read_odometry)
+                                     self.covariance_pubs.values(), self.in_motion_pubs.values(),
+                                     self._read_odometry)
         # Last: from here on only faults.* may change (the parameters above are declared).
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop', at_s=0.0)
