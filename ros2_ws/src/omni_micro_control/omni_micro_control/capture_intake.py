@@ -1,9 +1,11 @@
-"""What controller_node does with a capture: read against its frame and the robot's clock,
-held for a goal stamped before it that has not arrived yet (a fleet's coordinator hands goals
-out so), or handed to the controller; and how far the captures handled go, for /lockstep."""
+"""What controller_node does with a capture: held until the robot's first wheel state, read
+against its frame and the robot's clock, held for a goal stamped before it that has not arrived
+yet (a fleet's coordinator hands goals out so), or handed to the controller; and how far the
+captures handled go, for /lockstep."""
 
 from __future__ import annotations
 
+from collections import deque
 from typing import Any, Protocol
 
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -39,9 +41,20 @@ class ServedNode(Protocol):
     def report_lockstep(self) -> None: ...
 
 
+# The most captures held for the robot's first wheel state: more than the two cameras give in a
+# lockstep's lead, and a respawned controller's first moments, at their fastest.
+HELD_BEFORE_THE_WHEELS = 20
+
+
 class CaptureIntake:
     """controller_node's captures, still (``on_capture``, ``on_capture_with_covariance``) and in
-    motion (the servo's), each handled and said so on /lockstep."""
+    motion (the servo's), each handled and said so on /lockstep.
+
+    A capture and the wheel states travel on different topics, so a capture may come before the
+    robot's first wheel state (with images, the tracker's first capture in motion came so once
+    in a dozen runs beside busy processes). Until that state the robot's time, and whether it
+    moves, are unknown: the capture is held, and handed over once it comes (``release_held``),
+    so that what the controller does with it never depends on which came first."""
 
     def __init__(self, node: ServedNode, frame_id: str,
                  fixed_uncertainty: dict[str, CaptureUncertainty], servo: bool) -> None:
@@ -53,6 +66,8 @@ class CaptureIntake:
         # A servo reports the captures in motion it has handled; the others read none.
         self.motion_handled_ns: int | None = -1 if servo else None
         self._said_mismatch: str | None = None   # the last clock mismatch logged
+        self._before_the_wheels: deque[tuple[Header, Pose, CaptureUncertainty | None, str,
+                                             bool]] = deque(maxlen=HELD_BEFORE_THE_WHEELS)
 
     def on_capture(self, msg: PoseStamped, camera: str) -> None:
         self.take(msg.header, msg.pose, self.fixed_uncertainty[camera], camera)
@@ -69,7 +84,11 @@ class CaptureIntake:
 
     def take(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty | None,
              camera: str, in_motion: bool = False) -> None:
-        """A capture (``in_motion``: of the rolling robot) handled, said so on /lockstep."""
+        """A capture (``in_motion``: of the rolling robot) handled, said so on /lockstep; held,
+        before the robot's first wheel state."""
+        if self.node.watcher.latest_rotations is None:
+            self._before_the_wheels.append((header, pose, uncertainty, camera, in_motion))
+            return
         seen = None if uncertainty is None else self.observation(header, pose, uncertainty,
                                                                  camera)
         controller = self.node.controller
@@ -85,16 +104,15 @@ class CaptureIntake:
             self.handled_ns = max(self.handled_ns, stamp_ns(header.stamp))
         self.node.report_lockstep()
 
+    def release_held(self) -> None:
+        """The robot's first wheel state has come: the captures that came before, handled in
+        the order they came."""
+        while self._before_the_wheels:
+            self.take(*self._before_the_wheels.popleft())
+
     def observation(self, header: Header, pose: Pose, uncertainty: CaptureUncertainty,
                     camera: str) -> Observation | None:
         """The capture as the controller reads it; None (said why) if it cannot be used."""
-        if self.node.watcher.latest_rotations is None:
-            # No wheel state yet (a respawned controller): the robot's time, and whether it
-            # moves, are unknown until the first; the next stop's captures decide.
-            self.node.get_logger().info(
-                f'{camera} capture before the first wheel state: skipped',
-                throttle_duration_sec=5.0)
-            return None
         seen = read_capture(camera, header.frame_id, self.frame_id,
                             join_stamp(header.stamp.sec, header.stamp.nanosec),
                             (pose.position.x, pose.position.y,

@@ -201,6 +201,7 @@ class ControllerNode(Node):
             self.controller.on_wheel_state(stamp, wheels.speeds_rad_s)
         elif stopped:
             self.act(self.controller.on_wheels_stopped(stamp), at_s=stamp)
+        self.captures.release_held()
         # The capture timeouts on the robot's own wheel states' time (no /clock subscription).
         check = int(self.robot_time_s // TIMEOUT_CHECK_S)
         if check > self._timeout_checks:
