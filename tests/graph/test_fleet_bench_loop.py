@@ -15,6 +15,7 @@ import runpy
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -135,9 +136,13 @@ def test_two_robots_reach_their_goals_in_any_start_order(bench, domain_id, tmp_p
           'clock')
 
 
-def jog(probe, robot: int, steering_rad: float, duration_s: float) -> None:
-    """A move sent by hand on the robot's command topic (as ``ros2 topic pub`` would): along
-    ``steering_rad`` at cruise for ``duration_s``, starting now."""
+def jogger(probe, robot: int) -> Callable[[float, float], None]:
+    """A hand on the robot's command topic (as ``ros2 topic pub`` would): ``jog(steering_rad,
+    duration_s)`` sends a move along ``steering_rad`` at cruise for ``duration_s``, starting
+    now. Its writer is made at once, to be matched by the robot's driver before it is needed:
+    made at the jog, its discovery beside busy processes eats into the seconds the robot's
+    controller waits for a capture before it gives the robot up (the likely cause of a run
+    that ended lost where the guard should have stopped it, once, beside two other graphs)."""
     from builtin_interfaces.msg import Duration
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -145,16 +150,19 @@ def jog(probe, robot: int, steering_rad: float, duration_s: float) -> None:
     from omni_micro_sim.profile import move_profile
     from omni_micro_sim.wheel_trajectory import points_from_profile
 
-    command = JointTrajectory(joint_names=list(JOINT_NAMES))
-    for point in points_from_profile(steering_rad, move_profile(duration_s)):
-        sec, nanosec = split_stamp(point.time_from_start_s)
-        command.points.append(JointTrajectoryPoint(
-            positions=list(point.positions), velocities=list(point.velocities),
-            time_from_start=Duration(sec=sec, nanosec=nanosec)))
     publisher = probe.node.create_publisher(JointTrajectory, f'/robot_{robot}/wheel_trajectory',
                                             10)
-    probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10.0, 'its driver')
-    publisher.publish(command)
+
+    def jog(steering_rad: float, duration_s: float) -> None:
+        command = JointTrajectory(joint_names=list(JOINT_NAMES))
+        for point in points_from_profile(steering_rad, move_profile(duration_s)):
+            sec, nanosec = split_stamp(point.time_from_start_s)
+            command.points.append(JointTrajectoryPoint(
+                positions=list(point.positions), velocities=list(point.velocities),
+                time_from_start=Duration(sec=sec, nanosec=nanosec)))
+        probe.spin_until(lambda: publisher.get_subscription_count() > 0, 10.0, 'its driver')
+        publisher.publish(command)
+    return jog
 
 
 def closest_mm(truth: list[list[Odometry]]) -> float:
@@ -182,6 +190,7 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     from geometry_msgs.msg import PoseStamped
 
     truth = truths(probe)
+    jog = jogger(probe, 1)
     goals: list[PoseStamped] = []
     probe.node.create_subscription(PoseStamped, '/robot_0/goal_pose', goals.append, 10)
     bag = tmp_path / 'bench_log'
@@ -191,7 +200,7 @@ def test_two_robots_driven_at_each_other_are_both_stopped_before_contact_and_nam
     start_robot(bench, 0)
     start_robot(bench, 1)
     probe.spin_until(lambda: bool(goals), 90.0, "robot_0's goal")
-    jog(probe, 1, -math.pi / 2, 2.0)
+    jog(-math.pi / 2, 2.0)
     last = stopped(run, 'robot_0 and robot_1 ')
     assert 'closing at' in last and 'under 10 mm within ' in last
     # At rest a second on (no move after the stop), and never closer than the discs allow.
@@ -209,6 +218,7 @@ def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tm
     from geometry_msgs.msg import PoseStamped
 
     truth = truths(probe)
+    jog = jogger(probe, 1)
     goals: list[PoseStamped] = []
     probe.node.create_subscription(PoseStamped, '/robot_1/goal_pose', goals.append, 10)
     run = bench_run(domain_id, tmp_path, goals_mm=(STARTS_MM[0], GOALS_MM[1]))
@@ -216,7 +226,7 @@ def test_a_robot_driving_unseen_stops_every_robot_naming_it(bench, domain_id, tm
     start_robot(bench, 0)
     start_robot(bench, 1)
     probe.spin_until(lambda: bool(goals), 90.0, "robot_1's goal")
-    jog(probe, 1, 0.0, 2.5)
+    jog(0.0, 2.5)
     last = stopped(run, 'robot_1 drove unnamed by the cameras for 1.0')
     assert 'last named at (20.0, 30.0) mm' in last
     assert_at_rest(probe, truth)
@@ -244,7 +254,7 @@ def stopped(run: subprocess.Popen, why: str) -> str:
     """The run's last line, once it has ended stopped by the guard for ``why`` (its start)."""
     out, err = finished(run, 90)
     assert run.returncode == 1, err
-    assert json.loads(out)['outcome'] == 'stopped'
+    assert json.loads(out)['outcome'] == 'stopped', err
     last = err.strip().splitlines()[-1]
     assert last.startswith(f'omni-micro run: failed: stopped: every robot stopped: {why}'), err
     return last
