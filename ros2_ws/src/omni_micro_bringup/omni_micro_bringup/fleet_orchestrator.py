@@ -25,7 +25,6 @@ from omni_micro_bringup.graph_result import RobotLog
 from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
-    goal_pose,
 )
 from omni_micro_bringup.respawns import FleetRespawns
 from omni_micro_bringup.supervisor import Supervisor
@@ -33,6 +32,7 @@ from omni_micro_common.conventions import (
     join_stamp,
     quaternion_to_yaw,
 )
+from omni_micro_common.goal_message import goal_pose
 from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.qos import DATA_QOS, STATUS_QOS

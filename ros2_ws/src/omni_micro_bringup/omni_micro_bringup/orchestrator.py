@@ -38,11 +38,10 @@ from omni_micro_bringup.readiness import Readiness
 from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
-    PLATFORM_FRAME,
     join_stamp,
     quaternion_to_yaw,
-    split_stamp,
 )
+from omni_micro_common.goal_message import goal_pose
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -361,16 +360,6 @@ class Orchestrator:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-
-
-def goal_pose(goal_m: tuple[float, float], stamp_s: float) -> PoseStamped:
-    """A goal as every controller reads it: on the platform, stamped ``stamp_s``."""
-    goal = PoseStamped()
-    goal.header.stamp.sec, goal.header.stamp.nanosec = split_stamp(stamp_s)
-    goal.header.frame_id = PLATFORM_FRAME
-    goal.pose.position.x, goal.pose.position.y = float(goal_m[0]), float(goal_m[1])
-    goal.pose.orientation.w = 1.0
-    return goal
 
 
 def first_sample_at_or_after(samples: deque[tuple[float, float, float, float]],

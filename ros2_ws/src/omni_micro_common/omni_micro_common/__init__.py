@@ -8,7 +8,8 @@ gate and its reports, plain Python), :mod:`lockstep_groups` (one lockstep over s
 a node process starts, spins and stops), :mod:`parameter_checks` (what rclpy would pass over in
 silence at start-up), :mod:`reader_matching` (readers a node waits to have matched),
 :mod:`publication_counts` (what a node published, said at shutdown),
-:mod:`controller_status` (a controller's ``/controller/status``), :mod:`container` (several
+:mod:`controller_status` (a controller's ``/controller/status``), :mod:`goal_message`
+(the ``/goal_pose`` a controller reads), :mod:`container` (several
 nodes in one process), :mod:`params` (the one reader of params files), :mod:`messages` (message
 classes by type name), :mod:`cdr` (messages serialized once and patched in place),
 :mod:`template_layouts` (what those templates find, kept on disk between processes),
