@@ -78,7 +78,8 @@ def test_the_picture_of_several_robots_names_each_robot_s_nodes_under_its_namesp
         omni_micro):
     """`graph --robots 2`: the fleet's graph as `run --robots 2` brings it up, one
     dynamics_node for both robots and each robot's own nodes and topics under /robot_k, told
-    apart by their namespace (the single robot's keep their bare names)."""
+    apart by their namespace (the single robot's keep their bare names), and no topic of the
+    root namespace's robot, which a fleet has not."""
     described = {t['topic']: t for t in graph_json(omni_micro, '--robots', '2')}
     for k in range(2):
         assert {p['node'] for p in described[f'/robot_{k}/odom']['publishers']} == {
@@ -88,6 +89,9 @@ def test_the_picture_of_several_robots_names_each_robot_s_nodes_under_its_namesp
         assert {p['node'] for p in described[f'/robot_{k}/camera/macro/pose']['publishers']} \
             == {f'robot_{k}/vision_node'}
     assert {p['node'] for p in described['/robot_contacts']['publishers']} == {'dynamics_node'}
+    # The orchestration follows each robot on its own topics: none of a single robot's.
+    assert not {'/goal_pose', '/controller/status', '/camera/status', '/odom_throttle'} & set(
+        described)
     refused = omni_micro('graph', '--json', '--robots', '0')
     assert refused.returncode == 2 and refused.stderr.strip() == (
         "omni-micro graph: error: --robots must be a whole number 1..42 or a YAML file, got '0'")

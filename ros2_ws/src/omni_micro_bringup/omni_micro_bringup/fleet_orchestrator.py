@@ -54,7 +54,7 @@ class FleetMonitor(Orchestrator):
     def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
                  recording: bool = False, markers: bool = False,
                  respawnable: list[str] | None = None) -> None:
-        super().__init__(domain_id, echo=echo, markers=markers)
+        super().__init__(domain_id, echo=echo, markers=markers, robot=None)
         self.respawns: FleetRespawns = FleetRespawns(self, respawnable or [])
         self.count = count
         self.recording = recording   # the recorder must have every goal, as each controller

@@ -75,10 +75,15 @@ RUN_ON_PAST_BAG_END_S = 0.4
 
 
 class Orchestrator:
-    """With ``follow_route`` it keeps the whole route and every capture (for figures)."""
+    """The orchestration's node in ``domain_id``. ``robot``: the namespace of the robot it
+    hands goals to one by one and follows (status, camera, odometry): a single robot's, the
+    root one; None for a fleet's coordinator, which follows each robot on its own topics
+    (:class:`~omni_micro_bringup.fleet_orchestrator.FleetMonitor`) and so has none of these.
+    With ``follow_route`` it keeps the whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
-                 echo: Callable[[str], None] | None = None, markers: bool = False) -> None:
+                 echo: Callable[[str], None] | None = None, markers: bool = False,
+                 robot: str | None = '') -> None:
         self.echo = echo
         self.domain_id = domain_id
         self.markers = markers   # markers_node is in the graph: it must have every goal
@@ -96,18 +101,14 @@ class Orchestrator:
         self.latest_odometry: tuple[float, float, float, float] | None = None
         self.odometry: deque[tuple[float, float, float, float]] = deque(maxlen=ODOMETRY_KEPT)
         self.statuses: list[dict[str, str]] = []
-        self.node.create_subscription(DiagnosticStatus, CONTROLLER_STATUS_TOPIC, self._on_status,
-                                      STATUS_QOS)
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
-        self.goal_publisher = self.node.create_publisher(PoseStamped, GOAL_TOPIC, 10)
+        self.goal_publisher: Publisher | None = None
         self.recorder_ready = False
         self.recorder_received_s = -1.0   # how far the recorder has every tick topic
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
         self.camera_statuses: list[str] = []
-        self.node.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC,
-                                      self._on_camera_status, STATUS_QOS)
         self.recorder_failure: str | None = None
         self.node.create_subscription(DiagnosticStatus, RECORDER_STATUS_TOPIC,
                                       self._on_recorder_status, STATUS_QOS)
@@ -115,13 +116,28 @@ class Orchestrator:
         self.respawns = Respawns(self)
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
-        self.node.create_subscription(Odometry, orchestration_odometry_topic(follow_route),
-                                      self._on_odometry, DATA_QOS)
+        if robot is not None:
+            self._follow(robot, follow_route)
+
+    def _follow(self, robot: str, follow_route: bool) -> None:
+        """The endpoints of the robot it drives: its goal, its controller's and camera's
+        statuses, its odometry (and, ``follow_route``, its captures)."""
+        node = self.node
+        node.create_subscription(DiagnosticStatus,
+                                 namespaced_topic(robot, CONTROLLER_STATUS_TOPIC),
+                                 self._on_status, STATUS_QOS)
+        self.goal_publisher = node.create_publisher(PoseStamped,
+                                                    namespaced_topic(robot, GOAL_TOPIC), 10)
+        node.create_subscription(DiagnosticStatus, namespaced_topic(robot, CAMERA_STATUS_TOPIC),
+                                 self._on_camera_status, STATUS_QOS)
+        node.create_subscription(
+            Odometry, namespaced_topic(robot, orchestration_odometry_topic(follow_route)),
+            self._on_odometry, DATA_QOS)
         if follow_route:
             for camera, topic in CAPTURE_TOPICS.items():
-                self.node.create_subscription(
-                    PoseStamped, topic, functools.partial(self._on_capture, camera=camera),
-                    CAPTURE_QOS)
+                node.create_subscription(
+                    PoseStamped, namespaced_topic(robot, topic),
+                    functools.partial(self._on_capture, camera=camera), CAPTURE_QOS)
 
     def _on_camera_status(self, msg: DiagnosticStatus) -> None:
         self.camera_statuses.append(msg.message)
@@ -222,6 +238,9 @@ class Orchestrator:
         Every reader of /goal_pose has it before this returns (DDS acknowledged it), so that
         markers_node draws it in the same array every run, whatever the machine's load."""
         publisher = self.goal_publisher
+        if publisher is None:
+            raise RunFailed('this orchestration drives a fleet: its goals go to each robot '
+                            '(FleetMonitor.give)')
         deadline = time.monotonic() + timeout_s
         self.wait_for_goal_readers(graph, publisher, '/', recording, deadline, timeout_s)
         self.goal_stamp_s = stamp_s
