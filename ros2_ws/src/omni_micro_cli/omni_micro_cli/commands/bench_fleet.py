@@ -64,11 +64,11 @@ def one_run(count: int, composed: bool, containers: int | None, seed: int, sim_s
             scratch: Path) -> GraphResult:
     from omni_micro_bringup.graph import run_graph
     from omni_micro_bringup.graph_options import FleetRun, GraphOptions
+    from omni_micro_cli.commands.fleet import planned
     from omni_micro_control.fleet_files import fleet_from
-    from omni_micro_control.fleet_plan import plan_fleet
 
     fleet = fleet_from(str(count), None, 1, seed)
-    plan = plan_fleet(fleet.starts_m, fleet.tasks, seed=seed)
+    plan = planned(fleet, seed)
     return run_graph(GraphOptions(
         seed=seed, real_time_factor=math.inf, log_dir=scratch / 'logs', timeout_s=RUN_TIMEOUT_S,
         markers=False, composed=composed, containers=containers,
