@@ -114,8 +114,8 @@ def test_tracker_node_reads_images_only_once_the_capture_readers_are_matched(con
 
 
 def test_tracker_node_reads_images_only_once_the_servos_motion_reader_is_matched(context):
-    """A servo acts on the captures in motion: one sent before its reader was matched was lost
-    to it (beside busy processes, three servos each counted one capture fewer than the bag)."""
+    """A servo acts on the captures in motion: one sent before its reader is matched would be
+    lost to it (reliable, volatile)."""
     assert_reads_input_only_once_matched(
         context, TrackerNode(context=context, parameter_overrides=overrides(
             cameras=['macro'], captures_in_motion=True, motion_readers=['controller_node'])),

@@ -107,7 +107,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
                                          for namespace in namespaces
                                          for name in ('controller_node', 'markers_node')
                                          if name in present], present, servos,
-                               in_motion=any(ns in wiring.in_motion for ns in namespaces))
+                               in_motion=all(ns in wiring.in_motion for ns in namespaces))
 
     if spec.executable == 'dynamics_node':
         # Time 0 waits until the orchestration has seen every node listening.
@@ -314,11 +314,13 @@ def capture_readers(options: GraphOptions, readers: list[str], present: set[str]
     ``covariance_readers`` and ``motion_readers`` in this graph: ``readers`` (the controllers
     and markers_nodes it captures for, each as its node is named) on the bare topics if the
     controller's ``capture_uncertainty`` is ``fixed``, else on those with the covariance;
-    ``servos`` on the captures in motion; the recorder, if ``present``, on all of them (those in
-    motion if the camera publishes them, ``in_motion``)."""
+    ``servos`` on the captures in motion; the recorder, if ``present``, on all of them, those in
+    motion if it records them for every robot the camera captures (``in_motion``: a tracker
+    shared by a servo and a robot of another mode publishes both robots' captures in motion,
+    and the recorder reads the servo's alone)."""
     fixed = node_parameters('controller_node', options.params_files, options.controller_overrides
                             ).get('capture_uncertainty', 'covariance') == 'fixed'
     recorder = ['bag_recorder'] if 'bag_recorder' in present else []
     return {'capture_readers': (readers if fixed else []) + recorder,
             'covariance_readers': ([] if fixed else readers) + recorder,
-            'motion_readers': servos + recorder if in_motion else []}
+            'motion_readers': servos + (recorder if in_motion else [])}
