@@ -26,6 +26,14 @@ def qualified_node_name(namespace: str, name: str) -> str:
     return f'{namespace}/{name}' if namespace else name
 
 
+def nodes_of_robot(robot: str, names: Sequence[str]) -> list[str]:
+    """Which of ``names`` (each as :func:`qualified_node_name` gives it) are robot ``robot``'s:
+    those in its namespace, then those outside every robot's namespace (a recorder, a watcher
+    of all robots), which are every robot's."""
+    return ([name for name in names if name.startswith(f'{robot}/')]
+            + [name for name in names if '/' not in name])
+
+
 class LockstepGroups:
     """The lockstep of ``robots`` (namespaces, e.g. ``['robot_0', 'robot_1']``) over ``nodes``.
 
@@ -40,15 +48,13 @@ class LockstepGroups:
                  max_lead_ns: int) -> None:
         self.robots = tuple(robots)
         self.nodes = tuple(dict.fromkeys(name for name in nodes if name))
-        shared = [name for name in self.nodes if '/' not in name]
         strangers = [name for name in self.nodes
                      if '/' in name and name.split('/', 1)[0] not in self.robots]
         if strangers:
             raise LockstepError(f'lockstep nodes {strangers} are in no robot\'s namespace '
                                 f'({list(self.robots)})')
-        self.gates = {robot: LockstepGate(
-            [name for name in self.nodes if name.startswith(f'{robot}/')] + shared,
-            period_ns, max_lead_ns) for robot in self.robots}
+        self.gates = {robot: LockstepGate(nodes_of_robot(robot, self.nodes), period_ns,
+                                          max_lead_ns) for robot in self.robots}
         self.period_ns = period_ns
         # Each node's reports go to the gates it takes part in only (a shared node's to all).
         self._gates_of = {node: [gate for gate in self.gates.values() if node in gate.nodes]

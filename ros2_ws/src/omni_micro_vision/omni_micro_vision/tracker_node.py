@@ -56,7 +56,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import PLATFORM_FRAME, join_stamp, stamp_ns
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.lockstep_groups import qualified_node_name
+from omni_micro_common.lockstep_groups import nodes_of_robot, qualified_node_name
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
@@ -205,12 +205,8 @@ class TrackerNode(Node):
         # robot's (a recorder's).
         if self.robots:
             names = capture_reader_names(self)
-
-            def of_robot(robot: str, readers: list[str]) -> list[str]:
-                return [name for name in readers if name.startswith(f'{robot}/')
-                        or '/' not in name]
             when_readers_matched(self, [
-                (publisher, of_robot(robot, readers))
+                (publisher, nodes_of_robot(robot, readers))
                 for robot, code in self.robots.items() for reader in self.readers
                 for publisher, readers in zip(
                     (*self.robot_publishers[code, reader.name],
