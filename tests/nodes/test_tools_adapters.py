@@ -13,6 +13,7 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from visualization_msgs.msg import Marker, MarkerArray
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
@@ -154,6 +155,38 @@ def test_bag_recorder_records_each_robot_of_a_fleet_and_says_how_far_it_has_all(
         node.close()
         node.destroy_node()
     assert sorted(read_bag(tmp_path / 'bag').timestamps) == sorted(topics)
+
+
+@pytest.mark.parametrize('log_clock', ['sim', 'wall'])
+def test_bag_recorder_has_received_up_to_the_markers_drawn_behind_the_odometry(
+        context, tmp_path, log_clock):
+    """On the simulated clock the markers' arrays, drawn behind the odometry, count in how far
+    the recorder has everything (what whoever stops the graph waits for); an empty array says
+    nothing. On the wall clock (the bench) they do not count."""
+    topics = ['/clock', '/odom', '/joint_states', '/wheel_slip', '/markers']
+    node = BagRecorder(context=context, parameter_overrides=overrides(
+        bag=str(tmp_path / 'bag'), topics=topics, log_clock=log_clock))
+
+    def markers_at(sec: int, nanosec: int, empty: bool = False) -> None:
+        array = MarkerArray(markers=[] if empty else [Marker(), Marker()])
+        for marker in array.markers:
+            marker.header.stamp.sec, marker.header.stamp.nanosec = sec, nanosec
+        node._writer_of('/markers')(serialize_message(array))
+    try:
+        for topic in topics[:4]:
+            kind = Clock if topic == '/clock' else Odometry if topic == '/odom' else JointState
+            message = kind()
+            (message.clock if kind is Clock else message.header.stamp).sec = 15
+            node._writer_of(topic)(serialize_message(message))
+        markers_at(14, 500_000_000)
+        markers_at(0, 0, empty=True)
+        received_ns = min(node._tick_stamps_ns.values())
+        assert received_ns == (14_500_000_000 if log_clock == 'sim' else 15_000_000_000)
+        markers_at(15, 200_000_000)
+        assert min(node._tick_stamps_ns.values()) == 15_000_000_000
+    finally:
+        node.close()
+        node.destroy_node()
 
 
 def test_bag_recorder_never_records_over_an_existing_folder(context, tmp_path):

@@ -363,8 +363,8 @@ class Orchestrator:
 
     def wait_for_recorder_past(self, graph: Supervisor, stamp_s: float,
                                timeout_s: float) -> None:
-        """Until the recorder has received every tick topic up to ``stamp_s``: stopped sooner,
-        a recorder behind a busy graph would lose what was still on its way."""
+        """Until the recorder has every tick topic (simulated, the markers too) up to ``stamp_s``:
+        stopped sooner, a recorder behind a busy graph would lose what was on its way."""
         deadline = time.monotonic() + timeout_s
         while self.recorder_received_s < stamp_s:
             graph.check_alive()
