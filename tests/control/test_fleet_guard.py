@@ -68,6 +68,45 @@ def test_captures_that_arrive_late_stop_the_robots_sooner_by_their_age(latency_s
     assert f'seen {latency_s:.2f} s ago' in stop.reason
 
 
+def stalled_tracker(wheels_turn):
+    """Robot 1 driven at cruise at robot 0, which stands; frames 15 Hz, each capture arriving
+    0.45 s after its stamp until the tracker stalls on the frames from 0.5 s (it catches up at
+    2 s). Checked every 20 ms, each robot's wheels reported then (robot 1's turning, if
+    ``wheels_turn``): the first stop, and when."""
+    guard = FleetGuard(2)
+    latency_s = 0.45
+    stamps = [frame * FRAME_S for frame in range(40)]
+    arrivals = sorted((t + latency_s if t < 0.5 else 2.0, t) for t in stamps)
+    for tick in range(120):
+        now = tick * WHEELS_S
+        while arrivals and arrivals[0][0] <= now:
+            arrived, t = arrivals.pop(0)
+            guard.saw(0, t, 0.0, 0.0, arrived_s=arrived)
+            guard.saw(1, t, 0.030 - CRUISE_M_S * t, 0.0, arrived_s=arrived)
+        if wheels_turn:
+            guard.wheels(0, False, arrived_s=now)
+            guard.wheels(1, True, arrived_s=now)
+        stop = guard.check(now, stamps_now_s=now)
+        if stop is not None:
+            return stop, now
+    return None, None
+
+
+def test_a_robot_whose_wheels_turn_goes_on_in_the_guard_s_eyes_while_its_captures_stall():
+    """Its captures stalled, a robot whose wheels turn is taken to drive on as they last said,
+    however old they grow: stopped with the horizon's room left (once, cut off at 0.5 s, it
+    drove on unstopped until the next capture, and touched)."""
+    stop, at = stalled_tracker(wheels_turn=True)
+    assert stop is not None and stop.kind == 'proximity' and stop.robots == (0, 1)
+    gap_when_sent = 0.030 - CRUISE_M_S * at
+    reach = STOP_GAP_M + CRUISE_M_S * HORIZON_S
+    assert reach - CRUISE_M_S * WHEELS_S <= gap_when_sent < reach
+    assert at < 2.0 and 'seen 0.7' in stop.reason
+    # Without word that its wheels turn, its velocity holds 0.5 s: the stop waits for news.
+    stop, at = stalled_tracker(wheels_turn=False)
+    assert stop is not None and at == pytest.approx(2.0)
+
+
 def test_two_robots_head_on_are_stopped_sooner():
     guard = FleetGuard(2)
     stop, at = drive(guard, {0: lambda t: (CRUISE_M_S * t, 0.0),

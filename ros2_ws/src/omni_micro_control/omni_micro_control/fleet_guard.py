@@ -184,16 +184,23 @@ class FleetGuard:
                     f'{robot_name(robot)} drove unnamed by the cameras for '
                     f'{blind_s:.2f} s (over {self.unnamed_s:g} s; {last})'))
         for a, b in itertools.combinations(sorted(self._seen), 2):
-            age = 0.0 if stamps_now_s is None else min(
-                max(stamps_now_s - self._later(a, b), 0.0), VELOCITY_SPAN_S)
-            gap, closing = self.projected_gap(a, b, age + self.horizon_s)
+            age = 0.0 if stamps_now_s is None else max(stamps_now_s - self._later(a, b), 0.0)
+            # A robot whose wheels turn goes on as its captures said however old they are; of
+            # another, the velocity holds no longer than VELOCITY_SPAN_S (it may have stopped).
+            # Capped for both, captures that came 0.5 s late and then stalled froze the
+            # projection while a jogged robot drove on: stopped 10.5 mm apart, it touched.
+            turning = {robot for robot in (a, b) if self._turning(robot, now_s)}
+            ahead_s = {robot: (age if robot in turning else min(age, VELOCITY_SPAN_S))
+                       + self.horizon_s for robot in (a, b)}
+            gap, closing = self.projected_gap(a, b, ahead_s, turning)
             if gap < self.stop_gap_m:
                 now_gap = math.dist(*(_position_at(self._seen[r], self._later(a, b))[:2]
                                       for r in (a, b)))
                 return GuardStop('proximity', (a, b), (
                     f'{robot_name(a)} and {robot_name(b)} {now_gap * 1e3:.2f} mm apart, '
                     f'closing at {closing * 1e3:.1f} mm/s: under {self.stop_gap_m * 1e3:g} mm '
-                    f'within {age + self.horizon_s:.2f} s (9 mm discs; seen {age:.2f} s ago)'))
+                    f'within {max(ahead_s.values()):.2f} s (9 mm discs; seen {age:.2f} s '
+                    'ago)'))
         return None
 
     def turned_unnamed_s(self, robot: int, now_s: float, named_s: float) -> float:
@@ -207,26 +214,46 @@ class FleetGuard:
             turned_s += max(now_s - max(wheels.reported_s, named_s), 0.0)
         return turned_s
 
-    def projected_gap(self, a: int, b: int, ahead_s: float) -> tuple[float, float]:
-        """The closest robots ``a`` and ``b`` come within ``ahead_s`` from their latest
-        captures (both taken to the later's stamp), and how fast they close now."""
+    def _turning(self, robot: int, now_s: float) -> bool:
+        """Whether ``robot``'s wheels turn, as its driver said within ``unnamed_s``."""
+        wheels = self._wheels.get(robot)
+        return wheels is not None and wheels.turning and now_s - wheels.reported_s <= \
+            self.unnamed_s
+
+    def projected_gap(self, a: int, b: int, ahead_s: float | dict[int, float],
+                      turning: set[int] | None = None) -> tuple[float, float]:
+        """The closest robots ``a`` and ``b`` come from their latest captures (both taken to the
+        later's stamp; a robot in ``turning`` however far), each moving on for its ``ahead_s``
+        (one for both, or each robot's), and how fast they close now."""
         at = self._later(a, b)
-        pa, pb = _position_at(self._seen[a], at), _position_at(self._seen[b], at)
+        moves = ahead_s if isinstance(ahead_s, dict) else {a: ahead_s, b: ahead_s}
+        pa, pb = (_position_at(self._seen[r], at, math.inf if r in (turning or ()) else
+                               VELOCITY_SPAN_S) for r in (a, b))
         px, py = pa[0] - pb[0], pa[1] - pb[1]
-        vx = self._seen[a].vx_m_s - self._seen[b].vx_m_s
-        vy = self._seen[a].vy_m_s - self._seen[b].vy_m_s
+        va, vb = ((self._seen[r].vx_m_s, self._seen[r].vy_m_s) for r in (a, b))
         distance = math.hypot(px, py)
+        vx, vy = va[0] - vb[0], va[1] - vb[1]
         closing = -(px * vx + py * vy) / distance if distance > 0 else 0.0
-        speed2 = vx * vx + vy * vy
-        t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), ahead_s)
-        return math.hypot(px + vx * t, py + vy * t), closing
+        # Both move until the sooner stops, then the other alone until it stops.
+        closest = distance
+        start = 0.0
+        for end in sorted({moves[a], moves[b]}):
+            vx = (va[0] if moves[a] > start else 0.0) - (vb[0] if moves[b] > start else 0.0)
+            vy = (va[1] if moves[a] > start else 0.0) - (vb[1] if moves[b] > start else 0.0)
+            span = max(end - start, 0.0)
+            speed2 = vx * vx + vy * vy
+            t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), span)
+            closest = min(closest, math.hypot(px + vx * t, py + vy * t))
+            px, py, start = px + vx * span, py + vy * span, max(end, start)
+        return closest, closing
 
     def _later(self, a: int, b: int) -> float:
         return max(self._seen[a].stamp_s, self._seen[b].stamp_s)
 
 
-def _position_at(seen: _Seen, stamp_s: float) -> tuple[float, float]:
+def _position_at(seen: _Seen, stamp_s: float,
+                 holds_s: float = VELOCITY_SPAN_S) -> tuple[float, float]:
     """Where the robot was at ``stamp_s``, on from its latest capture at its velocity (for no
-    longer than a velocity is known to hold)."""
-    ahead = min(max(stamp_s - seen.stamp_s, 0.0), VELOCITY_SPAN_S)
+    longer than it holds: by default, as long as a velocity is known to)."""
+    ahead = min(max(stamp_s - seen.stamp_s, 0.0), holds_s)
     return seen.x_m + seen.vx_m_s * ahead, seen.y_m + seen.vy_m_s * ahead
