@@ -220,15 +220,15 @@ class FleetGuard:
         return wheels is not None and wheels.turning and now_s - wheels.reported_s <= \
             self.unnamed_s
 
-    def projected_gap(self, a: int, b: int, ahead_s: float | dict[int, float],
-                      turning: set[int] | None = None) -> tuple[float, float]:
+    def projected_gap(self, a: int, b: int, ahead_s: dict[int, float],
+                      turning: set[int]) -> tuple[float, float]:
         """The closest robots ``a`` and ``b`` come from their latest captures (both taken to the
-        later's stamp; a robot in ``turning`` however far), each moving on for its ``ahead_s``
-        (one for both, or each robot's), and how fast they close now."""
+        later's stamp; a robot in ``turning`` however far), each moving on for its
+        ``ahead_s``, and how fast they close now."""
         at = self._later(a, b)
-        moves = ahead_s if isinstance(ahead_s, dict) else {a: ahead_s, b: ahead_s}
-        pa, pb = (_position_at(self._seen[r], at, math.inf if r in (turning or ()) else
-                               VELOCITY_SPAN_S) for r in (a, b))
+        moves = ahead_s
+        pa, pb = (_position_at(self._seen[r], at, math.inf if r in turning else VELOCITY_SPAN_S)
+                  for r in (a, b))
         px, py = pa[0] - pb[0], pa[1] - pb[1]
         va, vb = ((self._seen[r].vx_m_s, self._seen[r].vy_m_s) for r in (a, b))
         distance = math.hypot(px, py)
