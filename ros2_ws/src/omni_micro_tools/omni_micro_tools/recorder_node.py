@@ -226,9 +226,9 @@ class BagRecorder(Node):
                 self._writing_failed(error)
                 return
             self.counts[topic] += 1
-            if topic in self._tick_stamps_ns:
-                self._tick_stamps_ns[topic] = max(self._tick_stamps_ns[topic],
-                                                  _stamp_ns(topic, data))
+            stamp_ns = _stamp_ns(topic, data) if topic in self._tick_stamps_ns else -1
+            if stamp_ns >= 0:
+                self._tick_stamps_ns[topic] = stamp_ns
                 if self.lockstep_ticks:
                     self._report_recorded()
             if topic in self._frames_written:
