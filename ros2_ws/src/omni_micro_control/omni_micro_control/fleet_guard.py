@@ -226,7 +226,6 @@ class FleetGuard:
         later's stamp; a robot in ``turning`` however far), each moving on for its
         ``ahead_s``, and how fast they close now."""
         at = self._later(a, b)
-        moves = ahead_s
         pa, pb = (_position_at(self._seen[r], at, math.inf if r in turning else VELOCITY_SPAN_S)
                   for r in (a, b))
         px, py = pa[0] - pb[0], pa[1] - pb[1]
@@ -237,9 +236,9 @@ class FleetGuard:
         # Both move until the sooner stops, then the other alone until it stops.
         closest = distance
         start = 0.0
-        for end in sorted({moves[a], moves[b]}):
-            vx = (va[0] if moves[a] > start else 0.0) - (vb[0] if moves[b] > start else 0.0)
-            vy = (va[1] if moves[a] > start else 0.0) - (vb[1] if moves[b] > start else 0.0)
+        for end in sorted({ahead_s[a], ahead_s[b]}):
+            vx = (va[0] if ahead_s[a] > start else 0.0) - (vb[0] if ahead_s[b] > start else 0.0)
+            vy = (va[1] if ahead_s[a] > start else 0.0) - (vb[1] if ahead_s[b] > start else 0.0)
             span = max(end - start, 0.0)
             speed2 = vx * vx + vy * vy
             t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), span)

@@ -62,13 +62,20 @@ def _stamp_at(data: bytes, offset: int) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+def marker_array_stamp_ns(data: bytes) -> int | None:
+    """The time of a serialized MarkerArray: its first marker's stamp (after the array's
+    length), None for an empty array."""
+    (count,) = struct.unpack_from('<I' if data[1] & 1 else '>I', data, 4)
+    return _stamp_at(data, 8) if count else None
+
+
 def event_time_ns(msgtype: str, data: bytes, decoded: Any) -> int | None:
     """The simulated time a message belongs to (see the module docstring), None if it says none.
     ``decoded`` is the message as rosbags decodes it (used where bytes do not say it plainly)."""
     if msgtype in HEADER_FIRST or msgtype == CLOCK_TYPE:
         return _stamp_at(data, 4)    # after the 4-byte CDR encapsulation
     if msgtype == MARKERS_TYPE:
-        return _stamp_at(data, 8) if decoded.markers else None   # after the array's length
+        return marker_array_stamp_ns(data)
     if msgtype == STATUS_TYPE:
         for item in decoded.values:
             if item.key == STATUS_TIME_KEY:

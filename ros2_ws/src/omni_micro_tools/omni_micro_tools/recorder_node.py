@@ -37,6 +37,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMessage
 
+from omni_micro_common.cdr import header_stamp_ns
 from omni_micro_common.clocks import describe_clock, is_wall_clock
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
@@ -54,7 +55,7 @@ from omni_micro_common.topic_names import (
     RECORDER_STATUS_TOPIC,
     WHEEL_SLIP_TOPIC,
 )
-from omni_micro_tools.bag_order import Ordered
+from omni_micro_tools.bag_order import Ordered, marker_array_stamp_ns
 from omni_micro_tools.bags import STORAGES, finish_in_order, flush, open_writer
 from omni_micro_tools.errors import BagPathError
 from omni_micro_tools.topics import (
@@ -183,9 +184,7 @@ class BagRecorder(Node):
                                                 latched(1))
         self._announced = False
         # The latest stamp received per tick topic, and what was last said of their minimum.
-        received = TICK_TOPICS if self.wall_clock else (*TICK_TOPICS, *DRAWN_TOPICS)
-        self._tick_stamps_ns = {topic: -1 for topic in topics
-                                if robot_and_topic(topic)[1] in received}
+        self._tick_stamps_ns = {topic: -1 for topic in topics if self._stamp_reader(topic)}
         self._said_up_to_ns = -1
         self._every_tick = [topic for topic in self._tick_stamps_ns
                             if robot_and_topic(topic)[1] in EVERY_TICK_TOPICS]
@@ -210,9 +209,20 @@ class BagRecorder(Node):
             return
         self._clock_ns = max(self._clock_ns, clock_ns)
 
+    def _stamp_reader(self, topic: str) -> Callable[[bytes], int | None] | None:
+        """How to read the stamp of ``topic``'s raw messages, if it counts in how far the
+        recorder has received: a tick topic's; on the simulated clock, a drawn topic's."""
+        kind = robot_and_topic(topic)[1]
+        if kind in TICK_TOPICS:
+            return header_stamp_ns
+        if kind in DRAWN_TOPICS and not self.wall_clock:
+            return marker_array_stamp_ns
+        return None
+
     def _writer_of(self, topic: str) -> Callable[[bytes], None]:
         connection = self.connections[topic]
         clock = topic == CLOCK_TOPIC
+        stamp_of = self._stamp_reader(topic)
 
         def on_message(data: bytes) -> None:
             if clock:
@@ -226,8 +236,8 @@ class BagRecorder(Node):
                 self._writing_failed(error)
                 return
             self.counts[topic] += 1
-            stamp_ns = _stamp_ns(topic, data) if topic in self._tick_stamps_ns else -1
-            if stamp_ns >= 0:
+            stamp_ns = stamp_of(data) if stamp_of is not None else None
+            if stamp_ns is not None:
                 self._tick_stamps_ns[topic] = stamp_ns
                 if self.lockstep_ticks:
                     self._report_recorded()
@@ -317,20 +327,6 @@ class BagRecorder(Node):
             # The bag stays complete, in arrival order: readable, only not the same every run.
             self.finish_failure = (f'could not put {str(self.bag)!r} in the order of simulated '
                                    f'time ({error.strerror or error}): it stays as received')
-
-
-def _stamp_ns(topic: str, data: bytes) -> int:
-    """The stamp of a raw (CDR, little-endian) message of a tick or drawn topic: its header's
-    (its first field, after the 4-byte encapsulation), or a MarkerArray's first marker's (after
-    the sequence's length); -1 for an empty array."""
-    offset = 4
-    if robot_and_topic(topic)[1] in DRAWN_TOPICS:
-        (count,) = struct.unpack_from('<I', data, 4)
-        if not count:
-            return -1
-        offset = 8
-    sec, nanosec = struct.unpack_from('<iI', data, offset)
-    return sec * 1_000_000_000 + nanosec
 
 
 def report_and_close(recorder: BagRecorder) -> None:
