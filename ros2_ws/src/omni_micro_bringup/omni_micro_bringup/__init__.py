@@ -18,7 +18,8 @@ several), :mod:`graph_result` (what a run returns), :mod:`goal_sequence` (a sing
 handed one after another), :mod:`graph_description` (who
 publishes and subscribes what, as rqt_graph shows it), :mod:`orchestrator` (the orchestrator's
 own node: the goal, the clock, the outcome), :mod:`respawns` (a respawned node brought back
-mid-run), :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
+mid-run), :mod:`recorder_watch` (what the orchestrator reads of the bag recorder),
+:mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
 robots, :mod:`robot_namespaces` (each robot's nodes in its namespace) and

@@ -215,7 +215,7 @@ class FleetDispatch:
                     monitor.respawns.bring_back_robots(graph, restarted, driving, seen)
                     continue
                 monitor.respawns.watch_new_cameras(graph, driving)
-                monitor.check_recorder()
+                monitor.recorder.check()
                 monitor.spin_for(0.02)
                 continue
             robot, status = monitor.fleet_statuses[seen]
@@ -273,7 +273,7 @@ class FleetDispatch:
         if options.record is not None:
             # The bag ends BAG_TAIL_S after the last end: all of it received before the stop
             # (and the markers' arrays up to there drawn: they lag the odometry).
-            monitor.wait_for_recorder_past(
+            monitor.recorder.wait_past(
                 graph, now_s + BAG_TAIL_S + (RUN_ON_PAST_BAG_END_S if options.markers else 0.0),
                 timeout_s=60.0)
         gap, pair = closest_approach(logs)

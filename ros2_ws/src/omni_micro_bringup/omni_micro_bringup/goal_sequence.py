@@ -111,7 +111,7 @@ class GoalSequence:
                 # markers' arrays included, is published before the graph stops.
                 run_to_s = goal_stamp_s + BAG_TAIL_S + RUN_ON_PAST_BAG_END_S
                 monitor.wait_for_odometry_after(graph, run_to_s, timeout_s=30.0)
-                monitor.wait_for_recorder_past(graph, run_to_s, timeout_s=60.0)
+                monitor.recorder.wait_past(graph, run_to_s, timeout_s=60.0)
         else:
             # A real robot's true pose is nobody's to know: where the camera saw it last.
             odom = (capture_stamp, float(status.get('measured_x_m', 'nan')),
@@ -119,7 +119,7 @@ class GoalSequence:
                     float(status.get('measured_phi_rad', 'nan')))
             if recording:
                 # The bag's tail: the stop and the robot's wheels coming to rest.
-                monitor.wait_for_recorder_past(graph, goal_stamp_s + BAG_TAIL_S,
+                monitor.recorder.wait_past(graph, goal_stamp_s + BAG_TAIL_S,
                                                timeout_s=60.0)
         return GraphResult(
             outcome=status['outcome'], reason=status.get('reason', ''),

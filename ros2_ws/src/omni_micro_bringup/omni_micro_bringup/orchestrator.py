@@ -35,6 +35,7 @@ from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odom
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.readiness import Readiness
+from omni_micro_bringup.recorder_watch import RecorderWatch
 from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
@@ -48,11 +49,9 @@ from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
-    RECORDER_STATUS_TOPIC,
     namespaced_topic,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
-from omni_micro_tools.topics import RECEIVED_UP_TO_KEY
 
 # How many of the latest odometry samples the orchestrator keeps (80 s of simulated time at 50 Hz):
 # the status naming the outcome's capture reaches this process after its sample, by far less.
@@ -103,15 +102,11 @@ class Orchestrator:
         self.statuses: list[dict[str, str]] = []
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
         self.goal_publisher: Publisher | None = None
-        self.recorder_ready = False
-        self.recorder_received_s = -1.0   # how far the recorder has every tick topic
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
         self.camera_statuses: list[str] = []
-        self.recorder_failure: str | None = None
-        self.node.create_subscription(DiagnosticStatus, RECORDER_STATUS_TOPIC,
-                                      self._on_recorder_status, STATUS_QOS)
+        self.recorder = RecorderWatch(self.node, self.spin_for)
         self.route: list[tuple[float, float, float]] = []
         self.respawns = Respawns(self)
         self.captures: list[tuple[float, float, float, str]] = []
@@ -155,23 +150,6 @@ class Orchestrator:
         if self._following:
             self.route.append(self.latest_odometry[:3])
 
-    def _on_recorder_status(self, msg: DiagnosticStatus) -> None:
-        self.recorder_ready = self.recorder_ready or msg.message == 'recording'
-        received = {item.key: item.value for item in msg.values}.get(RECEIVED_UP_TO_KEY)
-        if received is not None:
-            self.recorder_received_s = max(self.recorder_received_s, float(received))
-        if msg.level == DiagnosticStatus.ERROR:
-            self.recorder_failure = {item.key: item.value for item in msg.values}.get(
-                'reason', msg.message)
-
-    def check_recorder(self) -> None:
-        """A recorder that cannot write (a full disk) stops the run: a run without its bag is
-        not what was asked for."""
-        if self.recorder_failure is not None:
-            raise RunFailed(f'bag_recorder {self.recorder_failure}; the run was stopped and the '
-                            'bag keeps what was written (omni-micro bag-recover BAG --out DIR, '
-                            'on a disk with room, makes it readable)')
-
     def _on_status(self, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
         values['message'] = msg.message
@@ -207,7 +185,7 @@ class Orchestrator:
                 if not any(info.node_name == 'markers_node' for info in
                            self.node.get_subscriptions_info_by_topic(goals)):
                     missing.append(f'(markers_node: not reading {goals} yet)')
-            if ready.recording and not self.recorder_ready:
+            if ready.recording and not self.recorder.ready:
                 missing.append('(the recorder: not matched to every publisher, or no driver '
                                'frame written, yet)')
             if not missing and not silent and \
@@ -326,7 +304,7 @@ class Orchestrator:
         while True:
             # A dead node is the cause, whatever the controller concluded since.
             restarted = graph.check_alive()
-            self.check_recorder()
+            self.recorder.check()
             if restarted:
                 self.respawns.bring_back(graph, restarted, goal, recording)
             for status in self.statuses[self.goal_sent_at:]:
@@ -360,20 +338,6 @@ class Orchestrator:
                 raise RunFailed(f'no odometry at or after t={stamp_s:.3f} s from dynamics_node')
             self.spin_for(0.05)
         return first_sample_at_or_after(self.odometry, stamp_s)
-
-    def wait_for_recorder_past(self, graph: Supervisor, stamp_s: float,
-                               timeout_s: float) -> None:
-        """Until the recorder has every tick topic (simulated, the markers too) up to ``stamp_s``:
-        stopped sooner, a recorder behind a busy graph would lose what was on its way."""
-        deadline = time.monotonic() + timeout_s
-        while self.recorder_received_s < stamp_s:
-            graph.check_alive()
-            self.check_recorder()
-            if time.monotonic() > deadline:
-                raise RunFailed(f'the recorder received the robot\'s streams only up to '
-                                f'{self.recorder_received_s:.3f} s, not {stamp_s:.3f} s, within '
-                                f'{timeout_s:g} s')
-            self.spin_for(0.05)
 
     def close(self) -> None:
         self.executor.shutdown()
