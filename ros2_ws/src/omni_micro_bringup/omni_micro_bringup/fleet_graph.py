@@ -212,7 +212,7 @@ class FleetDispatch:
                     # Brought back once every status read so far is handled: a leg that
                     # ended meanwhile is not given again.
                     restarted, graph.restarted = graph.restarted, []
-                    monitor.respawns.bring_back_robots(graph, restarted, driving, seen)
+                    monitor.respawns.bring_back(graph, restarted, driving, seen)
                     continue
                 monitor.respawns.watch_new_cameras(graph, driving)
                 monitor.recorder.check()

@@ -26,7 +26,7 @@ from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
 )
-from omni_micro_bringup.respawns import FleetRespawns
+from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -54,10 +54,9 @@ class FleetMonitor(Orchestrator):
     def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
                  recording: bool = False, markers: bool = False,
                  respawnable: list[str] | None = None) -> None:
-        super().__init__(domain_id, echo=echo, markers=markers, robot=None)
-        self.respawns: FleetRespawns = FleetRespawns(self, respawnable or [])
+        super().__init__(domain_id, echo=echo, markers=markers, robot=None, recording=recording)
+        self.respawns = Respawns(self, respawnable or [])
         self.count = count
-        self.recording = recording   # the recorder must have every goal, as each controller
         self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
         self.robots = [RobotLog() for _ in range(count)]
         self.goal_publishers = [self.node.create_publisher(
@@ -94,6 +93,17 @@ class FleetMonitor(Orchestrator):
         self.robots[robot].route.append((
             join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec), pose.position.x,
             pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
+
+    def robot_statuses(self) -> list[tuple[int, dict[str, str]]]:
+        return self.fleet_statuses
+
+    def give_again(self, graph: Supervisor, robot: int, goal: GoalOrder) -> None:
+        """The leg under way again, stamped with the end it follows, as before."""
+        if self.echo:
+            x_mm, y_mm = (v * 1e3 for v in goal.goal_m)
+            self.echo(f'[orchestration] {robot_name(robot)}\'s leg to ({x_mm:g}, {y_mm:g}) mm '
+                      'given again, from where it stands')
+        self.give(graph, goal)
 
     def simulated_time_s(self) -> float | None:
         """How far the robots' time has gone, by the latest odometry of any robot."""

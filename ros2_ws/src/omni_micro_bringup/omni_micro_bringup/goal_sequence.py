@@ -65,7 +65,8 @@ class GoalSequence:
 
     def orchestrator(self, domain_id: int) -> Orchestrator:
         self.monitor = Orchestrator(domain_id, follow_route=self.options.follow_route,
-                                    echo=self.options.echo, markers=self.options.markers)
+                                    echo=self.options.echo, markers=self.options.markers,
+                                    recording=self.options.record is not None)
         return self.monitor
 
     def drive(self, graph: RunningProcesses, on_running: Callable[[], None],
@@ -89,13 +90,13 @@ class GoalSequence:
         # The goal at the robot's time: 0 for a simulated one, the wall clock on the bench.
         goal_stamp_s = time.time() if options.external else 0.0
         for index, goal in enumerate(self.goals):
-            monitor.send_goal(graph, goal, recording, stamp_s=goal_stamp_s)
+            monitor.send_goal(graph, goal, stamp_s=goal_stamp_s)
             if index == 0:
                 wall_start = time.monotonic()
                 if simulated_robot:
                     monitor.set_paused(graph, False)
                 on_running()
-            status = monitor.wait_for_outcome(graph, options.timeout_s, goal, recording)
+            status = monitor.wait_for_outcome(graph, options.timeout_s, goal)
             statuses.append(status)
             goal_stamp_s = float(status.get(STATUS_TIME_KEY, goal_stamp_s))
             for name, size in graph.resident_memory_kb().items():

@@ -18,6 +18,7 @@ import os
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -36,7 +37,7 @@ from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.readiness import Readiness
 from omni_micro_bringup.recorder_watch import RecorderWatch
-from omni_micro_bringup.respawns import Respawns
+from omni_micro_bringup.respawns import GOAL_ACKED_WITHIN_S, Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -45,7 +46,6 @@ from omni_micro_common.conventions import (
 from omni_micro_common.goal_message import goal_pose
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
-    CAMERA_STATUS_TOPIC,
     CAPTURE_TOPICS,
     CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
@@ -75,16 +75,17 @@ RUN_ON_PAST_BAG_END_S = 0.4
 
 class Orchestrator:
     """The orchestration's node in ``domain_id``. ``robot``: the namespace of the robot it
-    hands goals to one by one and follows (status, camera, odometry): a single robot's, the
-    root one; None for a fleet's coordinator, which follows each robot on its own topics
+    hands goals to one by one and follows (status, odometry): a single robot's, the root one;
+    None for a fleet's coordinator, which follows each robot on its own topics
     (:class:`~omni_micro_bringup.fleet_orchestrator.FleetMonitor`) and so has none of these.
     With ``follow_route`` it keeps the whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None, markers: bool = False,
-                 robot: str | None = '') -> None:
+                 robot: str | None = '', recording: bool = False) -> None:
         self.echo = echo
         self.domain_id = domain_id
+        self.recording = recording   # the recorder must have every goal, as the controller
         self.markers = markers   # markers_node is in the graph: it must have every goal
         # The graph's Fast DDS profile here too (its announcements are what makes discovery
         # quick), read when this process makes its first participant.
@@ -105,7 +106,6 @@ class Orchestrator:
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
-        self.camera_statuses: list[str] = []
         self.recorder = RecorderWatch(self.node, self.spin_for)
         self.route: list[tuple[float, float, float]] = []
         self.respawns = Respawns(self)
@@ -115,16 +115,14 @@ class Orchestrator:
             self._follow(robot, follow_route)
 
     def _follow(self, robot: str, follow_route: bool) -> None:
-        """The endpoints of the robot it drives: its goal, its controller's and camera's
-        statuses, its odometry (and, ``follow_route``, its captures)."""
+        """The endpoints of the robot it drives: its goal, its controller's statuses, its
+        odometry (and, ``follow_route``, its captures)."""
         node = self.node
         node.create_subscription(DiagnosticStatus,
                                  namespaced_topic(robot, CONTROLLER_STATUS_TOPIC),
                                  self._on_status, STATUS_QOS)
         self.goal_publisher = node.create_publisher(PoseStamped,
                                                     namespaced_topic(robot, GOAL_TOPIC), 10)
-        node.create_subscription(DiagnosticStatus, namespaced_topic(robot, CAMERA_STATUS_TOPIC),
-                                 self._on_camera_status, STATUS_QOS)
         node.create_subscription(
             Odometry, namespaced_topic(robot, orchestration_odometry_topic(follow_route)),
             self._on_odometry, DATA_QOS)
@@ -133,9 +131,6 @@ class Orchestrator:
                 node.create_subscription(
                     PoseStamped, namespaced_topic(robot, topic),
                     functools.partial(self._on_capture, camera=camera), CAPTURE_QOS)
-
-    def _on_camera_status(self, msg: DiagnosticStatus) -> None:
-        self.camera_statuses.append(msg.message)
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
         self.captures.append((join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec),
@@ -205,9 +200,8 @@ class Orchestrator:
         graph.check_alive()
         self.respawns.remember_endpoints()
 
-    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float],
-                  recording: bool = False, timeout_s: float = 30.0, stamp_s: float = 0.0,
-                  acked_within_s: float = GOAL_READERS_MATCH_S) -> None:
+    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], timeout_s: float = 30.0,
+                  stamp_s: float = 0.0, acked_within_s: float = GOAL_READERS_MATCH_S) -> None:
         """Hand the goal to the controller while the clock stands at 0, and wait until it has
         accepted it: timer2 then counts from t = 0 whatever the wall-clock start-up took, and the
         goal is on /goal_pose for a recorder to keep. It is stamped ``stamp_s`` (the first goal
@@ -220,7 +214,7 @@ class Orchestrator:
             raise RunFailed('this orchestration drives a fleet: its goals go to each robot '
                             '(FleetMonitor.give)')
         deadline = time.monotonic() + timeout_s
-        self.wait_for_goal_readers(graph, publisher, '/', recording, deadline, timeout_s)
+        self.wait_for_goal_readers(graph, publisher, '/', self.recording, deadline, timeout_s)
         self.goal_stamp_s = stamp_s
         goal = goal_pose(goal_m, stamp_s)
         seen = len(self.statuses)
@@ -297,16 +291,17 @@ class Orchestrator:
             raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
                             f'dynamics_node: {result}')
 
-    def wait_for_outcome(self, graph: Supervisor, timeout_s: float, goal: tuple[float, float],
-                         recording: bool = False) -> dict[str, str]:
-        """The controller's outcome for the goal sent last (respawning nodes on the way)."""
+    def wait_for_outcome(self, graph: Supervisor, timeout_s: float,
+                         goal: tuple[float, float]) -> dict[str, str]:
+        """The controller's outcome for ``goal``, sent last (respawning nodes on the way)."""
         deadline = time.monotonic() + timeout_s
         while True:
             # A dead node is the cause, whatever the controller concluded since.
             restarted = graph.check_alive()
             self.recorder.check()
             if restarted:
-                self.respawns.bring_back(graph, restarted, goal, recording)
+                self.respawns.bring_back(graph, restarted, {0: goal}, self.goal_sent_at)
+            self.respawns.watch_new_cameras(graph, {0: goal})
             for status in self.statuses[self.goal_sent_at:]:
                 replaced = status.get('reason') == REPLACED_REASON
                 if status['message'] in OUTCOME_NAMES and not replaced:
@@ -316,6 +311,15 @@ class Orchestrator:
                                 f'wall time ({self._robot_time_said()}); logs in '
                                 f'{graph.log_dir}')
             self.spin_for(0.05)
+
+    def robot_statuses(self) -> list[tuple[int, dict[str, str]]]:
+        """Every status of the robot's controller so far: robot 0's, of a fleet of one."""
+        return [(0, status) for status in self.statuses]
+
+    def give_again(self, graph: Supervisor, robot: int, goal: Any) -> None:
+        """The goal (x, y) m again, stamped as before (a respawned node's robot's, robot 0; a
+        fleet's coordinator gives a leg: FleetMonitor)."""
+        self.send_goal(graph, goal, stamp_s=self.goal_stamp_s, acked_within_s=GOAL_ACKED_WITHIN_S)
 
     def simulated_time_s(self) -> float | None:
         """The robot's time as its odometry last said (the orchestration reads one tick in

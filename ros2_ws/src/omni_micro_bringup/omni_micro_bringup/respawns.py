@@ -1,13 +1,14 @@
 """A node respawned in the middle of a run, brought back: the clock held while it comes up, its
-new readers told from the dead process's, the goal given again, and time started anew if it
-stands still (Orchestrator's part in supervision; graph.Graph respawns the process). The same
-for a robot of a fleet (``robot_1.controller_node``): its readers are told in its
-namespace, and the leg it was driving is given again (:class:`FleetRespawns`)."""
+new readers told from the dead process's, the goal its robot was driving to given again (a new
+camera's, until the controller acts on it), and time started anew if it stands still (the
+orchestration's part in supervision; graph.Graph respawns the process). One way for every
+robot: the single robot's nodes (``vision_node``) are robot 0's in the root namespace, a fleet
+robot's (``robot_1.controller_node``) are told in its namespace."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, ClassVar, Protocol
 
 from omni_micro_bringup.composition import READS_FROM_ROBOT
@@ -19,7 +20,6 @@ from omni_micro_common.topic_names import (
     GOAL_TOPIC,
     namespaced_topic,
     robot_index,
-    robot_name,
 )
 from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 
@@ -38,17 +38,13 @@ GOAL_ACKED_WITHIN_S = 0.5
 
 
 class RespawnsHost(Protocol):
-    """What bringing a node back needs of the orchestrator's node
-    (:class:`omni_micro_bringup.orchestrator.Orchestrator`): its ROS node, the clock, the goal
-    and what it has read since."""
+    """What bringing a node back needs of the orchestration's node
+    (:class:`omni_micro_bringup.orchestrator.Orchestrator` for a single robot,
+    :class:`omni_micro_bringup.fleet_orchestrator.FleetMonitor` for a fleet): its ROS node, the
+    clock, the robots' statuses and a way to hand a robot its goal again."""
 
     node: Any
     echo: Callable[[str], None] | None
-    goal_stamp_s: float
-    goal_sent_at: int
-    statuses: list[dict[str, str]]
-    camera_statuses: list[str]
-    latest_odometry: tuple[float, float, float, float] | None
 
     def simulated_time_s(self) -> float | None:
         """How far the robots' time has gone, as this node has read it (None: not yet)."""
@@ -60,9 +56,15 @@ class RespawnsHost(Protocol):
 
     def let_matching_settle(self) -> None: ...
 
-    def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], recording: bool = False,
-                  timeout_s: float = 30.0, stamp_s: float = 0.0,
-                  acked_within_s: float = ...) -> None: ...
+    def robot_statuses(self) -> Sequence[tuple[int, dict[str, str]]]:
+        """Every controller status read so far, in order, with its robot (the single robot is
+        robot 0)."""
+        ...
+
+    def give_again(self, graph: Supervisor, robot: int, goal: Any) -> None:
+        """Hand ``robot`` the goal it was driving to (``goal``, as the caller gave it) again,
+        stamped as before, and wait until its controller has taken it."""
+        ...
 
 
 class Respawns:
@@ -73,6 +75,10 @@ class Respawns:
         # The processes that may be respawned: the single robot's nodes by default.
         self.processes = list(self.INPUTS) if processes is None else processes
         self.known_endpoints: dict[str, set[bytes]] = {}
+        # Robots whose new camera their controller has not acted on yet: [statuses seen when
+        # asked, when asked, times asked again].
+        self.watched: dict[int, list[Any]] = {}
+        self.namespaces: dict[int, str] = {}   # each robot's, as its respawned nodes named it
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
     # controller reads captures with their covariance, or bare ones).
@@ -127,50 +133,64 @@ class Respawns:
         self.monitor.let_matching_settle()
         graph.check_alive()
 
-    def bring_back(self, graph: Supervisor, restarted: list[str], goal: tuple[float, float],
-                    recording: bool) -> None:
-        """A node was respawned: hold the clock while it comes back, then go on from there."""
+    def bring_back(self, graph: Supervisor, restarted: list[str], driving: Mapping[int, Any],
+                   handled_up_to: int) -> None:
+        """Nodes were respawned: hold the clock while they come back, hand each of their robots
+        the goal it was driving to again, and go on from there.
+
+        ``driving``: each robot's goal under way, as :meth:`RespawnsHost.give_again` takes it;
+        ``handled_up_to``: how many of the robots' statuses the orchestration has handled. A
+        robot whose goal ended in a status not handled yet is not given it again (it would end
+        twice). A robot with a new camera is watched until its controller acts on a capture
+        (:meth:`watch_new_cameras`)."""
         self.monitor.set_paused(graph, True)
         self.wait_for_new_processes(graph, restarted)
-        # The goal again: a new controller knows nothing, and an old one may have counted its
-        # capture timeout while the camera was gone. Either starts over from the next stop.
-        self.monitor.send_goal(graph, goal, recording, stamp_s=self.monitor.goal_stamp_s,
-                               acked_within_s=GOAL_ACKED_WITHIN_S)
+        nodes: dict[int, set[str]] = {}
+        for name in restarted:
+            namespace, _, node = name.rpartition('.')
+            # The single robot's nodes are in the root namespace: robot 0 of a fleet of one.
+            index = robot_index(namespace) if namespace else 0
+            if index is not None:
+                nodes.setdefault(index, set()).add(node)
+                self.namespaces[index] = namespace
+        ended = {robot for robot, status in self.monitor.robot_statuses()[handled_up_to:]
+                 if _ends_a_goal(status)}
+        for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
+            # A new controller knows nothing; an old one, its camera gone a while, ends the goal
+            # as replaced and takes it again.
+            since = len(self.monitor.robot_statuses())
+            self.monitor.give_again(graph, robot, driving[robot])
+            if 'vision_node' in nodes[robot]:
+                self.watched[robot] = [since, time.monotonic(), 0]
         self.remember_endpoints()
-        seen = len(self.monitor.camera_statuses)
-        self.resume(graph, restarted)
-        if 'vision_node' in restarted:
-            # Being in the ROS graph does not yet mean the dynamics sends it odometry: wait
-            # for its first capture (its status names the camera), then give the controller
-            # the goal once more, so that no capture timeout ran while the camera was blind.
-            deadline = time.monotonic() + 60.0
-            while not any(message.endswith(' camera')
-                          for message in self.monitor.camera_statuses[seen:]):
-                graph.check_alive()
-                if time.monotonic() > deadline:
-                    raise RunFailed('respawned vision_node published no capture within 60 s')
-                self.monitor.spin_for(0.05)
-            # ... and the controller's reader of captures may match the new writer later
-            # still: give the goal again until the controller acts on a capture.
-            for _ in range(20):
-                self.monitor.send_goal(graph, goal, recording,
-                                       stamp_s=self.monitor.goal_stamp_s,
-                                       acked_within_s=GOAL_ACKED_WITHIN_S)
-                acted_from = self.monitor.goal_sent_at
-                asked_at = time.monotonic()
-                while not self._acted_since(acted_from) and time.monotonic() - asked_at < 3.0:
-                    graph.check_alive()
-                    self.monitor.spin_for(0.05)
-                if self._acted_since(acted_from):
-                    break
-            else:
-                raise RunFailed('controller_node receives no capture from the respawned '
-                                'vision_node')
+        if ended:
+            # A fleet's time stands at those ends until the coordinator has handled them: it
+            # goes on once it has, and cannot be seen to move before.
+            self.monitor.set_paused(graph, False)
+        else:
+            self.resume(graph, restarted)
 
-    def _acted_since(self, status_index: int) -> bool:
-        """Whether the controller moved the robot (or reached the goal) since that status."""
-        return any(status['message'] in ('moving', 'reached')
-                   for status in self.monitor.statuses[status_index:])
+    def watch_new_cameras(self, graph: Supervisor, driving: Mapping[int, Any]) -> None:
+        """Between the orchestration's looks at the statuses: each robot with a new camera
+        watched until its controller acts on a capture of it (its reader may match the new
+        writer later than the ROS graph shows), the goal given again every 3 s meanwhile. Not
+        waited for in a loop of its own: a fleet's time stands at any other robot's end until the
+        coordinator handles it."""
+        for robot, watch in list(self.watched.items()):
+            since, asked_at, tries = watch
+            statuses = self.monitor.robot_statuses()
+            if robot not in driving or any(
+                    k == robot and (status['message'] == 'moving' or _ends_a_goal(status))
+                    for k, status in statuses[since:]):
+                del self.watched[robot]
+            elif time.monotonic() - asked_at >= 3.0:
+                if tries >= 20:
+                    namespace = self.namespaces.get(robot, '')
+                    whose = f"{namespace}'s " if namespace else ''
+                    raise RunFailed(f'{whose}controller_node receives no capture from its '
+                                    'respawned vision_node')
+                self.watched[robot] = [len(statuses), time.monotonic(), tries + 1]
+                self.monitor.give_again(graph, robot, driving[robot])
 
     def resume(self, graph: Supervisor, restarted: list[str],
                stall_s: float = RESUME_STALL_S) -> None:
@@ -217,85 +237,6 @@ class Respawns:
                 self.monitor.set_paused(graph, False)
 
 
-class FleetRespawnsHost(RespawnsHost, Protocol):
-    """What bringing a fleet robot's node back needs besides: every robot's statuses
-    and the coordinator's way of handing a robot its leg
-    (:class:`omni_micro_bringup.fleet_orchestrator.FleetMonitor`)."""
-
-    fleet_statuses: list[tuple[int, dict[str, str]]]
-
-    def give(self, graph: Supervisor, order: Any, timeout_s: float = 30.0) -> None: ...
-
-
-class FleetRespawns(Respawns):
-    """A fleet robot's vision_node or controller_node respawned (``robot_1.vision_node``):
-    the clock held while it comes back, the leg the robot was driving given again from where it
-    stands, and time started again. The other robots wait meanwhile: the clock is theirs too, and
-    the plan's legs keep them clear of it whatever their timing."""
-
-    monitor: FleetRespawnsHost
-
-    def __init__(self, monitor: FleetRespawnsHost, processes: list[str]) -> None:
-        super().__init__(monitor, processes)
-        # Robots whose new camera their controller has not acted on yet: [statuses seen when
-        # asked, when asked, times asked again].
-        self.watched: dict[int, list[Any]] = {}
-
-    def bring_back_robots(self, graph: Supervisor, restarted: list[str],
-                          driving: dict[int, Any], handled_up_to: int) -> None:
-        """``driving``: each robot's leg under way (its GoalOrder); ``handled_up_to``: how many
-        of the statuses the coordinator has handled. A robot whose leg ended in a status not
-        handled yet is not given it again (it would end twice). A robot with a new camera is
-        watched until its controller acts on a capture (:meth:`watch_new_cameras`)."""
-        self.monitor.set_paused(graph, True)
-        self.wait_for_new_processes(graph, restarted)
-        nodes: dict[int, set[str]] = {}
-        for name in restarted:
-            namespace, _, node = name.partition('.')
-            index = robot_index(namespace)
-            if index is not None:
-                nodes.setdefault(index, set()).add(node)
-        ended = {robot for robot, status in self.monitor.fleet_statuses[handled_up_to:]
-                 if _ends_a_leg(status)}
-        for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
-            # A new controller knows nothing; an old one, its camera gone a while, ends the leg
-            # as replaced and takes it again.
-            since = len(self.monitor.fleet_statuses)
-            if self.monitor.echo:
-                x_mm, y_mm = (v * 1e3 for v in driving[robot].goal_m)
-                self.monitor.echo(f'[orchestration] {robot_name(robot)}\'s leg to '
-                                  f'({x_mm:g}, {y_mm:g}) mm given again, from where it stands')
-            self.monitor.give(graph, driving[robot])
-            if 'vision_node' in nodes[robot]:
-                self.watched[robot] = [since, time.monotonic(), 0]
-        self.remember_endpoints()
-        if ended:
-            # Time stands at those ends until the coordinator has handled them: it goes on
-            # once it has, and cannot be seen to move before.
-            self.monitor.set_paused(graph, False)
-        else:
-            self.resume(graph, restarted)
-
-    def watch_new_cameras(self, graph: Supervisor, driving: dict[int, Any]) -> None:
-        """Between the coordinator's statuses: each robot with a new camera watched until its
-        controller acts on a capture of it (its reader may match the new writer later than the
-        ROS graph shows), the leg given again every 3 s meanwhile. Not waited for in a loop of
-        its own: time stands at any other robot's end until the coordinator handles it."""
-        for robot, watch in list(self.watched.items()):
-            since, asked_at, tries = watch
-            if robot not in driving or any(
-                    k == robot and (status['message'] == 'moving' or _ends_a_leg(status))
-                    for k, status in self.monitor.fleet_statuses[since:]):
-                del self.watched[robot]
-            elif time.monotonic() - asked_at >= 3.0:
-                if tries >= 20:
-                    raise RunFailed(f'{robot_name(robot)}\'s controller_node receives no capture '
-                                    'from its respawned vision_node')
-                self.watched[robot] = [len(self.monitor.fleet_statuses), time.monotonic(),
-                                       tries + 1]
-                self.monitor.give(graph, driving[robot])
-
-
-def _ends_a_leg(status: dict[str, str]) -> bool:
+def _ends_a_goal(status: dict[str, str]) -> bool:
     """A controller's outcome, but not the end of a goal replaced by the same one given again."""
     return status['message'] in OUTCOME_NAMES and status.get('reason') != REPLACED_REASON
