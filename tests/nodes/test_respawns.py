@@ -29,9 +29,6 @@ class Orchestration:
         self.echo = None
         self.node = self
 
-    def robot_statuses(self) -> list[tuple[int, dict[str, str]]]:
-        return self.statuses
-
     def give_again(self, graph: Any, robot: int, goal: Any) -> None:
         self.given.append((robot, goal))
 

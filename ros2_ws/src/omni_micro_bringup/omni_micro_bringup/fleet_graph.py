@@ -199,7 +199,7 @@ class FleetDispatch:
                 outcome, now_s = 'timeout', max(now_s, time.time() - origin_s)
                 reason = tasks_left
                 break
-            if seen == len(monitor.fleet_statuses):
+            if seen == len(monitor.statuses):
                 if limit_s is not None and \
                         (monitor.simulated_time_s() or 0.0) >= limit_s + settled_s:
                     outcome, now_s = 'timeout', limit_s
@@ -218,7 +218,7 @@ class FleetDispatch:
                 monitor.recorder.check()
                 monitor.spin_for(0.02)
                 continue
-            robot, status = monitor.fleet_statuses[seen]
+            robot, status = monitor.statuses[seen]
             seen += 1
             at_s = float(status[STATUS_TIME_KEY]) - origin_s
             if past_limit(at_s):
@@ -310,7 +310,7 @@ class FleetDispatch:
         if self.monitor is not None:
             (log_dir / 'statuses.jsonl').write_text(''.join(
                 json.dumps({'robot': robot, **status}) + '\n'
-                for robot, status in self.monitor.fleet_statuses))
+                for robot, status in self.monitor.statuses))
 
 
 def closest_approach(logs: list[RobotLog]) -> tuple[float, tuple[int, int] | None]:

@@ -13,7 +13,6 @@ from collections.abc import Callable
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
@@ -38,9 +37,9 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.qos import DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CONTACT_TOPIC,
-    CONTROLLER_STATUS_TOPIC,
     GOAL_TOPIC,
     ODOM_THROTTLE_TOPIC,
+    namespaced_topic,
     robot_name,
     robot_topic,
 )
@@ -54,23 +53,14 @@ class FleetMonitor(Orchestrator):
     def __init__(self, domain_id: int, count: int, echo: Callable[[str], None] | None = None,
                  recording: bool = False, markers: bool = False,
                  respawnable: list[str] | None = None) -> None:
-        super().__init__(domain_id, echo=echo, markers=markers, robot=None, recording=recording)
+        self.robots = [RobotLog() for _ in range(count)]   # each robot's route, as followed
+        super().__init__(domain_id, echo=echo, markers=markers, recording=recording,
+                         namespaces=tuple(robot_name(k) for k in range(count)))
         self.respawns = Respawns(self, respawnable or [])
         self.count = count
-        self.fleet_statuses: list[tuple[int, dict[str, str]]] = []
-        self.robots = [RobotLog() for _ in range(count)]
-        self.goal_publishers = [self.node.create_publisher(
-            PoseStamped, robot_topic(k, GOAL_TOPIC), 10) for k in range(count)]
         self.tolerance_clients = [self.node.create_client(
             SetParameters, f'/{robot_name(k)}/controller_node/set_parameters')
             for k in range(count)]
-        for k in range(count):
-            self.node.create_subscription(
-                DiagnosticStatus, robot_topic(k, CONTROLLER_STATUS_TOPIC),
-                functools.partial(self._on_robot_status, k), STATUS_QOS)
-            self.node.create_subscription(
-                Odometry, robot_topic(k, ODOM_THROTTLE_TOPIC),
-                functools.partial(self._on_robot_odometry, k), DATA_QOS)
         # A coordinator per robot in the lockstep: two robots' goals can end at the same stamp,
         # and each end is held until that robot's is handled.
         self.reporters = [LockstepReporter(self.node, coordinator_name(robot_name(k)))
@@ -83,19 +73,17 @@ class FleetMonitor(Orchestrator):
     def _on_contact(self, msg: DiagnosticStatus) -> None:
         self.contacts.append({item.key: item.value for item in msg.values})
 
-    def _on_robot_status(self, robot: int, msg: DiagnosticStatus) -> None:
-        values = {item.key: item.value for item in msg.values}
-        values['message'] = msg.message
-        self.fleet_statuses.append((robot, values))
+    def _follow_odometry(self, robot: int, namespace: str) -> None:
+        """Each robot's throttled odometry, the whole route kept."""
+        self.node.create_subscription(
+            Odometry, namespaced_topic(namespace, ODOM_THROTTLE_TOPIC),
+            functools.partial(self._on_robot_odometry, robot), DATA_QOS)
 
     def _on_robot_odometry(self, robot: int, msg: Odometry) -> None:
         pose = msg.pose.pose
         self.robots[robot].route.append((
             join_stamp(msg.header.stamp.sec, msg.header.stamp.nanosec), pose.position.x,
             pose.position.y, quaternion_to_yaw(pose.orientation.z, pose.orientation.w)))
-
-    def robot_statuses(self) -> list[tuple[int, dict[str, str]]]:
-        return self.fleet_statuses
 
     def give_again(self, graph: Supervisor, robot: int, goal: GoalOrder) -> None:
         """The leg under way again, stamped with the end it follows, as before."""
@@ -155,7 +143,7 @@ class FleetMonitor(Orchestrator):
         self.wait_for_goal_readers(graph, publisher, f'/{robot_name(order.robot)}',
                                    self.recording, deadline, timeout_s)
         goal = goal_pose(order.goal_m, order.stamp_s)
-        seen = len(self.fleet_statuses)
+        seen = len(self.statuses)
         # Unlike a single robot's goal, it does not wait for its acknowledgments: they come with
         # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
         # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
@@ -163,7 +151,7 @@ class FleetMonitor(Orchestrator):
         topic = robot_topic(order.robot, GOAL_TOPIC)
         self.goals_given[topic] = self.goals_given.get(topic, 0) + 1
         while True:
-            for robot, status in self.fleet_statuses[seen:]:
+            for robot, status in self.statuses[seen:]:
                 if robot != order.robot:
                     continue
                 if status['message'] == 'goal rejected':

@@ -74,15 +74,16 @@ RUN_ON_PAST_BAG_END_S = 0.4
 
 
 class Orchestrator:
-    """The orchestration's node in ``domain_id``. ``robot``: the namespace of the robot it
-    hands goals to one by one and follows (status, odometry): a single robot's, the root one;
-    None for a fleet's coordinator, which follows each robot on its own topics
-    (:class:`~omni_micro_bringup.fleet_orchestrator.FleetMonitor`) and so has none of these.
-    With ``follow_route`` it keeps the whole route and every capture (for figures)."""
+    """The orchestration's node in ``domain_id``, for the robots in ``namespaces``: each one's
+    goal publisher and controller's statuses, and each one's odometry as
+    :meth:`_follow_odometry` keeps it. The single robot is the fleet of one in the root
+    namespace, its goals handed one by one (:meth:`send_goal`); a fleet's coordinator is
+    :class:`~omni_micro_bringup.fleet_orchestrator.FleetMonitor`. With ``follow_route`` it keeps
+    the single robot's whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None, markers: bool = False,
-                 robot: str | None = '', recording: bool = False) -> None:
+                 namespaces: tuple[str, ...] = ('',), recording: bool = False) -> None:
         self.echo = echo
         self.domain_id = domain_id
         self.recording = recording   # the recorder must have every goal, as the controller
@@ -100,9 +101,9 @@ class Orchestrator:
         self.executor.add_node(self.node)
         self.latest_odometry: tuple[float, float, float, float] | None = None
         self.odometry: deque[tuple[float, float, float, float]] = deque(maxlen=ODOMETRY_KEPT)
-        self.statuses: list[dict[str, str]] = []
+        # Every robot's controller statuses, in the order read: (robot, status).
+        self.statuses: list[tuple[int, dict[str, str]]] = []
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
-        self.goal_publisher: Publisher | None = None
         self.goals_sent = 0
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
@@ -111,25 +112,24 @@ class Orchestrator:
         self.respawns = Respawns(self)
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
-        if robot is not None:
-            self._follow(robot, follow_route)
+        self.goal_publishers: list[Publisher] = []
+        for robot, namespace in enumerate(namespaces):
+            self.node.create_subscription(
+                DiagnosticStatus, namespaced_topic(namespace, CONTROLLER_STATUS_TOPIC),
+                functools.partial(self._on_status, robot), STATUS_QOS)
+            self.goal_publishers.append(self.node.create_publisher(
+                PoseStamped, namespaced_topic(namespace, GOAL_TOPIC), 10))
+            self._follow_odometry(robot, namespace)
 
-    def _follow(self, robot: str, follow_route: bool) -> None:
-        """The endpoints of the robot it drives: its goal, its controller's statuses, its
-        odometry (and, ``follow_route``, its captures)."""
-        node = self.node
-        node.create_subscription(DiagnosticStatus,
-                                 namespaced_topic(robot, CONTROLLER_STATUS_TOPIC),
-                                 self._on_status, STATUS_QOS)
-        self.goal_publisher = node.create_publisher(PoseStamped,
-                                                    namespaced_topic(robot, GOAL_TOPIC), 10)
-        node.create_subscription(
-            Odometry, namespaced_topic(robot, orchestration_odometry_topic(follow_route)),
+    def _follow_odometry(self, robot: int, namespace: str) -> None:
+        """The single robot's odometry (and, ``follow_route``, its captures)."""
+        self.node.create_subscription(
+            Odometry, namespaced_topic(namespace, orchestration_odometry_topic(self._following)),
             self._on_odometry, DATA_QOS)
-        if follow_route:
+        if self._following:
             for camera, topic in CAPTURE_TOPICS.items():
-                node.create_subscription(
-                    PoseStamped, namespaced_topic(robot, topic),
+                self.node.create_subscription(
+                    PoseStamped, namespaced_topic(namespace, topic),
                     functools.partial(self._on_capture, camera=camera), CAPTURE_QOS)
 
     def _on_capture(self, msg: PoseStamped, camera: str) -> None:
@@ -145,10 +145,10 @@ class Orchestrator:
         if self._following:
             self.route.append(self.latest_odometry[:3])
 
-    def _on_status(self, msg: DiagnosticStatus) -> None:
+    def _on_status(self, robot: int, msg: DiagnosticStatus) -> None:
         values = {item.key: item.value for item in msg.values}
         values['message'] = msg.message
-        self.statuses.append(values)
+        self.statuses.append((robot, values))
 
     def let_matching_settle(self) -> None:
         """Discovery shows an endpoint a little before every peer has matched it."""
@@ -209,10 +209,10 @@ class Orchestrator:
 
         Every reader of /goal_pose has it before this returns (DDS acknowledged it), so that
         markers_node draws it in the same array every run, whatever the machine's load."""
-        publisher = self.goal_publisher
-        if publisher is None:
+        if len(self.goal_publishers) != 1:
             raise RunFailed('this orchestration drives a fleet: its goals go to each robot '
                             '(FleetMonitor.give)')
+        publisher = self.goal_publishers[0]
         deadline = time.monotonic() + timeout_s
         self.wait_for_goal_readers(graph, publisher, '/', self.recording, deadline, timeout_s)
         self.goal_stamp_s = stamp_s
@@ -226,14 +226,14 @@ class Orchestrator:
         while True:
             graph.check_alive()
             answered = any(status['message'] in ('settling', 'goal rejected')
-                           for status in self.statuses[seen:])
+                           for _, status in self.statuses[seen:])
             if time.monotonic() > resend_at and not answered:
                 # A reader of a node that just died can still count as matched for a moment:
                 # if nobody acknowledged, the goal went there. Say it again.
                 publisher.publish(goal)
                 self.goals_sent += 1
                 resend_at = time.monotonic() + 2.0
-            for status in self.statuses[seen:]:
+            for _, status in self.statuses[seen:]:
                 if status['message'] == 'goal rejected':
                     raise UsageError(f'controller_node rejected the goal: {status["reason"]}')
                 if status['message'] == 'settling':
@@ -302,7 +302,7 @@ class Orchestrator:
             if restarted:
                 self.respawns.bring_back(graph, restarted, {0: goal}, self.goal_sent_at)
             self.respawns.watch_new_cameras(graph, {0: goal})
-            for status in self.statuses[self.goal_sent_at:]:
+            for _, status in self.statuses[self.goal_sent_at:]:
                 replaced = status.get('reason') == REPLACED_REASON
                 if status['message'] in OUTCOME_NAMES and not replaced:
                     return dict(status, outcome=status['message'])
@@ -311,10 +311,6 @@ class Orchestrator:
                                 f'wall time ({self._robot_time_said()}); logs in '
                                 f'{graph.log_dir}')
             self.spin_for(0.05)
-
-    def robot_statuses(self) -> list[tuple[int, dict[str, str]]]:
-        """Every status of the robot's controller so far: robot 0's, of a fleet of one."""
-        return [(0, status) for status in self.statuses]
 
     def give_again(self, graph: Supervisor, robot: int, goal: Any) -> None:
         """The goal (x, y) m again, stamped as before (a respawned node's robot's, robot 0; a

@@ -8,7 +8,7 @@ robot's (``robot_1.controller_node``) are told in its namespace."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, Protocol
 
 from omni_micro_bringup.composition import READS_FROM_ROBOT
@@ -45,6 +45,9 @@ class RespawnsHost(Protocol):
 
     node: Any
     echo: Callable[[str], None] | None
+    # Every robot's controller statuses, in the order read: (robot, status); the single robot
+    # is robot 0.
+    statuses: list[tuple[int, dict[str, str]]]
 
     def simulated_time_s(self) -> float | None:
         """How far the robots' time has gone, as this node has read it (None: not yet)."""
@@ -55,11 +58,6 @@ class RespawnsHost(Protocol):
     def spin_for(self, seconds: float) -> None: ...
 
     def let_matching_settle(self) -> None: ...
-
-    def robot_statuses(self) -> Sequence[tuple[int, dict[str, str]]]:
-        """Every controller status read so far, in order, with its robot (the single robot is
-        robot 0)."""
-        ...
 
     def give_again(self, graph: Supervisor, robot: int, goal: Any) -> None:
         """Hand ``robot`` the goal it was driving to (``goal``, as the caller gave it) again,
@@ -153,12 +151,12 @@ class Respawns:
             if index is not None:
                 nodes.setdefault(index, set()).add(node)
                 self.namespaces[index] = namespace
-        ended = {robot for robot, status in self.monitor.robot_statuses()[handled_up_to:]
+        ended = {robot for robot, status in self.monitor.statuses[handled_up_to:]
                  if _ends_a_goal(status)}
         for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
             # A new controller knows nothing; an old one, its camera gone a while, ends the goal
             # as replaced and takes it again.
-            since = len(self.monitor.robot_statuses())
+            since = len(self.monitor.statuses)
             self.monitor.give_again(graph, robot, driving[robot])
             if 'vision_node' in nodes[robot]:
                 self.watched[robot] = [since, time.monotonic(), 0]
@@ -178,7 +176,7 @@ class Respawns:
         coordinator handles it."""
         for robot, watch in list(self.watched.items()):
             since, asked_at, tries = watch
-            statuses = self.monitor.robot_statuses()
+            statuses = self.monitor.statuses
             if robot not in driving or any(
                     k == robot and (status['message'] == 'moving' or _ends_a_goal(status))
                     for k, status in statuses[since:]):
