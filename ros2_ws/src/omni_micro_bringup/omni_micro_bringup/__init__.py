@@ -17,8 +17,9 @@ slow),
 several), :mod:`graph_result` (what a run returns), :mod:`goal_sequence` (a single robot's goals
 handed one after another), :mod:`graph_description` (who
 publishes and subscribes what, as rqt_graph shows it), :mod:`orchestrator` (the orchestrator's
-own node for 1..N robots: each one's goals and statuses, the clock, the outcome), :mod:`respawns` (a respawned node brought back
-mid-run), :mod:`recorder_watch` (what the orchestrator reads of the bag recorder),
+own node for 1..N robots: each one's goals and statuses, the clock, the outcome),
+:mod:`respawns` (a respawned node brought back mid-run), :mod:`recorder_watch` (what the
+orchestrator reads of the bag recorder),
 :mod:`supervisor` (what the orchestrator needs of whoever runs the processes),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
