@@ -225,7 +225,7 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
     from rclpy.node import Node
     from rclpy.timer import Timer
 
-    from omni_micro_bringup.fleet_orchestrator import FleetMonitor
+    from omni_micro_bringup.fleet_orchestrator import FleetCoordinator
     from omni_micro_common.qos import STATUS_QOS as CONTROLLER_STATUS_QOS
     from omni_micro_control.fleet_legs import GoalOrder
 
@@ -255,7 +255,7 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
         return SetParametersResult(successful=True)
 
     controller.add_on_set_parameters_callback(on_tolerance)
-    monitor = FleetMonitor(domain_id, 1, recording=True)
+    monitor = FleetCoordinator(domain_id, 1, recording=True)
     try:
         with probe.spinning():
             monitor.give(NoDeaths(tmp_path), GoalOrder(0, (0.01, 0.02), 0.0005, stamp_s=1.5),

@@ -38,7 +38,7 @@ from omni_micro_bringup.fleet_bench import (
     BenchGuard,
     check_bench,
 )
-from omni_micro_bringup.fleet_orchestrator import FleetMonitor
+from omni_micro_bringup.fleet_orchestrator import FleetCoordinator
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import grid_period_s, wired_specs
@@ -80,7 +80,7 @@ class FleetDispatch:
         self.fleet = options.fleet
         self.count = len(self.fleet.plan.starts_m)
         self.modes = robot_modes(options)
-        self.monitor: FleetMonitor | None = None
+        self.monitor: FleetCoordinator | None = None
         self.respawnable: list[str] = []
         # Real robots and their camera (options.external): no lockstep, the wall clock, and
         # the guard in place of dynamics_node's contacts.
@@ -103,8 +103,8 @@ class FleetDispatch:
             self.respawnable = [spec.name for spec in specs if spec.respawnable]
         return specs
 
-    def orchestrator(self, domain_id: int) -> FleetMonitor:
-        self.monitor = FleetMonitor(domain_id, self.count, self.options.echo,
+    def orchestrator(self, domain_id: int) -> FleetCoordinator:
+        self.monitor = FleetCoordinator(domain_id, self.count, self.options.echo,
                                     recording=self.options.record is not None,
                                     markers=self.options.markers,
                                     respawnable=self.respawnable)

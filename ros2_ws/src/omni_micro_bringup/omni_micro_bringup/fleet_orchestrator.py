@@ -1,5 +1,5 @@
-"""The orchestration's node for a fleet's run (:class:`FleetMonitor`): it hands each robot its
-goals on ``/robot_k/goal_pose``, each goal's tolerance set on that robot's controller first,
+"""The orchestration's node for a fleet's run (:class:`FleetCoordinator`): it hands each robot
+its goals on ``/robot_k/goal_pose``, each goal's tolerance set on that robot's controller first,
 reads every robot's statuses and throttled odometry and dynamics_node's contacts, and reports
 each goal's end handled in that robot's lockstep gate, as the coordinator
 (:mod:`omni_micro_bringup.fleet_graph` drives the run with it).
@@ -46,7 +46,7 @@ from omni_micro_common.topic_names import (
 from omni_micro_control.fleet_legs import GoalOrder
 
 
-class FleetMonitor(Orchestrator):
+class FleetCoordinator(Orchestrator):
     """The orchestration's node with every robot's goals, statuses and odometry, and its part
     in the lockstep (it reports as ``omni_micro_orchestration``, a coordinator)."""
 

@@ -78,8 +78,8 @@ class Orchestrator:
     goal publisher and controller's statuses, and each one's odometry as
     :meth:`_follow_odometry` keeps it. The single robot is the fleet of one in the root
     namespace, its goals handed one by one (:meth:`send_goal`); a fleet's coordinator is
-    :class:`~omni_micro_bringup.fleet_orchestrator.FleetMonitor`. With ``follow_route`` it keeps
-    the single robot's whole route and every capture (for figures)."""
+    :class:`~omni_micro_bringup.fleet_orchestrator.FleetCoordinator`. With ``follow_route`` it
+    keeps the single robot's whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None, markers: bool = False,
@@ -211,7 +211,7 @@ class Orchestrator:
         markers_node draws it in the same array every run, whatever the machine's load."""
         if len(self.goal_publishers) != 1:
             raise RunFailed('this orchestration drives a fleet: its goals go to each robot '
-                            '(FleetMonitor.give)')
+                            '(FleetCoordinator.give)')
         publisher = self.goal_publishers[0]
         deadline = time.monotonic() + timeout_s
         self.wait_for_goal_readers(graph, publisher, '/', self.recording, deadline, timeout_s)
@@ -314,7 +314,7 @@ class Orchestrator:
 
     def give_again(self, graph: Supervisor, robot: int, goal: Any) -> None:
         """The goal (x, y) m again, stamped as before (a respawned node's robot's, robot 0; a
-        fleet's coordinator gives a leg: FleetMonitor)."""
+        fleet's coordinator gives a leg: FleetCoordinator)."""
         self.send_goal(graph, goal, stamp_s=self.goal_stamp_s, acked_within_s=GOAL_ACKED_WITHIN_S)
 
     def simulated_time_s(self) -> float | None:
