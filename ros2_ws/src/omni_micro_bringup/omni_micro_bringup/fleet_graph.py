@@ -105,9 +105,9 @@ class FleetDispatch:
 
     def orchestrator(self, domain_id: int) -> FleetCoordinator:
         self.monitor = FleetCoordinator(domain_id, self.count, self.options.echo,
-                                    recording=self.options.record is not None,
-                                    markers=self.options.markers,
-                                    respawnable=self.respawnable)
+                                        recording=self.options.record is not None,
+                                        markers=self.options.markers,
+                                        respawnable=self.respawnable)
         if self.options.external:
             self.bench = BenchGuard(self.monitor.node, self.monitor.robots,
                                     sorted(bench_cameras(self.options)), self.fleet.stop_gap_m,

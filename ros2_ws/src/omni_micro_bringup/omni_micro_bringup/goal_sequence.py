@@ -120,8 +120,7 @@ class GoalSequence:
                     float(status.get('measured_phi_rad', 'nan')))
             if recording:
                 # The bag's tail: the stop and the robot's wheels coming to rest.
-                monitor.recorder.wait_past(graph, goal_stamp_s + BAG_TAIL_S,
-                                               timeout_s=60.0)
+                monitor.recorder.wait_past(graph, goal_stamp_s + BAG_TAIL_S, timeout_s=60.0)
         return GraphResult(
             outcome=status['outcome'], reason=status.get('reason', ''),
             periods=int(status.get('periods', '0')), final_x_m=odom[1], final_y_m=odom[2],
