@@ -70,7 +70,7 @@ def bring_back(respawns: Respawns, restarted: list[str], driving: dict[int, Any]
 
 def test_the_single_robot_s_new_camera_is_robot_0_s_and_its_goal_is_given_again():
     orchestration = Orchestration()
-    respawns = Respawns(orchestration)   # type: ignore[arg-type]
+    respawns = Respawns(orchestration, ['vision_node'])   # type: ignore[arg-type]
     bring_back(respawns, ['vision_node'], {0: (0.1, 0.0)})
     # The clock held while the node came back, the goal given again, the clock started.
     assert orchestration.given == [(0, (0.1, 0.0))]
@@ -85,7 +85,7 @@ def test_a_goal_that_ended_before_the_respawn_is_not_given_again():
     orchestration = Orchestration()
     orchestration.statuses.append((0, {'message': 'moving'}))
     orchestration.statuses.append((0, {'message': 'reached'}))   # not handled yet
-    respawns = Respawns(orchestration)   # type: ignore[arg-type]
+    respawns = Respawns(orchestration, ['controller_node'])   # type: ignore[arg-type]
     bring_back(respawns, ['controller_node'], {0: (0.1, 0.0)}, handled_up_to=1)
     assert orchestration.given == [] and orchestration.paused == [True, False]
     # Handled already: the goal under way is given again.

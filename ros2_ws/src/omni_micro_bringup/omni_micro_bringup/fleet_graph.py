@@ -81,7 +81,6 @@ class FleetDispatch:
         self.count = len(self.fleet.plan.starts_m)
         self.modes = robot_modes(options)
         self.monitor: FleetCoordinator | None = None
-        self.respawnable: list[str] = []
         # Real robots and their camera (options.external): no lockstep, the wall clock, and
         # the guard in place of dynamics_node's contacts.
         self.bench: BenchGuard | None = None
@@ -98,16 +97,13 @@ class FleetDispatch:
         check_graph(options)
 
     def specs(self, log_dir: Path) -> list[NodeSpec]:
-        specs = wired_specs(self.options, log_dir)
-        if self.options.respawn:
-            self.respawnable = [spec.name for spec in specs if spec.respawnable]
-        return specs
+        return wired_specs(self.options, log_dir)
 
-    def orchestrator(self, domain_id: int) -> FleetCoordinator:
+    def orchestrator(self, domain_id: int, respawnable: list[str]) -> FleetCoordinator:
         self.monitor = FleetCoordinator(domain_id, self.count, self.options.echo,
                                         recording=self.options.record is not None,
                                         markers=self.options.markers,
-                                        respawnable=self.respawnable)
+                                        respawnable=respawnable)
         if self.options.external:
             self.bench = BenchGuard(self.monitor.node, self.monitor.robots,
                                     sorted(bench_cameras(self.options)), self.fleet.stop_gap_m,

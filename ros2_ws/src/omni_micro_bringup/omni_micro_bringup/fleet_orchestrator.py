@@ -25,7 +25,6 @@ from omni_micro_bringup.orchestrator import (
     SERVICE_RESEND_S,
     Orchestrator,
 )
-from omni_micro_bringup.respawns import Respawns
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -55,8 +54,8 @@ class FleetCoordinator(Orchestrator):
                  respawnable: list[str] | None = None) -> None:
         self.robots = [RobotLog() for _ in range(count)]   # each robot's route, as followed
         super().__init__(domain_id, echo=echo, markers=markers, recording=recording,
-                         namespaces=tuple(robot_name(k) for k in range(count)))
-        self.respawns = Respawns(self, respawnable or [])
+                         namespaces=tuple(robot_name(k) for k in range(count)),
+                         respawnable=respawnable)
         self.count = count
         self.tolerance_clients = [self.node.create_client(
             SetParameters, f'/{robot_name(k)}/controller_node/set_parameters')

@@ -63,10 +63,11 @@ class GoalSequence:
     def specs(self, log_dir: Path) -> list[NodeSpec]:
         return wired_specs(self.options)
 
-    def orchestrator(self, domain_id: int) -> Orchestrator:
+    def orchestrator(self, domain_id: int, respawnable: list[str]) -> Orchestrator:
         self.monitor = Orchestrator(domain_id, follow_route=self.options.follow_route,
                                     echo=self.options.echo, markers=self.options.markers,
-                                    recording=self.options.record is not None)
+                                    recording=self.options.record is not None,
+                                    respawnable=respawnable)
         return self.monitor
 
     def drive(self, graph: RunningProcesses, on_running: Callable[[], None],

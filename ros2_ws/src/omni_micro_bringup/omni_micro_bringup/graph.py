@@ -228,8 +228,9 @@ class Driver(Protocol):
         """The graph's processes, each as it starts."""
         ...
 
-    def orchestrator(self, domain_id: int) -> Orchestrator:
-        """The orchestration's node in the run's domain."""
+    def orchestrator(self, domain_id: int, respawnable: list[str]) -> Orchestrator:
+        """The orchestration's node in the run's domain, bringing back the ``respawnable``
+        processes should they be respawned."""
         ...
 
     def drive(self, graph: Graph, on_running: Callable[[], None],
@@ -301,7 +302,8 @@ def brought_up(options: GraphOptions, driver: Driver) -> Iterator[tuple[Graph, i
     lease = DomainLease(options.domain_id, joined=options.external)
     with lease as domain_id:
         graph = Graph(options, domain_id, log_dir, lease.fileno, specs=driver.specs(log_dir))
-        monitor = driver.orchestrator(domain_id)
+        monitor = driver.orchestrator(
+            domain_id, [process.name for process in graph.processes if process.spec.respawn])
         try:
             graph.start()
             monitor.wait_until_ready(graph, readiness(options))

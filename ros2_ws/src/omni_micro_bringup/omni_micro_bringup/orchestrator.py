@@ -83,7 +83,8 @@ class Orchestrator:
 
     def __init__(self, domain_id: int, follow_route: bool = False,
                  echo: Callable[[str], None] | None = None, markers: bool = False,
-                 namespaces: tuple[str, ...] = ('',), recording: bool = False) -> None:
+                 namespaces: tuple[str, ...] = ('',), recording: bool = False,
+                 respawnable: list[str] | None = None) -> None:
         self.echo = echo
         self.domain_id = domain_id
         self.recording = recording   # the recorder must have every goal, as the controller
@@ -109,7 +110,7 @@ class Orchestrator:
         self.goal_stamp_s = 0.0
         self.recorder = RecorderWatch(self.node, self.spin_for)
         self.route: list[tuple[float, float, float]] = []
-        self.respawns = Respawns(self)
+        self.respawns = Respawns(self, respawnable or [])
         self.captures: list[tuple[float, float, float, str]] = []
         self._following = follow_route
         self.goal_publishers: list[Publisher] = []

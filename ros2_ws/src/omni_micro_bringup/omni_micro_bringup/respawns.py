@@ -68,10 +68,9 @@ class RespawnsHost(Protocol):
 class Respawns:
     """What the orchestrator does when its supervisor says nodes were respawned."""
 
-    def __init__(self, monitor: RespawnsHost, processes: list[str] | None = None) -> None:
+    def __init__(self, monitor: RespawnsHost, processes: list[str]) -> None:
         self.monitor = monitor
-        # The processes that may be respawned: the single robot's nodes by default.
-        self.processes = list(self.INPUTS) if processes is None else processes
+        self.processes = processes   # those that may be respawned (graph.Graph's, --respawn)
         self.known_endpoints: dict[str, set[bytes]] = {}
         # Robots whose new camera their controller has not acted on yet: [statuses seen when
         # asked, when asked, times asked again].
