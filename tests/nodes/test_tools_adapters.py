@@ -143,14 +143,14 @@ def test_bag_recorder_records_each_robot_of_a_fleet_and_says_how_far_it_has_all(
         bag=str(tmp_path / 'bag'), topics=topics))
     try:
         assert {sub.topic_name for sub in node.subscriptions} == set(topics)
-        assert sorted(node._tick_stamps_ns) == sorted(t for t in topics if 'goal' not in t)
-        for topic in node._tick_stamps_ns:
+        assert sorted(node._received_stamps_ns) == sorted(t for t in topics if 'goal' not in t)
+        for topic in node._received_stamps_ns:
             kind = Clock if topic == '/clock' else Odometry if 'odom' in topic else JointState
             message = kind()
             stamp = message.clock if kind is Clock else message.header.stamp
             stamp.sec = 0 if topic == '/robot_1/wheel_slip' else 2
             node._writer_of(topic)(serialize_message(message))
-        assert min(node._tick_stamps_ns.values()) == 0   # robot 1's slip is behind
+        assert min(node._received_stamps_ns.values()) == 0   # robot 1's slip is behind
     finally:
         node.close()
         node.destroy_node()
@@ -180,10 +180,10 @@ def test_bag_recorder_has_received_up_to_the_markers_drawn_behind_the_odometry(
             node._writer_of(topic)(serialize_message(message))
         markers_at(14, 500_000_000)
         markers_at(0, 0, empty=True)
-        received_ns = min(node._tick_stamps_ns.values())
+        received_ns = min(node._received_stamps_ns.values())
         assert received_ns == (14_500_000_000 if log_clock == 'sim' else 15_000_000_000)
         markers_at(15, 200_000_000)
-        assert min(node._tick_stamps_ns.values()) == 15_000_000_000
+        assert min(node._received_stamps_ns.values()) == 15_000_000_000
     finally:
         node.close()
         node.destroy_node()

@@ -37,7 +37,7 @@ from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.readiness import Readiness
 from omni_micro_bringup.recorder_watch import RecorderWatch
-from omni_micro_bringup.respawns import GOAL_ACKED_WITHIN_S, Respawns
+from omni_micro_bringup.respawns import GOAL_ACKED_WITHIN_S, Respawns, ends_a_goal
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -51,7 +51,6 @@ from omni_micro_common.topic_names import (
     GOAL_TOPIC,
     namespaced_topic,
 )
-from omni_micro_control.feedback import OUTCOME_NAMES, REPLACED_REASON
 
 # How many of the latest odometry samples the orchestrator keeps (80 s of simulated time at 50 Hz):
 # the status naming the outcome's capture reaches this process after its sample, by far less.
@@ -304,8 +303,7 @@ class Orchestrator:
                 self.respawns.bring_back(graph, restarted, {0: goal}, self.goal_sent_at)
             self.respawns.watch_new_cameras(graph, {0: goal})
             for _, status in self.statuses[self.goal_sent_at:]:
-                replaced = status.get('reason') == REPLACED_REASON
-                if status['message'] in OUTCOME_NAMES and not replaced:
+                if ends_a_goal(status):
                     return dict(status, outcome=status['message'])
             if time.monotonic() > deadline:
                 raise RunFailed(f'no outcome from controller_node within {timeout_s:g} s of '

@@ -151,7 +151,7 @@ class Respawns:
                 nodes.setdefault(index, set()).add(node)
                 self.namespaces[index] = namespace
         ended = {robot for robot, status in self.monitor.statuses[handled_up_to:]
-                 if _ends_a_goal(status)}
+                 if ends_a_goal(status)}
         for robot in sorted(robot for robot in nodes if robot in driving and robot not in ended):
             # A new controller knows nothing; an old one, its camera gone a while, ends the goal
             # as replaced and takes it again.
@@ -177,7 +177,7 @@ class Respawns:
             since, asked_at, tries = watch
             statuses = self.monitor.statuses
             if robot not in driving or any(
-                    k == robot and (status['message'] == 'moving' or _ends_a_goal(status))
+                    k == robot and (status['message'] == 'moving' or ends_a_goal(status))
                     for k, status in statuses[since:]):
                 del self.watched[robot]
             elif time.monotonic() - asked_at >= 3.0:
@@ -234,6 +234,6 @@ class Respawns:
                 self.monitor.set_paused(graph, False)
 
 
-def _ends_a_goal(status: dict[str, str]) -> bool:
+def ends_a_goal(status: dict[str, str]) -> bool:
     """A controller's outcome, but not the end of a goal replaced by the same one given again."""
     return status['message'] in OUTCOME_NAMES and status.get('reason') != REPLACED_REASON

@@ -239,11 +239,11 @@ class FleetGuard:
         for end in sorted({ahead_s[a], ahead_s[b]}):
             vx = (va[0] if ahead_s[a] > start else 0.0) - (vb[0] if ahead_s[b] > start else 0.0)
             vy = (va[1] if ahead_s[a] > start else 0.0) - (vb[1] if ahead_s[b] > start else 0.0)
-            span = max(end - start, 0.0)
+            span = end - start
             speed2 = vx * vx + vy * vy
             t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), span)
             closest = min(closest, math.hypot(px + vx * t, py + vy * t))
-            px, py, start = px + vx * span, py + vy * span, max(end, start)
+            px, py, start = px + vx * span, py + vy * span, end
         return closest, closing
 
     def _later(self, a: int, b: int) -> float:

@@ -183,10 +183,12 @@ class BagRecorder(Node):
         self.status_pub = self.create_publisher(DiagnosticStatus, RECORDER_STATUS_TOPIC,
                                                 latched(1))
         self._announced = False
-        # The latest stamp received per tick topic, and what was last said of their minimum.
-        self._tick_stamps_ns = {topic: -1 for topic in topics if self._stamp_reader(topic)}
+        # The latest stamp received per topic that counts in how far the recorder has received
+        # (the ticks' and, simulated, the drawn markers': _stamp_reader), and what was last said
+        # of their minimum.
+        self._received_stamps_ns = {topic: -1 for topic in topics if self._stamp_reader(topic)}
         self._said_up_to_ns = -1
-        self._every_tick = [topic for topic in self._tick_stamps_ns
+        self._every_tick = [topic for topic in self._received_stamps_ns
                             if robot_and_topic(topic)[1] in EVERY_TICK_TOPICS]
         self._reported_ns = -1
         self._last_flush = time.monotonic()
@@ -238,7 +240,7 @@ class BagRecorder(Node):
             self.counts[topic] += 1
             stamp_ns = stamp_of(data) if stamp_of is not None else None
             if stamp_ns is not None:
-                self._tick_stamps_ns[topic] = stamp_ns
+                self._received_stamps_ns[topic] = stamp_ns
                 if self.lockstep_ticks:
                     self._report_recorded()
             if topic in self._frames_written:
@@ -249,7 +251,7 @@ class BagRecorder(Node):
         """How far every tick's stream is in the bag (``recorded_ns``), when that has moved on:
         the lockstep keeps the robot within RECORDER_LEAD_TICKS of it, so that no writer drops
         a sample before the recorder has it. Not after a write failure: the run stops then."""
-        up_to = max(0, min((self._tick_stamps_ns[topic] for topic in self._every_tick),
+        up_to = max(0, min((self._received_stamps_ns[topic] for topic in self._every_tick),
                            default=-1))
         if self.write_failure is None and (
                 force or self._reported_ns < 0 or up_to >= self._reported_ns + RECORDED_REPORT_NS):
@@ -290,7 +292,7 @@ class BagRecorder(Node):
                 and all(self.counts[topic] for topic in self._first_frame_awaited):
             self._announce()
             self._announced = True
-        up_to = min(self._tick_stamps_ns.values(), default=-1)
+        up_to = min(self._received_stamps_ns.values(), default=-1)
         if self._announced and self.write_failure is None and up_to > self._said_up_to_ns:
             self._said_up_to_ns = up_to
             self._announce()
