@@ -143,7 +143,7 @@ def test_a_demo_run_that_fails_keeps_the_logs_it_names(tmp_path, monkeypatch, ca
     from omni_micro_bringup.errors import RunFailed
     from omni_micro_bringup.graph import GraphResult
     from omni_micro_cli.cli import main
-    from omni_micro_cli.commands import figures
+    from omni_micro_studies import open_loop_figures
 
     runs: list[Path] = []
 
@@ -161,8 +161,8 @@ def test_a_demo_run_that_fails_keeps_the_logs_it_names(tmp_path, monkeypatch, ca
                            captures=[(1.0, 0.1, 0.0, 'micro')])
 
     monkeypatch.setattr(graph, 'run_graph', run_graph)
-    monkeypatch.setattr(figures, 'write_figures', lambda folder, **_: (folder / 'comparison.md')
-                        .write_text('| result |\n'))
+    monkeypatch.setattr(open_loop_figures, 'write_figures',
+                        lambda folder, **_: (folder / 'comparison.md').write_text('| result |\n'))
     out = tmp_path / 'demo'
     assert main(['demo', '--out', str(out)]) == 1
     error = capsys.readouterr().err
@@ -178,7 +178,7 @@ def test_demo_records_each_run_into_a_bag_of_its_own(tmp_path, monkeypatch, caps
     from omni_micro_bringup import graph
     from omni_micro_bringup.graph import GraphResult
     from omni_micro_cli.cli import main
-    from omni_micro_cli.commands import figures
+    from omni_micro_studies import open_loop_figures
 
     asked: list[tuple[str | None, str, dict]] = []
 
@@ -192,8 +192,8 @@ def test_demo_records_each_run_into_a_bag_of_its_own(tmp_path, monkeypatch, caps
                            captures=[(1.0, 0.1, 0.0, 'micro')])
 
     monkeypatch.setattr(graph, 'run_graph', run_graph)
-    monkeypatch.setattr(figures, 'write_figures', lambda folder, **_: (folder / 'comparison.md')
-                        .write_text('| result |\n'))
+    monkeypatch.setattr(open_loop_figures, 'write_figures',
+                        lambda folder, **_: (folder / 'comparison.md').write_text('| result |\n'))
     assert main(['demo', '--out', str(tmp_path / 'demo'), '--record', str(tmp_path / 'bags')]) \
         == 0
     assert [bag for bag, _, _ in asked] == [

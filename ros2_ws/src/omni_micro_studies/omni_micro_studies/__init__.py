@@ -9,7 +9,8 @@ checked and expanded), :mod:`runs` (one run), :mod:`execute` (the runs on Dask: 
 an existing scheduler; any scenario's runs through ``map_on_dask``), :mod:`report` (a study's
 summary and figure); its other scenarios, :mod:`controller_comparison` (the three controller modes
 on seeded cases) and :mod:`fleet_throughput` (a fleet's throughput against its size, and crossing
-runs); :mod:`paper_figures` (plots in the style of the paper's figures, from arrays);
+runs); :mod:`open_loop_figures` (the paper's open-loop figures and the numbers they show, from the
+slip core); :mod:`paper_figures` (plots in the style of the paper's figures, from arrays);
 :mod:`errors`. The command line (``omni-micro study``, ``compare-controllers``, ``fleet``,
-``fleet-study``) calls them; Dask workers import them.
+``fleet-study``, ``figures``, ``demo``) calls them; Dask workers import them.
 """
