@@ -16,7 +16,8 @@ slow),
 :mod:`graph` (start, supervise, stop in phases; run_graph, the one run sequence for one robot or
 several), :mod:`graph_result` (what a run returns), :mod:`goal_sequence` (a single robot's goals
 handed one after another), :mod:`graph_description` (who
-publishes and subscribes what, as rqt_graph shows it), :mod:`orchestrator` (the orchestrator's
+publishes and subscribes what, as rqt_graph shows it) and :mod:`graph_picture` (its picture),
+:mod:`orchestrator` (the orchestrator's
 own node for 1..N robots: each one's goals and statuses, the clock, the outcome),
 :mod:`respawns` (a respawned node brought back mid-run), :mod:`recorder_watch` (what the
 orchestrator reads of the bag recorder),
