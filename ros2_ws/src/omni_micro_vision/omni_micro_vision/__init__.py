@@ -5,7 +5,8 @@ printed pattern, and each robot's code on a shared platform), :mod:`rendering` (
 robot, or of several), :mod:`exposure_schedule` (when a simulated camera's frames are due, and
 where each robot stands in them), :mod:`tracking` (a pose per frame, stillness, which camera
 speaks), :mod:`code_reading` (who is who in a frame of several robots) and :mod:`fleet_tracking`
-(their captures, robot by robot), :mod:`encodings` (drivers' encodings made grey), :mod:`geometry`
+(their captures, robot by robot), :mod:`recorded_tracking` (the tracker on recorded frames,
+offline), :mod:`encodings` (drivers' encodings made grey), :mod:`geometry`
 (a camera's pixels on the platform: lens and homography), :mod:`tracked_camera` (a camera as the
 tracker reads its settings, and the CameraInfo it accepts), :mod:`optics` (a simulated camera's
 mount and lens), :mod:`targets` (a chessboard calibration target), :mod:`calibration` (a camera's

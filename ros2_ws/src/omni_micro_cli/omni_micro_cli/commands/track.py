@@ -14,18 +14,18 @@ and why, before the bench run that needs them told apart.
 from __future__ import annotations
 
 import argparse
-import math
+import itertools
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-import numpy as np
 
 from omni_micro_cli.arguments import positive_int
 from omni_micro_cli.errors import UsageError
 from omni_micro_cli.outputs import atomic_csv, output_file
 
 if TYPE_CHECKING:
+    from omni_micro_vision.recorded_tracking import FrameRow
     from omni_micro_vision.tracked_camera import TrackedCamera
 
 
@@ -89,12 +89,18 @@ def _tracker_settings(args: argparse.Namespace) -> tuple[dict[str, object], str]
     return values, topic
 
 
+def stamped_messages(reader: Any, connection: Any) -> Iterator[tuple[float, Any]]:
+    """Each message of ``connection`` in the bag, deserialized, with its header's stamp."""
+    for _, _, raw in reader.messages(connections=[connection]):
+        msg = reader.deserialize(raw, connection.msgtype)
+        yield msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, msg
+
+
 def run(args: argparse.Namespace) -> int:
     from omni_micro_tools.bag_reading import check_readable_bag, reading
     from omni_micro_vision.errors import CameraConfigError
-    from omni_micro_vision.image_messages import image_array
+    from omni_micro_vision.recorded_tracking import track_frames
     from omni_micro_vision.tracked_camera import tracked_camera
-    from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
     check_readable_bag(args.bag)
     values, topic = _tracker_settings(args)
@@ -105,7 +111,6 @@ def run(args: argparse.Namespace) -> int:
         tolerance_px = float(values.get('still_tolerance_px', 0.2))  # type: ignore[arg-type]
     except (CameraConfigError, TypeError, ValueError) as error:
         raise UsageError(f'tracker params: {error}') from None
-    rows: list[tuple[float, bool, bool, float, float, float, str]] = []
     with reading(args.bag) as reader:
         connections = [c for c in reader.connections if c.topic == topic]
         images = sorted({c.topic for c in reader.connections
@@ -116,38 +121,19 @@ def run(args: argparse.Namespace) -> int:
         if connections[0].msgtype != 'sensor_msgs/msg/Image':
             raise UsageError(f'{topic} in {str(args.bag)!r} carries {connections[0].msgtype}, '
                              f'not sensor_msgs/msg/Image: {choose}')
-        stillness = StillnessRule(frames_needed,
-                                  tolerance_px * min(camera.plane.pixel_size_m))
-        tracker = FrameTracker(camera.plane, camera.bit_depth)
+        frames = itertools.islice(stamped_messages(reader, connections[0]),
+                                  args.max_frames or None)
         if args.robots:
             from omni_micro_cli.commands.track_robots import track_robots
 
-            return track_robots(args, reader, connections[0], camera, frames_needed,
-                                tolerance_px)
-        for _, _, raw in reader.messages(connections=connections):
-            msg: Any = reader.deserialize(raw, connections[0].msgtype)
-            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-            try:
-                pixels = image_array(msg, camera.plane.resolution_px)
-                found = tracker(pixels)
-            except CameraConfigError as error:
-                stillness.reset()
-                tracker.reset()
-                rows.append((stamp, False, False, math.nan, math.nan, math.nan,
-                             f'refused: {error}'))
-                continue
-            if found.pose is None:
-                stillness.reset()
-                rows.append((stamp, False, False, math.nan, math.nan, math.nan, found.reason))
-            else:
-                x, y, heading = found.pose
-                rows.append((stamp, True, stillness.still(x, y), x, y, heading, ''))
-            if args.max_frames and len(rows) >= args.max_frames:
-                break
+            return track_robots(args, frames, camera, frames_needed, tolerance_px)
+        rows = track_frames(frames, camera, frames_needed, tolerance_px)
     return _report(args, rows, camera)
 
 
-def _report(args: argparse.Namespace, rows: list, camera: TrackedCamera) -> int:
+def _report(args: argparse.Namespace, rows: list[FrameRow], camera: TrackedCamera) -> int:
+    from omni_micro_vision.recorded_tracking import still_spread
+
     total = len(rows)
     found = [row for row in rows if row[1]]
     still = [row for row in rows if row[2]]
@@ -159,30 +145,17 @@ def _report(args: argparse.Namespace, rows: list, camera: TrackedCamera) -> int:
           f'capture) in {len(still)}')
     for reason, count in sorted(reasons.items(), key=lambda item: -item[1]):
         print(f'  {count:5d} x {reason}')
-    if len(still) >= 2:
-        poses = np.array([row[3:6] for row in still])
-        # Scatter about each still stretch's own mean: a robot moved between stretches does
-        # not count as noise.
-        breaks = np.flatnonzero(np.diff([rows.index(row) for row in still]) > 1) + 1
-        residuals = np.concatenate([part - part.mean(axis=0)
-                                    for part in np.split(poses, breaks) if len(part) >= 2])
-        spread = residuals.std(axis=0) if len(residuals) >= 2 else np.full(3, math.nan)
-        stated = camera.uncertainty(float(np.median(poses[:, 2])))
-        print(f'spread over still frames: x {spread[0] * 1e6:.3f} um, y {spread[1] * 1e6:.3f} '
-              f'um, heading {spread[2] * 1e3:.3f} mrad; the covariance tracker_node publishes '
+    spread = still_spread(rows, camera)
+    if spread is not None:
+        x, y, heading = spread.spread_m_rad
+        stated = spread.stated
+        print(f'spread over still frames: x {x * 1e6:.3f} um, y {y * 1e6:.3f} '
+              f'um, heading {heading * 1e3:.3f} mrad; the covariance tracker_node publishes '
               f'states x {stated.x_sigma_m * 1e6:.3f} um, y {stated.y_sigma_m * 1e6:.3f} um, '
               f'heading {stated.heading_sigma_rad * 1e3:.3f} mrad')
-        # The stated position spread is mark_sigma / sqrt(2) pixels, mark_sigma^2 = noise^2 +
-        # quantisation^2 / 12: solve for noise, or for both when the grid alone says too much.
-        pixel = float(np.mean(camera.plane.pixel_size_m))
-        mark_sigma = math.sqrt(2.0) * float(np.mean(spread[:2])) / pixel
-        quantisation = camera.quantisation_px
-        if mark_sigma ** 2 < quantisation ** 2 / 12.0:
-            quantisation = 0.0
-        noise = math.sqrt(mark_sigma ** 2 - quantisation ** 2 / 12.0)
-        print(f'to state what this camera does: {args.camera}.noise_px: {noise:.3g}, '
-              f'{args.camera}.quantisation_px: {quantisation:g} (now {camera.noise_px:g} and '
-              f'{camera.quantisation_px:g})')
+        print(f'to state what this camera does: {args.camera}.noise_px: {spread.noise_px:.3g}, '
+              f'{args.camera}.quantisation_px: {spread.quantisation_px:g} (now '
+              f'{camera.noise_px:g} and {camera.quantisation_px:g})')
     if args.csv is not None:
         atomic_csv(args.csv, ['stamp_s', 'found', 'still', 'x_m', 'y_m', 'heading_rad',
                               'reason'], rows)

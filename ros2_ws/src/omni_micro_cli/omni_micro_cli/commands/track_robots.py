@@ -7,68 +7,29 @@ from __future__ import annotations
 import argparse
 import sys
 from collections import Counter
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from omni_micro_cli.outputs import atomic_csv
-from omni_micro_common.topic_names import robot_name
 
 if TYPE_CHECKING:
+    from omni_micro_vision.recorded_tracking import RobotRow
     from omni_micro_vision.tracked_camera import TrackedCamera
 
-# One row per robot seen in a frame: stamp, robot ('' when not named), still, x, y, heading,
-# reason.
-Row = tuple[float, str, bool, float, float, float, str]
 
-
-def track_robots(args: argparse.Namespace, reader: Any, connection: Any,
+def track_robots(args: argparse.Namespace, frames: Iterable[tuple[float, Any]],
                  camera: TrackedCamera, still_frames: int, tolerance_px: float) -> int:
-    """Read the frames, print the report per robot, write the rows; exit 0 when every robot
-    was named in some frame, 1 when one never was."""
-    from omni_micro_vision.code_reading import identify
-    from omni_micro_vision.encodings import full_scale
-    from omni_micro_vision.errors import CameraConfigError
+    """Name the robots in ``frames``, print the report per robot, write the rows; exit 0 when
+    every robot was named in some frame, 1 when one never was."""
     from omni_micro_vision.fleet_tracking import robot_codes
-    from omni_micro_vision.image_messages import image_array
-    from omni_micro_vision.tracking import StillnessRule
+    from omni_micro_vision.recorded_tracking import name_robots
 
     codes = robot_codes(args.robots)
-    names = {code: name for name, code in codes.items()}
-    tolerance_m = tolerance_px * min(camera.plane.pixel_size_m)
-    stillness = {code: StillnessRule(still_frames, tolerance_m) for code in names}
-    rows: list[Row] = []
-    frames, scale = 0, 0
-    refused: Counter[str] = Counter()
-    for _, _, raw in reader.messages(connections=[connection]):
-        msg = reader.deserialize(raw, connection.msgtype)
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        frames += 1
-        try:
-            pixels = image_array(msg, camera.plane.resolution_px)
-            scale = max(scale, full_scale(pixels, camera.bit_depth))
-            sightings, reason = identify(pixels, camera.plane, scale)
-        except CameraConfigError as error:
-            sightings, reason = [], f'refused: {error}'
-        if not sightings:
-            refused[reason] += 1
-        seen = set()
-        for sighting in sightings:
-            x, y, heading = sighting.pose
-            if sighting.robot in names:
-                seen.add(sighting.robot)
-                still = stillness[sighting.robot].still(x, y)
-                rows.append((stamp, names[sighting.robot], still, x, y, heading, ''))
-            else:
-                why = sighting.reason or (f'{robot_name(sighting.robot)} is not one of --robots'
-                                          if sighting.robot is not None else 'not named')
-                rows.append((stamp, '', False, x, y, heading, why))
-        for code in set(names) - seen:
-            stillness[code].reset()
-        if args.max_frames and frames >= args.max_frames:
-            break
-    return _report(args, frames, rows, refused, list(codes))
+    named = name_robots(frames, camera, codes, still_frames, tolerance_px)
+    return _report(args, named.frames, named.rows, named.refused, list(codes))
 
 
-def _report(args: argparse.Namespace, frames: int, rows: list[Row], refused: Counter[str],
+def _report(args: argparse.Namespace, frames: int, rows: list[RobotRow], refused: Counter[str],
             robots: list[str]) -> int:
     print(f'{args.camera} camera, {frames} frames, robots {", ".join(robots)}:')
     for robot in robots:
