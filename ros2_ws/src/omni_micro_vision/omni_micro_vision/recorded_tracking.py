@@ -119,17 +119,17 @@ class StillSpread:
 
 
 def still_spread(rows: list[FrameRow], camera: TrackedCamera) -> StillSpread | None:
-    """The spread over ``rows``' still frames (None with fewer than two)."""
-    still = [row for row in rows if row[2]]
-    if len(still) < 2:
-        return None
-    poses = np.array([row[3:6] for row in still])
+    """The spread over ``rows``' still frames; None when no two of them come in a row (a
+    single still frame between moves scatters about nothing)."""
+    still = [index for index, row in enumerate(rows) if row[2]]
+    poses = np.array([rows[index][3:6] for index in still]).reshape(-1, 3)
     # Scatter about each still stretch's own mean: a robot moved between stretches does
     # not count as noise.
-    breaks = np.flatnonzero(np.diff([rows.index(row) for row in still]) > 1) + 1
-    residuals = np.concatenate([part - part.mean(axis=0)
-                                for part in np.split(poses, breaks) if len(part) >= 2])
-    spread = residuals.std(axis=0) if len(residuals) >= 2 else np.full(3, math.nan)
+    breaks = np.flatnonzero(np.diff(still) > 1) + 1
+    stretches = [part - part.mean(axis=0) for part in np.split(poses, breaks) if len(part) >= 2]
+    if not stretches:
+        return None
+    spread = np.concatenate(stretches).std(axis=0)
     stated = camera.uncertainty(float(np.median(poses[:, 2])))
     # The stated position spread is mark_sigma / sqrt(2) pixels, mark_sigma^2 = noise^2 +
     # quantisation^2 / 12: solve for noise, or for both when the grid alone says too much.

@@ -146,6 +146,8 @@ def _report(args: argparse.Namespace, rows: list[FrameRow], camera: TrackedCamer
     for reason, count in sorted(reasons.items(), key=lambda item: -item[1]):
         print(f'  {count:5d} x {reason}')
     spread = still_spread(rows, camera)
+    if spread is None and still:
+        print('spread over still frames: not measured, no two still frames come in a row')
     if spread is not None:
         x, y, heading = spread.spread_m_rad
         stated = spread.stated
