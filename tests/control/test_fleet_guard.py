@@ -289,3 +289,27 @@ def test_frames_read_back_to_back_by_a_busy_driver_give_no_false_closing():
     head_on = {0: lambda t: (CRUISE_M_S * t, 0.0), 1: lambda t: (0.030, 0.0)}
     stop = read_late(head_on, 60)
     assert stop is not None and stop.kind == 'proximity'
+
+
+def test_the_stop_says_the_gap_the_projection_started_from():
+    """Robot 1, its wheels turning, goes unnamed (hidden) while driving at robot 0, which the
+    camera still names every frame: the guard carries robot 1 on at its velocity, and the stop
+    says the gap it carried it to, not where robot 1 was half a second after it was last
+    seen (27.4 mm: once, the message said so)."""
+    guard = FleetGuard(2)
+    stop = None
+    for frame in range(60):
+        t = frame * FRAME_S
+        guard.saw(0, t, 0.0, 0.0, arrived_s=t)
+        if t <= 0.4:
+            guard.saw(1, t, 0.040 - CRUISE_M_S * t, 0.0, arrived_s=t)
+        guard.wheels(0, False, arrived_s=t)
+        guard.wheels(1, True, arrived_s=t)
+        stop = guard.check(t, stamps_now_s=t)
+        if stop is not None:
+            break
+    assert stop is not None and stop.kind == 'proximity', stop
+    said_mm = float(stop.reason.split(' mm apart')[0].rsplit(' ', 1)[1])
+    carried_on_mm = (0.040 - CRUISE_M_S * t) * 1e3
+    assert said_mm == pytest.approx(carried_on_mm, abs=0.01)
+    assert said_mm < STOP_GAP_M * 1e3 + CRUISE_M_S * (HORIZON_S + FRAME_S) * 1e3

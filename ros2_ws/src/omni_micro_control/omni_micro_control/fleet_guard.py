@@ -192,10 +192,8 @@ class FleetGuard:
             turning = {robot for robot in (a, b) if self._turning(robot, now_s)}
             ahead_s = {robot: (age if robot in turning else min(age, VELOCITY_SPAN_S))
                        + self.horizon_s for robot in (a, b)}
-            gap, closing = self.projected_gap(a, b, ahead_s, turning)
+            gap, closing, now_gap = self.projected_gap(a, b, ahead_s, turning)
             if gap < self.stop_gap_m:
-                now_gap = math.dist(*(_position_at(self._seen[r], self._later(a, b))[:2]
-                                      for r in (a, b)))
                 return GuardStop('proximity', (a, b), (
                     f'{robot_name(a)} and {robot_name(b)} {now_gap * 1e3:.2f} mm apart, '
                     f'closing at {closing * 1e3:.1f} mm/s: under {self.stop_gap_m * 1e3:g} mm '
@@ -221,10 +219,10 @@ class FleetGuard:
             self.unnamed_s
 
     def projected_gap(self, a: int, b: int, ahead_s: dict[int, float],
-                      turning: set[int]) -> tuple[float, float]:
+                      turning: set[int]) -> tuple[float, float, float]:
         """The closest robots ``a`` and ``b`` come from their latest captures (both taken to the
         later's stamp; a robot in ``turning`` however far), each moving on for its
-        ``ahead_s``, and how fast they close now."""
+        ``ahead_s``; how fast they close now, and how far apart they are then."""
         at = self._later(a, b)
         pa, pb = (_position_at(self._seen[r], at, math.inf if r in turning else VELOCITY_SPAN_S)
                   for r in (a, b))
@@ -244,7 +242,7 @@ class FleetGuard:
             t = 0.0 if speed2 == 0 else min(max(-(px * vx + py * vy) / speed2, 0.0), span)
             closest = min(closest, math.hypot(px + vx * t, py + vy * t))
             px, py, start = px + vx * span, py + vy * span, end
-        return closest, closing
+        return closest, closing, distance
 
     def _later(self, a: int, b: int) -> float:
         return max(self._seen[a].stamp_s, self._seen[b].stamp_s)
