@@ -13,7 +13,7 @@ import pytest
 
 from omni_micro_bringup import graph
 from omni_micro_bringup.errors import UsageError
-from omni_micro_bringup.fleet_graph import first_tick_past
+from omni_micro_bringup.fleet_dispatch import first_tick_past
 from omni_micro_bringup.graph_options import FleetRun, GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import wired_specs
@@ -326,7 +326,7 @@ def test_one_robot_and_a_fleet_are_refused_a_graph_that_cannot_be_in_the_same_wo
         tmp_path, asked, refused):
     """One check for 1..N robots, in the run sequence itself (before, a single robot's graph
     with camera faults on rendered images was refused by the command line only)."""
-    from omni_micro_bringup.fleet_graph import FleetDispatch
+    from omni_micro_bringup.fleet_dispatch import FleetDispatch
     from omni_micro_bringup.goal_sequence import GoalSequence
 
     plan = plan_fleet([(0.0, 0.0), (0.05, 0.0)], [[], []])

@@ -225,7 +225,7 @@ def test_a_fleet_goal_waits_for_its_controller_not_for_the_recorder_that_listene
     from rclpy.node import Node
     from rclpy.timer import Timer
 
-    from omni_micro_bringup.fleet_orchestrator import FleetCoordinator
+    from omni_micro_bringup.fleet_coordinator import FleetCoordinator
     from omni_micro_common.qos import STATUS_QOS as CONTROLLER_STATUS_QOS
     from omni_micro_control.fleet_legs import GoalOrder
 

@@ -25,8 +25,8 @@ orchestrator reads of the bag recorder),
 :mod:`platform_bounds` (goals checked against the cameras' platform), :mod:`machine_load`
 (other programs keeping the cores busy, for benchmarks and tests), :mod:`errors`; for several
 robots, :mod:`robot_namespaces` (each robot's nodes in its namespace) and
-:mod:`fleet_graph` (their run: legs handed out as the plan says) with
-:mod:`fleet_orchestrator` (the orchestration's node, each robot's coordinator), and
+:mod:`fleet_dispatch` (their run: legs handed out as the plan says) with
+:mod:`fleet_coordinator` (the orchestration's node, each robot's coordinator), and
 :mod:`fleet_bench` (several real robots on the bench: what they are refused, and the guard
 that stops them all).
 """

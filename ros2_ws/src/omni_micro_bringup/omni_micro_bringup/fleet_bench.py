@@ -10,7 +10,7 @@ motion on for every robot: the guard follows them moving), each robot's controll
 ``/robot_k``, and the recorder on the wall clock, keeping the guard's stops. Nothing runs in
 lockstep.
 
-The orchestration (:mod:`omni_micro_bringup.fleet_graph`) hands out the planner's legs as in
+The orchestration (:mod:`omni_micro_bringup.fleet_dispatch`) hands out the planner's legs as in
 simulation, each goal stamped with the wall-clock time of the end it follows (the single robot's
 bench timing, per robot), once every robot's first state and a frame naming every robot have
 come. No dynamics_node can see two real robots touch: :class:`BenchGuard` follows every robot's

@@ -3,7 +3,7 @@
 One run sequence for one robot or several (:func:`run_graph`): the graph checked, started with
 the clock paused so that nothing moves before every node listens (what each robot's nodes, the
 bench's drivers and the recorder must show: :mod:`.readiness`, for 1..N robots alike), driven (a
-single robot's goals, :mod:`.goal_sequence`, or a fleet's legs, :mod:`.fleet_graph`), the
+single robot's goals, :mod:`.goal_sequence`, or a fleet's legs, :mod:`.fleet_dispatch`), the
 recorder's tail waited for, and stopped in phases (the controller, then the rest at once, then
 the recorder; SIGINT, and SIGTERM / SIGKILL only for a node that hangs), Fast DDS shared-memory
 leftovers cleaned. Each node is its own OS process through its installed entry point (or one
@@ -213,7 +213,7 @@ class Graph:
 
 class Driver(Protocol):
     """What the run sequence needs of whoever drives the robots: a single robot's goals
-    (goal_sequence.GoalSequence) or a fleet's legs (fleet_graph.FleetDispatch)."""
+    (goal_sequence.GoalSequence) or a fleet's legs (fleet_dispatch.FleetDispatch)."""
 
     @property
     def monitor(self) -> Orchestrator | None:
@@ -279,7 +279,7 @@ def run_graph(options: GraphOptions,
 def driver_for(options: GraphOptions) -> Driver:
     """Who drives the graph of ``options``: a fleet's legs (``options.fleet``) or a single
     robot's goals."""
-    from omni_micro_bringup.fleet_graph import FleetDispatch
+    from omni_micro_bringup.fleet_dispatch import FleetDispatch
     from omni_micro_bringup.goal_sequence import GoalSequence
 
     return FleetDispatch(options) if options.fleet else GoalSequence(options)

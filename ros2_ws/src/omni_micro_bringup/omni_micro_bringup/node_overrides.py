@@ -118,7 +118,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
                 robot_wheel_offsets_rad=[float(v) for true_robot in fleet.robots
                                          for v in true_robot.wheel_offsets_rad])
         specs = wiring.specs
-        # A fleet's orchestration takes part as each robot's coordinator (fleet_graph).
+        # A fleet's orchestration takes part as each robot's coordinator (fleet_dispatch).
         coordinators = [coordinator_name(name) for name in robots] if fleet else []
         overrides.update(lockstep_nodes=lockstep_nodes(specs, coordinators)
                          if options.in_lockstep else [])

@@ -77,7 +77,7 @@ class Orchestrator:
     goal publisher and controller's statuses, and each one's odometry as
     :meth:`_follow_odometry` keeps it. The single robot is the fleet of one in the root
     namespace, its goals handed one by one (:meth:`send_goal`); a fleet's coordinator is
-    :class:`~omni_micro_bringup.fleet_orchestrator.FleetCoordinator`. With ``follow_route`` it
+    :class:`~omni_micro_bringup.fleet_coordinator.FleetCoordinator`. With ``follow_route`` it
     keeps the single robot's whole route and every capture (for figures)."""
 
     def __init__(self, domain_id: int, follow_route: bool = False,

@@ -40,7 +40,7 @@ GOAL_ACKED_WITHIN_S = 0.5
 class RespawnsHost(Protocol):
     """What bringing a node back needs of the orchestration's node
     (:class:`omni_micro_bringup.orchestrator.Orchestrator` for a single robot,
-    :class:`omni_micro_bringup.fleet_orchestrator.FleetCoordinator` for a fleet): its ROS node, the
+    :class:`omni_micro_bringup.fleet_coordinator.FleetCoordinator` for a fleet): its ROS node, the
     clock, the robots' statuses and a way to hand a robot its goal again."""
 
     node: Any

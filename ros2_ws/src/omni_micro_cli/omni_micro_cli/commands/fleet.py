@@ -214,7 +214,7 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     from omni_micro_studies.fleet_twin import DONE, run_fleet
 
     if graph is not None:
-        from omni_micro_bringup.fleet_graph import FleetDispatch
+        from omni_micro_bringup.fleet_dispatch import FleetDispatch
 
         FleetDispatch.check_options(graph)   # refused before the planning
     started = time.perf_counter()

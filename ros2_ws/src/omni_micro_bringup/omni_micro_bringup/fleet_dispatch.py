@@ -38,7 +38,7 @@ from omni_micro_bringup.fleet_bench import (
     BenchGuard,
     check_bench,
 )
-from omni_micro_bringup.fleet_orchestrator import FleetCoordinator
+from omni_micro_bringup.fleet_coordinator import FleetCoordinator
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.graph_result import GraphResult, RobotLog
 from omni_micro_bringup.node_overrides import grid_period_s, wired_specs

@@ -2,7 +2,7 @@
 its goals on ``/robot_k/goal_pose``, each goal's tolerance set on that robot's controller first,
 reads every robot's statuses and throttled odometry and dynamics_node's contacts, and reports
 each goal's end handled in that robot's lockstep gate, as the coordinator
-(:mod:`omni_micro_bringup.fleet_graph` drives the run with it).
+(:mod:`omni_micro_bringup.fleet_dispatch` drives the run with it).
 """
 
 from __future__ import annotations
