@@ -15,7 +15,7 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 
 from omni_micro_common.conventions import STATUS_TIME_KEY
-from omni_micro_tools.bag_reading import read_bag
+from omni_micro_tools.bag_reading import bag_message_counts, read_bag
 from omni_micro_tools.bags import TYPESTORE, finish_in_order, open_writer
 from omni_micro_tools.topics import BAG_TAIL_S, GRAPH_TOPICS, TopicSpec, recordable_spec
 
@@ -106,6 +106,11 @@ def test_the_finished_bag_is_in_simulated_time_and_ends_a_tail_after_the_outcome
     assert ordered.end_ns == end_ns
     read = read_bag(bag)
     assert read.timestamps['/clock'] == list(range(TICK_NS, end_ns + 1, TICK_NS))
+    # What the bag's index counts (the soak's check against what was published) is what it
+    # holds, the messages past its end left out of both.
+    assert bag_message_counts(bag) == {topic: len(stamps)
+                                       for topic, stamps in read.timestamps.items()}
+    assert bag_message_counts(bag)['/clock'] == end_ns // TICK_NS
     assert read.timestamps['/odom'] == read.timestamps['/clock']
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
             for m in read.messages['/odom']] == read.timestamps['/odom']

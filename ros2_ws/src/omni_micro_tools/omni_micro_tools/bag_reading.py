@@ -105,6 +105,15 @@ def bag_topics(path: Path) -> list[str]:
         return sorted({connection.topic for connection in reader.connections})
 
 
+def bag_message_counts(path: Path) -> dict[str, int]:
+    """How many messages a bag holds of each topic, as its index says (without reading them)."""
+    counts: dict[str, int] = {}
+    with reading(path) as reader:
+        for connection in reader.connections:
+            counts[connection.topic] = counts.get(connection.topic, 0) + connection.msgcount
+    return counts
+
+
 def read_bag(path: Path, topics: list[str] | None = None, decode: bool = True) -> BagMessages:
     """A bag's messages (all, or those of ``topics``), each decoded unless ``decode`` is False.
 

@@ -6,10 +6,8 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-import yaml
 
 from omni_micro_bringup.graph import run_graph
 from omni_micro_bringup.graph_options import GraphOptions
@@ -27,6 +25,7 @@ from omni_micro_cli.graph_arguments import (
     view_from_args,
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
+from omni_micro_tools.bag_reading import bag_message_counts
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG
 
@@ -69,12 +68,6 @@ def random_goals(count: int, seed: int) -> list[tuple[float, float]]:
     return [(float(x), float(y)) for x, y in goals]
 
 
-def bag_counts(bag: Path) -> dict[str, int]:
-    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    return {t['topic_metadata']['name']: t['message_count']
-            for t in info['topics_with_message_count']}
-
-
 def run(args: argparse.Namespace) -> int:
     try:
         check_timing(args)
@@ -94,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
                             **steering_overrides(args.steering)},
         echo=None if args.quiet else echo_to_stderr, view=view_from_args(args)))
     reached = sum(1 for status in result.goals if status['outcome'] == 'reached')
-    recorded = bag_counts(bag)
+    recorded = bag_message_counts(bag)
     # Of the recorded topics (the throttled copies of /odom and /joint_states are not).
     missing = {topic: count - recorded.get(topic, 0) for topic, count in result.published.items()
                if topic in RECORDABLE_TOPICS and recorded.get(topic, 0) != count}
