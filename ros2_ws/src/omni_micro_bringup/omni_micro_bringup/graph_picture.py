@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from omni_micro_bringup.composition import ORCHESTRATOR_NODE
 from omni_micro_bringup.graph_description import TopicEndpoints
 
 # What the picture calls the orchestrator's node: the command that started the graph.
@@ -13,12 +14,11 @@ ORCHESTRATOR_LABEL = 'omni-micro (orchestration)'
 
 
 def nodes_of(topics: list[TopicEndpoints]) -> list[str]:
+    """Every node that publishes or subscribes one of ``topics``, by name."""
     return sorted({e.node for t in topics for e in (*t.publishers, *t.subscribers)})
 
 
 def _label(node: str) -> str:
-    from omni_micro_bringup.composition import ORCHESTRATOR_NODE
-
     return ORCHESTRATOR_LABEL if node == ORCHESTRATOR_NODE else node
 
 

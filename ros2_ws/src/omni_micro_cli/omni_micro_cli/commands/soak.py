@@ -25,7 +25,6 @@ from omni_micro_cli.graph_arguments import (
     view_from_args,
 )
 from omni_micro_cli.outputs import echo_to_stderr, output_folder, print_json
-from omni_micro_tools.bag_reading import bag_message_counts
 from omni_micro_tools.topics import RECORDABLE_TOPICS
 from omni_micro_vision.camera import DEFAULT_RIG
 
@@ -69,6 +68,8 @@ def random_goals(count: int, seed: int) -> list[tuple[float, float]]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from omni_micro_tools.bag_reading import bag_message_counts
+
     try:
         check_timing(args)
     except argparse.ArgumentTypeError as error:
