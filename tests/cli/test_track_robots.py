@@ -1,6 +1,7 @@
-"""`omni-micro track --robots`: before a bench run of several robots, the recorded frames of the
-shared camera say who the tracker names, how often each is still, and which robot it could not
-name and why; a robot never named fails the command."""
+"""`omni-micro track` on a driver's recorded frames. With ``--robots``: before a bench run of
+several robots, the frames of the shared camera say who the tracker names, how often each is
+still, and which robot it could not name and why; a robot never named fails the command. Of one
+robot: a spread over still frames only where two come in a row."""
 
 from __future__ import annotations
 
@@ -73,3 +74,27 @@ def test_a_robot_never_named_fails_saying_which(tmp_path):
     bad = omni_micro('track', str(bag), '--robots', 'robot_0,gripper')
     assert bad.returncode == 2
     assert "'gripper' is not a robot with a code of its own (robot_0 to robot_9" in bad.stderr
+
+
+def test_still_frames_never_two_in_a_row_say_the_spread_was_not_measured(tmp_path):
+    """A robot nudged 1 mm every third frame is still (three frames agree) on each third frame
+    alone: no stretch to scatter about, so no spread and no advice, said in one line (it was a
+    traceback)."""
+    places = [RobotState(0.05 + 1e-3 * (index // 3), 0.01, 0.3) for index in range(9)]
+    bag = tmp_path / 'nudged'
+    writer, connections = open_writer(bag, 'mcap', driver_image_topics([TOPIC]))
+    images = ImageWriter('bench_camera', 1024, 1280, 'mono8')
+    try:
+        for index, place in enumerate(places):
+            pixels = render_robots(DEFAULT_RIG.macro, Sensor(), [InView(place)],
+                                   np.random.default_rng([3, index]))
+            stamp_ns = 1_700_000_000_000_000_000 + index * 33_333_333
+            writer.write(connections[TOPIC], stamp_ns,
+                         images.image(*divmod(stamp_ns, 1_000_000_000), pixels))
+    finally:
+        writer.close()
+    done = omni_micro('track', str(bag), '--camera', 'macro', '--image-topic', TOPIC)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [
+        'macro camera, 9 frames: fiducial found in 9, still (a capture) in 3',
+        'spread over still frames: not measured, no two still frames come in a row']
