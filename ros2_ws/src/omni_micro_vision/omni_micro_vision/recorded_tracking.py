@@ -16,7 +16,12 @@ import numpy as np
 
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_common.topic_names import robot_name
+from omni_micro_vision.code_reading import identify
+from omni_micro_vision.encodings import full_scale
+from omni_micro_vision.errors import CameraConfigError
+from omni_micro_vision.image_messages import image_array
 from omni_micro_vision.tracked_camera import TrackedCamera
+from omni_micro_vision.tracking import FrameTracker, StillnessRule
 
 # One row per frame: stamp, found, still, x, y, heading, reason.
 FrameRow = tuple[float, bool, bool, float, float, float, str]
@@ -29,10 +34,6 @@ def track_frames(frames: Iterable[tuple[float, Any]], camera: TrackedCamera, sti
                  tolerance_px: float) -> list[FrameRow]:
     """One robot's fiducial in each (stamp, image message) of ``frames``, as tracker_node finds
     it and decides that the robot is still."""
-    from omni_micro_vision.errors import CameraConfigError
-    from omni_micro_vision.image_messages import image_array
-    from omni_micro_vision.tracking import FrameTracker, StillnessRule
-
     stillness = StillnessRule(still_frames, tolerance_px * min(camera.plane.pixel_size_m))
     tracker = FrameTracker(camera.plane, camera.bit_depth)
     rows: list[FrameRow] = []
@@ -69,12 +70,6 @@ def name_robots(frames: Iterable[tuple[float, Any]], camera: TrackedCamera,
                 codes: dict[str, int], still_frames: int, tolerance_px: float) -> NamedRobots:
     """Each robot of ``codes`` (name -> fiducial code) in each (stamp, image message), as
     tracker_node names it and decides that it is still; a robot seen but not named, with why."""
-    from omni_micro_vision.code_reading import identify
-    from omni_micro_vision.encodings import full_scale
-    from omni_micro_vision.errors import CameraConfigError
-    from omni_micro_vision.image_messages import image_array
-    from omni_micro_vision.tracking import StillnessRule
-
     names = {code: name for name, code in codes.items()}
     tolerance_m = tolerance_px * min(camera.plane.pixel_size_m)
     stillness = {code: StillnessRule(still_frames, tolerance_m) for code in names}
