@@ -25,6 +25,7 @@ def write_figures(out: Path, angle_step_deg: float, offset_step_deg: float,
     """Each figure into ``out`` as a PNG, with figures.json and comparison.md; Fig. 6 at
     ``angle_step_deg``, Fig. 7 at ``offset_step_deg``. Returns the numbers the figures show
     (figures.json's), and says each step to ``progress``."""
+    # Loaded when figures are drawn, not when the command line reads its verbs.
     from omni_micro_sim import RobotParameters, simulate_open_loop, simulate_open_loop_batch
     from omni_micro_studies import paper_figures as plots
 
