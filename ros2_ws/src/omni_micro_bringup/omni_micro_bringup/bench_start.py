@@ -170,11 +170,11 @@ def wait_until_present(monitor: BenchWatcher, graph: Supervisor,
         waited = time.monotonic() - started
         hint = _hint(robot_missing(), monitor.domain_id)
         if waited > timeout_s:
-            raise RunFailed(f'no {" and no ".join(missing())} within {timeout_s:g} s: '
-                            f'{hint}; logs in {graph.log_dir}')
+            raise RunFailed(f'gave up waiting for {" and ".join(missing())} after '
+                            f'{timeout_s:g} s: {hint}; logs in {graph.log_dir}')
         if waited > BENCH_NOTICE_S and not noticed and echo:
             noticed = True
-            echo(f'[orchestration] still no {" and no ".join(missing())} after '
+            echo(f'[orchestration] still waiting for {" and ".join(missing())} after '
                  f'{BENCH_NOTICE_S:g} s: {hint}')
         monitor.spin_for(0.05)
     return time.monotonic() - started
