@@ -176,7 +176,7 @@ def test_replay_says_what_it_plays_and_an_interrupted_replay_exits_130(recorded,
 
 
 def test_a_killed_recorder_loses_at_most_its_last_flush_and_the_unsure_second(
-        domain_id, probe, tmp_path, omni_micro):
+        leftovers_removed, domain_id, probe, tmp_path, omni_micro):
     """SIGKILL: what the recorder had pushed to the file (every 0.5 s) comes back, but for the
     last second of the messages' own time, which bag-recover leaves out (it may have been
     incomplete): at most 2 s is lost (0.5 s left for a recorder behind a busy machine).

@@ -84,7 +84,7 @@ def test_a_busy_node_stops_on_its_first_signal(node, sig, start_node, probe, tmp
     assert 'published message counts' in (tmp_path / f'{node}.log').read_text()
 
 
-def test_a_second_signal_ends_the_last_words_at_once(start_node, tmp_path):
+def test_a_second_signal_ends_the_last_words_at_once(leftovers_removed, start_node, tmp_path):
     process = start_node('omni_micro_control', 'controller_node')
     wait_for_line(tmp_path / 'controller_node.log', ' ready', 30.0)
     process.send_signal(signal.SIGINT)
@@ -182,7 +182,7 @@ def leased_domain(pid: int) -> int:
     raise AssertionError(f'process {pid} holds no domain lease')
 
 
-def test_no_process_outlives_a_killed_orchestrator(tmp_path):
+def test_no_process_outlives_a_killed_orchestrator(leftovers_removed, tmp_path):
     """SIGKILL of `omni-micro run` mid-run (a closed terminal, an OOM kill, a CI time-out).
 
     The kill comes with the robot's clock held, as in the node kills below: the orchestrator is
