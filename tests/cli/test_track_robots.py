@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -28,13 +29,16 @@ def omni_micro(*args: str) -> subprocess.CompletedProcess:
                           capture_output=True, text=True)
 
 
-def recorded(bag: Path, robots: list[InView], frames: int) -> Path:
-    """A driver's mono8 frames of ``robots`` under the macro camera, 30 Hz, in a bag."""
+def recorded(bag: Path, robots: list[InView] | Callable[[int], list[InView]],
+             frames: int) -> Path:
+    """A driver's mono8 frames of ``robots`` (or, a function, of frame k's) under the macro
+    camera, 30 Hz, in a bag."""
     writer, connections = open_writer(bag, 'mcap', driver_image_topics([TOPIC]))
     images = ImageWriter('bench_camera', 1024, 1280, 'mono8')
     try:
         for index in range(frames):
-            pixels = render_robots(DEFAULT_RIG.macro, Sensor(), robots,
+            pixels = render_robots(DEFAULT_RIG.macro, Sensor(),
+                                   robots(index) if callable(robots) else robots,
                                    np.random.default_rng([2, index]))
             stamp_ns = 1_700_000_000_000_000_000 + index * 33_333_333
             writer.write(connections[TOPIC], stamp_ns,
@@ -80,19 +84,9 @@ def test_still_frames_never_two_in_a_row_say_the_spread_was_not_measured(tmp_pat
     """A robot nudged 1 mm every third frame is still (three frames agree) on each third frame
     alone: no stretch to scatter about, so no spread and no advice, said in one line (it was a
     traceback)."""
-    places = [RobotState(0.05 + 1e-3 * (index // 3), 0.01, 0.3) for index in range(9)]
-    bag = tmp_path / 'nudged'
-    writer, connections = open_writer(bag, 'mcap', driver_image_topics([TOPIC]))
-    images = ImageWriter('bench_camera', 1024, 1280, 'mono8')
-    try:
-        for index, place in enumerate(places):
-            pixels = render_robots(DEFAULT_RIG.macro, Sensor(), [InView(place)],
-                                   np.random.default_rng([3, index]))
-            stamp_ns = 1_700_000_000_000_000_000 + index * 33_333_333
-            writer.write(connections[TOPIC], stamp_ns,
-                         images.image(*divmod(stamp_ns, 1_000_000_000), pixels))
-    finally:
-        writer.close()
+    bag = recorded(tmp_path / 'nudged',
+                   lambda index: [InView(RobotState(0.05 + 1e-3 * (index // 3), 0.01, 0.3))],
+                   frames=9)
     done = omni_micro('track', str(bag), '--camera', 'macro', '--image-topic', TOPIC)
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines() == [
