@@ -36,11 +36,9 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.qos import DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CONTACT_TOPIC,
-    GOAL_TOPIC,
     ODOM_THROTTLE_TOPIC,
     namespaced_topic,
     robot_name,
-    robot_topic,
 )
 from omni_micro_control.fleet_legs import GoalOrder
 
@@ -56,7 +54,6 @@ class FleetCoordinator(Orchestrator):
         super().__init__(domain_id, echo=echo, markers=markers, recording=recording,
                          namespaces=tuple(robot_name(k) for k in range(count)),
                          respawnable=respawnable)
-        self.count = count
         self.tolerance_clients = [self.node.create_client(
             SetParameters, f'/{robot_name(k)}/controller_node/set_parameters')
             for k in range(count)]
@@ -67,7 +64,6 @@ class FleetCoordinator(Orchestrator):
         self.contacts: list[dict[str, str]] = []   # dynamics_node's: two chassis touching
         self.node.create_subscription(DiagnosticStatus, CONTACT_TOPIC, self._on_contact,
                                       STATUS_QOS)
-        self.goals_given: dict[str, int] = {}   # per robot's goal topic
 
     def _on_contact(self, msg: DiagnosticStatus) -> None:
         self.contacts.append({item.key: item.value for item in msg.values})
@@ -147,8 +143,6 @@ class FleetCoordinator(Orchestrator):
         # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
         # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
         publisher.publish(goal)
-        topic = robot_topic(order.robot, GOAL_TOPIC)
-        self.goals_given[topic] = self.goals_given.get(topic, 0) + 1
         while True:
             for robot, status in self.statuses[seen:]:
                 if robot != order.robot:

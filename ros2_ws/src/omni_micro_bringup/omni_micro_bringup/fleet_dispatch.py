@@ -298,9 +298,6 @@ class FleetDispatch:
                              'the file\'s places; give each robot\'s start_mm where it stands')
         bench.origin_s = time.time()
 
-    def goals_published(self) -> dict[str, int]:
-        return dict(self.monitor.goals_given) if self.monitor else {}
-
     def close(self, log_dir: Path) -> None:
         """Every robot's statuses as the coordinator took them, in its order."""
         if self.monitor is not None:

@@ -28,7 +28,6 @@ from omni_micro_bringup.readiness import (
 )
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import STATUS_TIME_KEY
-from omni_micro_common.topic_names import GOAL_TOPIC
 
 # How long a run on the bench waits for the robot's first state and the cameras' first frames
 # (bench_start), as for the drivers' topics.
@@ -131,9 +130,6 @@ class GoalSequence:
                         else float(status.get('sim_time_s', 'nan'))), wall_time_s=wall_time,
             log_dir=graph.log_dir, domain_id=domain_id, status=status, route=monitor.route,
             captures=monitor.captures, goals=statuses, memory_kb=memory)
-
-    def goals_published(self) -> dict[str, int]:
-        return {GOAL_TOPIC: self.monitor.goals_sent if self.monitor else 0}
 
     def close(self, log_dir: Path) -> None:
         """Nothing of its own to leave beside the logs."""

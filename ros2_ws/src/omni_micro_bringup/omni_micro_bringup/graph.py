@@ -239,10 +239,6 @@ class Driver(Protocol):
         started on the way (``on_running`` called then)."""
         ...
 
-    def goals_published(self) -> dict[str, int]:
-        """How many goals the orchestration published, per topic."""
-        ...
-
     def close(self, log_dir: Path) -> None:
         """What it keeps beside the logs, however the run ended."""
         ...
@@ -271,7 +267,8 @@ def run_graph(options: GraphOptions,
                 on_running(graph)
 
         result = driver.drive(graph, running, domain_id)
-    result.published = {**graph.published(), **driver.goals_published()}
+    goals = driver.monitor.goals_published.counts if driver.monitor else {}
+    result.published = {**graph.published(), **goals}
     result.respawns = {p.name: p.starts - 1 for p in graph.processes if p.starts > 1}
     return result
 

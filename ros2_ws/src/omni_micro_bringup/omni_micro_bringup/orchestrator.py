@@ -44,6 +44,7 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
 )
 from omni_micro_common.goal_message import goal_pose
+from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
     CAPTURE_TOPICS,
@@ -104,7 +105,8 @@ class Orchestrator:
         # Every robot's controller statuses, in the order read: (robot, status).
         self.statuses: list[tuple[int, dict[str, str]]] = []
         self.parameters = self.node.create_client(SetParameters, '/dynamics_node/set_parameters')
-        self.goals_sent = 0
+        # The goals published, per topic (each robot's writer counts what it sends).
+        self.goals_published = PublicationCounter()
         self.goal_sent_at = 0
         self.goal_stamp_s = 0.0
         self.recorder = RecorderWatch(self.node, self.spin_for)
@@ -117,8 +119,8 @@ class Orchestrator:
             self.node.create_subscription(
                 DiagnosticStatus, namespaced_topic(namespace, CONTROLLER_STATUS_TOPIC),
                 functools.partial(self._on_status, robot), STATUS_QOS)
-            self.goal_publishers.append(self.node.create_publisher(
-                PoseStamped, namespaced_topic(namespace, GOAL_TOPIC), 10))
+            self.goal_publishers.append(self.goals_published.wrap(self.node.create_publisher(
+                PoseStamped, namespaced_topic(namespace, GOAL_TOPIC), 10)))
             self._follow_odometry(robot, namespace)
 
     def _follow_odometry(self, robot: int, namespace: str) -> None:
@@ -220,7 +222,6 @@ class Orchestrator:
         seen = len(self.statuses)
         publisher.publish(goal)
         publisher.wait_for_all_acked(Duration(seconds=acked_within_s))
-        self.goals_sent += 1
         self.goal_sent_at = seen
         resend_at = time.monotonic() + 2.0
         while True:
@@ -231,7 +232,6 @@ class Orchestrator:
                 # A reader of a node that just died can still count as matched for a moment:
                 # if nobody acknowledged, the goal went there. Say it again.
                 publisher.publish(goal)
-                self.goals_sent += 1
                 resend_at = time.monotonic() + 2.0
             for _, status in self.statuses[seen:]:
                 if status['message'] == 'goal rejected':

@@ -29,12 +29,11 @@ class RecorderWatch:
 
     def _on_status(self, msg: DiagnosticStatus) -> None:
         self.ready = self.ready or msg.message == 'recording'
-        received = {item.key: item.value for item in msg.values}.get(RECEIVED_UP_TO_KEY)
-        if received is not None:
-            self.received_s = max(self.received_s, float(received))
+        values = {item.key: item.value for item in msg.values}
+        if RECEIVED_UP_TO_KEY in values:
+            self.received_s = max(self.received_s, float(values[RECEIVED_UP_TO_KEY]))
         if msg.level == DiagnosticStatus.ERROR:
-            self.failure = {item.key: item.value for item in msg.values}.get(
-                'reason', msg.message)
+            self.failure = values.get('reason', msg.message)
 
     def check(self) -> None:
         """A recorder that cannot write (a full disk) stops the run: a run without its bag is
