@@ -10,21 +10,16 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable
-from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
-from rclpy.client import Client
 
 from omni_micro_bringup.composition import coordinator_name
 from omni_micro_bringup.errors import RunFailed, UsageError
 from omni_micro_bringup.graph_result import RobotLog
-from omni_micro_bringup.orchestrator import (
-    SERVICE_RESEND_S,
-    Orchestrator,
-)
+from omni_micro_bringup.orchestrator import Orchestrator
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import (
     join_stamp,
@@ -109,25 +104,6 @@ class FleetCoordinator(Orchestrator):
         if not result.results[0].successful:
             raise UsageError(f'{robot_name(robot)}\'s controller_node refused tolerance_m '
                              f'{tolerance_m!r}: {result.results[0].reason}')
-
-    def call(self, graph: Supervisor, client: Client, request: Any, unanswered: str,
-             timeout_s: float = 30.0) -> Any:
-        """``client``'s service's answer to ``request``; RunFailed saying ``unanswered`` if
-        none has come within ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            graph.check_alive()
-            # Asked again after SERVICE_RESEND_S, as dynamics_node's clock is. A goal, unlike
-            # this, is sent once, to readers already matched (reliable), each waited for by
-            # name: sent again, the controller takes the second for a new goal and ends the
-            # first as replaced.
-            future = client.call_async(request)
-            self.executor.spin_until_future_complete(future, timeout_sec=SERVICE_RESEND_S)
-            if future.done() and future.result() is not None:
-                return future.result()
-            client.remove_pending_request(future)
-            if time.monotonic() > deadline:
-                raise RunFailed(f'{unanswered} within {timeout_s:g} s')
 
     def give(self, graph: Supervisor, order: GoalOrder, timeout_s: float = 30.0) -> None:
         """Set the robot's controller to the order's tolerance, then hand it the goal stamped

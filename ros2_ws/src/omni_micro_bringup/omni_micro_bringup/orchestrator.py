@@ -26,6 +26,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.experimental import EventsExecutor
@@ -270,26 +271,37 @@ class Orchestrator:
         request = SetParameters.Request(parameters=[Parameter(
             name='paused', value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
                                                 bool_value=paused))])
-        deadline = time.monotonic() + 10.0
-        future = self.parameters.call_async(request)
+        could_not = f'could not {"stop" if paused else "start"} the clock of dynamics_node'
+        result = self.call(graph, self.parameters, request, f'{could_not}: no answer',
+                           timeout_s=10.0, resend_s=resend_s)
+        if not result.results[0].successful:
+            raise RunFailed(f'{could_not}: {result.results[0].reason}')
+
+    def call(self, graph: Supervisor, client: Client, request: Any, unanswered: str,
+             timeout_s: float = 30.0, resend_s: float = SERVICE_RESEND_S) -> Any:
+        """``client``'s service's answer to ``request``, asked again every ``resend_s`` while
+        none has come; RunFailed saying ``unanswered`` if none has within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        future = client.call_async(request)
         sent_at = time.monotonic()
-        while not future.done() and time.monotonic() < deadline:
-            if not self.parameters.service_is_ready():
-                # dynamics_node is gone (one that refused its parameters dies just after it
-                # was seen): its death is the message (exit 2 for a refusal), not the clock.
+        while not future.done() or future.result() is None:
+            if time.monotonic() > deadline:
+                raise RunFailed(f'{unanswered} within {timeout_s:g} s')
+            if not client.service_is_ready():
+                # The server's node is gone (one that refused its parameters dies just after it
+                # was seen): its death is the message (exit 2 for a refusal), not the request.
                 graph.check_alive()
             elif time.monotonic() - sent_at >= resend_s:
                 # A server sees a new client's request reader before its own response writer
                 # has matched the client's response reader: an answer sent in between is lost.
-                # Asking again is harmless: the same value twice changes no more than once.
-                self.parameters.remove_pending_request(future)
-                future = self.parameters.call_async(request)
+                # Asking again is harmless: the same value twice changes no more than once. (A
+                # goal, unlike this, is sent once, to readers already matched, each waited for
+                # by name: sent again, the controller takes the second for a new goal.)
+                client.remove_pending_request(future)
+                future = client.call_async(request)
                 sent_at = time.monotonic()
             self.executor.spin_until_future_complete(future, timeout_sec=0.05)
-        result = future.result() if future.done() else None
-        if result is None or not result.results[0].successful:
-            raise RunFailed(f'could not {"stop" if paused else "start"} the clock of '
-                            f'dynamics_node: {result}')
+        return future.result()
 
     def wait_for_outcome(self, graph: Supervisor, timeout_s: float,
                          goal: tuple[float, float]) -> dict[str, str]:
