@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 
 from omni_micro_bringup.errors import RunFailed
-from omni_micro_bringup.respawns import Respawns
+from omni_micro_bringup.respawns import CameraWatch, Respawns
 from omni_micro_control.feedback import REPLACED_REASON
 from omni_micro_control.fleet_legs import GoalOrder
 
@@ -106,7 +106,7 @@ def test_a_replaced_goal_is_no_act_a_move_is_and_the_leg_is_given_again_meanwhil
     respawns = Respawns(orchestration, ['robot_1.vision_node'])   # type: ignore[arg-type]
     order = GoalOrder(1, (0.03, 0.0), 50e-6, 4.0)
     driving = {1: order}
-    respawns.watched[1] = [0, time.monotonic() - 3.1, 0]
+    respawns.watched[1] = CameraWatch(0, time.monotonic() - 3.1, 0)
     # The old goal ends as replaced by the same one, given again: no capture acted on yet.
     orchestration.statuses.append((1, {'message': 'cancelled', 'reason': REPLACED_REASON}))
     orchestration.statuses.append((0, {'message': 'moving'}))   # another robot's
@@ -124,6 +124,6 @@ def test_a_camera_never_acted_on_ends_the_run_naming_the_robot(restarted, robot,
     orchestration = Orchestration()
     respawns = Respawns(orchestration, [restarted])   # type: ignore[arg-type]
     bring_back(respawns, [restarted], {robot: (0.03, 0.0)})
-    respawns.watched[robot] = [0, time.monotonic() - 3.1, 20]
+    respawns.watched[robot] = CameraWatch(0, time.monotonic() - 3.1, 20)
     with pytest.raises(RunFailed, match=f'^{named} receives no capture from its respawned'):
         respawns.watch_new_cameras(Graph(), {robot: (0.03, 0.0)})

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
 from omni_micro_bringup.composition import READS_FROM_ROBOT
@@ -65,6 +66,16 @@ class RespawnsHost(Protocol):
         ...
 
 
+@dataclass(frozen=True)
+class CameraWatch:
+    """A robot's new camera, not acted on yet by its controller: how many statuses there were
+    when its goal was last given, when, and how many times it has been given again."""
+
+    statuses_seen: int
+    asked_at: float
+    tries: int
+
+
 class Respawns:
     """What the orchestrator does when its supervisor says nodes were respawned."""
 
@@ -72,9 +83,8 @@ class Respawns:
         self.monitor = monitor
         self.processes = processes   # those that may be respawned (graph.Graph's, --respawn)
         self.known_endpoints: dict[str, set[bytes]] = {}
-        # Robots whose new camera their controller has not acted on yet: [statuses seen when
-        # asked, when asked, times asked again].
-        self.watched: dict[int, list[Any]] = {}
+        # Robots whose new camera their controller has not acted on yet.
+        self.watched: dict[int, CameraWatch] = {}
         self.namespaces: dict[int, str] = {}   # each robot's, as its respawned nodes named it
 
     # What each respawnable node reads; of alternatives, whichever it subscribes (the
@@ -158,7 +168,7 @@ class Respawns:
             since = len(self.monitor.statuses)
             self.monitor.give_again(graph, robot, driving[robot])
             if 'vision_node' in nodes[robot]:
-                self.watched[robot] = [since, time.monotonic(), 0]
+                self.watched[robot] = CameraWatch(since, time.monotonic(), 0)
         self.remember_endpoints()
         if ended:
             # A fleet's time stands at those ends until the coordinator has handled them: it
@@ -174,19 +184,18 @@ class Respawns:
         waited for in a loop of its own: a fleet's time stands at any other robot's end until the
         coordinator handles it."""
         for robot, watch in list(self.watched.items()):
-            since, asked_at, tries = watch
             statuses = self.monitor.statuses
             if robot not in driving or any(
                     k == robot and (status['message'] == 'moving' or ends_a_goal(status))
-                    for k, status in statuses[since:]):
+                    for k, status in statuses[watch.statuses_seen:]):
                 del self.watched[robot]
-            elif time.monotonic() - asked_at >= 3.0:
-                if tries >= 20:
+            elif time.monotonic() - watch.asked_at >= 3.0:
+                if watch.tries >= 20:
                     namespace = self.namespaces.get(robot, '')
                     whose = f"{namespace}'s " if namespace else ''
                     raise RunFailed(f'{whose}controller_node receives no capture from its '
                                     'respawned vision_node')
-                self.watched[robot] = [len(statuses), time.monotonic(), tries + 1]
+                self.watched[robot] = CameraWatch(len(statuses), time.monotonic(), watch.tries + 1)
                 self.monitor.give_again(graph, robot, driving[robot])
 
     def resume(self, graph: Supervisor, restarted: list[str],
