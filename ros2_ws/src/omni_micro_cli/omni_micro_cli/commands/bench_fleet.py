@@ -64,7 +64,7 @@ def one_run(count: int, composed: bool, containers: int | None, seed: int, sim_s
             scratch: Path) -> GraphResult:
     from omni_micro_bringup.graph import run_graph
     from omni_micro_bringup.graph_options import FleetRun, GraphOptions
-    from omni_micro_cli.commands.fleet import planned
+    from omni_micro_cli.fleet_runs import planned
     from omni_micro_control.fleet_files import fleet_from
 
     fleet = fleet_from(str(count), None, 1, seed)

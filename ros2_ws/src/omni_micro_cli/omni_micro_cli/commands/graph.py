@@ -72,7 +72,7 @@ def fleet_run(robots: str) -> FleetRun:
     """Several robots' graph as ``run --robots`` brings it up: the robots given, a goal each
     drawn (the graph's shape does not depend on the goals), planned."""
     from omni_micro_bringup.graph_options import FleetRun
-    from omni_micro_cli.commands.fleet import planned
+    from omni_micro_cli.fleet_runs import planned
     from omni_micro_control.fleet_files import fleet_from
 
     fleet = fleet_from(robots, None, goals_per_robot=1, seed=0)

@@ -18,8 +18,8 @@ from omni_micro_cli.arguments import (
     seed_number,
     steering_overrides,
 )
-from omni_micro_cli.commands.fleet import FLEET_TASK_OPTIONS, add_fleet_task_arguments
 from omni_micro_cli.errors import RunFailed, UsageError
+from omni_micro_cli.fleet_runs import FLEET_TASK_OPTIONS, add_fleet_task_arguments
 from omni_micro_cli.graph_arguments import (
     GUARD_OPTIONS,
     add_bench_arguments,
@@ -177,7 +177,7 @@ FLEET_OPTIONS = ('robots', 'tasks', 'controller', 'seed', 'rtf', 'timeout', 'log
 
 def fleet_run(args: argparse.Namespace) -> int:
     """``run --robots``: the fleet through the graph, as ``fleet --graph`` runs it."""
-    from omni_micro_cli.commands.fleet import fleet_of, run_and_report
+    from omni_micro_cli.fleet_runs import fleet_of, run_and_report
 
     others = sorted(f'--{dest.replace("_", "-")}' for dest, default in _DEFAULTS.items()
                     if dest not in FLEET_OPTIONS and getattr(args, dest, default) != default)
