@@ -1,5 +1,6 @@
 """The layout shows the architecture: no module grows past what one concern needs, and a topic's
-name is written once. (Each package's docstring naming its modules: test_imports.py.)"""
+name is written once. (Each package's docstring naming its modules: test_imports.py; no verb of
+the command line built on another: tests/cli/test_verbs_apart.py.)"""
 
 from __future__ import annotations
 

@@ -138,7 +138,6 @@ def comparison_table(open_loop: GraphResult, closed_loop: GraphResult,
 
 
 def run(args: argparse.Namespace) -> int:
-    from omni_micro_cli.commands import figures
     from omni_micro_studies import open_loop_figures
     from omni_micro_studies import paper_figures as plots
 
@@ -154,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     with staged_directory(args.out) as scratch:
         _progress('open-loop figures from the slip core (Figs. 6, 7, 8, 11)')
         open_loop_figures.write_figures(scratch, angle_step_deg=2.0, offset_step_deg=0.25,
-                                        progress=figures.progress)
+                                        progress=lambda line: echo_to_stderr(f'[figures] {line}'))
         _progress(f'Fig. 11 open loop through the node graph ({OPEN_LOOP_S:g} s move, '
                   f'rtf {args.rtf:g})')
         open_loop = graph_run(args, OPEN_LOOP_S, logs, bags['open_loop'])
