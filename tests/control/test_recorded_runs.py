@@ -38,7 +38,7 @@ def capture(stamp_s: float, x_m: float, covariance: list[float] | None = None
 def move_at(start_s: float, duration_s: float):
     seen = Observation(start_s, 0.0, 0.0, 0.0, 'macro')
     return move_trajectory(Move(start_s, 0.0, duration_s, 1, 0.01, seen),
-                           move_profile(duration_s))
+                           move_profile(duration_s), 'base_link')
 
 
 def test_two_moves_between_three_seen_stops_make_one_chain():
@@ -91,7 +91,7 @@ def test_a_servo_move_corrected_while_rolling_links_no_stops_and_an_uncorrected_
     end = replanned.start_s + replanned.profile.end_time_s
     last = ServoCommand(end + 1.0, 0.0, profile_to(0.0, 0.2, limits, 0.5, 0.1))
     messages = {
-        WHEEL_TRAJECTORY_TOPIC: [move_trajectory(command, command.profile)
+        WHEEL_TRAJECTORY_TOPIC: [move_trajectory(command, command.profile, 'base_link')
                                  for command in (first, replanned, last)],
         CAPTURE_COVARIANCE_TOPICS['macro']: [
             capture(0.5, 0.0),                                              # before the first

@@ -326,6 +326,11 @@ def check_the_stop_in_the_bench_log(bag: Path) -> None:
         assert {f'/robot_{k}/joint_states', f'/robot_{k}/wheel_trajectory'} <= topics
         commands = data.messages[f'/robot_{k}/wheel_trajectory']
         assert not commands[-1].points, 'the last command to each robot is the stop'
+        # The guard's stop in the robot's own base frame, as its controller's moves are (robot 1's
+        # jog is the test's hand, in no frame).
+        assert commands[-1].header.frame_id == f'robot_{k}/base_link'
+    assert {command.header.frame_id for command in data.messages['/robot_0/wheel_trajectory']} \
+        == {'robot_0/base_link'}
     said = data.messages['/fleet_guard']
     assert len(said) == 1 and said[0].message.startswith('robot_0 and robot_1 ')
     values = {item.key: item.value for item in said[0].values}

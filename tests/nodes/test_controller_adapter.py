@@ -151,6 +151,31 @@ def test_controller_node_in_the_servo_mode_corrects_from_captures_in_motion(cont
         node.destroy_node()
 
 
+@pytest.mark.parametrize(('namespace', 'frame'), [('', 'base_link'),
+                                                 ('robot_1', 'robot_1/base_link')])
+def test_a_robots_moves_and_stops_are_in_its_own_base_frame(context, spy, namespace, frame):
+    """The single robot's commands in base_link, a fleet robot's in its own (REP-105 per robot,
+    as its odometry and joint states): two robots' commands never name one frame."""
+    node = ControllerNode(context=context, namespace=namespace, parameter_overrides=[
+        Parameter('mode', value='servo'), Parameter('goal_m', value=[0.001, 0.0]),
+        Parameter('captures_per_stop', value=1)])
+    try:
+        trajectories = spy(node.trajectory_pub)
+        still = JointState(name=list(JOINT_NAMES), position=[0.0] * len(JOINT_NAMES),
+                           velocity=[0.0] * len(JOINT_NAMES))
+        still.header.stamp.sec, still.header.stamp.nanosec = 0, 200_000_000
+        node._on_joint_state(serialize_message(still))
+        node.captures.on_capture_with_covariance(with_uncertainty(
+            capture_pose(0, 200_000_000, 'platform', 0.0, 0.0, 0.0),
+            CaptureUncertainty(0.1e-6, 0.1e-6, 1e-4)), camera='micro')
+        node.stop_robot()
+        (move, stop) = trajectories.messages
+        assert move.points and not stop.points
+        assert [move.header.frame_id, stop.header.frame_id] == [frame, frame]
+    finally:
+        node.destroy_node()
+
+
 @pytest.mark.parametrize('wheels_first', [True, False])
 def test_a_capture_before_the_first_wheel_state_counts_as_one_after_it(context, monkeypatch,
                                                                         wheels_first):

@@ -32,7 +32,7 @@ def test_each_robot_publishes_under_its_namespace_and_moves_on_its_own_commands(
         assert robot_0.grid.simulator.params.wheel_offsets_rad == (0.0, 0.05, 0.03)
         profile = move_profile(1.0, robot_1.grid.limits)
         node._schedule_trajectory(robot_1, move_trajectory(ServoCommand(0.0, 0.0, profile),
-                                                           profile))
+                                                           profile, 'robot_1/base_link'))
         for _ in range(100):
             node._publish([robot.grid.advance() for robot in node.robots])
         assert len(sent['/clock']) == 100   # one clock for both

@@ -48,7 +48,7 @@ from omni_micro_common.topic_names import (
     robot_name,
     robot_topic,
 )
-from omni_micro_control.controller_messages import stop_trajectory
+from omni_micro_control.controller_messages import stop_trajectory, trajectory_frame
 from omni_micro_control.fleet_guard import FleetGuard, GuardStop
 
 # How often the guard looks (a 15 Hz camera's frames come every 67 ms).
@@ -136,8 +136,8 @@ class BenchGuard:
     def stop_every_robot(self) -> None:
         """An empty trajectory to every robot: its wheels ramp down now."""
         now_ns = time.time_ns()
-        for publisher in self.stops:
-            publisher.publish(stop_trajectory(now_ns))
+        for robot, publisher in enumerate(self.stops):
+            publisher.publish(stop_trajectory(now_ns, trajectory_frame(robot_name(robot))))
 
     def hand_over(self, timeout_s: float = 2.0) -> None:
         """Until every reader (the drivers, the recorder) has acknowledged the stops and why:

@@ -22,6 +22,7 @@ from omni_micro_common.conventions import (
     OUTCOME_KEY,
     split_stamp,
 )
+from omni_micro_common.topic_names import namespaced_frame
 from omni_micro_control.feedback import (
     FeedbackConfig,
     Finished,
@@ -38,16 +39,21 @@ from omni_micro_sim.wheel_trajectory import points_from_profile
 STATUS_LEVELS = {Outcome.REACHED: DiagnosticStatus.OK, Outcome.COMPLETED: DiagnosticStatus.OK,
                  Outcome.GAVE_UP: DiagnosticStatus.WARN, Outcome.CANCELLED: DiagnosticStatus.WARN,
                  Outcome.LOST: DiagnosticStatus.ERROR, Outcome.UNRESOLVED: DiagnosticStatus.WARN}
-# The robot's frame: a trajectory's joints are the robot's own.
-TRAJECTORY_FRAME = BASE_FRAME
 
 
-def move_trajectory(move: Move | ServoCommand, profile: WheelSpeedProfile) -> JointTrajectory:
+def trajectory_frame(namespace: str) -> str:
+    """The frame of the commands to the robot in ``namespace``: its base (a trajectory's
+    joints are the robot's own), ``robot_1/base_link`` in a fleet (REP-105 per robot)."""
+    return namespaced_frame(namespace, BASE_FRAME)
+
+
+def move_trajectory(move: Move | ServoCommand, profile: WheelSpeedProfile,
+                    frame: str) -> JointTrajectory:
     """The move (or a servo's command) as the robot takes it: steering, then the wheels along
     ``profile``, from the move's start (its header stamp)."""
     msg = JointTrajectory()
     msg.header.stamp.sec, msg.header.stamp.nanosec = split_stamp(move.start_s)
-    msg.header.frame_id = TRAJECTORY_FRAME
+    msg.header.frame_id = frame
     msg.joint_names = list(JOINT_NAMES)
     for point in points_from_profile(move.steering_rad, profile):
         sec, nanosec = split_stamp(point.time_from_start_s)
@@ -57,14 +63,14 @@ def move_trajectory(move: Move | ServoCommand, profile: WheelSpeedProfile) -> Jo
     return msg
 
 
-def stop_trajectory(decided_at_ns: int) -> JointTrajectory:
+def stop_trajectory(decided_at_ns: int, frame: str) -> JointTrajectory:
     """An empty trajectory: the dynamics (or the real robot) ramps the wheels down now.
 
     Stamped with the robot's time when it was decided, so that it can be told apart from the
     moves (the lockstep waits for the last command by its stamp)."""
     msg = JointTrajectory()
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(decided_at_ns, 1_000_000_000)
-    msg.header.frame_id = TRAJECTORY_FRAME
+    msg.header.frame_id = frame
     msg.joint_names = list(JOINT_NAMES)
     return msg
 

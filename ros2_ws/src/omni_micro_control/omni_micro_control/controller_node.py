@@ -76,6 +76,7 @@ from omni_micro_control.controller_messages import (
     servo_move,
     stop_trajectory,
     take_tracker_status,
+    trajectory_frame,
     waiting_line,
 )
 from omni_micro_control.controller_parameters import declare_controller_parameters, reconfigure
@@ -119,6 +120,7 @@ class ControllerNode(Node):
         self.lockstep = LockstepReporter(self)
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._joint_state = robot_joint_state_template(self.get_namespace().strip('/'))
+        self._trajectory_frame = trajectory_frame(self.get_namespace().strip('/'))
         readers = node_list_parameter(self, 'trajectory_readers')
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_service(Trigger, '~/cancel', self._on_cancel)
@@ -221,7 +223,8 @@ class ControllerNode(Node):
         if isinstance(decision, Move):
             self._command(decision)
         elif isinstance(decision, ServoCommand):
-            self._publish_trajectory(move_trajectory(decision, decision.profile))
+            self._publish_trajectory(move_trajectory(decision, decision.profile,
+                                                     self._trajectory_frame))
             # A plan made again while rolling is counted at the goal's end, not said each time.
             if decision.from_rest and isinstance(self.controller, ServoSession):
                 line, values = servo_move(self.controller, decision)
@@ -289,7 +292,7 @@ class ControllerNode(Node):
             self.report(self.controller.cancel(str(error)), at_s=move.observation.stamp_s)
             return
         self.watcher.expect(float(profile.rotation_rad()[MoveWatcher.WATCHED_WHEEL]))
-        self._publish_trajectory(move_trajectory(move, profile))
+        self._publish_trajectory(move_trajectory(move, profile, self._trajectory_frame))
         line = move_line(move, self.controller.planner)
         values = move_values(move, self.controller.planner)
         # A fall-back to the paper's rule in the model mode is worth a warning.
@@ -327,7 +330,7 @@ class ControllerNode(Node):
 
     def stop_robot(self) -> None:
         """Tell the robot to ramp its wheels down now (controller_messages.stop_trajectory)."""
-        self._publish_trajectory(stop_trajectory(self._robot_time_ns))
+        self._publish_trajectory(stop_trajectory(self._robot_time_ns, self._trajectory_frame))
 
     def _publish_trajectory(self, msg: JointTrajectory) -> None:
         self.trajectory_pub.publish(msg)
