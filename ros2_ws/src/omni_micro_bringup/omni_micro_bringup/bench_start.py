@@ -34,6 +34,9 @@ from omni_micro_common.topic_names import (
 # What is still missing is named after this long (the drivers may take longer to start: the
 # run waits on, up to its bound).
 BENCH_NOTICE_S = 5.0
+# How long a run on the bench waits for every robot's first state and the cameras' first frames
+# (naming each robot), as for the drivers' topics.
+BENCH_READY_S = 60.0
 # The controller node whose wheel state the goal waits for.
 CONTROLLER = 'controller_node'
 

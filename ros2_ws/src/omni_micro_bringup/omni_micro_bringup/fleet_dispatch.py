@@ -285,8 +285,7 @@ class FleetDispatch:
         """The graph ready (its drivers publish, its nodes read: graph.brought_up), until every
         controller has its robot's state and the cameras have named every robot; then the
         robots' time starts (the wall clock's now)."""
-        from omni_micro_bringup.bench_start import wait_for_fleet_bench
-        from omni_micro_bringup.goal_sequence import BENCH_READY_S
+        from omni_micro_bringup.bench_start import BENCH_READY_S, wait_for_fleet_bench
 
         monitor, bench = self.monitor, self.bench
         assert monitor is not None and bench is not None

@@ -29,10 +29,6 @@ from omni_micro_bringup.readiness import (
 from omni_micro_bringup.supervisor import Supervisor
 from omni_micro_common.conventions import STATUS_TIME_KEY
 
-# How long a run on the bench waits for the robot's first state and the cameras' first frames
-# (bench_start), as for the drivers' topics.
-BENCH_READY_S = 60.0
-
 
 class RunningProcesses(Supervisor, Protocol):
     """What the sequence needs of the graph's processes (graph.Graph) beyond the
@@ -73,7 +69,7 @@ class GoalSequence:
               domain_id: int) -> GraphResult:
         """From the graph ready to the last goal's outcome and the bag's tail: the result,
         but for what the nodes say they published (their logs, once stopped)."""
-        from omni_micro_bringup.bench_start import wait_for_bench
+        from omni_micro_bringup.bench_start import BENCH_READY_S, wait_for_bench
         from omni_micro_tools.topics import BAG_TAIL_S
 
         options, monitor = self.options, self.monitor
