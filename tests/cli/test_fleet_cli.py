@@ -17,6 +17,7 @@ from PIL import Image
 
 from omni_micro_cli.cli import build_parser
 from omni_micro_cli.graph_arguments import composition_of
+from omni_micro_common.conventions import STATUS_TIME_KEY
 from omni_micro_control.fleet_roadmap import CLEARANCE_M, ROBOT_DIAMETER_M
 
 pytestmark = pytest.mark.slow
@@ -255,10 +256,30 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
         final = odometry[-1].pose.pose.position
         assert final.x * 1e3 == pytest.approx(robot['final_mm'][0], abs=1e-3)
         assert final.y * 1e3 == pytest.approx(robot['final_mm'][1], abs=1e-3)
-        (goal,) = data.messages[f'/robot_{k}/goal_pose']
+        # Each goal its controller was handed, as the graph's coordinator sends them: the
+        # points of its legs, at most 24 mm apart (the paper's rule), the last its task's goal;
+        # each ended reached, once, at the time the next is stamped with.
+        # A task where the robot starts is done at 0 with no leg: no goal is handed out (as
+        # robot 1's of this seed).
+        goals = data.messages.get(f'/robot_{k}/goal_pose', [])
+        if robot['legs'] == 0:
+            assert goals == [] and robot['reached_at_s'] == [0.0]
+            continue
+        points = [(goal.pose.position.x * 1e3, goal.pose.position.y * 1e3) for goal in goals]
+        assert points[-1] == pytest.approx(robot['goal_results'][0]['goal_mm'], abs=1e-9)
+        start = robot['start_mm']
+        assert all(math.dist(a, b) <= 24.0 + 1e-6
+                   for a, b in itertools.pairwise([start, *points]))
+        ends = data.messages[f'/robot_{k}/controller/status']
+        assert [status.message for status in ends] == ['reached'] * len(goals)
+        ended_s = [float({item.key: item.value for item in status.values}[STATUS_TIME_KEY])
+                   for status in ends]
+        assert [goal.header.stamp.sec + goal.header.stamp.nanosec * 1e-9 for goal in goals] \
+            == pytest.approx([0.0, *ended_s[:-1]], abs=1e-9)
+        assert ended_s[-1] == pytest.approx(robot['reached_at_s'][-1], abs=1e-9)
         # In the frame the graph's goals are in: a controller_node (frame_id 'platform')
         # rejects a goal in any other, replayed to it (docs/graph.md).
-        assert goal.header.frame_id == 'platform'
+        assert {goal.header.frame_id for goal in goals} == {'platform'}
     stamps = data.timestamps['/robot_0/odom']
     assert all(later - earlier == 100_000_000 for earlier, later in itertools.pairwise(stamps))
     # In this pytest process's own DDS domain (tests/conftest.py).
@@ -287,16 +308,24 @@ def test_a_fleet_run_is_recorded_per_robot_replayed_one_robot_and_analyzed(tmp_p
     table = json.loads((tmp_path / 'analysis' / 'summary.json').read_text())['robots']
     assert [row['robot'] for row in table] == ['robot_0', 'robot_1', 'robot_2']
     bag_length_s = (max(data.timestamps['/clock']) - min(data.timestamps['/clock'])) * 1e-9
-    for row, robot in zip(table, summary['robots'], strict=True):
-        assert row['goals'] == row['goals_reached'] == 1
+    for k, (row, robot) in enumerate(zip(table, summary['robots'], strict=True)):
+        # Its goal poses, every one reached; the last its task's goal.
+        poses = len(data.messages.get(f'/robot_{k}/goal_pose', []))
+        assert row['goals'] == row['goals_reached'] == poses
+        if not poses:
+            assert row['set_out_s'] is None and row['last_goal_deviation_um'] is None
+            continue
         assert row['last_goal_deviation_um'] == pytest.approx(robot['deviation_um'][0], abs=0.5)
         # Each robot's own times, as the run had them: not the bag's length for every robot.
         assert row['set_out_s'] == 0.0
-        assert row['reached_at_s'] == pytest.approx(robot['reached_at_s'], abs=1e-9)
+        assert row['reached_at_s'][-1] == pytest.approx(robot['reached_at_s'][-1], abs=1e-9)
         assert row['duration_s'] == pytest.approx(robot['reached_at_s'][-1], abs=1e-9)
-    assert min(row['duration_s'] for row in table) < bag_length_s - 1.0
+    assert min(row['duration_s'] for row in table if row['duration_s'] is not None) \
+        < bag_length_s - 1.0
     assert (tmp_path / 'analysis' / 'route.png').exists()
-    assert '| robot_1 | 1/1 | 0.00 |' in analyzed.stdout
+    assert '| robot_1 | 0/0 | - | - | - |' in analyzed.stdout and '| no goal |' in analyzed.stdout
+    poses = len(data.messages['/robot_2/goal_pose'])
+    assert f'| robot_2 | {poses}/{poses} | 0.00 |' in analyzed.stdout
 
 
 def test_the_study_runs_on_an_existing_dask_scheduler_as_on_its_own_cluster(tmp_path):

@@ -98,9 +98,19 @@ def test_three_robots_cross_through_the_graph_clear_of_each_other(as_fast_as_it_
 def test_the_graph_runs_what_the_fleet_twin_runs(as_fast_as_it_goes, omni_micro, tmp_path):
     """The fleet twin, in one process, is the graph's behaviour: every robot ends where the
     graph ends it, its goal reached at the same time after as many moves, the model mode and
-    the servo having learnt the same offsets of their robot."""
+    the servo having learnt the same offsets of their robot; and the twin's bag holds the goals
+    the graph's coordinator handed out, each ended at the same time, so that analyze reads the
+    two bags alike."""
+    from omni_micro_tools.fleet_analysis import summarize_fleet
+
     graph = as_fast_as_it_goes
-    twin = fleet_run(omni_micro, tmp_path / 'twin')
+    twin = fleet_run(omni_micro, tmp_path / 'twin', '--record', str(tmp_path / 'twin' / 'bag'))
+    tables = [summarize_fleet(bag, [0, 1, 2])[0]['robots']
+              for bag in (tmp_path / 'twin' / 'bag', graph['bag'])]
+    for in_twin, in_graph in zip(*tables, strict=True):
+        assert in_twin['goals'] == in_graph['goals'] > 1   # the points of its legs
+        assert in_twin['goals_reached'] == in_graph['goals_reached'] == in_twin['goals']
+        assert in_twin['reached_at_s'] == pytest.approx(in_graph['reached_at_s'], abs=1e-9)
     assert twin['outcome'] == graph['outcome'] == 'done'
     assert twin['sim_time_s'] == pytest.approx(graph['sim_time_s'], abs=1e-9)
     for in_twin, in_graph in zip(twin['robots'], graph['robots'], strict=True):

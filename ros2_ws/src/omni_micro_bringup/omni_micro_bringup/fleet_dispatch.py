@@ -150,6 +150,7 @@ class FleetDispatch:
         def give(order: GoalOrder) -> None:
             order = replace(order, stamp_s=max(order.stamp_s, origin_s))
             started.setdefault(order.robot, order.stamp_s - origin_s)
+            logs[order.robot].goal_poses.append((order.stamp_s - origin_s, *order.goal_m))
             driving[order.robot] = order
             monitor.give(graph, order)
             if bench:
@@ -239,6 +240,7 @@ class FleetDispatch:
                 logs[robot].outcome = f'{status["message"]}: {status.get("reason", "")}'
                 reason = f'robot {robot} {logs[robot].outcome}'
                 break
+            logs[robot].goal_pose_ends.append((at_s, status['message']))
             following, ended = dispatcher.reached(robot, at_s + origin_s)
             driving.pop(robot, None)
             if bench:

@@ -20,6 +20,10 @@ class RobotLog:
     route: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, phi
     legs: list[tuple[float, float, Leg]] = field(default_factory=list)   # started, ended, leg
     learnt_offsets_rad: tuple[float, float] | None = None   # its controller's last said
+    # Each goal handed to its controller (stamp_s, x_m, y_m, on the robots' time), and how each
+    # that ended did (at_s, outcome): as the fleet twin's RobotRun has them.
+    goal_poses: list[tuple[float, float, float]] = field(default_factory=list)
+    goal_pose_ends: list[tuple[float, str]] = field(default_factory=list)
 
 
 @dataclass

@@ -125,7 +125,7 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     print('\n'.join(fleet_table(summary)))
     sys.stdout.flush()
     if record is not None and graph is None:   # the graph's recorder wrote its own
-        write_bag(record, plan, result)
+        write_bag(record, result)
     if plot is not None:
         atomic_bytes(plot, route_figure(plan, result))
         echo_to_stderr(f'routes drawn in {plot}')
@@ -136,7 +136,7 @@ def run_and_report(fleet: Fleet, seed: int, graph: GraphOptions | None, *, max_s
     return 0
 
 
-def write_bag(bag: Path, plan: Any, result: Any) -> None:
+def write_bag(bag: Path, result: Any) -> None:
     """The bag whole, or none: a write that fails leaves nothing behind."""
     import shutil
 
@@ -144,7 +144,7 @@ def write_bag(bag: Path, plan: Any, result: Any) -> None:
     from omni_micro_tools.fleet_bag import write_fleet_bag
 
     try:
-        count = write_fleet_bag(bag, plan, result, DEFAULT_PERIOD_S)
+        count = write_fleet_bag(bag, result, DEFAULT_PERIOD_S)
     except BaseException:
         shutil.rmtree(bag, ignore_errors=True)
         raise

@@ -26,6 +26,8 @@ class LoggedRobot(Protocol):
     route: list[tuple[float, float, float, float]]   # t, x, y, phi
     legs: list[tuple[float, float, Leg]]              # started, ended, leg
     learnt_offsets_rad: tuple[float, float] | None
+    goal_poses: list[tuple[float, float, float]]     # stamp_s, x_m, y_m
+    goal_pose_ends: list[tuple[float, str]]           # at_s, outcome
 
 
 class LoggedRun(Protocol):
@@ -66,6 +68,6 @@ def told_as_the_twin(plan: FleetPlan, run: LoggedRun) -> FleetResult:
                                off_leg, log.outcome,
                                RobotState(x_m=float(final[1]), y_m=float(final[2]),
                                           phi_rad=float(final[3])), route,
-                               log.learnt_offsets_rad))
+                               log.learnt_offsets_rad, log.goal_poses, log.goal_pose_ends))
     return FleetResult(run.outcome, run.reason, run.sim_time_s, robots, run.closest_gap_m,
                        run.closest_pair)

@@ -59,6 +59,10 @@ class RobotRun:
     route_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))   # t, x, y, phi
     # xi2, xi3 as its controller had learnt them at the end (the model mode, the servo).
     learnt_offsets_rad: tuple[float, float] | None = None
+    # Each goal its controller was handed (stamp_s, x_m, y_m: every point of its legs, as the
+    # graph's coordinator publishes them), and how each that ended did (at_s, outcome).
+    goal_poses: list[tuple[float, float, float]] = field(default_factory=list)
+    goal_pose_ends: list[tuple[float, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -112,6 +116,7 @@ class _Robot:
         refused = retune(self.loop.controller, {'tolerance_m': order.tolerance_m})
         assert refused is None, refused   # the plan's tolerances are all valid
         self.loop.controller.set_goal(order.goal_m, order.stamp_s)
+        self.run.goal_poses.append((order.stamp_s, *order.goal_m))
         self.driving = True
 
     @property
@@ -138,6 +143,7 @@ class _Robot:
         self.driving = False
         at_s = self.loop.ended_at_s
         if finished.outcome in LEG_ENDS:
+            self.run.goal_pose_ends.append((at_s, finished.outcome.value))
             following, leg = self.legs.reached(self.index, at_s)
             if following is not None:
                 self.aim(following)

@@ -31,7 +31,9 @@ def summarize_fleet(bag: Path, robots: list[int]) -> tuple[dict[str, Any], dict[
     """Per robot: when it set out (its first goal's stamp), when it reached each goal (its
     controller's ``reached``, by the time of what decided it), its own duration (from setting
     out to its last goal reached), where it ended, how far from its last goal, how far it
-    drove; and what the figure draws of it (route, goals, start, end)."""
+    drove; and what the figure draws of it (route, goals, start, end). Its goals are its goal
+    poses: each goal its controller was handed, every point of its legs (the last of a leg its
+    task's goal), in a graph's bag and in the fleet twin's alike."""
     from omni_micro_tools.bag_reading import read_bag
 
     topics = [robot_topic(k, topic) for k in robots
@@ -84,7 +86,7 @@ def reached_times(goals: list[tuple[float, float, float]], statuses: list[Any]
 
 def fleet_markdown(summary: dict[str, Any]) -> str:
     lines = [f"# Fleet run recorded in `{summary['bag']}`", '',
-             '| robot | goals reached | set out (s) | goals reached at (s) | duration (s) | '
+             '| robot | goal poses reached | set out (s) | each reached at (s) | duration (s) | '
              'final position (mm) | from its last goal (um) | driven (mm) |',
              '|---|---|---|---|---|---|---|---|']
     for row in summary['robots']:

@@ -3,9 +3,10 @@ namespace.
 
 Per robot k, ``/robot_k/odom`` (nav_msgs/Odometry, REP-105 frames ``robot_k/odom`` ->
 ``robot_k/base_link``, twist in the robot's frame) at ``ODOM_RATE_HZ``, ``/robot_k/goal_pose``
-(each task's goal in the ``platform`` frame, as the graph sends it and a controller_node
-accepts it, stamped when the robot set out for it) and ``/robot_k/controller/status``
-(each goal reached, as the robot's controller node says it: ``reached`` at the time of what
+(each goal its controller was handed, in the ``platform`` frame: every point of its legs, the
+last of a leg its task's goal, as the graph's coordinator sends them, each stamped with the end
+it follows) and ``/robot_k/controller/status`` (each of those goals ended, as the robot's
+controller node says it: ``reached``, or ``completed`` by an open-loop move, at the time of what
 decided it, with the goal); ``/clock``, the simulated time, at the same rate. Every message
 is logged at its simulated time. ``omni-micro replay --robot k`` publishes one robot's topics
 under the single robot's names (``/odom``, ``/goal_pose``, ``/controller/status``).
@@ -39,9 +40,9 @@ from omni_micro_common.topic_names import (
 ODOM_RATE_HZ = 10.0
 
 
-def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
-    """Write the bag of ``result`` (a fleet twin run of ``plan``) into ``path``; return how many
-    messages it holds. ``path`` must not exist."""
+def write_fleet_bag(path: Path, result: Any, period_s: float) -> int:
+    """Write the bag of ``result`` (a fleet twin run) into ``path``; return how many messages it
+    holds. ``path`` must not exist."""
     from builtin_interfaces.msg import Time
     from diagnostic_msgs.msg import DiagnosticStatus
     from geometry_msgs.msg import PoseStamped
@@ -93,21 +94,19 @@ def write_fleet_bag(path: Path, plan: Any, result: Any, period_s: float) -> int:
             message.twist.twist.linear.y = -math.sin(phi) * vx + math.cos(phi) * vy
             message.twist.twist.angular.z = omega
             events.append((round(time_s * 1e9), odom_topic, serialize_message(message)))
-        set_out = [0.0, *run.tasks_done_s]
-        for task, goal in enumerate(plan.tasks[robot][:len(run.tasks_done_s) + 1]):
+        for stamp_s, x_m, y_m in run.goal_poses:
             message = PoseStamped()
-            message.header.stamp = stamp(set_out[task])
+            message.header.stamp = stamp(stamp_s)
             message.header.frame_id = PLATFORM_FRAME
-            message.pose.position.x, message.pose.position.y = goal.goal_m
+            message.pose.position.x, message.pose.position.y = x_m, y_m
             message.pose.orientation.w = 1.0
-            events.append((round(set_out[task] * 1e9), robot_topic(robot, GOAL_TOPIC),
+            events.append((round(stamp_s * 1e9), robot_topic(robot, GOAL_TOPIC),
                            serialize_message(message)))
-        for task, reached_s in enumerate(run.tasks_done_s):
-            goal_x, goal_y = plan.tasks[robot][task].goal_m
-            status = status_message(DiagnosticStatus.OK, 'reached', reached_s,
-                                    {'goal_x_m': repr(float(goal_x)),
-                                     'goal_y_m': repr(float(goal_y))})
-            events.append((round(reached_s * 1e9), robot_topic(robot, CONTROLLER_STATUS_TOPIC),
+        for (ended_s, outcome), (_, x_m, y_m) in zip(run.goal_pose_ends, run.goal_poses,
+                                                     strict=False):
+            status = status_message(DiagnosticStatus.OK, outcome, ended_s,
+                                    {'goal_x_m': repr(float(x_m)), 'goal_y_m': repr(float(y_m))})
+            events.append((round(ended_s * 1e9), robot_topic(robot, CONTROLLER_STATUS_TOPIC),
                            serialize_message(status)))
     writer, connections = open_writer(path, 'mcap', topics)
     try:

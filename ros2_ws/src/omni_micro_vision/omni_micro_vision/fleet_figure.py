@@ -55,8 +55,10 @@ def route_style(index: int, count: int) -> str | tuple[float, tuple[float, float
     return ((index % group) * DASH_PT, (DASH_PT, DASH_PT * (group - 1)))
 
 
-def fleet_routes_png(robots: list[DrawnRobot], title: str, rig: CameraRig = DEFAULT_RIG) -> bytes:
-    """The picture (a PNG's bytes) of ``robots``' runs."""
+def fleet_routes_png(robots: list[DrawnRobot], title: str, rig: CameraRig = DEFAULT_RIG,
+                     goal_word: str = 'goal') -> bytes:
+    """The picture (a PNG's bytes) of ``robots``' runs; ``goal_word``: what its crosses are (a
+    plan's goals, or a bag's goal poses: every point of the robots' legs)."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -109,13 +111,14 @@ def fleet_routes_png(robots: list[DrawnRobot], title: str, rig: CameraRig = DEFA
     close_up.set_title(f'micro field ({micro.field_m[0] * 1e3:g} mm), close up', fontsize=9)
     close_up.tick_params(labelsize=7)
     legend = [Line2D([], [], color=colour_of(robot.index), lw=1.6,
-                     label=f'{robot.name}: {robot.goals_reached}/{len(robot.goals_m)} goals')
+                     label=f'{robot.name}: {robot.goals_reached}/{len(robot.goals_m)} '
+                           f'{goal_word}s')
               for robot in robots]
     legend += [Line2D([], [], ls='', marker='o', mfc='none', mec='k', ms=9,
                       label='start (dashed), its number'),
                Line2D([], [], ls='', marker='o', mfc='0.7', mec='0.7', ms=9,
                       label='end (filled), its number'),
-               Line2D([], [], ls='', marker='x', color='k', label='goal'),
+               Line2D([], [], ls='', marker='x', color='k', label=goal_word),
                Line2D([], [], ls='', marker='s', mfc='none', mec='k', label='micro field')]
     figure.legend(handles=legend, loc='lower right', bbox_to_anchor=(0.99, 0.02), fontsize=8,
                   ncol=2 if len(robots) > 12 else 1)

@@ -95,7 +95,7 @@ def analyze_fleet(args: argparse.Namespace, robots: list[int]) -> int:
             [DrawnRobot(k, row['robot'], drawn[row['robot']]['route_m'],
                         drawn[row['robot']]['goals_m'], row['goals_reached'])
              for k, row in zip(robots, summary['robots'], strict=True)],
-            f'{len(robots)} robots (from {args.bag.name})'))
+            f'{len(robots)} robots (from {args.bag.name})', goal_word='goal pose'))
         if args.animate:
             from omni_micro_vision.animation import animate
 
