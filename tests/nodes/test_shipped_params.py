@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from rclpy.parameter import Parameter
 
-from omni_micro_bringup.graph_params import all_declared, drifts, node_modules, rewrite, same
+from omni_micro_bringup.declared_defaults import all_declared, drifts, node_modules, rewrite, same
 
 GRAPH_PARAMS = (Path(__file__).resolve().parents[2] / 'ros2_ws' / 'src' / 'omni_micro_bringup'
                 / 'config' / 'omni_micro.yaml')

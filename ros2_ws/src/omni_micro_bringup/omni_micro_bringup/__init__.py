@@ -5,8 +5,8 @@ available here): the only package that knows which nodes make the graph.
 :mod:`graph_options` (what a run is asked: GraphOptions, FleetRun), :mod:`node_spec` (one node
 process and its command line),
 :mod:`node_overrides` (what each node is told beyond the params file), :mod:`params_files` (the
-graph's params file and the user's, read and checked), :mod:`graph_params` (the graph's params file
-against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
+graph's params file and the user's, read and checked), :mod:`declared_defaults` (the graph's
+params file against the nodes' declared defaults), :mod:`readiness` (what the clock waits for),
 :mod:`bench_start` (what a bench run's goal waits for: the real robot's state, the cameras'
 frames), :mod:`preflight` and :mod:`preflight_probe` (the bench's live drivers checked before a
 run), :mod:`processes` (each node a child process on loopback, its log, the domain's lease),
