@@ -1,4 +1,4 @@
-"""`omni-micro bench-fleet`: how fast the node graph runs a micro-factory, against its size.
+"""`omni-micro bench-fleet`: how fast the node graph runs a fleet, against its size.
 
 Each row is one run of drawn tasks (``fleet --graph --robots N --seed S --goals-per-robot 1``)
 at ``--rtf max``, stopped after ``--sim-seconds`` of simulated time (or when every task is
@@ -39,7 +39,7 @@ RUN_TIMEOUT_S = 900.0
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         'bench-fleet',
-        description='Run drawn micro-factory tasks through the node graph at --rtf max for '
+        description='Run a fleet\'s drawn tasks through the node graph at --rtf max for '
                     'each robot count, in separate processes and composed (one container; one '
                     'per core), and print the simulated robot-seconds per wall second each '
                     'reached, against one robot\'s. Targets on an idle 2-core machine: 16 '
