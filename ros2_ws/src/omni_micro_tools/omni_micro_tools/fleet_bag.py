@@ -102,6 +102,7 @@ def write_fleet_bag(path: Path, result: Any, period_s: float) -> int:
             message.pose.orientation.w = 1.0
             events.append((round(stamp_s * 1e9), robot_topic(robot, GOAL_TOPIC),
                            serialize_message(message)))
+        # The last goal of a robot lost, or of a run out of time, has no end.
         for (ended_s, outcome), (_, x_m, y_m) in zip(run.goal_pose_ends, run.goal_poses,
                                                      strict=False):
             status = status_message(DiagnosticStatus.OK, outcome, ended_s,
