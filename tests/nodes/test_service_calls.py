@@ -47,12 +47,12 @@ class Executor:
 
 
 class Graph:
+    """A supervisor whose processes live, or whose server died (``death``: what it says)."""
+
     def __init__(self, death: str | None = None) -> None:
         self.death = death
-        self.checked = 0
 
     def check_alive(self) -> list[str]:
-        self.checked += 1
         if self.death:
             raise RunFailed(self.death)
         return []
