@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 from adapter_helpers import assert_reads_input_only_once_matched, frame, overrides
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -18,7 +19,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
-from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.camera_node import CameraNode
@@ -39,6 +40,19 @@ def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(co
     assert_reads_input_only_once_matched(
         context, VisionNode(context=context, parameter_overrides=overrides(
             covariance_readers=['markers_node'])), 'markers_node', covariance_readers)
+
+
+def test_vision_node_reads_odometry_only_once_its_status_writer_matched_the_recorder(context):
+    """Its first status ('waiting for the robot to stop', at time 0) is latched with depth 1:
+    a recorder whose reader the writer matched only after the next status (0.04 s on) never
+    got it, and a fleet's bag lacked one robot's (the recorder had matched the writer, so it
+    said it was recording, but not the writer the recorder)."""
+    def recorder_reader(recorder: Node) -> None:
+        recorder.create_subscription(DiagnosticStatus, '/camera/status', lambda msg: None,
+                                     latched(1000))
+    assert_reads_input_only_once_matched(
+        context, VisionNode(context=context, parameter_overrides=overrides(
+            status_readers=['bag_recorder'])), 'bag_recorder', recorder_reader)
 
 
 def test_vision_node_lets_only_faults_change_while_it_runs(context):

@@ -136,6 +136,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
         overrides.update(seed=seed)
         if spec.executable == 'vision_node':
             overrides.update(capture_readers_of([spec.namespace]))
+            overrides.update(status_readers=['bag_recorder'] if 'bag_recorder' in present
+                             else [])
             if spec.namespace in wiring.in_motion:
                 overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':

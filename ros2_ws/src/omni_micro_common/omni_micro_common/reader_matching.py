@@ -29,11 +29,14 @@ def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str])
     A sample sent before a reliable, volatile reader is matched is lost to that reader; seeing
     the reader in the ROS graph is not enough (discovery between two peers completes at its own
     pace, slower on a busy machine), so the publisher must count it. Transient-local readers
-    (a user's tool, say) never match a volatile writer and are not waited for.
+    (a user's tool, say) never match a volatile writer and are not waited for; a
+    transient-local writer matches both, and keeps only its last samples for a reader it
+    matches late (a status of depth 1 published twice before the match reaches it once).
     """
     topic = publisher.topic_name
+    latched = publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
     readers = [info for info in node.get_subscriptions_info_by_topic(topic)
-               if info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
+               if latched or info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL]
     return [f"{name}'s reader of {topic}" for name in reader_nodes
             if not any(qualified_node_name(info.node_namespace, info.node_name) == name
                        for info in readers)
@@ -86,11 +89,13 @@ def capture_reader_names(node: Node) -> tuple[list[str], list[str], list[str]]:
 def when_capture_readers_matched(node: Node, pose_publishers: Iterable[Publisher],
                                  covariance_publishers: Iterable[Publisher],
                                  motion_publishers: Iterable[Publisher],
-                                 then: Callable[[], None]) -> None:
+                                 then: Callable[[], None],
+                                 others: Iterable[tuple[Publisher, list[str]]] = ()) -> None:
     """:func:`when_readers_matched` for a camera's captures (vision_node, tracker_node), each
-    publisher with the readers :func:`capture_reader_names` names for it."""
+    publisher with the readers :func:`capture_reader_names` names for it, and ``others``."""
     pose_readers, covariance_readers, motion_readers = capture_reader_names(node)
     when_readers_matched(
         node, [(publisher, pose_readers) for publisher in pose_publishers]
         + [(publisher, covariance_readers) for publisher in covariance_publishers]
-        + [(publisher, motion_readers) for publisher in motion_publishers], then)
+        + [(publisher, motion_readers) for publisher in motion_publishers] + list(others),
+        then)

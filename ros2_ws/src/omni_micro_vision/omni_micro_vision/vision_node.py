@@ -46,7 +46,10 @@ from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, PER_TICK_SUBSCRIPTION_EVENTS, latched
-from omni_micro_common.reader_matching import when_capture_readers_matched
+from omni_micro_common.reader_matching import (
+    node_list_parameter,
+    when_capture_readers_matched,
+)
 from omni_micro_common.tick_messages import robot_odometry_template
 from omni_micro_common.topic_names import (
     CAMERA_STATUS_TOPIC,
@@ -124,13 +127,16 @@ class VisionNode(Node):
         # Raw, read in place: an Odometry's conversion to Python cost more than the cameras.
         self._odometry = robot_odometry_template(self.get_namespace().strip('/'))
         self._status: tuple[int, str] | None = None
-        # The nodes that must not miss a capture, by the topics they read (empty when started
-        # alone): /odom is read, and the robot's clock (which waits for that reader) starts, only
-        # once the capture writers have matched their readers. The first captures come at time
-        # 0, and one was lost to markers_node in a fast start.
-        when_capture_readers_matched(self, self.capture_pubs.values(),
-                                     self.covariance_pubs.values(), self.in_motion_pubs.values(),
-                                     self._read_odometry)
+        # The nodes that must not miss a capture, by the topics they read, or a status
+        # (``status_readers``; all empty when started alone): /odom is read, and the robot's
+        # clock (which waits for that reader) starts, only once those writers have matched their
+        # readers. The first captures come at time 0, and one was lost to markers_node in a fast
+        # start; the status below, latched with depth 1, was lost to a fleet's recorder whose
+        # reader this writer matched only after the next status (at 0.04 s) had replaced it.
+        when_capture_readers_matched(
+            self, self.capture_pubs.values(), self.covariance_pubs.values(),
+            self.in_motion_pubs.values(), self._read_odometry,
+            others=[(self.status_pub, node_list_parameter(self, 'status_readers'))])
         # Last: from here on only faults.* may change (the parameters above are declared).
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop', at_s=0.0)
