@@ -23,7 +23,7 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.lockstep import Ack
-from omni_micro_common.qos import DATA_QOS
+from omni_micro_common.qos import DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import CAPTURE_IN_MOTION_TOPICS
 from omni_micro_control.controller_node import ControllerNode
 from omni_micro_control.errors import ControllerConfigError
@@ -43,6 +43,19 @@ def test_controller_node_reads_wheels_and_goals_only_once_its_moves_reach_their_
         lambda markers: markers.create_subscription(JointTrajectory, '/wheel_trajectory',
                                                     lambda msg: None, DATA_QOS),
         input_topic='/joint_states')
+
+
+def test_controller_node_says_it_is_idle_and_listens_once_the_recorder_is_matched(context):
+    """Said before its status writer matched the recorder, the first status ('idle', latched)
+    could reach the recorder only as history, which Fast DDS does not always deliver to a
+    reader matched late (eProsima/Fast-DDS#3822): a fleet's bag, composed at twice real time
+    beside busy processes, lacked one controller's 'idle'."""
+    assert_reads_input_only_once_matched(
+        context, ControllerNode(context=context, parameter_overrides=overrides(
+            status_readers=['bag_recorder'])), 'bag_recorder',
+        lambda recorder: recorder.create_subscription(DiagnosticStatus, '/controller/status',
+                                                      lambda msg: None, STATUS_QOS),
+        input_topic='/joint_states', first_said_on='/controller/status')
 
 
 def test_controller_node_tunes_timer1_while_it_runs_and_keeps_its_mode(context):

@@ -35,7 +35,7 @@ LEFT_TO_THE_RUN = {'bag_recorder': {'bag', 'topics', 'driver_images'},
                    'tracker_node': {'capture_readers', 'covariance_readers', 'motion_readers',
                                     'robots'},
                    'camera_node': {'image_readers', 'robots'}, 'markers_node': {'markers_readers'},
-                   'controller_node': {'trajectory_readers'},
+                   'controller_node': {'trajectory_readers', 'status_readers'},
                    'omni_micro_viewer': {'robots'}}
 LEFT_TO_ANOTHER_FILE = re.compile(r'^\w+\.calibration\.')
 RCLPY_OWN = {'use_sim_time', 'start_type_description_service'}

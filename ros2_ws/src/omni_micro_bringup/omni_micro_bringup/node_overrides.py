@@ -96,6 +96,8 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
     wiring = wiring or GraphWiring.of(options)
     robots, present, fleet = wiring.robots, wiring.present, options.fleet
     robot = robots.index(spec.namespace) if spec.namespace in robots else 0
+    # The readers of a node's latched status that must have its first (status_readers).
+    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
 
     def capture_readers_of(namespaces: list[str]) -> dict[str, list[str]]:
         """A camera's readers: the controller and markers_node of each of ``namespaces``, and
@@ -136,8 +138,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
         overrides.update(seed=seed)
         if spec.executable == 'vision_node':
             overrides.update(capture_readers_of([spec.namespace]))
-            overrides.update(status_readers=['bag_recorder'] if 'bag_recorder' in present
-                             else [])
+            overrides.update(status_readers=recorder)
             if spec.namespace in wiring.in_motion:
                 overrides.update(captures_in_motion=True)
         if spec.executable == 'camera_node':
@@ -168,7 +169,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
                                   f'{camera}.info_topic': camera_info_beside(topic)})
     elif spec.executable == 'markers_node':
         # Its first array waits for the reader that must not miss it.
-        overrides.update(markers_readers=['bag_recorder'] if 'bag_recorder' in present else [])
+        overrides.update(markers_readers=recorder)
         overrides.update(markers_told(options.params_files, camera_node_of(options),
                                       options.vision_overrides, options.dynamics_overrides,
                                       options.controller_overrides))
@@ -179,10 +180,10 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
                 'robot.colour': list(FLEET_COLOURS[robot % len(FLEET_COLOURS)]),
                 'robot.label': spec.namespace})
     elif spec.executable == 'controller_node':
-        # Its first move waits for the readers that must not miss it.
+        # Its first move and its first status wait for the readers that must not miss them.
         overrides.update(trajectory_readers=[
             qualified_node_name(spec.namespace, name) if name == 'markers_node' else name
-            for name in TRAJECTORY_READERS if name in present])
+            for name in TRAJECTORY_READERS if name in present], status_readers=recorder)
         if options.open_loop_s is not None:
             overrides.update(open_loop_duration_s=float(options.open_loop_s))
         overrides.update(options.controller_overrides)

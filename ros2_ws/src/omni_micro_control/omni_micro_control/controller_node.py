@@ -121,20 +121,23 @@ class ControllerNode(Node):
         # Raw, read in place (tick_messages): the per-tick message without its conversion.
         self._joint_state = robot_joint_state_template(self.get_namespace().strip('/'))
         self._trajectory_frame = trajectory_frame(self.get_namespace().strip('/'))
-        readers = node_list_parameter(self, 'trajectory_readers')
+        writers = [(self.trajectory_pub, node_list_parameter(self, 'trajectory_readers')),
+                   (self.status_pub, node_list_parameter(self, 'status_readers'))]
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_service(Trigger, '~/cancel', self._on_cancel)
         self._timeout_checks = 0
-        self.publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
-        # Listens once every trajectory_readers' reader is matched: a move sent before is lost.
-        when_readers_matched(self, [(self.trajectory_pub, readers)], self._listen)
+        self._scripted_goal = settings.goal
         self.get_logger().info(ready_line(settings.servo or settings.config,
                                           self.uncertainty_source))
-        if settings.goal is not None:
-            # A scripted goal counts from time 0: the robot has been still since the start.
-            self._accept_goal(settings.goal[0], settings.goal[1], stopped_at_s=0.0)
+        # Says it is idle, and listens, once every trajectory_readers' reader of its moves and
+        # every status_readers' reader of its statuses is matched: a move sent before is lost,
+        # and a latched status sent before reaches a reader only as history, which Fast DDS
+        # does not always deliver to a reader matched late (eProsima/Fast-DDS#3822: a fleet's
+        # bag lacked one controller's 'idle').
+        when_readers_matched(self, writers, self._listen)
 
     def _listen(self) -> None:
+        self.publish_status(DiagnosticStatus.OK, 'idle', at_s=0.0)
         self.create_subscription(JointState, JOINT_STATES_TOPIC, self._on_joint_state, DATA_QOS,
                                  raw=True, event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
         covariance = self.uncertainty_source == 'covariance'
@@ -155,6 +158,10 @@ class ControllerNode(Node):
         self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
+        if self._scripted_goal is not None:
+            # A scripted goal counts from time 0: the robot has been still since the start.
+            x_m, y_m = self._scripted_goal
+            self._accept_goal(x_m, y_m, stopped_at_s=0.0)
 
     def _on_goal(self, msg: PoseStamped) -> None:
         if msg.header.frame_id not in (self.frame_id, ''):

@@ -128,18 +128,18 @@ class VisionNode(Node):
         self._odometry = robot_odometry_template(self.get_namespace().strip('/'))
         self._status: tuple[int, str] | None = None
         # The nodes that must not miss a capture, by the topics they read, or a status
-        # (``status_readers``; all empty when started alone): /odom is read, and the robot's
-        # clock (which waits for that reader) starts, only once those writers have matched their
-        # readers. The first captures come at time 0, and one was lost to markers_node in a fast
-        # start; the status below, latched with depth 1, was lost to a fleet's recorder whose
-        # reader this writer matched only after the next status (at 0.04 s) had replaced it.
+        # (``status_readers``; all empty when started alone): the first status is said, and
+        # /odom read (the robot's clock, which waits for that reader, starts), only once those
+        # writers have matched their readers. The first captures come at time 0, and one was
+        # lost to markers_node in a fast start; the first status, latched with depth 1 and said
+        # before, was lost to a fleet's recorder whose reader this writer matched only after
+        # the next status (at 0.04 s) had replaced it.
         when_capture_readers_matched(
             self, self.capture_pubs.values(), self.covariance_pubs.values(),
             self.in_motion_pubs.values(), self._read_odometry,
             others=[(self.status_pub, node_list_parameter(self, 'status_readers'))])
         # Last: from here on only faults.* may change (the parameters above are declared).
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop', at_s=0.0)
         self.get_logger().info(
             f'cameras ready: macro pixel {cameras["macro"].pixel_size_m[0] * 1e6:.1f} um, '
             f'micro pixel {cameras["micro"].pixel_size_m[0] * 1e6:.3f} um, seed {seed}')
@@ -154,6 +154,8 @@ class VisionNode(Node):
         return MovingCamera(rig, timings, seed) if enabled else None
 
     def _read_odometry(self) -> None:
+        """Its first status, then /odom: once its writers have matched their readers."""
+        self._publish_status(DiagnosticStatus.OK, 'waiting for the robot to stop', at_s=0.0)
         self.create_subscription(Odometry, ODOM_TOPIC, self._on_odometry, DATA_QOS, raw=True,
                                  event_callbacks=PER_TICK_SUBSCRIPTION_EVENTS)
 
