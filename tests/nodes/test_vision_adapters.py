@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+import rclpy
 from adapter_helpers import assert_reads_input_only_once_matched, frame, overrides
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
@@ -19,7 +20,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image
 
 from omni_micro_common.conventions import quaternion_to_yaw, yaw_to_quaternion
-from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, latched
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, camera_info_profile, latched
 from omni_micro_sim.state import RobotState
 from omni_micro_vision.camera import DEFAULT_RIG
 from omni_micro_vision.camera_node import CameraNode
@@ -42,17 +43,63 @@ def test_vision_node_reads_odometry_only_once_the_capture_readers_are_matched(co
             covariance_readers=['markers_node'])), 'markers_node', covariance_readers)
 
 
-def test_vision_node_reads_odometry_only_once_its_status_writer_matched_the_recorder(context):
+def test_vision_node_says_its_first_status_and_reads_odometry_once_the_recorder_is_matched(
+        context):
     """Its first status ('waiting for the robot to stop', at time 0) is latched with depth 1:
     a recorder whose reader the writer matched only after the next status (0.04 s on) never
     got it, and a fleet's bag lacked one robot's (the recorder had matched the writer, so it
-    said it was recording, but not the writer the recorder)."""
+    said it was recording, but not the writer the recorder). Said before the match, it could
+    reach the recorder only as history, which Fast DDS does not always deliver to a reader
+    matched late (eProsima/Fast-DDS#3822)."""
     def recorder_reader(recorder: Node) -> None:
         recorder.create_subscription(DiagnosticStatus, '/camera/status', lambda msg: None,
                                      latched(1000))
     assert_reads_input_only_once_matched(
         context, VisionNode(context=context, parameter_overrides=overrides(
-            status_readers=['bag_recorder'])), 'bag_recorder', recorder_reader)
+            status_readers=['bag_recorder'])), 'bag_recorder', recorder_reader,
+        first_said_on='/camera/status')
+
+
+def test_a_camera_info_reader_starved_for_a_while_still_knows_of_every_frame_sent(context):
+    """The tracker's and the preflight's CameraInfo reader (camera_info_profile): a driver's
+    best-effort CameraInfo (SensorDataQoS, as the machine-vision drivers offer it) sent while
+    the reader's process gets no CPU stays until it is read, for seconds of frames; an image
+    reader's depth (10) keeps only the latest."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+
+    best_effort = QoSProfile(depth=IMAGE_QOS.depth, reliability=ReliabilityPolicy.BEST_EFFORT)
+    driver = rclpy.create_node('camera_driver', context=context)
+    reader = rclpy.create_node('preflight', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(reader)
+    try:
+        deep: list[CameraInfo] = []
+        shallow: list[CameraInfo] = []
+        reader.create_subscription(CameraInfo, '/bench/camera_info', deep.append,
+                                   camera_info_profile(best_effort))
+        reader.create_subscription(CameraInfo, '/bench/camera_info', shallow.append,
+                                   best_effort)
+        infos = driver.create_publisher(CameraInfo, '/bench/camera_info',
+                                        qos_profile_sensor_data)
+        deadline = time.monotonic() + 10.0
+        while infos.get_subscription_count() < 2 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        for k in range(60):   # four seconds of a 15 Hz driver, the reader not spun meanwhile
+            info = CameraInfo(width=1280, height=1024)
+            info.header.stamp.nanosec = k
+            infos.publish(info)
+        time.sleep(0.2)
+        deadline = time.monotonic() + 5.0
+        while len(deep) < 60 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        executor.spin_once(timeout_sec=0.1)
+        assert [info.header.stamp.nanosec for info in deep] == list(range(60))
+        assert [info.header.stamp.nanosec for info in shallow] == list(range(50, 60))
+    finally:
+        executor.shutdown()
+        driver.destroy_node()
+        reader.destroy_node()
 
 
 def test_vision_node_lets_only_faults_change_while_it_runs(context):

@@ -17,7 +17,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from omni_micro_bringup.preflight import CameraWatch, Offered, RobotWatch
 from omni_micro_common.conventions import stamp_ns
-from omni_micro_common.qos import IMAGE_QOS
+from omni_micro_common.qos import IMAGE_QOS, camera_info_profile
 from omni_micro_common.topic_names import robot_name
 from omni_micro_vision.tracked_camera import TrackedCamera
 
@@ -55,7 +55,8 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
 
             node.create_subscription(Image, camera.image_topic, on_image, best_effort,
                                      raw=True)
-            node.create_subscription(CameraInfo, camera.info_topic, on_info, best_effort)
+            node.create_subscription(CameraInfo, camera.info_topic, on_info,
+                                     camera_info_profile(best_effort))
         for robot in robots:
             def on_state(msg: JointState, robot: RobotWatch = robot) -> None:
                 robot.on_state(stamp_ns(msg.header.stamp), list(msg.name))

@@ -59,7 +59,7 @@ from omni_micro_common.lockstep import Ack
 from omni_micro_common.lockstep_groups import nodes_of_robot, qualified_node_name
 from omni_micro_common.lockstep_reporting import LockstepReporter
 from omni_micro_common.node_runtime import NodeComponent, run_component
-from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS
+from omni_micro_common.qos import CAPTURE_QOS, IMAGE_QOS, camera_info_profile
 from omni_micro_common.reader_matching import (
     capture_reader_names,
     node_list_parameter,
@@ -190,7 +190,8 @@ class TrackerNode(Node):
                 # Raw: the pixels are read where they lie (image_messages.read_image).
                 self.create_subscription(Image, image_topic, reader.on_image, image_qos,
                                          raw=True, event_callbacks=reader.events(image_topic))
-                self.create_subscription(CameraInfo, info_topic, reader.on_info, image_qos,
+                self.create_subscription(CameraInfo, info_topic, reader.on_info,
+                                         camera_info_profile(image_qos),
                                          event_callbacks=reader.events(info_topic))
 
         # Each robot's lockstep gate hears of its own captures (robot 1's controller never
