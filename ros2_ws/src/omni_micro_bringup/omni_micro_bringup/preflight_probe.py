@@ -22,6 +22,12 @@ from omni_micro_common.topic_names import robot_name
 from omni_micro_vision.tracked_camera import TrackedCamera
 
 NODE_NAME = 'omni_micro_preflight'
+# How many joint states the preflight's reader keeps (5 s of joint_state_broadcaster's 50 Hz): a
+# driver's rate is counted from the states that came. With 10 kept, a preflight beside busy
+# processes and two other test workers counted a stand-in driver's 50 Hz (it stamps every state
+# on its grid, sending late ones in a burst) as 45.4 Hz; not seen again in 4 runs beside four
+# busy processes, so that its queue was the cause is likely, not shown.
+STATES_KEPT = 250
 
 
 def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
@@ -62,7 +68,9 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
                 robot.on_state(stamp_ns(msg.header.stamp), list(msg.name))
 
             # Best effort meets either kind of driver; what it offers is judged below.
-            node.create_subscription(JointState, robot.topic, on_state, best_effort)
+            node.create_subscription(JointState, robot.topic, on_state,
+                                     QoSProfile(depth=STATES_KEPT,
+                                                reliability=ReliabilityPolicy.BEST_EFFORT))
         started = time.monotonic()
         while (elapsed := time.monotonic() - started) < seconds:
             executor.spin_once(timeout_sec=0.05)
