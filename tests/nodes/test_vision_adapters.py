@@ -14,8 +14,10 @@ from adapter_helpers import assert_reads_input_only_once_matched, frame, overrid
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image
 
@@ -65,9 +67,6 @@ def test_a_camera_info_reader_starved_for_a_while_still_knows_of_every_frame_sen
     best-effort CameraInfo (SensorDataQoS, as the machine-vision drivers offer it) sent while
     the reader's process gets no CPU stays until it is read, for seconds of frames; an image
     reader's depth (10) keeps only the latest."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-
     best_effort = QoSProfile(depth=IMAGE_QOS.depth, reliability=ReliabilityPolicy.BEST_EFFORT)
     driver = rclpy.create_node('camera_driver', context=context)
     reader = rclpy.create_node('preflight', context=context)
