@@ -6,7 +6,7 @@ under tests/graph/, and modules or tests that say ``pytest.mark.slow``. ``./scri
 (pytest -m 'not slow') runs the rest, the in-process tier a developer runs after every edit.
 
 ``./scripts/test`` runs the suite on every core (pytest-xdist): the slow tier first, longest
-first, so that the workers finish together; each worker leases a DDS domain of its own.
+first, so that the two workers finish together; each worker leases a DDS domain of its own.
 A test that uses more than ``TEST_LIMIT_S`` of CPU fails, unless ``LONG_TESTS`` names it with
 the reason it needs more: the suite stays quick because nothing grows unseen.
 """
