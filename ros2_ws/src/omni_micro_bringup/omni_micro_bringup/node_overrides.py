@@ -97,7 +97,7 @@ def node_overrides(spec: NodeSpec, options: GraphOptions,
     robots, present, fleet = wiring.robots, wiring.present, options.fleet
     robot = robots.index(spec.namespace) if spec.namespace in robots else 0
     # The readers of a node's latched status that must have its first (status_readers).
-    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
+    recorder = recorder_of(present)
 
     def capture_readers_of(namespaces: list[str]) -> dict[str, list[str]]:
         """A camera's readers: the controller and markers_node of each of ``namespaces``, and
@@ -323,7 +323,12 @@ def capture_readers(options: GraphOptions, readers: list[str], present: set[str]
     and the recorder reads the servo's alone)."""
     fixed = node_parameters('controller_node', options.params_files, options.controller_overrides
                             ).get('capture_uncertainty', 'covariance') == 'fixed'
-    recorder = ['bag_recorder'] if 'bag_recorder' in present else []
+    recorder = recorder_of(present)
     return {'capture_readers': (readers if fixed else []) + recorder,
             'covariance_readers': ([] if fixed else readers) + recorder,
             'motion_readers': servos + (recorder if in_motion else [])}
+
+
+def recorder_of(present: set[str]) -> list[str]:
+    """The recorder, as a reader some writer must match first, if the graph has one."""
+    return ['bag_recorder'] if 'bag_recorder' in present else []
