@@ -14,7 +14,6 @@ caught holding (docs/reliability.md, "Processes")."""
 from __future__ import annotations
 
 import functools
-import os
 import time
 from collections import deque
 from collections.abc import Callable
@@ -35,7 +34,6 @@ from rclpy.publisher import Publisher
 
 from omni_micro_bringup.composition import ORCHESTRATOR_NODE, orchestration_odometry_topic
 from omni_micro_bringup.errors import RunFailed, UsageError
-from omni_micro_bringup.params_files import dds_profile
 from omni_micro_bringup.readiness import Readiness
 from omni_micro_bringup.recorder_watch import RecorderWatch
 from omni_micro_bringup.respawns import GOAL_ACKED_WITHIN_S, Respawns, ends_a_goal
@@ -45,6 +43,7 @@ from omni_micro_common.conventions import (
     quaternion_to_yaw,
 )
 from omni_micro_common.goal_message import goal_pose
+from omni_micro_common.installed import use_dds_profile
 from omni_micro_common.publication_counts import PublicationCounter
 from omni_micro_common.qos import CAPTURE_QOS, DATA_QOS, STATUS_QOS
 from omni_micro_common.topic_names import (
@@ -92,7 +91,7 @@ class Orchestrator:
         self.markers = markers   # markers_node is in the graph: it must have every goal
         # The graph's Fast DDS profile here too (its announcements are what makes discovery
         # quick), read when this process makes its first participant.
-        os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(dds_profile()))
+        use_dds_profile()
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = Node(ORCHESTRATOR_NODE, context=self.context)

@@ -17,6 +17,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from omni_micro_bringup.preflight import CameraWatch, Offered, RobotWatch
 from omni_micro_common.conventions import stamp_ns
+from omni_micro_common.installed import use_dds_profile
 from omni_micro_common.qos import IMAGE_QOS, camera_info_profile
 from omni_micro_common.topic_names import robot_name
 from omni_micro_vision.tracked_camera import TrackedCamera
@@ -37,6 +38,7 @@ def listen(cameras: list[CameraWatch], robots: list[RobotWatch], seconds: float,
     """Listen ``seconds`` to every camera and robot; then note their publishers' QoS and (with
     ``robot_names`` and ``tracked``, each camera as the tracker maps it) who each camera's last
     frame names."""
+    use_dds_profile()   # as the tracker and the controller of a run have it
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     node = rclpy.create_node(NODE_NAME, context=context)

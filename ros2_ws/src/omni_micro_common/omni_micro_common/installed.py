@@ -1,6 +1,6 @@
 """Where the workspace's packages are installed (``AMENT_PREFIX_PATH``, else this Python's
 prefix, where pip puts them), and the files they install: the Fast DDS profile of the graph,
-which a node names when it tells the user to export it."""
+which a node names when it tells the user to export it and a command's own participants use."""
 
 from __future__ import annotations
 
@@ -26,6 +26,17 @@ def installed_file(package: str, *parts: str) -> Path | None:
 def dds_profile_file() -> Path | None:
     """The project's Fast DDS profile (installed with omni_micro_common), or None."""
     return installed_file('omni_micro_common', 'config', 'fastdds.xml')
+
+
+def use_dds_profile() -> None:
+    """This process's DDS participants on the project's Fast DDS profile, unless the user named
+    one (``FASTRTPS_DEFAULT_PROFILES_FILE``): rmw_fastrtps reads it as the process makes each
+    participant. Among what it sets (config/fastdds.xml), Fast DDS's own warnings and errors go
+    to standard error: by default it prints them on standard output, ahead of a ``--json``
+    document."""
+    profile = dds_profile_file()
+    if profile is not None:
+        os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(profile))
 
 
 def dds_profile_to_export() -> str | None:

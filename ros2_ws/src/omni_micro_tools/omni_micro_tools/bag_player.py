@@ -20,6 +20,7 @@ from rclpy.node import Node
 
 from omni_micro_common.conventions import stamp_ns
 from omni_micro_common.errors import LockstepError
+from omni_micro_common.installed import use_dds_profile
 from omni_micro_common.lockstep import ACK_TOPIC, REPLAY_SYNC_WINDOW
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS, decode_ack
 from omni_micro_common.messages import message_class
@@ -52,6 +53,7 @@ class BagPlayer:
         self.sync = list(sync)
         self.events = sorted((stamp, topic, index) for topic in self.topics
                              for index, stamp in enumerate(data.timestamps[topic]))
+        use_dds_profile()   # as the graph's nodes it replays to have it
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = Node('bag_replay', context=self.context)
