@@ -195,7 +195,10 @@ def main() -> None:
     _preload()
     child = serve(sock)
     if child is None:
-        sys.exit(0)
+        # Its owner closed the socket and waits for this exit. Nothing here needs tearing
+        # down (no output, no files, its children reported): the interpreter's own teardown
+        # of everything preloaded took 0.2 s of every command's end.
+        os._exit(0)
     entry = become(*child)
     sys.exit(entry())
 
