@@ -20,7 +20,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'omni-micro = omni_micro_cli.cli:main',
+            'omni-micro = omni_micro_cli.cli:command',
         ],
     },
 )

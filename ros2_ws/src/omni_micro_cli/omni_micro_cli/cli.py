@@ -14,6 +14,8 @@ foresaw is one line too, with the file its traceback was written to (``--debug``
 from __future__ import annotations
 
 import argparse
+import atexit
+import contextlib
 import difflib
 import importlib
 import os
@@ -248,3 +250,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f'omni-micro {args.command}: failed unexpectedly: {type(error).__name__}: '
               f'{error} (traceback in {where}; --debug prints it)', file=sys.stderr)
         return 1
+
+
+def command() -> NoReturn:
+    """The installed ``omni-micro``: :func:`main`, then an exit without the interpreter's
+    teardown (:func:`_end_now`)."""
+    returned: list[int] = []
+    # Registered before main() runs: exit hooks run last registered first, so this one runs
+    # after every hook the command's modules register (the warm-start zygote's closing).
+    atexit.register(_end_now, returned)
+    returned.append(main())
+    sys.exit(returned[0])
+
+
+def _end_now(returned: list[int]) -> None:
+    """Once main() has returned and every other exit hook has run, end the process at once.
+
+    What is left then is the interpreter's teardown of the modules the command loaded: after a
+    DDS participant (the orchestration's, the preflight's) it took 0.15 s of wall time (0.37 s
+    against 0.21 s for a bare rclpy node, measured), every command, after its result was
+    printed. The participant itself is gone by then (rclpy shut down: no shared-memory file
+    left), and threads that are not daemons were joined before the exit hooks ran. A command
+    that did not return (``--help``, an exit from inside) ends as Python ends it."""
+    if not returned:
+        return
+    if 'logging' in sys.modules:   # its own exit hook may come after this one
+        sys.modules['logging'].shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):   # a closed pipe: nothing more can be said
+            stream.flush()
+    os._exit(returned[0])
