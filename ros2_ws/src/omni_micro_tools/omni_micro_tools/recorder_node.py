@@ -209,7 +209,12 @@ class BagRecorder(Node):
                     f'{describe_clock(self._clock_ns * 1e-9)}: another graph publishes /clock '
                     'on this domain? The bag keeps its messages but logs by the first clock')
             return
+        started = self._clock_ns == 0 < clock_ns
         self._clock_ns = max(self._clock_ns, clock_ns)
+        if started and self.write_failure is None:
+            # What was said before the robot's clock started (its goal, each node's first
+            # status) is on disk before the robot moves, whenever the last flush was.
+            self._flush()
 
     def _stamp_reader(self, topic: str) -> Callable[[bytes], int | None] | None:
         """How to read the stamp of ``topic``'s raw messages, if it counts in how far the
@@ -278,13 +283,16 @@ class BagRecorder(Node):
             level=DiagnosticStatus.ERROR, name='bag_recorder', message='write failed',
             values=[KeyValue(key='reason', value=self.write_failure)]))
 
+    def _flush(self) -> None:
+        try:
+            flush(self.writer)
+        except OSError as error:
+            self._writing_failed(error)
+        self._last_flush = time.monotonic()
+
     def _on_wall_timer(self) -> None:
         if self.write_failure is None and time.monotonic() - self._last_flush >= FLUSH_PERIOD_S:
-            try:
-                flush(self.writer)
-            except OSError as error:
-                self._writing_failed(error)
-            self._last_flush = time.monotonic()
+            self._flush()
         # "recording" once every recorded topic has a matched publisher (and a driver's images a
         # frame written), so that whoever starts the graph's clock knows nothing will be missed
         # from the beginning.
