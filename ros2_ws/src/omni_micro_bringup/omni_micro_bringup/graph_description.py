@@ -3,8 +3,11 @@ would show it: the graph brought up with its clock paused, read from discovery, 
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
+from typing import Any, cast
 
+from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import brought_up, driver_for
 from omni_micro_bringup.graph_options import GraphOptions
 
@@ -26,8 +29,10 @@ class TopicEndpoints:
     subscribers: tuple[Endpoint, ...]
 
 
-# Discovery of the last endpoints after the readers the start waits for.
+# Discovery of the last endpoints after the readers the robot's clock waits for.
 GRAPH_SETTLE_S = 1.0
+# How long those readers may take to be seen once the graph is up.
+READERS_SEEN_WITHIN_S = 30.0
 
 
 # Every ROS 2 node has these; they say nothing about this graph.
@@ -40,10 +45,23 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
     who subscribes each topic with which type and QoS, as rqt_graph would, and stop it. The
     orchestrator's own node is in it: it sends the goals and reads statuses."""
     driver = driver_for(options)
-    with brought_up(options, driver):
+    with brought_up(options, driver) as (graph, _):
         monitor = driver.monitor
         assert monitor is not None
-        # Every endpoint seen, not only the readers the start waits for (readiness).
+        # Every endpoint seen, not only the readers the start waits for (readiness): first,
+        # by name, each reader the robot's clock waits for (dynamics_node's awaited_readers;
+        # a node may subscribe only once its own writers have matched, vision_node to /odom
+        # among them), then whatever else comes.
+        awaited = [str(entry) for process in graph.processes
+                   for spec in (process.spec.hosts or (process.spec,))
+                   for entry in cast(list, spec.overrides.get('awaited_readers', []))]
+        deadline = time.monotonic() + READERS_SEEN_WITHIN_S
+        while unseen := [entry for entry in awaited if not _reader_seen(monitor.node, entry)]:
+            graph.check_alive()
+            if time.monotonic() > deadline:
+                raise RunFailed(f'readers not seen within {READERS_SEEN_WITHIN_S:g} s: '
+                                f'{", ".join(unseen)}; logs in {graph.log_dir}')
+            monitor.spin_for(0.05)
         monitor.spin_for(GRAPH_SETTLE_S)
         node = monitor.node
         described = []
@@ -70,3 +88,11 @@ def _node_name(namespace: str, name: str) -> str:
     """A node as the picture names it: a single robot's nodes (the root namespace) by their
     names, a fleet robot's with its namespace (``robot_1/controller_node``)."""
     return name if namespace == '/' else f'{namespace.strip("/")}/{name}'
+
+
+def _reader_seen(node: Any, entry: str) -> bool:
+    """Whether discovery shows ``entry``'s reader (``robot_1/vision_node:/robot_1/odom``, as
+    dynamics_node's awaited_readers name them)."""
+    name, _, topic = entry.rpartition(':')
+    return any(_node_name(info.node_namespace, info.node_name) == name
+               for info in node.get_subscriptions_info_by_topic(topic))
