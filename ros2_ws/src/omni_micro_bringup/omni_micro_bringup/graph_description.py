@@ -10,6 +10,7 @@ from typing import Any, cast
 from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import brought_up, driver_for
 from omni_micro_bringup.graph_options import GraphOptions
+from omni_micro_common.lockstep_groups import qualified_node_name
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
 
             def endpoints(infos: list) -> tuple[Endpoint, ...]:
                 return tuple(sorted(
-                    (Endpoint(_node_name(info.node_namespace, info.node_name),
+                    (Endpoint(qualified_node_name(info.node_namespace, info.node_name),
                               info.qos_profile.reliability.name.lower(),
                               info.qos_profile.durability.name.lower())
                      for info in infos),
@@ -84,15 +85,9 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
         return described
 
 
-def _node_name(namespace: str, name: str) -> str:
-    """A node as the picture names it: a single robot's nodes (the root namespace) by their
-    names, a fleet robot's with its namespace (``robot_1/controller_node``)."""
-    return name if namespace == '/' else f'{namespace.strip("/")}/{name}'
-
-
 def _reader_seen(node: Any, entry: str) -> bool:
     """Whether discovery shows ``entry``'s reader (``robot_1/vision_node:/robot_1/odom``, as
     dynamics_node's awaited_readers name them)."""
     name, _, topic = entry.rpartition(':')
-    return any(_node_name(info.node_namespace, info.node_name) == name
+    return any(qualified_node_name(info.node_namespace, info.node_name) == name
                for info in node.get_subscriptions_info_by_topic(topic))

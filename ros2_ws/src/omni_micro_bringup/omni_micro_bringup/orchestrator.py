@@ -202,11 +202,8 @@ class Orchestrator:
         # No grace for matching to settle here (it was 0.5 s of every run): each pairing a run
         # depends on is waited for by name (dynamics_node's awaited readers before its clock
         # runs, the goal's readers before it goes, a node's latched status once the recorder's
-        # reader matched). A respawned node, though, is told from its ghost by readers that
-        # were not there at the start: every one of those must be seen before they are noted.
-        if self.respawns.processes:
-            self.let_matching_settle()
-        self.respawns.remember_endpoints()
+        # reader matched).
+        self.respawns.note_endpoints_at_start()
 
     def send_goal(self, graph: Supervisor, goal_m: tuple[float, float], timeout_s: float = 30.0,
                   stamp_s: float = 0.0, acked_within_s: float = GOAL_READERS_MATCH_S) -> None:

@@ -122,6 +122,14 @@ class Respawns:
         """Note the readers of every respawnable node, to tell a new process's from a ghost's."""
         self.known_endpoints = {process: self._endpoints(process) for process in self.processes}
 
+    def note_endpoints_at_start(self) -> None:
+        """Once the graph is up: the respawnable nodes' readers, noted. A respawned node is
+        told from its ghost by readers that were not there at the start, so every one of those
+        must be seen first: discovery shows an endpoint a little before every peer has it."""
+        if self.processes:
+            self.monitor.let_matching_settle()
+        self.remember_endpoints()
+
     def wait_for_new_processes(self, graph: Supervisor, restarted: list[str]) -> None:
         """With the clock held: until each respawned node is up and in the ROS graph.
 
