@@ -18,7 +18,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from trajectory_msgs.msg import JointTrajectory
 
 from omni_micro_bringup.errors import RunFailed
-from omni_micro_bringup.processes import DomainLease
+from omni_micro_bringup.processes import DomainLease, node_environment
 from omni_micro_common.lockstep_reporting import LOCKSTEP_QOS
 from omni_micro_common.qos import DATA_QOS
 from omni_micro_tools.bag_reading import read_bag
@@ -84,13 +84,44 @@ def test_a_busy_node_stops_on_its_first_signal(node, sig, start_node, probe, tmp
     assert 'published message counts' in (tmp_path / f'{node}.log').read_text()
 
 
-def test_a_second_signal_ends_the_last_words_at_once(leftovers_removed, start_node, tmp_path):
+# A reader of the controller's commands that says when it has matched their writer.
+STOP_READER = """
+import rclpy
+from trajectory_msgs.msg import JointTrajectory
+from omni_micro_common.qos import DATA_QOS
+rclpy.init()
+node = rclpy.create_node('stop_reader')
+reader = node.create_subscription(JointTrajectory, '/wheel_trajectory', lambda msg: None,
+                                  DATA_QOS)
+while reader.get_publisher_count() == 0:
+    rclpy.spin_once(node, timeout_sec=0.05)
+for _ in range(10):   # and the writer this reader, in the other participant's discovery
+    rclpy.spin_once(node, timeout_sec=0.05)
+print('matched', flush=True)
+while True:
+    rclpy.spin_once(node, timeout_sec=0.05)
+"""
+
+
+def test_a_second_signal_ends_the_last_words_at_once(leftovers_removed, start_node, domain_id,
+                                                     tmp_path):
+    """The controller's last words wait for its stop to be acknowledged, for 0.2 s at most: a
+    reader whose process is stopped never acknowledges, so they last that long, and a second
+    signal inside them ends the process at once."""
     process = start_node('omni_micro_control', 'controller_node')
     wait_for_line(tmp_path / 'controller_node.log', ' ready', 30.0)
-    process.send_signal(signal.SIGINT)
-    time.sleep(0.05)   # inside its last words (the stop command is handed over for 0.2 s)
-    process.send_signal(signal.SIGINT)
-    process.wait(5.0)
+    reader = subprocess.Popen([sys.executable, '-c', STOP_READER], stdout=subprocess.PIPE,
+                              text=True, env=node_environment(domain_id, tmp_path))
+    try:
+        assert reader.stdout is not None and reader.stdout.readline() == 'matched\n'
+        reader.send_signal(signal.SIGSTOP)
+        process.send_signal(signal.SIGINT)
+        time.sleep(0.05)   # inside its last words
+        process.send_signal(signal.SIGINT)
+        process.wait(5.0)
+    finally:
+        reader.kill()      # stopped: only SIGKILL ends it (leftovers_removed takes its files)
+        reader.wait()
     assert process.returncode == 130
 
 

@@ -115,9 +115,8 @@ class FleetCoordinator(Orchestrator):
                                    self.recording, deadline, timeout_s)
         goal = goal_pose(order.goal_m, order.stamp_s)
         seen = len(self.statuses)
-        # Unlike a single robot's goal, it does not wait for its acknowledgments: they come with
-        # the writer's heartbeat, every 3 s on /robot_k/goal_pose (config/fastdds.xml sets 50 ms
-        # for /goal_pose alone, a writer profile being named after one topic): 3 s a goal.
+        # Unlike a single robot's goal, it does not wait for its acknowledgments: the
+        # controller's status saying it took the goal, awaited below, says more.
         publisher.publish(goal)
         while True:
             for robot, status in self.statuses[seen:]:

@@ -35,6 +35,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -345,11 +346,22 @@ class ControllerNode(Node):
         self.report_lockstep()   # at once, before any status of it
 
 
+# The longest a stopping controller waits for its stop and its last status to be acknowledged:
+# a reader whose process died never acknowledges, and the graph's stop must not wait on it.
+STOP_HANDOVER_S = 0.2
+
+
 def _stop_on_shutdown(node: ControllerNode) -> None:
     if not rclpy.ok():
         return   # the context is gone: nothing can be sent any more
     node.cancel_goal('shutdown')
-    time.sleep(0.2)   # let the reliable writer hand the stop over before the node goes
+    # The node goes once every reader (the robot, the recorder, the orchestration) has the stop
+    # and the status: reliable writers, so acknowledged is received. Within milliseconds in a
+    # graph, where a fixed wait of STOP_HANDOVER_S held every graph's stop that long.
+    deadline = time.monotonic() + STOP_HANDOVER_S
+    for publisher in (node.trajectory_pub, node.status_pub):
+        left_s = max(0.0, deadline - time.monotonic())
+        publisher.wait_for_all_acked(Duration(nanoseconds=round(left_s * 1e9)))
 
 
 COMPONENT = NodeComponent(ControllerNode,
