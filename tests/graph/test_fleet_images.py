@@ -18,20 +18,20 @@ from fleet_runs import assert_same_run_and_bag, run_fleet_files
 from omni_micro_tools.bag_reading import read_bag
 
 ROBOTS = """robots:
-  - start_mm: [30, 0]
+  - start_mm: [40, 0]
     wheel_offsets_deg: [0, 3, 2]
     controller: model
-  - start_mm: [70, 0]
+  - start_mm: [60, 0]
     wheel_offsets_deg: [0, -2, 1]
     controller: model
 """
 TASKS = """tasks:
   robot_0:
-    - goal_mm: [70, 0]
+    - goal_mm: [60, 0]
   robot_1:
-    - goal_mm: [30, 0]
+    - goal_mm: [40, 0]
 """
-GOALS_MM = [(70.0, 0.0), (30.0, 0.0)]
+GOALS_MM = [(60.0, 0.0), (40.0, 0.0)]
 CAMERAS = ('macro', 'micro')
 
 
@@ -104,9 +104,9 @@ def test_the_shared_cameras_images_recorded_name_each_robot_offline(omni_micro, 
     shared cameras, and ``track`` reading them afterwards names both robots in every macro frame
     and finds each still as often as the live tracker published its captures."""
     (tmp_path / 'robots.yaml').write_text(ROBOTS)
-    # Short moves (3 mm each, no crossing): the frames are 2 x 3.9 MB at 30 Hz.
-    (tmp_path / 'tasks.yaml').write_text('tasks:\n  robot_0:\n    - goal_mm: [33, 0]\n'
-                                         '  robot_1:\n    - goal_mm: [67, 0]\n')
+    # Short moves (3 mm each, apart): the frames are 2 x 3.9 MB at 30 Hz.
+    (tmp_path / 'tasks.yaml').write_text('tasks:\n  robot_0:\n    - goal_mm: [37, 0]\n'
+                                         '  robot_1:\n    - goal_mm: [63, 0]\n')
     done = omni_micro('run', '--robots', str(tmp_path / 'robots.yaml'), '--tasks',
                       str(tmp_path / 'tasks.yaml'), '--vision', 'images', '--seed', '3',
                       '--no-markers', '--rtf', 'max', '--log-dir', str(tmp_path / 'logs'),
