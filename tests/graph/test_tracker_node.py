@@ -4,6 +4,7 @@ without the fiducial, and a corrupt frame refused with the node staying up."""
 
 import math
 import re
+import signal
 import time
 
 import numpy as np
@@ -274,9 +275,10 @@ def test_a_megapixel_driver_on_fast_dds_defaults_is_told_what_to_export(
 
     from omni_micro_bringup.processes import node_environment
 
-    start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
-               'macro.image_topic:=/cam/image_raw', 'macro.info_topic:=/cam/camera_info',
-               'macro.resolution_px:=[1600,1200]', 'macro.bit_depth:=12')
+    tracker = start_node('omni_micro_vision', 'tracker_node', 'cameras:=[macro]',
+                         'macro.image_topic:=/cam/image_raw',
+                         'macro.info_topic:=/cam/camera_info',
+                         'macro.resolution_px:=[1600,1200]', 'macro.bit_depth:=12')
     env = node_environment(domain_id, tmp_path)
     del env['FASTRTPS_DEFAULT_PROFILES_FILE']   # the driver's own shell exported nothing
     driver = Path(__file__).parents[1] / 'bench' / 'mono16_driver.py'
@@ -289,10 +291,28 @@ def test_a_megapixel_driver_on_fast_dds_defaults_is_told_what_to_export(
     while 'lost since' not in log.read_text() and time.monotonic() < deadline:
         time.sleep(0.1)
     said = [line for line in log.read_text().splitlines() if 'lost since' in line]
-    assert len(said) == 1, log.read_text()
-    assert ('MB frames read best effort through Fast DDS\'s default 0.5 MB shared-memory '
-            'segments; start the driver with the project\'s profile: export '
-            f'FASTRTPS_DEFAULT_PROFILES_FILE={dds_profile()}') in said[0]
-    # 30 Hz when the machine keeps up with the driver; slower under load, as it really sends.
-    rates = re.search(r'the driver sends ([\d.]+) Hz by its stamps, ([\d.]+) Hz arrive', said[0])
-    assert rates is not None and float(rates[2]) < float(rates[1]) <= 30.1, said[0]
+    # Each stretch of losses said once. Idle, the driver loses frames all along: one stretch.
+    # Beside a busy machine's other tests it lost 7 of 32, then none for the 2 s that end a
+    # stretch, then 1 of 32: two stretches, each said once.
+    assert said, log.read_text()
+    since = [re.search(r'lost since (\S+ UTC)', line) for line in said]
+    assert all(since) and len({match[1] for match in since if match}) == len(said), said
+    for line in said:
+        assert ('MB frames read best effort through Fast DDS\'s default 0.5 MB shared-memory '
+                'segments; start the driver with the project\'s profile: export '
+                f'FASTRTPS_DEFAULT_PROFILES_FILE={dds_profile()}') in line
+        # 30 Hz when the machine keeps up with the driver; slower under load, as it sends.
+        rates = re.search(r'the driver sends ([\d.]+) Hz by its stamps, ([\d.]+) Hz arrive',
+                          line)
+        assert rates is not None and float(rates[2]) < float(rates[1]) <= 30.1, line
+    # Its last words: the whole run's frames, no more than the driver sent (none counted
+    # twice), most of them (those before the tracker heard the driver are not), and at least
+    # every frame the stretches said lost.
+    tracker.send_signal(signal.SIGINT)
+    tracker.wait(10)
+    last = re.search(r'macro: \d+ frames from /cam/image_raw came of the (\d+) the driver '
+                     r'sent by their stamps \((\d+) lost\)', log.read_text())
+    assert last is not None, log.read_text()
+    of, lost = int(last[1]), int(last[2])
+    stretches = sum(int(count) for line in said for count in re.findall(r'macro: (\d+) of', line))
+    assert sent // 2 < of <= sent and stretches <= lost, (last[0], sent, said)
