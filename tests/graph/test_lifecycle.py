@@ -86,6 +86,7 @@ def test_a_busy_node_stops_on_its_first_signal(node, sig, start_node, probe, tmp
 
 # A reader of the controller's commands that says when it has matched their writer.
 STOP_READER = """
+import time
 import rclpy
 from trajectory_msgs.msg import JointTrajectory
 from omni_micro_common.qos import DATA_QOS
@@ -93,11 +94,12 @@ rclpy.init()
 node = rclpy.create_node('stop_reader')
 reader = node.create_subscription(JointTrajectory, '/wheel_trajectory', lambda msg: None,
                                   DATA_QOS)
-while reader.get_publisher_count() == 0:
+deadline = time.monotonic() + 30.0
+while reader.get_publisher_count() == 0 and time.monotonic() < deadline:
     rclpy.spin_once(node, timeout_sec=0.05)
 for _ in range(10):   # and the writer this reader, in the other participant's discovery
     rclpy.spin_once(node, timeout_sec=0.05)
-print('matched', flush=True)
+print('matched' if reader.get_publisher_count() else 'no writer in 30 s', flush=True)
 while True:
     rclpy.spin_once(node, timeout_sec=0.05)
 """
