@@ -11,6 +11,7 @@ from omni_micro_bringup.errors import RunFailed
 from omni_micro_bringup.graph import brought_up, driver_for
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_common.lockstep_groups import qualified_node_name
+from omni_micro_sim.dynamics_parameters import awaited_readers
 
 
 @dataclass(frozen=True)
@@ -53,11 +54,13 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
         # by name, each reader the robot's clock waits for (dynamics_node's awaited_readers;
         # a node may subscribe only once its own writers have matched, vision_node to /odom
         # among them), then whatever else comes.
-        awaited = [str(entry) for process in graph.processes
+        entries = [str(entry) for process in graph.processes
                    for spec in (process.spec.hosts or (process.spec,))
                    for entry in cast(list, spec.overrides.get('awaited_readers', []))]
+        awaited = awaited_readers(entries)
         deadline = time.monotonic() + READERS_SEEN_WITHIN_S
-        while unseen := [entry for entry in awaited if not _reader_seen(monitor.node, entry)]:
+        while unseen := [f'{name}:{topic}' for name, topics in awaited.items()
+                         for topic in topics if not _reader_seen(monitor.node, name, topic)]:
             graph.check_alive()
             if time.monotonic() > deadline:
                 raise RunFailed(f'readers not seen within {READERS_SEEN_WITHIN_S:g} s: '
@@ -85,9 +88,8 @@ def describe_graph(options: GraphOptions) -> list[TopicEndpoints]:
         return described
 
 
-def _reader_seen(node: Any, entry: str) -> bool:
-    """Whether discovery shows ``entry``'s reader (``robot_1/vision_node:/robot_1/odom``, as
-    dynamics_node's awaited_readers name them)."""
-    name, _, topic = entry.rpartition(':')
+def _reader_seen(node: Any, name: str, topic: str) -> bool:
+    """Whether discovery shows node ``name``'s reader of ``topic`` (``robot_1/vision_node``, as
+    dynamics_node's awaited_readers name it)."""
     return any(qualified_node_name(info.node_namespace, info.node_name) == name
                for info in node.get_subscriptions_info_by_topic(topic))
