@@ -19,6 +19,7 @@ from sensor_msgs.msg import JointState
 
 from omni_micro_common.errors import ParameterError
 from omni_micro_common.qos import DATA_QOS
+from omni_micro_common.reader_matching import reader_census
 from omni_micro_sim.dynamics_node import DynamicsNode
 
 
@@ -116,7 +117,10 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
         for _ in range(4):
             executor.spin_once(timeout_sec=0.05)
         assert node.grid.tick == 0
-        assert "matching bag_recorder's reader of /clock" in node._waiting_for()
+        waiting = node._waiting_for()
+        assert "matching bag_recorder's reader of /clock" in waiting
+        # Said with what the node knows: no reader seen by name, none matched.
+        assert '/clock: the graph shows 0 reader(s), its writer matched 0' in waiting
         for topic, kind in (('/clock', Clock), ('/odom', Odometry), ('/joint_states', JointState),
                             ('/wheel_slip', JointState)):
             recorder.create_subscription(kind, topic, lambda msg: None, DATA_QOS)
@@ -124,6 +128,8 @@ def test_dynamics_node_starts_time_only_once_the_recorders_readers_are_matched(c
         while node.grid.tick == 0 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         assert node.grid.tick > 0
+        assert reader_census(node, node._publishers_of['/odom']) == \
+            '/odom: the graph shows 1 reader(s) (bag_recorder), its writer matched 1'
     finally:
         executor.shutdown()
         recorder.destroy_node()

@@ -43,6 +43,18 @@ def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str])
             or publisher.get_subscription_count() < len(readers)]
 
 
+def reader_census(node: Node, publisher: Publisher) -> str:
+    """What ``node`` knows of the readers of ``publisher``'s topic, for a report of a wait that
+    lasts: the readers the ROS graph shows, by node (a reader whose node's name has not come in
+    yet is ``_NODE_NAME_UNKNOWN_``: rmw's ros_discovery_info did not reach this node), and how
+    many of them the publisher has matched (DDS discovery)."""
+    names = sorted(qualified_node_name(info.node_namespace, info.node_name)
+                   for info in node.get_subscriptions_info_by_topic(publisher.topic_name))
+    return (f'{publisher.topic_name}: the graph shows {len(names)} reader(s)'
+            f'{" (" + ", ".join(names) + ")" if names else ""}, its writer matched '
+            f'{publisher.get_subscription_count()}')
+
+
 # How often a node that waits for readers (when_readers_matched) looks again.
 MATCH_POLL_S = 0.02
 

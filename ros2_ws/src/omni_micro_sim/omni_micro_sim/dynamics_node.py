@@ -72,7 +72,7 @@ from omni_micro_common.qos import (
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
-from omni_micro_common.reader_matching import unmatched_readers
+from omni_micro_common.reader_matching import reader_census, unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
@@ -253,7 +253,11 @@ class DynamicsNode(Node):
     def _waiting_for(self) -> str:
         unmatched = self._unmatched_readers() if self._readers_pending else []
         if unmatched:
-            return 'matching ' + ', '.join(unmatched)
+            # Which of the two a reader lacks: its node's name, or DDS's match.
+            census = [reader_census(self, self._publishers_of[topic]) for topic in sorted(
+                {topic for node, topics in self.awaited_readers.items() for topic in topics
+                 if unmatched_readers(self, self._publishers_of[topic], [node])})]
+            return f'matching {", ".join(unmatched)} ({"; ".join(census)})'
         return self.lockstep.waiting_for() or 'nothing (the wall clock paces it)'
 
     def _on_ack(self, data: bytes) -> None:
