@@ -3,6 +3,7 @@ before the match is lost to it (discovery runs each way at its own pace)."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterable
 
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType
@@ -46,8 +47,8 @@ def unmatched_readers(node: Node, publisher: Publisher, reader_nodes: list[str])
 def reader_census(node: Node, publisher: Publisher) -> str:
     """What ``node`` knows of the readers of ``publisher``'s topic, for a report of a wait that
     lasts: the readers the ROS graph shows, by node (a reader whose node's name has not come in
-    yet is ``_NODE_NAME_UNKNOWN_``: rmw's ros_discovery_info did not reach this node), and how
-    many of them the publisher has matched (DDS discovery)."""
+    yet is ``_NODE_NAMESPACE_UNKNOWN_/_NODE_NAME_UNKNOWN_``: rmw's ros_discovery_info did not
+    reach this node), and how many of them the publisher has matched (DDS discovery)."""
     names = sorted(qualified_node_name(info.node_namespace, info.node_name)
                    for info in node.get_subscriptions_info_by_topic(publisher.topic_name))
     return (f'{publisher.topic_name}: the graph shows {len(names)} reader(s)'
@@ -55,8 +56,11 @@ def reader_census(node: Node, publisher: Publisher) -> str:
             f'{publisher.get_subscription_count()}')
 
 
-# How often a node that waits for readers (when_readers_matched) looks again.
+# How often a node that waits for readers (when_readers_matched) looks again, and after how
+# long a wait it says what it waits for (then as often again): a wait that does not end holds
+# the robot's clock at 0, and the log is where a hung run is read.
 MATCH_POLL_S = 0.02
+WAIT_REPORT_S = 5.0
 
 
 def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
@@ -74,10 +78,21 @@ def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
         then()
         return
     timer: Timer | None = None
+    started = time.monotonic()
+    reported = started
 
     def look_again() -> None:
-        nonlocal timer
-        if timer is None or unmatched():
+        nonlocal timer, reported
+        if timer is None:
+            return
+        missing = unmatched()
+        if missing:
+            if time.monotonic() - reported >= WAIT_REPORT_S:
+                reported = time.monotonic()
+                census = '; '.join(reader_census(node, publisher) for publisher, names in writers
+                                   if unmatched_readers(node, publisher, names))
+                node.get_logger().warning(
+                    f'waiting {reported - started:.0f} s for {", ".join(missing)} ({census})')
             return
         timer.cancel()
         node.destroy_timer(timer)
