@@ -100,4 +100,10 @@ def test_what_needs_fixing_is_one_line_each(bench, omni_micro, domain_id, tmp_pa
             'lens with the ROS camera_calibration package') in said
     assert ("robot (/joint_states): nothing publishes it: start the robot's driver in this "
             'domain') in said
-    assert len(needs) == 4, said
+    # The frames that do arrive may also come late on a busy machine (113 ms, beside a
+    # three-worker suite): a finding of its own, then, said once and in one line.
+    late = [line for line in needs if re.fullmatch(
+        r'needs action: macro \(/cam/image_raw\): frames arrive \d+ ms after their stamps '
+        r'\(more than 100 ms\): the servo waits that long for each capture; check the '
+        r"driver's queue and transport", line)]
+    assert len(late) <= 1 and len(needs) == 4 + len(late), said
