@@ -53,7 +53,8 @@ def test_working_stand_ins_are_read_as_they_are(bench, omni_micro, domain_id, tm
     # at most two such frames.
     span_s = (stamps[-1] - stamps[0]) * 1e-9
     counted = [(known - 1) / span_s for known in range(len(stamps) - 2, len(stamps) + 1)]
-    assert any(seen['sent_hz'] == pytest.approx(hz, rel=1e-3) for hz in counted), \
+    # To the report's two decimals (2.24 for 2.2424 Hz, a driver starved by a busy machine).
+    assert any(seen['sent_hz'] == pytest.approx(hz, abs=0.005) for hz in counted), \
         (seen['sent_hz'], counted)
     assert 0 < seen['age_s'] < 1.0   # on this machine's clock (how late: the machine's load)
     assert [offer.split(': ')[1] for offer in seen['qos_offered']] == [
