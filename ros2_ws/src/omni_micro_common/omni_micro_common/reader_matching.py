@@ -56,6 +56,20 @@ def reader_census(node: Node, publisher: Publisher) -> str:
             f'{publisher.get_subscription_count()}')
 
 
+def missing_readers_report(node: Node, writers: list[tuple[Publisher, list[str]]]) -> str:
+    """The named readers ``writers`` have not matched yet (:func:`unmatched_readers`, each
+    publisher with the nodes named beside it), followed by what ``node`` knows of their topics
+    (:func:`reader_census`, once a topic): what a wait that lasts says; '' when none is
+    missing."""
+    lacking = [(publisher, missing) for publisher, names in writers
+               for missing in unmatched_readers(node, publisher, names)]
+    if not lacking:
+        return ''
+    publishers = {publisher.topic_name: publisher for publisher, _ in lacking}
+    census = '; '.join(reader_census(node, publishers[topic]) for topic in sorted(publishers))
+    return f'{", ".join(missing for _, missing in lacking)} ({census})'
+
+
 # How often a node that waits for readers (when_readers_matched) looks again, and after how
 # long a wait it says what it waits for (then as often again): a wait that does not end holds
 # the robot's clock at 0, and the log is where a hung run is read.
@@ -85,14 +99,11 @@ def when_readers_matched(node: Node, writers: list[tuple[Publisher, list[str]]],
         nonlocal timer, reported
         if timer is None:
             return
-        missing = unmatched()
-        if missing:
+        if unmatched():
             if time.monotonic() - reported >= WAIT_REPORT_S:
                 reported = time.monotonic()
-                census = '; '.join(reader_census(node, publisher) for publisher, names in writers
-                                   if unmatched_readers(node, publisher, names))
-                node.get_logger().warning(
-                    f'waiting {reported - started:.0f} s for {", ".join(missing)} ({census})')
+                node.get_logger().warning(f'waiting {reported - started:.0f} s for '
+                                          f'{missing_readers_report(node, writers)}')
             return
         timer.cancel()
         node.destroy_timer(timer)

@@ -72,7 +72,7 @@ from omni_micro_common.qos import (
     PER_TICK_SUBSCRIPTION_EVENTS,
     STATUS_QOS,
 )
-from omni_micro_common.reader_matching import reader_census, unmatched_readers
+from omni_micro_common.reader_matching import missing_readers_report, unmatched_readers
 from omni_micro_common.tick_messages import tick_templates
 from omni_micro_common.topic_names import (
     CLOCK_TOPIC,
@@ -166,6 +166,9 @@ class DynamicsNode(Node):
             if unknown:
                 raise ParameterError(f'awaited_readers: {node} reads {unknown}, which this '
                                      f'node does not publish ({sorted(self._publishers_of)})')
+        # Each awaited reader as reader_matching takes it: the publisher, the node beside it.
+        self._awaited_writers = [(self._publishers_of[topic], [node]) for node, topics
+                                 in self.awaited_readers.items() for topic in topics]
         # Time starts (and resumes) only once the awaited readers are matched.
         self._readers_pending = True
         if self.lockstep.enabled:
@@ -251,13 +254,10 @@ class DynamicsNode(Node):
                 f'{self._waiting_for()}')
 
     def _waiting_for(self) -> str:
-        unmatched = self._unmatched_readers() if self._readers_pending else []
-        if unmatched:
-            # Which of the two a reader lacks: its node's name, or DDS's match.
-            census = [reader_census(self, self._publishers_of[topic]) for topic in sorted(
-                {topic for node, topics in self.awaited_readers.items() for topic in topics
-                 if unmatched_readers(self, self._publishers_of[topic], [node])})]
-            return f'matching {", ".join(unmatched)} ({"; ".join(census)})'
+        missing = missing_readers_report(self, self._awaited_writers) \
+            if self._readers_pending else ''
+        if missing:
+            return 'matching ' + missing
         return self.lockstep.waiting_for() or 'nothing (the wall clock paces it)'
 
     def _on_ack(self, data: bytes) -> None:
@@ -280,8 +280,8 @@ class DynamicsNode(Node):
     def _unmatched_readers(self) -> list[str]:
         """The awaited readers (``awaited_readers``) this node's publishers have not matched
         yet."""
-        return [missing for node, topics in self.awaited_readers.items() for topic in topics
-                for missing in unmatched_readers(self, self._publishers_of[topic], [node])]
+        return [missing for publisher, names in self._awaited_writers
+                for missing in unmatched_readers(self, publisher, names)]
 
     def _advance(self) -> None:
         if self.paused:
