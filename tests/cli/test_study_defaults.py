@@ -3,7 +3,7 @@ and a run left at every default builds exactly the default robot, cameras and co
 
 from __future__ import annotations
 
-from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_sim.parameters import RobotParameters
 from omni_micro_studies.inputs import PARAMETERS
 from omni_micro_studies.runs import config_of, rig_of, robot_of

@@ -8,8 +8,6 @@ import pytest
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.errors import ControllerConfigError
 from omni_micro_control.feedback import (
-    MODEL_CAPTURES_PER_STOP,
-    FeedbackConfig,
     Finished,
     Move,
     Outcome,
@@ -17,6 +15,7 @@ from omni_micro_control.feedback import (
     VisionFeedbackController,
     wrap_angle,
 )
+from omni_micro_control.feedback_config import MODEL_CAPTURES_PER_STOP, FeedbackConfig
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation
 

@@ -10,7 +10,8 @@ import pytest
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.chains import Chain, RecordedMove, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
-from omni_micro_control.feedback import FeedbackConfig, Outcome
+from omni_micro_control.feedback import Outcome
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.identification import fit_parameters
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig
 from omni_micro_control.observations import Observation

@@ -83,7 +83,7 @@ def test_the_goal_reached_is_the_sharpest_camera_s_mean_within_the_tolerance():
 
 def test_a_stop_and_go_loop_asked_for_the_servo_refuses_rather_than_run_the_paper_s_rule():
     from omni_micro_control.errors import ControllerConfigError
-    from omni_micro_control.feedback import FeedbackConfig
+    from omni_micro_control.feedback_config import FeedbackConfig
     from omni_micro_control.model_based import planner_for
 
     with pytest.raises(ControllerConfigError, match='servo mode plans no stop-and-go moves'):

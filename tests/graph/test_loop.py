@@ -13,7 +13,7 @@ from omni_micro_bringup.composition import default_nodes
 from omni_micro_bringup.graph import run_graph
 from omni_micro_bringup.graph_options import GraphOptions
 from omni_micro_bringup.node_spec import NodeSpec
-from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import steering_preset
 from omni_micro_studies.twin import run_closed_loop

@@ -23,13 +23,8 @@ from omni_micro_common.conventions import (
     split_stamp,
 )
 from omni_micro_common.topic_names import namespaced_frame
-from omni_micro_control.feedback import (
-    FeedbackConfig,
-    Finished,
-    Move,
-    Outcome,
-    VisionFeedbackController,
-)
+from omni_micro_control.feedback import Finished, Move, Outcome, VisionFeedbackController
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner, learnt_offsets
 from omni_micro_control.servo_config import ServoCommand, ServoConfig
 from omni_micro_control.servo_session import ServoSession

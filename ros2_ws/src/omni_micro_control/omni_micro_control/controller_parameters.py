@@ -19,7 +19,8 @@ from omni_micro_common.conventions import (
 )
 from omni_micro_common.topic_names import CAPTURE_TOPICS, CAPTURE_UNCERTAINTY_SOURCES
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
+from omni_micro_control.feedback import VisionFeedbackController
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.model_based import ModelConfig, planner_for
 from omni_micro_control.platform import checked_platform
 from omni_micro_control.servo_config import (

@@ -37,7 +37,7 @@ import yaml
 from omni_micro_common.conventions import MICRO_FIELD_CENTER_M
 from omni_micro_common.topic_names import robot_name
 from omni_micro_control.errors import FleetFileError
-from omni_micro_control.feedback import MODES
+from omni_micro_control.feedback_config import MODES
 from omni_micro_control.fleet_plan import Task
 from omni_micro_sim.parameters import RobotParameters
 

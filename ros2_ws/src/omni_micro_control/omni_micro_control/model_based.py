@@ -26,13 +26,8 @@ import numpy as np
 from omni_micro_common.conventions import CaptureUncertainty
 from omni_micro_control.chains import Chain, RecordedMove, SteeringTracker, Stop
 from omni_micro_control.errors import ControllerConfigError, IdentificationError
-from omni_micro_control.feedback import (
-    FeedbackConfig,
-    MovePlan,
-    PaperRule,
-    VisionFeedbackController,
-    wrap_angle,
-)
+from omni_micro_control.feedback import MovePlan, PaperRule, VisionFeedbackController, wrap_angle
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.identification import (
     OFFSETS,
     PARAMETERS,

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from omni_micro_common.conventions import GOAL_TOLERANCE_M
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import MODEL_CAPTURES_PER_STOP, FeedbackConfig
+from omni_micro_control.feedback_config import MODEL_CAPTURES_PER_STOP, FeedbackConfig
 from omni_micro_sim.parameters import DEFAULT_PERIOD_S
 from omni_micro_sim.profile import WheelSpeedProfile
 

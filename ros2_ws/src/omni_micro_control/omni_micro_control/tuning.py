@@ -7,7 +7,8 @@ import dataclasses
 from typing import Any
 
 from omni_micro_control.errors import ControllerConfigError
-from omni_micro_control.feedback import FeedbackConfig, VisionFeedbackController
+from omni_micro_control.feedback import VisionFeedbackController
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.servo_config import SHARED_WITH_SERVO, ServoConfig
 from omni_micro_control.servo_session import ServoSession
 

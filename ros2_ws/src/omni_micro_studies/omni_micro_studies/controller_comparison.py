@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from omni_micro_control.feedback import FeedbackConfig, Outcome
+from omni_micro_control.feedback import Outcome
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_sim.parameters import RobotParameters, steering_preset
 from omni_micro_sim.state import RobotState
 

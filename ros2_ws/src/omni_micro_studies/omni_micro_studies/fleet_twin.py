@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from omni_micro_control.feedback import FeedbackConfig, Finished, VisionFeedbackController
+from omni_micro_control.feedback import Finished, VisionFeedbackController
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.fleet_files import controller_settings
 from omni_micro_control.fleet_legs import LEG_ENDS, GoalOrder, LegDispatcher
 from omni_micro_control.fleet_plan import FleetPlan, PlanningError, Task

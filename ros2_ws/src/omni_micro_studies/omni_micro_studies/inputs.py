@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_sim import paper
 from omni_micro_sim.parameters import STEERING_PRESETS, RobotParameters
 from omni_micro_vision.camera import DEFAULT_RIG, CaptureRule

@@ -10,7 +10,7 @@ import math
 import time
 from typing import Any
 
-from omni_micro_control.feedback import FeedbackConfig
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner
 from omni_micro_control.servo_config import ServoConfig
 from omni_micro_sim import paper

@@ -24,13 +24,13 @@ from omni_micro_common.conventions import (
     yaw_to_quaternion,
 )
 from omni_micro_control.feedback import (
-    FeedbackConfig,
     Finished,
     Move,
     Outcome,
     PaperRule,
     VisionFeedbackController,
 )
+from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner, ModelConfig, planner_for
 from omni_micro_control.move_watcher import MoveWatcher
 from omni_micro_control.observations import Observation

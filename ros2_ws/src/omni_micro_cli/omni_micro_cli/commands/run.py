@@ -91,7 +91,7 @@ def add_graph_arguments(parser: argparse.ArgumentParser) -> None:
 
 def open_loop_seconds(text: str) -> float:
     """An open-loop move's duration: > 0 and at most the controller's limit."""
-    from omni_micro_control.feedback import MAX_OPEN_LOOP_S
+    from omni_micro_control.feedback_config import MAX_OPEN_LOOP_S
 
     value = positive_float(text)
     if value > MAX_OPEN_LOOP_S:
