@@ -98,6 +98,33 @@ def test_timeout_tries_again_then_reports_lost():
     assert tries == 3 and an_end(finished).outcome is Outcome.LOST
 
 
+@pytest.mark.parametrize('said', [None, 'soon', 'nan', '-0.5', 'inf'])
+def test_an_age_that_is_none_changes_no_timeout(said):
+    controller = settled_controller(FeedbackConfig(capture_timeout_s=0.5, max_capture_tries=3))
+    assert controller.take_capture_age('macro', said) is None
+    assert controller.on_time(0.65) == (1, None)
+
+
+def test_timeouts_wait_as_much_longer_as_the_cameras_say_their_captures_come_late():
+    """A driver whose captures come 1.7 s after their stamps (a slow host, a long cable): a
+    capture stamped at timer2's end cannot come sooner, so the tries count from then, the
+    oldest any camera stated; a later, younger statement shortens nothing."""
+    controller = settled_controller(FeedbackConfig(capture_timeout_s=0.5, max_capture_tries=3))
+    assert controller.take_capture_age('macro', '1.7') == pytest.approx(1.7)
+    assert controller.take_capture_age('micro', '0.2') is None
+    assert controller.take_capture_age('macro', '0.9') is None
+    assert controller.on_time(0.1 + 1.7 + 0.45) == (0, None)
+    assert controller.on_time(0.1 + 1.7 + 0.55) == (1, None)
+    # Its capture, stamped after timer2, comes 2.5 s late and still decides.
+    assert controller.on_capture(Observation(0.15, 0.05, 0.0, 0.0)) is not None
+    late = settled_controller(FeedbackConfig(capture_timeout_s=0.5, max_capture_tries=3))
+    late.take_capture_age('macro', '1.7')
+    tries, finished = late.on_time(0.1 + 1.7 + 1.55)
+    assert tries == 3 and an_end(finished).outcome is Outcome.LOST
+    assert an_end(finished).reason == ('no capture within 3 x 0.5 s and the 1.700 s the cameras '
+                                       'say their captures take after the robot stopped')
+
+
 def test_open_loop_makes_one_move_then_completes():
     controller = settled_controller(FeedbackConfig(open_loop_duration_s=7.0))
     move = a_move(controller.on_capture(Observation(0.2, 0.0, 0.0, 0.0)))

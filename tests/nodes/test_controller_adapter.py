@@ -319,3 +319,37 @@ def test_a_capture_that_came_before_its_goal_counts_as_if_it_came_after(context,
             assert messages == ['idle', 'settling'] and trajectories.messages == []
     finally:
         node.destroy_node()
+
+
+def test_a_paper_controller_waits_for_captures_as_late_as_the_tracker_says_they_come(
+        context, monkeypatch):
+    """A driver's captures measured 1.7 s old by the tracker (a starved host, a slow link): the
+    paper's controller says so once, naming the driver's topic, and its capture timeouts count
+    from timer2's end plus that; no age, or a younger one, changes nothing."""
+    from omni_micro_control.feedback import Phase
+
+    node = ControllerNode(context=context)
+    try:
+        warnings: list[str] = []
+        monkeypatch.setattr(node.get_logger(), 'warning', warnings.append)
+        for said in ('garbage', '1.7', '0.4'):
+            node._on_tracker_status(DiagnosticStatus(values=[
+                KeyValue(key='capture_age_s', value=said),
+                KeyValue(key='image_topic', value='/bench/camera/image_raw')]), camera='macro')
+        assert warnings == [
+            'macro: frames from /bench/camera/image_raw give captures up to 1700.0 ms old '
+            '(tracker_status): the capture timeouts (3 x 1 s) count from 1700.0 ms after timer2']
+        goal = PoseStamped()
+        goal.header.frame_id = 'platform'
+        goal.pose.position.x = 0.01
+        node._on_goal(goal)   # at the robot's time 0: timer2 ends at 0.1 s
+        assert isinstance(node.controller, VisionFeedbackController)
+        node.robot_time_s = 0.1 + 1.7 + 0.9
+        node._on_timer()
+        assert len(warnings) == 1 and node.controller.phase is Phase.SETTLING
+        node.robot_time_s = 0.1 + 1.7 + 1.1
+        node._on_timer()
+        assert warnings[1:] == [
+            'no capture 1 x 1 s and 1.700 s after timer2; waiting again (try 2 of 3)']
+    finally:
+        node.destroy_node()

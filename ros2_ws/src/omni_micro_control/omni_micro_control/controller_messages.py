@@ -166,17 +166,29 @@ def capture_age_line(camera: str, values: dict[str, str], own_s: float, bound_s:
             "capture's stamp")
 
 
-def take_tracker_status(servo: ServoSession, camera: str,
+def take_tracker_status(controller: ServoSession | VisionFeedbackController, camera: str,
                         status: Iterable[KeyValue]) -> str | None:
-    """A tracker's status (``camera``'s) taken by the servo: the line to log if the age it
-    states for its captures in motion grew the servo's bound (:func:`capture_age_line`)."""
+    """A tracker's status (``camera``'s) taken by the controller: the line to log if the age it
+    states for its captures grew the servo's bound (:func:`capture_age_line`) or the other
+    modes' allowance before their capture timeouts."""
     values = {item.key: item.value for item in status}
-    own = servo.config.capture_age_s
-    bound = servo.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
-    return None if bound is None else capture_age_line(camera, values, own, bound)
+    if isinstance(controller, ServoSession):
+        own = controller.config.capture_age_s
+        bound = controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
+        return None if bound is None else capture_age_line(camera, values, own, bound)
+    allowance = controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
+    if allowance is None:
+        return None
+    return (f'{camera}: frames from {values.get(IMAGE_TOPIC_KEY, "the camera driver")} give '
+            f'captures up to {float(values[CAPTURE_AGE_KEY]) * 1e3:.1f} ms old '
+            f'(tracker_status): the capture timeouts ({controller.config.max_capture_tries} x '
+            f'{controller.config.capture_timeout_s:g} s) count from {allowance * 1e3:.1f} ms '
+            'after timer2')
 
 
-def waiting_line(tries: int, config: FeedbackConfig) -> str:
-    """The line a controller logs when a capture timeout passes and it waits again."""
-    return (f'no capture {tries} x {config.capture_timeout_s:g} s after timer2; waiting again '
-            f'(try {tries + 1} of {config.max_capture_tries})')
+def waiting_line(tries: int, config: FeedbackConfig, allowance_s: float = 0.0) -> str:
+    """The line a controller logs when a capture timeout passes and it waits again
+    (``allowance_s``: how late the cameras say their captures come)."""
+    late = f' and {allowance_s:.3f} s' if allowance_s > 0.0 else ''
+    return (f'no capture {tries} x {config.capture_timeout_s:g} s{late} after timer2; waiting '
+            f'again (try {tries + 1} of {config.max_capture_tries})')

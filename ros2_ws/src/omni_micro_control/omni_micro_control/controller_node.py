@@ -5,8 +5,9 @@ Subscribes:
   /camera/<name>/pose_with_covariance   captures with their uncertainty (the camera
                        contract, README); with capture_uncertainty: fixed, the bare
                        /camera/<name>/pose captures and the fixed_uncertainty.<name> params
-  /camera/<name>/pose_in_motion   in the servo mode: captures of the moving robot, and
-                       /camera/<name>/tracker_status: how old a driver's come
+  /camera/<name>/pose_in_motion   in the servo mode: captures of the moving robot
+  /camera/<name>/tracker_status   how old a driver's captures come (a servo's bound on their
+                       latency; the other modes' capture timeouts wait that much longer)
   /joint_states        wheel states, to know when a commanded move is over
 Publishes:
   /wheel_trajectory    trajectory_msgs/JointTrajectory moves (and an empty one = stop)
@@ -153,9 +154,9 @@ class ControllerNode(Node):
                     PoseWithCovarianceStamped, CAPTURE_IN_MOTION_TOPICS[name],
                     functools.partial(self.captures.on_capture_with_covariance, camera=name,
                                       in_motion=True), CAPTURE_QOS)
-                self.create_subscription(
-                    DiagnosticStatus, TRACKER_STATUS_TOPICS[name],
-                    functools.partial(self._on_tracker_status, camera=name), STATUS_QOS)
+            self.create_subscription(
+                DiagnosticStatus, TRACKER_STATUS_TOPICS[name],
+                functools.partial(self._on_tracker_status, camera=name), STATUS_QOS)
         self.create_subscription(PoseStamped, GOAL_TOPIC, self._on_goal, 10)
         self.create_subscription(DiagnosticStatus, CAMERA_STATUS_TOPIC, self._on_camera_status,
                                  STATUS_QOS)
@@ -252,8 +253,8 @@ class ControllerNode(Node):
             self.report_lockstep()
 
     def _on_tracker_status(self, msg: DiagnosticStatus, camera: str) -> None:
-        """How old a driver's captures in motion come: the servo's bound grows to it."""
-        assert isinstance(self.controller, ServoSession)
+        """How old a driver's captures come: the servo's bound, or the other modes' allowance
+        before a capture timeout, grows to it."""
         line = take_tracker_status(self.controller, camera, msg.values)
         if line is not None:
             self.get_logger().warning(line)
@@ -286,7 +287,8 @@ class ControllerNode(Node):
         # machine delays them instead of firing them before the captures could arrive.
         tries, finished = self.controller.on_time(self.robot_time_s)
         if tries > tries_before and finished is None:
-            self.get_logger().warning(waiting_line(tries, self.controller.config))
+            self.get_logger().warning(waiting_line(tries, self.controller.config,
+                                                   self.controller.capture_ages.bound_s))
         if finished is not None:
             self.report(finished, at_s=self.robot_time_s)
             self.report_lockstep()

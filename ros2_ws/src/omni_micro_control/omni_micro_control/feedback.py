@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from omni_micro_control.capture_ages import StatedAges
 from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.observations import Observation, mean_observation
 
@@ -142,6 +143,8 @@ class VisionFeedbackController:
         self._early_captures: list[Observation] = []
         self._blind = False
         self._move_overdue_s = math.inf
+        # How late the cameras say their captures come: the timeouts wait that much longer.
+        self.capture_ages = StatedAges()
 
     def set_goal(self, goal_m: tuple[float, float], stopped_at_s: float) -> Finished | None:
         """Aim for ``goal_m`` (platform frame) once the robot has been still since
@@ -280,6 +283,13 @@ class VisionFeedbackController:
             return self._finish(Outcome.LOST, 'the robot is outside every camera field')
         return None
 
+    def take_capture_age(self, camera: str, said: str | None) -> float | None:
+        """A tracker's measured age of ``camera``'s captures when it publishes them (its
+        status's capture_age_s: ``said``): the capture timeouts count from timer2's end plus
+        the oldest any camera has stated, as no capture stamped after timer2 can come sooner.
+        Returns that allowance if it grew (None: it did not, or ``said`` is no age)."""
+        return self.capture_ages.take(camera, said)
+
     def on_time(self, now_s: float) -> tuple[int, Finished | None]:
         """Check the capture timeout at simulated time ``now_s``.
 
@@ -294,14 +304,17 @@ class VisionFeedbackController:
         if self._blind and now_s >= self.deadline_s - 1e-9:
             return self.tries, self._finish(Outcome.LOST,
                                             'the robot is outside every camera field')
-        overdue = now_s - self.deadline_s
+        allowance_s = self.capture_ages.bound_s
+        overdue = now_s - self.deadline_s - allowance_s
         tries = int(overdue // self.config.capture_timeout_s) if overdue > 0 else 0
         if tries > self.tries:
             self.tries = tries
             if tries >= self.config.max_capture_tries:
+                late = (f' and the {allowance_s:.3f} s the cameras say their captures take'
+                        if allowance_s > 0.0 else '')
                 return tries, self._finish(
                     Outcome.LOST, f'no capture within {tries} x '
-                    f'{self.config.capture_timeout_s:g} s after the robot stopped')
+                    f'{self.config.capture_timeout_s:g} s{late} after the robot stopped')
         return self.tries, None
 
 

@@ -12,6 +12,7 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from omni_micro_control.capture_ages import StatedAges
 from omni_micro_control.feedback import REPLACED_REASON, Finished, Outcome, Phase
 from omni_micro_control.observations import Observation
 from omni_micro_control.servo_config import ServoCommand, ServoConfig, ServoPhase
@@ -34,8 +35,7 @@ class ServoSession:
 
         self.servo: ServoController = ServoController(config, limits, robot)
         self.captures_in_motion = 0
-        self._own_capture_age_s = config.capture_age_s
-        self._stated_ages: dict[str, float] = {}
+        self.capture_ages = StatedAges(config.capture_age_s)
 
     @property
     def config(self) -> ServoConfig:
@@ -88,18 +88,9 @@ class ServoSession:
         (its status's capture_age_s, in seconds: ``said``): the servo starts its corrections no
         sooner after a capture's stamp than the oldest any camera has stated, nor than its own
         setting. Returns the new bound if it grew (None: it did not, or ``said`` is no age)."""
-        try:
-            age_s = float(said) if said is not None else math.nan
-        except ValueError:
-            return None
-        if not (math.isfinite(age_s) and age_s >= 0.0):
-            return None
-        before = self.config.capture_age_s
-        self._stated_ages[camera] = max(age_s, self._stated_ages.get(camera, 0.0))
-        bound = max(self._own_capture_age_s, *self._stated_ages.values())
-        if bound <= before:
-            return None
-        self.servo.config = dataclasses.replace(self.servo.config, capture_age_s=bound)
+        bound = self.capture_ages.take(camera, said)
+        if bound is not None:
+            self.servo.config = dataclasses.replace(self.servo.config, capture_age_s=bound)
         return bound
 
     def on_out_of_field(self, stamp_s: float) -> Finished | None:
