@@ -1,7 +1,8 @@
 """The vision-feedback controller of section 4, the model-based mode and the servo mode.
 
 Plain modules (no rclpy): :mod:`feedback` (timer1/timer2, theta1 = alpha - phi, the distance
-comparator, the outcome; its settings and the modes in :mod:`feedback_config`), :mod:`observations`
+comparator, the outcome; its settings and the modes in :mod:`feedback_config`; how late the cameras
+say their captures come, which every mode allows for, in :mod:`capture_ages`), :mod:`observations`
 (a capture as the controllers see it), :mod:`move_watcher` (a move's end, from the wheel states),
 :mod:`tuning` (which settings may change while a controller runs), :mod:`model_based` (plans
 through the slip model, learns the robot) and :mod:`identification` (the least-squares fit it and
