@@ -350,6 +350,7 @@ def test_a_paper_controller_waits_for_captures_as_late_as_the_tracker_says_they_
         node.robot_time_s = 0.1 + 1.7 + 1.1
         node._on_timer()
         assert warnings[1:] == [
-            'no capture 1 x 1 s and 1.700 s after timer2; waiting again (try 2 of 3)']
+            'no capture 1 x 1 s and the 1.700 s the cameras say their captures take after '
+            'timer2; waiting again (try 2 of 3)']
     finally:
         node.destroy_node()

@@ -189,6 +189,7 @@ def take_tracker_status(controller: ServoSession | VisionFeedbackController, cam
 def waiting_line(tries: int, config: FeedbackConfig, allowance_s: float = 0.0) -> str:
     """The line a controller logs when a capture timeout passes and it waits again
     (``allowance_s``: how late the cameras say their captures come)."""
-    late = f' and {allowance_s:.3f} s' if allowance_s > 0.0 else ''
+    late = (f' and the {allowance_s:.3f} s the cameras say their captures take'
+            if allowance_s > 0.0 else '')
     return (f'no capture {tries} x {config.capture_timeout_s:g} s{late} after timer2; waiting '
             f'again (try {tries + 1} of {config.max_capture_tries})')
