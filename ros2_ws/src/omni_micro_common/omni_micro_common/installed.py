@@ -31,9 +31,8 @@ def dds_profile_file() -> Path | None:
 def use_dds_profile() -> None:
     """This process's DDS participants on the project's Fast DDS profile, unless the user named
     one (``FASTRTPS_DEFAULT_PROFILES_FILE``): rmw_fastrtps reads it as the process makes each
-    participant. Among what it sets (config/fastdds.xml), Fast DDS's own warnings and errors go
-    to standard error: by default it prints them on standard output, ahead of a ``--json``
-    document."""
+    participant. Among what it sets (config/fastdds.xml), Fast DDS's own errors go to standard
+    error: by default it prints them on standard output, ahead of a ``--json`` document."""
     profile = dds_profile_file()
     if profile is not None:
         os.environ.setdefault('FASTRTPS_DEFAULT_PROFILES_FILE', str(profile))
