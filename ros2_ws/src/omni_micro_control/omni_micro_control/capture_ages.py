@@ -37,3 +37,9 @@ class StatedAges:
         before = self.bound_s
         self._by_camera[camera] = max(age_s, self._by_camera.get(camera, 0.0))
         return self.bound_s if self.bound_s > before else None
+
+
+def allowance_words(allowance_s: float) -> str:
+    """What a capture timeout's line adds for the cameras' stated lateness ('' for none)."""
+    return (f' and the {allowance_s:.3f} s the cameras say their captures take'
+            if allowance_s > 0.0 else '')

@@ -23,6 +23,7 @@ from omni_micro_common.conventions import (
     split_stamp,
 )
 from omni_micro_common.topic_names import namespaced_frame
+from omni_micro_control.capture_ages import allowance_words
 from omni_micro_control.feedback import Finished, Move, Outcome, VisionFeedbackController
 from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.model_based import ModelBasedPlanner, learnt_offsets
@@ -156,14 +157,20 @@ def outcome_values(finished: Finished, robot_time_s: float,
     return values
 
 
+def stated_age(camera: str, values: dict[str, str], captures: str = 'captures') -> str:
+    """What a tracker's status (``values``) says of ``camera``'s captures' age, as a
+    controller's line names it."""
+    return (f'{camera}: frames from {values.get(IMAGE_TOPIC_KEY, "the camera driver")} give '
+            f'{captures} up to {float(values[CAPTURE_AGE_KEY]) * 1e3:.1f} ms old '
+            '(tracker_status)')
+
+
 def capture_age_line(camera: str, values: dict[str, str], own_s: float, bound_s: float) -> str:
     """The line a servo logs when a driver's captures in motion come later than its bound
     (``values``: the tracker's status)."""
-    return (f'{camera}: frames from {values.get(IMAGE_TOPIC_KEY, "the camera driver")} give '
-            f'captures in motion up to {float(values[CAPTURE_AGE_KEY]) * 1e3:.1f} ms old '
-            f"(tracker_status), later than the servo's bound of {own_s * 1e3:.1f} ms "
-            f'(servo.capture_age_s): it starts its corrections {bound_s * 1e3:.1f} ms after a '
-            "capture's stamp")
+    return (f"{stated_age(camera, values, 'captures in motion')}, later than the servo's bound "
+            f'of {own_s * 1e3:.1f} ms (servo.capture_age_s): it starts its corrections '
+            f"{bound_s * 1e3:.1f} ms after a capture's stamp")
 
 
 def take_tracker_status(controller: ServoSession | VisionFeedbackController, camera: str,
@@ -179,17 +186,13 @@ def take_tracker_status(controller: ServoSession | VisionFeedbackController, cam
     allowance = controller.take_capture_age(camera, values.get(CAPTURE_AGE_KEY))
     if allowance is None:
         return None
-    return (f'{camera}: frames from {values.get(IMAGE_TOPIC_KEY, "the camera driver")} give '
-            f'captures up to {float(values[CAPTURE_AGE_KEY]) * 1e3:.1f} ms old '
-            f'(tracker_status): the capture timeouts ({controller.config.max_capture_tries} x '
-            f'{controller.config.capture_timeout_s:g} s) count from {allowance * 1e3:.1f} ms '
-            'after timer2')
+    config = controller.config
+    return (f'{stated_age(camera, values)}: the capture timeouts ({config.max_capture_tries} x '
+            f'{config.capture_timeout_s:g} s) count from {allowance * 1e3:.1f} ms after timer2')
 
 
 def waiting_line(tries: int, config: FeedbackConfig, allowance_s: float = 0.0) -> str:
     """The line a controller logs when a capture timeout passes and it waits again
     (``allowance_s``: how late the cameras say their captures come)."""
-    late = (f' and the {allowance_s:.3f} s the cameras say their captures take'
-            if allowance_s > 0.0 else '')
-    return (f'no capture {tries} x {config.capture_timeout_s:g} s{late} after timer2; waiting '
-            f'again (try {tries + 1} of {config.max_capture_tries})')
+    return (f'no capture {tries} x {config.capture_timeout_s:g} s{allowance_words(allowance_s)} '
+            f'after timer2; waiting again (try {tries + 1} of {config.max_capture_tries})')

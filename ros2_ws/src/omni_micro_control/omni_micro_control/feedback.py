@@ -26,7 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
-from omni_micro_control.capture_ages import StatedAges
+from omni_micro_control.capture_ages import StatedAges, allowance_words
 from omni_micro_control.feedback_config import FeedbackConfig
 from omni_micro_control.observations import Observation, mean_observation
 
@@ -310,11 +310,9 @@ class VisionFeedbackController:
         if tries > self.tries:
             self.tries = tries
             if tries >= self.config.max_capture_tries:
-                late = (f' and the {allowance_s:.3f} s the cameras say their captures take'
-                        if allowance_s > 0.0 else '')
                 return tries, self._finish(
-                    Outcome.LOST, f'no capture within {tries} x '
-                    f'{self.config.capture_timeout_s:g} s{late} after the robot stopped')
+                    Outcome.LOST, f'no capture within {tries} x {self.config.capture_timeout_s:g}'
+                    f' s{allowance_words(allowance_s)} after the robot stopped')
         return self.tries, None
 
 
